@@ -1,0 +1,133 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The library's typed errors.
+//!
+//! Every variant says *what* went wrong, *where* (file, field, layer) and, where there is one, *what to
+//! do*. The binary maps [`Error::is_input_error`] to exit code 2.
+
+use std::path::PathBuf;
+
+/// Everything that can go wrong in decalbake.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// No GPU adapter could be found for the requested backends.
+    #[error("no GPU adapter found for backends {backends}: {detail}. On Debian/Ubuntu install the software Vulkan driver with `apt-get install -y mesa-vulkan-drivers`, or try `--backend gl`")]
+    NoAdapter {
+        /// The backends that were searched.
+        backends: String,
+        /// What wgpu said.
+        detail: String,
+    },
+    /// The adapter refused to create a device.
+    #[error("could not create a GPU device on {adapter}: {detail}")]
+    DeviceCreation {
+        /// Adapter name.
+        adapter: String,
+        /// What wgpu said.
+        detail: String,
+    },
+    /// wgpu reported a validation or out-of-memory error inside a GPU operation.
+    #[error("GPU error during {stage}: {detail}")]
+    Gpu {
+        /// The engine stage that issued the work.
+        stage: String,
+        /// What wgpu said.
+        detail: String,
+    },
+    /// The device was lost (driver reset, destroyed by the host, ...).
+    #[error("the GPU device was lost during {stage}: {detail}")]
+    DeviceLost {
+        /// The engine stage that noticed.
+        stage: String,
+        /// What wgpu said.
+        detail: String,
+    },
+    /// A file could not be read or written.
+    #[error("{}: {action} failed: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// "reading", "writing", ...
+        action: &'static str,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// A glTF file is malformed or unsupported.
+    #[error("{}: {detail}", path.display())]
+    Gltf {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong and what to do.
+        detail: String,
+    },
+    /// A mesh is unusable (no triangles, NaN positions, out-of-range indices, missing UV set...).
+    #[error("{}: {detail}", path.display())]
+    Mesh {
+        /// The file the mesh came from.
+        path: PathBuf,
+        /// What is wrong and what to do.
+        detail: String,
+    },
+    /// A job file is malformed or has an invalid value.
+    #[error("{}: field `{field}`: {detail}", path.display())]
+    Job {
+        /// The job file.
+        path: PathBuf,
+        /// JSON path of the offending field, e.g. `layers[2].size`.
+        field: String,
+        /// What is wrong and what to do.
+        detail: String,
+    },
+    /// An image failed to decode or encode.
+    #[error("{}: image {action} failed: {detail}", path.display())]
+    Image {
+        /// The image file.
+        path: PathBuf,
+        /// "decoding" or "encoding".
+        action: &'static str,
+        /// What the decoder said.
+        detail: String,
+    },
+    /// A layer could not be placed on the mesh.
+    #[error("layer {layer}: {detail}")]
+    Placement {
+        /// Index of the layer in the job.
+        layer: usize,
+        /// What is wrong and what to do.
+        detail: String,
+    },
+}
+
+impl Error {
+    /// True for errors caused by the user's input (files, job values), false for environment and GPU
+    /// failures. The CLI exits with code 2 for input errors and 1 for the rest.
+    pub fn is_input_error(&self) -> bool {
+        matches!(
+            self,
+            Error::Io { .. }
+                | Error::Gltf { .. }
+                | Error::Mesh { .. }
+                | Error::Job { .. }
+                | Error::Image { .. }
+                | Error::Placement { .. }
+        )
+    }
+
+    pub(crate) fn job(path: &std::path::Path, field: impl Into<String>, detail: impl Into<String>) -> Self {
+        Error::Job {
+            path: path.to_path_buf(),
+            field: field.into(),
+            detail: detail.into(),
+        }
+    }
+
+    pub(crate) fn mesh(path: &std::path::Path, detail: impl Into<String>) -> Self {
+        Error::Mesh {
+            path: path.to_path_buf(),
+            detail: detail.into(),
+        }
+    }
+}
+
+/// Shorthand for `Result<T, decalbake::Error>`.
+pub type Result<T> = std::result::Result<T, Error>;

@@ -1,0 +1,243 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Image decoding and encoding, colour-space conversion and atomic file writes.
+//!
+//! All colour work inside decalbake is linear RGBA in `f32`. 8-bit images are taken as sRGB-encoded and
+//! decoded with the exact sRGB transfer function; 16-bit PNGs likewise (the PNG convention), so 16-bit
+//! inputs keep their precision end to end. Output is encoded back to sRGB at 8 or 16 bits.
+
+use crate::error::{Error, Result};
+use std::path::Path;
+
+/// A straight-alpha, linear-light RGBA image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinearImage {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Row-major pixels, top row first.
+    pub pixels: Vec<[f32; 4]>,
+}
+
+/// sRGB transfer function, decode (IEC 61966-2-1).
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// sRGB transfer function, encode (IEC 61966-2-1).
+pub fn linear_to_srgb(c: f32) -> f32 {
+    let c = c.clamp(0.0, 1.0);
+    if c <= 0.003_130_8 {
+        c * 12.92
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+impl LinearImage {
+    /// A `width`×`height` image filled with one colour.
+    pub fn solid(width: u32, height: u32, rgba: [f32; 4]) -> Self {
+        Self { width, height, pixels: vec![rgba; (width * height) as usize] }
+    }
+
+    /// Decodes an image file (PNG or JPEG, 8 or 16 bit). Colour channels are sRGB-decoded, alpha is
+    /// kept linear.
+    pub fn load(path: &Path) -> Result<Self> {
+        let bytes = std::fs::read(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            action: "reading the image",
+            source,
+        })?;
+        Self::decode(&bytes).map_err(|detail| Error::Image {
+            path: path.to_path_buf(),
+            action: "decoding",
+            detail: format!("{detail}; decalbake reads PNG and JPEG images"),
+        })
+    }
+
+    /// Decodes encoded image bytes (PNG or JPEG).
+    pub fn decode(bytes: &[u8]) -> std::result::Result<Self, String> {
+        let img = image::load_from_memory(bytes).map_err(|e| e.to_string())?;
+        let (width, height) = (img.width(), img.height());
+        let pixels = if img.color().bytes_per_pixel() / img.color().channel_count().max(1) >= 2 {
+            let buf = img.to_rgba16();
+            buf.pixels()
+                .map(|p| {
+                    let f = |c: u16| c as f32 / 65535.0;
+                    [srgb_to_linear(f(p[0])), srgb_to_linear(f(p[1])), srgb_to_linear(f(p[2])), f(p[3])]
+                })
+                .collect()
+        } else {
+            let buf = img.to_rgba8();
+            let lut: Vec<f32> = (0..256).map(|c| srgb_to_linear(c as f32 / 255.0)).collect();
+            buf.pixels()
+                .map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize], p[3] as f32 / 255.0])
+                .collect()
+        };
+        Ok(Self { width, height, pixels })
+    }
+
+    /// Converts image data decoded by the `gltf` crate. `srgb` says whether colour channels are
+    /// sRGB-encoded (base-colour textures are).
+    pub fn from_gltf(data: &gltf::image::Data, srgb: bool) -> std::result::Result<Self, String> {
+        use gltf::image::Format as F;
+        let dec = |c: f32| if srgb { srgb_to_linear(c) } else { c };
+        let (ch, bytes_per_ch): (usize, usize) = match data.format {
+            F::R8 => (1, 1),
+            F::R8G8 => (2, 1),
+            F::R8G8B8 => (3, 1),
+            F::R8G8B8A8 => (4, 1),
+            F::R16 => (1, 2),
+            F::R16G16 => (2, 2),
+            F::R16G16B16 => (3, 2),
+            F::R16G16B16A16 => (4, 2),
+            other => return Err(format!("unsupported pixel format {other:?}")),
+        };
+        let n = (data.width * data.height) as usize;
+        if data.pixels.len() < n * ch * bytes_per_ch {
+            return Err("pixel data is shorter than width × height".into());
+        }
+        let read = |i: usize| -> f32 {
+            if bytes_per_ch == 1 {
+                data.pixels[i] as f32 / 255.0
+            } else {
+                u16::from_ne_bytes([data.pixels[2 * i], data.pixels[2 * i + 1]]) as f32 / 65535.0
+            }
+        };
+        let pixels = (0..n)
+            .map(|p| {
+                let c = |k: usize| read(p * ch + k);
+                match ch {
+                    1 => [dec(c(0)), dec(c(0)), dec(c(0)), 1.0],
+                    2 => [dec(c(0)), dec(c(0)), dec(c(0)), c(1)],
+                    3 => [dec(c(0)), dec(c(1)), dec(c(2)), 1.0],
+                    _ => [dec(c(0)), dec(c(1)), dec(c(2)), c(3)],
+                }
+            })
+            .collect();
+        Ok(Self { width: data.width, height: data.height, pixels })
+    }
+
+    /// Encodes to PNG bytes, sRGB, 8 or 16 bits per channel.
+    pub fn encode_png(&self, bit_depth: u8) -> Vec<u8> {
+        let mut out = Vec::new();
+        let enc = image::codecs::png::PngEncoder::new(&mut out);
+        use image::ImageEncoder;
+        if bit_depth == 16 {
+            let mut raw: Vec<u8> = Vec::with_capacity(self.pixels.len() * 8);
+            for p in &self.pixels {
+                for (k, c) in p.iter().enumerate() {
+                    let e = if k < 3 { linear_to_srgb(*c) } else { c.clamp(0.0, 1.0) };
+                    raw.extend_from_slice(&((e * 65535.0).round() as u16).to_be_bytes());
+                }
+            }
+            enc.write_image(&raw, self.width, self.height, image::ExtendedColorType::Rgba16)
+                .expect("PNG encoding into memory cannot fail for a well-formed buffer");
+        } else {
+            let raw = self.to_srgb8();
+            enc.write_image(&raw, self.width, self.height, image::ExtendedColorType::Rgba8)
+                .expect("PNG encoding into memory cannot fail for a well-formed buffer");
+        }
+        out
+    }
+
+    /// sRGB-encoded RGBA8 bytes.
+    pub fn to_srgb8(&self) -> Vec<u8> {
+        let mut raw = Vec::with_capacity(self.pixels.len() * 4);
+        for p in &self.pixels {
+            for (k, c) in p.iter().enumerate() {
+                let e = if k < 3 { linear_to_srgb(*c) } else { c.clamp(0.0, 1.0) };
+                raw.push((e * 255.0).round() as u8);
+            }
+        }
+        raw
+    }
+
+    /// Premultiplied-alpha mip chain (level 0 first), each level a 2×2 box filter of the previous,
+    /// down to 1×1. Premultiplying before filtering keeps transparent texels from darkening edges.
+    pub fn premultiplied_mips(&self) -> Vec<LinearImage> {
+        let mut level = LinearImage {
+            width: self.width,
+            height: self.height,
+            pixels: self.pixels.iter().map(|p| [p[0] * p[3], p[1] * p[3], p[2] * p[3], p[3]]).collect(),
+        };
+        let mut out = Vec::new();
+        loop {
+            let (w, h) = (level.width, level.height);
+            let next_w = (w / 2).max(1);
+            let next_h = (h / 2).max(1);
+            let done = w == 1 && h == 1;
+            let mut next = LinearImage::solid(next_w, next_h, [0.0; 4]);
+            if !done {
+                for y in 0..next_h {
+                    for x in 0..next_w {
+                        let mut acc = [0.0f32; 4];
+                        let xs = [(2 * x).min(w - 1), (2 * x + 1).min(w - 1)];
+                        let ys = [(2 * y).min(h - 1), (2 * y + 1).min(h - 1)];
+                        for sy in ys {
+                            for sx in xs {
+                                let p = level.pixels[(sy * w + sx) as usize];
+                                for k in 0..4 {
+                                    acc[k] += 0.25 * p[k];
+                                }
+                            }
+                        }
+                        next.pixels[(y * next_w + x) as usize] = acc;
+                    }
+                }
+            }
+            out.push(level);
+            if done {
+                break;
+            }
+            level = next;
+        }
+        out
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so a reader
+/// never sees a half-written file and a failure leaves nothing behind.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let file_name = path.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let tmp = dir.join(format!(".{file_name}.tmp-{}", std::process::id()));
+    let io = |source| Error::Io { path: path.to_path_buf(), action: "writing", source };
+    if let Err(e) = std::fs::write(&tmp, bytes) {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(io(e));
+    }
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        io(e)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_round_trip_is_exact_at_8_bits() {
+        for c in 0..=255u32 {
+            let lin = srgb_to_linear(c as f32 / 255.0);
+            let back = (linear_to_srgb(lin) * 255.0).round() as u32;
+            assert_eq!(back, c);
+        }
+    }
+
+    #[test]
+    fn mips_preserve_mean_premultiplied_colour() {
+        let mut img = LinearImage::solid(4, 2, [1.0, 0.0, 0.0, 1.0]);
+        img.pixels[0] = [0.0, 1.0, 0.0, 0.0];
+        let mips = img.premultiplied_mips();
+        assert_eq!(mips.len(), 3);
+        let last = mips[2].pixels[0];
+        // 7 of 8 texels are opaque red, one is transparent: mean premultiplied red = 7/8, alpha 7/8.
+        assert!((last[0] - 0.875).abs() < 1e-6 && (last[3] - 0.875).abs() < 1e-6 && last[1].abs() < 1e-6);
+    }
+}

@@ -1,0 +1,248 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! glTF 2.0 loading (`.gltf` with external or data-URI buffers, and `.glb`).
+//!
+//! Every triangle primitive of the default scene (or the first scene) is taken with its node's world
+//! transform applied. Positions, normals (computed, area-weighted over the welded surface, when a
+//! primitive has none), indices (generated when absent), every `TEXCOORD_n` set and the base-colour
+//! texture of the first textured material are read. The result keeps glTF's split vertices, which
+//! rasterization needs; [`crate::mesh::Topology`] welds them for the surface.
+
+use crate::error::{Error, Result};
+use crate::image_io::LinearImage;
+use glam::{Mat3, Mat4, Vec2, Vec3};
+use std::path::{Path, PathBuf};
+
+/// One glTF primitive as it appears in the scene.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PrimitiveInfo {
+    /// `mesh[i].primitives[j]` in the source file.
+    pub name: String,
+    /// First triangle of this primitive in [`Mesh::triangles`].
+    pub first_triangle: u32,
+    /// Triangle count.
+    pub triangles: u32,
+    /// Vertex count (glTF, split).
+    pub vertices: u32,
+    /// Number of `TEXCOORD_n` sets it has.
+    pub uv_sets: u32,
+    /// Whether the file supplied normals.
+    pub has_normals: bool,
+    /// Material index, if any.
+    pub material: Option<usize>,
+}
+
+/// Material data the baker uses.
+#[derive(Debug, Clone)]
+pub struct MaterialInfo {
+    /// `baseColorFactor`, linear RGBA.
+    pub base_color_factor: [f32; 4],
+    /// The base-colour texture decoded to linear RGBA, if the material has one.
+    pub base_color_texture: Option<LinearImage>,
+    /// Which `TEXCOORD_n` the base-colour texture uses.
+    pub base_color_uv_set: u32,
+    /// `metallicFactor`.
+    pub metallic: f32,
+    /// `roughnessFactor`.
+    pub roughness: f32,
+}
+
+/// A triangle mesh as loaded: split (per-UV-seam) vertices with world-space attributes.
+#[derive(Debug, Clone)]
+pub struct Mesh {
+    /// Where it came from (for error messages).
+    pub source: PathBuf,
+    /// World-space positions, one per split vertex.
+    pub positions: Vec<Vec3>,
+    /// World-space unit normals, one per split vertex.
+    pub normals: Vec<Vec3>,
+    /// `uv_sets[n][v]` is `TEXCOORD_n` of split vertex `v`. Only sets present on every primitive.
+    pub uv_sets: Vec<Vec<Vec2>>,
+    /// Triangles as split vertex indices, counter-clockwise seen from outside.
+    pub triangles: Vec<[u32; 3]>,
+    /// The primitives, in scene order.
+    pub primitives: Vec<PrimitiveInfo>,
+    /// Material of the first primitive that has one (the baked texture replaces its base colour).
+    pub material: Option<MaterialInfo>,
+}
+
+fn gltf_err(path: &Path, detail: impl std::fmt::Display) -> Error {
+    Error::Gltf {
+        path: path.to_path_buf(),
+        detail: format!(
+            "{detail}. decalbake reads glTF 2.0 (.gltf with its .bin/images, or .glb); check the file with the Khronos glTF-Validator"
+        ),
+    }
+}
+
+impl Mesh {
+    /// Loads a `.gltf` or `.glb` file.
+    pub fn load(path: &Path) -> Result<Self> {
+        let bytes = std::fs::read(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            action: "reading the mesh",
+            source,
+        })?;
+        Self::from_bytes(&bytes, path, path.parent())
+    }
+
+    /// Loads glTF from memory. `name` is used in messages; `base` resolves external URIs (`None`
+    /// allows only embedded data).
+    pub fn from_bytes(bytes: &[u8], name: &Path, base: Option<&Path>) -> Result<Self> {
+        let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| gltf_err(name, e))?;
+        let base_dir = base.map(|b| if b.as_os_str().is_empty() { Path::new(".") } else { b });
+        let document = gltf.document;
+        let buffers = gltf::import_buffers(&document, base_dir, gltf.blob)
+            .map_err(|e| gltf_err(name, format!("loading buffers: {e}")))?;
+
+        let scene = document
+            .default_scene()
+            .or_else(|| document.scenes().next())
+            .ok_or_else(|| Error::mesh(name, "the file has no scene, so no triangles to bake onto; export the model with a scene"))?;
+
+        let mut mesh = Mesh {
+            source: name.to_path_buf(),
+            positions: Vec::new(),
+            normals: Vec::new(),
+            uv_sets: Vec::new(),
+            triangles: Vec::new(),
+            primitives: Vec::new(),
+            material: None,
+        };
+        let mut per_prim_uvs: Vec<Vec<Vec<Vec2>>> = Vec::new();
+        let mut material_index: Option<usize> = None;
+        let mut stack: Vec<(gltf::Node, Mat4)> = scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
+        while let Some((node, parent)) = stack.pop() {
+            let local = Mat4::from_cols_array_2d(&node.transform().matrix());
+            let world = parent * local;
+            for child in node.children() {
+                stack.push((child, world));
+            }
+            let Some(gmesh) = node.mesh() else { continue };
+            for prim in gmesh.primitives() {
+                let pname = format!("meshes[{}].primitives[{}]", gmesh.index(), prim.index());
+                if prim.mode() != gltf::mesh::Mode::Triangles {
+                    log::warn!("{}: {pname} is {:?}, not triangles; skipped", name.display(), prim.mode());
+                    continue;
+                }
+                let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+                let Some(pos_iter) = reader.read_positions() else {
+                    return Err(Error::mesh(name, format!("{pname} has no POSITION attribute; re-export the mesh with positions")));
+                };
+                let positions: Vec<Vec3> = pos_iter.map(Vec3::from).collect();
+                let nverts = positions.len() as u32;
+                for (i, p) in positions.iter().enumerate() {
+                    if !p.is_finite() {
+                        return Err(Error::mesh(name, format!("{pname} POSITION[{i}] is {p} (not finite); fix or remove that vertex in your modelling tool")));
+                    }
+                }
+                let indices: Vec<u32> = match reader.read_indices() {
+                    Some(ix) => ix.into_u32().collect(),
+                    None => (0..nverts).collect(),
+                };
+                if indices.len() % 3 != 0 {
+                    return Err(Error::mesh(name, format!("{pname} has {} indices, not a multiple of 3", indices.len())));
+                }
+                if let Some((k, &bad)) = indices.iter().enumerate().find(|(_, &i)| i >= nverts) {
+                    return Err(Error::mesh(name, format!("{pname} indices[{k}] = {bad} is out of range (the primitive has {nverts} vertices); the file is corrupt, re-export it")));
+                }
+                let normals: Option<Vec<Vec3>> = reader.read_normals().map(|n| n.map(Vec3::from).collect());
+                let mut sets = Vec::new();
+                let mut set = 0;
+                while let Some(tc) = reader.read_tex_coords(set) {
+                    let uv: Vec<Vec2> = tc.into_f32().map(Vec2::from).collect();
+                    if let Some((i, u)) = uv.iter().enumerate().find(|(_, u)| !u.is_finite()) {
+                        return Err(Error::mesh(name, format!("{pname} TEXCOORD_{set}[{i}] is {u} (not finite)")));
+                    }
+                    sets.push(uv);
+                    set += 1;
+                }
+                let m3 = Mat3::from_mat4(world);
+                let nmat = m3.inverse().transpose();
+                let flip = m3.determinant() < 0.0;
+                let base = mesh.positions.len() as u32;
+                let first_triangle = mesh.triangles.len() as u32;
+                mesh.positions.extend(positions.iter().map(|p| world.transform_point3(*p)));
+                let has_normals = normals.is_some();
+                match normals {
+                    Some(n) => mesh.normals.extend(n.iter().map(|n| (nmat * *n).normalize_or_zero())),
+                    None => mesh.normals.extend(std::iter::repeat_n(Vec3::ZERO, positions.len())),
+                }
+                for t in indices.chunks_exact(3) {
+                    let tri = [base + t[0], base + t[1], base + t[2]];
+                    mesh.triangles.push(if flip { [tri[0], tri[2], tri[1]] } else { tri });
+                }
+                let material = prim.material().index();
+                if material_index.is_none() && material.is_some() {
+                    material_index = material;
+                }
+                mesh.primitives.push(PrimitiveInfo {
+                    name: pname,
+                    first_triangle,
+                    triangles: (indices.len() / 3) as u32,
+                    vertices: nverts,
+                    uv_sets: sets.len() as u32,
+                    has_normals,
+                    material,
+                });
+                per_prim_uvs.push(sets);
+            }
+        }
+        if mesh.triangles.is_empty() {
+            return Err(Error::mesh(name, "the scene has no triangles (no triangle primitives in any node); decalbake needs a triangle mesh"));
+        }
+        // Only UV sets every primitive has can be baked into.
+        let common = per_prim_uvs.iter().map(|s| s.len()).min().unwrap_or(0);
+        for n in 0..common {
+            mesh.uv_sets.push(per_prim_uvs.iter().flat_map(|s| s[n].iter().copied()).collect());
+        }
+        if let Some(mi) = material_index {
+            mesh.material = Some(load_material(&document, mi, &buffers, name, base_dir)?);
+        }
+        Ok(mesh)
+    }
+
+    /// Bounding box (min, max) of the positions.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        self.positions
+            .iter()
+            .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), p| (lo.min(*p), hi.max(*p)))
+    }
+}
+
+fn load_material(
+    document: &gltf::Document,
+    index: usize,
+    buffers: &[gltf::buffer::Data],
+    name: &Path,
+    base: Option<&Path>,
+) -> Result<MaterialInfo> {
+    let mat = document
+        .materials()
+        .nth(index)
+        .ok_or_else(|| gltf_err(name, format!("material {index} does not exist")))?;
+    let pbr = mat.pbr_metallic_roughness();
+    let mut info = MaterialInfo {
+        base_color_factor: pbr.base_color_factor(),
+        base_color_texture: None,
+        base_color_uv_set: 0,
+        metallic: pbr.metallic_factor(),
+        roughness: pbr.roughness_factor(),
+    };
+    if let Some(tex) = pbr.base_color_texture() {
+        info.base_color_uv_set = tex.tex_coord();
+        let src = tex.texture().source();
+        let what = format!("materials[{index}] baseColorTexture (images[{}])", src.index());
+        let data = gltf::image::Data::from_source(src.source(), Some(base.unwrap_or(Path::new("."))), buffers)
+            .map_err(|e| Error::Image {
+                path: name.to_path_buf(),
+                action: "decoding",
+                detail: format!("{what}: {e}"),
+            })?;
+        info.base_color_texture = Some(LinearImage::from_gltf(&data, true).map_err(|d| Error::Image {
+            path: name.to_path_buf(),
+            action: "decoding",
+            detail: format!("{what}: {d}"),
+        })?);
+    }
+    Ok(info)
+}

@@ -1,0 +1,74 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! WGSL sources, one file per kernel or pipeline under `wgsl/`, with shared code under `wgsl/shared/`.
+//!
+//! A line `#import name` pulls in `wgsl/shared/name.wgsl` (once per shader). [`source`] does that for
+//! the runtime; the naga validation test (`tests/shader_validation.rs`) uses the same function, so
+//! what is validated is exactly what runs.
+
+/// Kernel and pipeline files: (name, text).
+pub const KERNELS: &[(&str, &str)] = &[
+    ("place_candidates", include_str!("../wgsl/place_candidates.wgsl")),
+    ("place_reduce", include_str!("../wgsl/place_reduce.wgsl")),
+    ("planar_coords", include_str!("../wgsl/planar_coords.wgsl")),
+    ("select_triangles", include_str!("../wgsl/select_triangles.wgsl")),
+    ("layer_raster", include_str!("../wgsl/layer_raster.wgsl")),
+    ("island_raster", include_str!("../wgsl/island_raster.wgsl")),
+    ("island_mask", include_str!("../wgsl/island_mask.wgsl")),
+    ("compose", include_str!("../wgsl/compose.wgsl")),
+    ("base_init", include_str!("../wgsl/base_init.wgsl")),
+    ("edt_columns", include_str!("../wgsl/edt_columns.wgsl")),
+    ("edt_rows_fill", include_str!("../wgsl/edt_rows_fill.wgsl")),
+    ("encode", include_str!("../wgsl/encode.wgsl")),
+    ("preview", include_str!("../wgsl/preview.wgsl")),
+];
+
+/// Shared files that `#import` can name.
+pub const SHARED: &[(&str, &str)] = &[
+    ("params", include_str!("../wgsl/shared/params.wgsl")),
+    ("geometry", include_str!("../wgsl/shared/geometry.wgsl")),
+    ("blend", include_str!("../wgsl/shared/blend.wgsl")),
+];
+
+/// The complete WGSL text of kernel `name`, imports resolved. Panics on an unknown name or import:
+/// both are programming errors caught by the validation test.
+pub fn source(name: &str) -> String {
+    let text = KERNELS
+        .iter()
+        .find(|(n, _)| *n == name)
+        .unwrap_or_else(|| panic!("unknown shader {name}"))
+        .1;
+    resolve(text)
+}
+
+/// Resolves `#import` lines in `text`.
+pub fn resolve(text: &str) -> String {
+    let mut out = String::new();
+    let mut seen: Vec<&str> = Vec::new();
+    for line in text.lines() {
+        if let Some(name) = line.trim().strip_prefix("#import ") {
+            let name = name.trim();
+            if !seen.contains(&name) {
+                seen.push(name);
+                let shared = SHARED
+                    .iter()
+                    .find(|(n, _)| *n == name)
+                    .unwrap_or_else(|| panic!("unknown WGSL import {name}"))
+                    .1;
+                out.push_str(shared);
+                out.push('\n');
+            }
+        } else {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    out
+}
+
+/// Creates a shader module for kernel `name`.
+pub fn module(device: &wgpu::Device, name: &str) -> wgpu::ShaderModule {
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(name),
+        source: wgpu::ShaderSource::Wgsl(source(name).into()),
+    })
+}

@@ -1,0 +1,35 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Every WGSL file parses and validates with naga, imports resolved exactly as at run time. All
+//! failures are collected and reported at once. Needs no GPU.
+
+#[test]
+fn every_wgsl_file_validates() {
+    let on_disk: Vec<String> = std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/wgsl"))
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.path().extension().is_some_and(|x| x == "wgsl"))
+        .map(|e| e.path().file_stem().unwrap().to_string_lossy().into_owned())
+        .collect();
+    let mut failures = Vec::new();
+    for name in &on_disk {
+        if !decalbake::shaders::KERNELS.iter().any(|(n, _)| n == name) {
+            failures.push(format!("wgsl/{name}.wgsl is not registered in shaders::KERNELS"));
+        }
+    }
+    for (name, _) in decalbake::shaders::KERNELS {
+        let src = decalbake::shaders::source(name);
+        let module = match naga::front::wgsl::parse_str(&src) {
+            Ok(m) => m,
+            Err(e) => {
+                failures.push(e.emit_to_string_with_path(&src, &format!("wgsl/{name}.wgsl")));
+                continue;
+            }
+        };
+        let mut validator = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default());
+        if let Err(e) = validator.validate(&module) {
+            failures.push(e.emit_to_string_with_path(&src, &format!("wgsl/{name}.wgsl")));
+        }
+    }
+    assert!(failures.is_empty(), "{} shader problem(s):\n{}", failures.len(), failures.join("\n"));
+    assert!(on_disk.len() >= 12, "expected the kernel files under wgsl/, found {}", on_disk.len());
+}

@@ -1,0 +1,38 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+// Composes one rasterized layer rectangle into the linear accumulation buffer. Each texel averages its
+// ss x ss samples over the samples that fell inside the UV island (so island-edge texels keep the
+// island's colour instead of mixing in background), then blends with the layer's mode.
+// Dispatch: (ceil(rect w / 8), ceil(rect h / 8), 1). CPU twin: `compose_rect` in src/compose/cpu.rs.
+#import params
+#import blend
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var layer_color: texture_2d<f32>;
+@group(0) @binding(2) var layer_cov: texture_2d<f32>;
+@group(0) @binding(3) var<storage, read_write> acc: array<vec4<f32>>;
+// Per slot, 8 words; word 5 counts texels the layer changed.
+@group(0) @binding(4) var<storage, read_write> stats: array<atomic<i32>>;
+
+@compute @workgroup_size(8, 8)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if (gid.x >= params.rect_size.x || gid.y >= params.rect_size.y) { return; }
+    var sum = vec4<f32>(0.0);
+    var n = 0.0;
+    for (var j = 0u; j < params.ss; j++) {
+        for (var i = 0u; i < params.ss; i++) {
+            let p = vec2<i32>(gid.xy * params.ss + vec2<u32>(i, j));
+            let cov = textureLoad(layer_cov, p, 0).r;
+            if (cov > 0.5) {
+                sum += textureLoad(layer_color, p, 0);
+                n += 1.0;
+            }
+        }
+    }
+    if (n == 0.0) { return; }
+    let src = sum / n;
+    if (src.a <= 0.0) { return; }
+    let tex = vec2<u32>(vec2<i32>(gid.xy) + params.rect_origin);
+    let idx = tex.y * params.tex_size.x + tex.x;
+    acc[idx] = blend(params.blend, acc[idx], src);
+    atomicAdd(&stats[params.slot * 8u + 5u], 1);
+}

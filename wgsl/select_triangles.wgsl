@@ -1,0 +1,53 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+// Chooses the triangles a layer covers, for any placement method: all three vertices have valid layer
+// coordinates, the triangle's coordinate box overlaps the decal rectangle, and (planar projection only)
+// the triangle faces the projection. Appends them to the layer's list and grows the layer's texel
+// bounding box in the output texture. Dispatch: (ceil(triangles / 64), 1, 1).
+// CPU twin: `select_triangles` in src/layer/cpu.rs.
+#import params
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> tris: array<vec4<u32>>;
+@group(0) @binding(3) var<storage, read> split_tris: array<u32>;
+@group(0) @binding(4) var<storage, read> uvs: array<vec2<f32>>;
+@group(0) @binding(5) var<storage, read> coords: array<vec4<f32>>;
+@group(0) @binding(6) var<storage, read_write> lists: array<u32>;
+// Per slot, 8 words: count, min x, min y, max x, max y (texels), unused.
+@group(0) @binding(7) var<storage, read_write> stats: array<atomic<i32>>;
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let t = gid.x;
+    if (t >= params.triangle_count) { return; }
+    let tri = tris[t];
+    if ((tri.w & 1u) != 0u) { return; }
+    let base = params.slot * params.vertex_count;
+    let c0 = coords[base + tri.x];
+    let c1 = coords[base + tri.y];
+    let c2 = coords[base + tri.z];
+    if (c0.w < 0.5 || c1.w < 0.5 || c2.w < 0.5) { return; }
+    let hx = 0.5 * params.axis_u.w;
+    let hy = 0.5 * params.axis_v.w;
+    let lo = min(min(c0.xy, c1.xy), c2.xy);
+    let hi = max(max(c0.xy, c1.xy), c2.xy);
+    if (hi.x < -hx || lo.x > hx || hi.y < -hy || lo.y > hy) { return; }
+    if ((params.flags & FLAG_FACING) != 0u) {
+        let a = positions[tri.x].xyz;
+        let n = cross(positions[tri.y].xyz - a, positions[tri.z].xyz - a);
+        if (dot(n, params.normal.xyz) <= 0.0) { return; }
+    }
+    let s = params.slot * 8u;
+    let i = atomicAdd(&stats[s], 1);
+    lists[params.slot * params.triangle_count + u32(i)] = t;
+    let size = vec2<f32>(params.tex_size);
+    let u0 = uvs[split_tris[3u * t]] * size;
+    let u1 = uvs[split_tris[3u * t + 1u]] * size;
+    let u2 = uvs[split_tris[3u * t + 2u]] * size;
+    let tlo = vec2<i32>(floor(min(min(u0, u1), u2)));
+    let thi = vec2<i32>(ceil(max(max(u0, u1), u2)));
+    atomicMin(&stats[s + 1u], tlo.x);
+    atomicMin(&stats[s + 2u], tlo.y);
+    atomicMax(&stats[s + 3u], thi.x);
+    atomicMax(&stats[s + 4u], thi.y);
+}

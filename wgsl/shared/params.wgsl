@@ -1,0 +1,35 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+// Per-layer / per-raster-job parameters. Keep in sync with `src/bake/params.rs` (`Params`).
+struct Params {
+    // Decal centre on the surface (xyz).
+    center: vec4<f32>,
+    // xyz: surface direction of the image's +x axis; w: decal width in model units.
+    axis_u: vec4<f32>,
+    // xyz: surface direction of the image's +y (up) axis; w: decal height in model units.
+    axis_v: vec4<f32>,
+    // xyz: projection normal (out of the surface); w: planar depth limit in model units.
+    normal: vec4<f32>,
+    // Output texture size in texels.
+    tex_size: vec2<u32>,
+    // Raster job: texel rectangle origin in texture space.
+    rect_origin: vec2<i32>,
+    // Raster job: rectangle size in texels.
+    rect_size: vec2<u32>,
+    // Raster job: integer UV tile being drawn (uv - tile lands in [0,1]).
+    tile: vec2<i32>,
+    // Supersampling factor per axis.
+    ss: u32,
+    // Blend mode id (see shared/blend.wgsl).
+    blend: u32,
+    // Slot of the layer in the current chunk (index into coords / lists / stats).
+    slot: u32,
+    // Bit 0: require front-facing triangles (planar projection). Bit 1: a mask image is bound.
+    flags: u32,
+    opacity: f32,
+    vertex_count: u32,
+    triangle_count: u32,
+    _pad: u32,
+}
+
+const FLAG_FACING: u32 = 1u;
+const FLAG_MASK: u32 = 2u;
