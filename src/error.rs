@@ -113,7 +113,11 @@ impl Error {
         )
     }
 
-    pub(crate) fn job(path: &std::path::Path, field: impl Into<String>, detail: impl Into<String>) -> Self {
+    pub(crate) fn job(
+        path: &std::path::Path,
+        field: impl Into<String>,
+        detail: impl Into<String>,
+    ) -> Self {
         Error::Job {
             path: path.to_path_buf(),
             field: field.into(),

@@ -53,45 +53,59 @@ impl GpuContext {
                 backends: *backends,
                 ..wgpu::InstanceDescriptor::new_without_display_handle()
             });
-            let adapter = match pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-                power_preference: wgpu::PowerPreference::HighPerformance,
-                ..Default::default()
-            })) {
-                Ok(a) => a,
-                Err(e) => {
-                    last_err = e.to_string();
-                    continue;
-                }
-            };
+            let adapter =
+                match pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+                    power_preference: wgpu::PowerPreference::HighPerformance,
+                    ..Default::default()
+                })) {
+                    Ok(a) => a,
+                    Err(e) => {
+                        last_err = e.to_string();
+                        continue;
+                    }
+                };
             let info = adapter.get_info();
             let downlevel = adapter.get_downlevel_capabilities();
-            if !downlevel.flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS) {
+            if !downlevel
+                .flags
+                .contains(wgpu::DownlevelFlags::COMPUTE_SHADERS)
+            {
                 last_err = format!("adapter {} has no compute shaders", info.name);
                 continue;
             }
-            let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-                label: Some("decalbake"),
-                required_features: wgpu::Features::empty(),
-                required_limits: adapter.limits(),
-                experimental_features: wgpu::ExperimentalFeatures::disabled(),
-                memory_hints: wgpu::MemoryHints::Performance,
-                trace: wgpu::Trace::Off,
-            }))
-            .map_err(|e| Error::DeviceCreation {
-                adapter: info.name.clone(),
-                detail: e.to_string(),
-            })?;
+            let (device, queue) =
+                pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+                    label: Some("decalbake"),
+                    required_features: adapter.features()
+                        & (wgpu::Features::FLOAT32_FILTERABLE | wgpu::Features::FLOAT32_BLENDABLE),
+                    required_limits: adapter.limits(),
+                    experimental_features: wgpu::ExperimentalFeatures::disabled(),
+                    memory_hints: wgpu::MemoryHints::Performance,
+                    trace: wgpu::Trace::Off,
+                }))
+                .map_err(|e| Error::DeviceCreation {
+                    adapter: info.name.clone(),
+                    detail: e.to_string(),
+                })?;
             return Ok(Self::from_device(device, queue, Some(info)));
         }
         Err(Error::NoAdapter {
-            backends: attempts.iter().map(|b| format!("{b:?}")).collect::<Vec<_>>().join(" then "),
+            backends: attempts
+                .iter()
+                .map(|b| format!("{b:?}"))
+                .collect::<Vec<_>>()
+                .join(" then "),
             detail: last_err,
         })
     }
 
     /// Wraps a host's device and queue. `info` names the adapter in reports (pass
     /// `adapter.get_info()`); without it the report says "host device".
-    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue, info: Option<wgpu::AdapterInfo>) -> Self {
+    pub fn from_device(
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        info: Option<wgpu::AdapterInfo>,
+    ) -> Self {
         let lost = Arc::new(Mutex::new(None));
         let lost2 = lost.clone();
         device.set_device_lost_callback(move |reason, msg| {
@@ -103,12 +117,20 @@ impl GpuContext {
             log::error!("uncaptured wgpu error: {e}");
         }));
         let adapter = match info {
-            Some(i) => format!("{} ({:?}, {:?}, {} {})", i.name, i.backend, i.device_type, i.driver, i.driver_info)
-                .trim_end()
-                .to_string(),
+            Some(i) => format!(
+                "{} ({:?}, {:?}, {} {})",
+                i.name, i.backend, i.device_type, i.driver, i.driver_info
+            )
+            .trim_end()
+            .to_string(),
             None => "host device".to_string(),
         };
-        Self { device, queue, adapter, lost }
+        Self {
+            device,
+            queue,
+            adapter,
+            lost,
+        }
     }
 
     /// The largest 2D texture side this device accepts.
@@ -188,10 +210,13 @@ impl GpuContext {
                 detail: e.to_string(),
             })?;
         let _ = mapped;
-        let view = staging.slice(..).get_mapped_range().map_err(|e| Error::Gpu {
-            stage: stage.to_string(),
-            detail: e.to_string(),
-        })?;
+        let view = staging
+            .slice(..)
+            .get_mapped_range()
+            .map_err(|e| Error::Gpu {
+                stage: stage.to_string(),
+                detail: e.to_string(),
+            })?;
         let bytes = view.to_vec();
         drop(view);
         staging.unmap();

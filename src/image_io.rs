@@ -41,7 +41,11 @@ pub fn linear_to_srgb(c: f32) -> f32 {
 impl LinearImage {
     /// A `width`×`height` image filled with one colour.
     pub fn solid(width: u32, height: u32, rgba: [f32; 4]) -> Self {
-        Self { width, height, pixels: vec![rgba; (width * height) as usize] }
+        Self {
+            width,
+            height,
+            pixels: vec![rgba; (width * height) as usize],
+        }
     }
 
     /// Decodes an image file (PNG or JPEG, 8 or 16 bit). Colour channels are sRGB-decoded, alpha is
@@ -68,17 +72,33 @@ impl LinearImage {
             buf.pixels()
                 .map(|p| {
                     let f = |c: u16| c as f32 / 65535.0;
-                    [srgb_to_linear(f(p[0])), srgb_to_linear(f(p[1])), srgb_to_linear(f(p[2])), f(p[3])]
+                    [
+                        srgb_to_linear(f(p[0])),
+                        srgb_to_linear(f(p[1])),
+                        srgb_to_linear(f(p[2])),
+                        f(p[3]),
+                    ]
                 })
                 .collect()
         } else {
             let buf = img.to_rgba8();
             let lut: Vec<f32> = (0..256).map(|c| srgb_to_linear(c as f32 / 255.0)).collect();
             buf.pixels()
-                .map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize], p[3] as f32 / 255.0])
+                .map(|p| {
+                    [
+                        lut[p[0] as usize],
+                        lut[p[1] as usize],
+                        lut[p[2] as usize],
+                        p[3] as f32 / 255.0,
+                    ]
+                })
                 .collect()
         };
-        Ok(Self { width, height, pixels })
+        Ok(Self {
+            width,
+            height,
+            pixels,
+        })
     }
 
     /// Converts image data decoded by the `gltf` crate. `srgb` says whether colour channels are
@@ -119,7 +139,11 @@ impl LinearImage {
                 }
             })
             .collect();
-        Ok(Self { width: data.width, height: data.height, pixels })
+        Ok(Self {
+            width: data.width,
+            height: data.height,
+            pixels,
+        })
     }
 
     /// Encodes to PNG bytes, sRGB, 8 or 16 bits per channel.
@@ -131,16 +155,30 @@ impl LinearImage {
             let mut raw: Vec<u8> = Vec::with_capacity(self.pixels.len() * 8);
             for p in &self.pixels {
                 for (k, c) in p.iter().enumerate() {
-                    let e = if k < 3 { linear_to_srgb(*c) } else { c.clamp(0.0, 1.0) };
+                    let e = if k < 3 {
+                        linear_to_srgb(*c)
+                    } else {
+                        c.clamp(0.0, 1.0)
+                    };
                     raw.extend_from_slice(&((e * 65535.0).round() as u16).to_be_bytes());
                 }
             }
-            enc.write_image(&raw, self.width, self.height, image::ExtendedColorType::Rgba16)
-                .expect("PNG encoding into memory cannot fail for a well-formed buffer");
+            enc.write_image(
+                &raw,
+                self.width,
+                self.height,
+                image::ExtendedColorType::Rgba16,
+            )
+            .expect("PNG encoding into memory cannot fail for a well-formed buffer");
         } else {
             let raw = self.to_srgb8();
-            enc.write_image(&raw, self.width, self.height, image::ExtendedColorType::Rgba8)
-                .expect("PNG encoding into memory cannot fail for a well-formed buffer");
+            enc.write_image(
+                &raw,
+                self.width,
+                self.height,
+                image::ExtendedColorType::Rgba8,
+            )
+            .expect("PNG encoding into memory cannot fail for a well-formed buffer");
         }
         out
     }
@@ -150,7 +188,11 @@ impl LinearImage {
         let mut raw = Vec::with_capacity(self.pixels.len() * 4);
         for p in &self.pixels {
             for (k, c) in p.iter().enumerate() {
-                let e = if k < 3 { linear_to_srgb(*c) } else { c.clamp(0.0, 1.0) };
+                let e = if k < 3 {
+                    linear_to_srgb(*c)
+                } else {
+                    c.clamp(0.0, 1.0)
+                };
                 raw.push((e * 255.0).round() as u8);
             }
         }
@@ -163,7 +205,11 @@ impl LinearImage {
         let mut level = LinearImage {
             width: self.width,
             height: self.height,
-            pixels: self.pixels.iter().map(|p| [p[0] * p[3], p[1] * p[3], p[2] * p[3], p[3]]).collect(),
+            pixels: self
+                .pixels
+                .iter()
+                .map(|p| [p[0] * p[3], p[1] * p[3], p[2] * p[3], p[3]])
+                .collect(),
         };
         let mut out = Vec::new();
         loop {
@@ -203,10 +249,20 @@ impl LinearImage {
 /// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so a reader
 /// never sees a half-written file and a failure leaves nothing behind.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let file_name = path.file_name().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let file_name = path
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
     let tmp = dir.join(format!(".{file_name}.tmp-{}", std::process::id()));
-    let io = |source| Error::Io { path: path.to_path_buf(), action: "writing", source };
+    let io = |source| Error::Io {
+        path: path.to_path_buf(),
+        action: "writing",
+        source,
+    };
     if let Err(e) = std::fs::write(&tmp, bytes) {
         let _ = std::fs::remove_file(&tmp);
         return Err(io(e));
@@ -238,6 +294,10 @@ mod tests {
         assert_eq!(mips.len(), 3);
         let last = mips[2].pixels[0];
         // 7 of 8 texels are opaque red, one is transparent: mean premultiplied red = 7/8, alpha 7/8.
-        assert!((last[0] - 0.875).abs() < 1e-6 && (last[3] - 0.875).abs() < 1e-6 && last[1].abs() < 1e-6);
+        assert!(
+            (last[0] - 0.875).abs() < 1e-6
+                && (last[3] - 0.875).abs() < 1e-6
+                && last[1].abs() < 1e-6
+        );
     }
 }

@@ -7,3 +7,19 @@ pub mod mesh;
 pub mod shaders;
 
 pub use error::{Error, Result};
+pub mod bake;
+pub mod blend;
+pub mod gpu_mesh;
+pub mod job;
+pub mod layer;
+pub mod pipelines;
+pub mod place;
+pub mod report;
+
+pub use bake::{Baked, Engine, LoadedMesh};
+pub use job::Job;
+pub mod bench;
+pub mod demo;
+pub mod glb;
+pub mod output;
+pub mod preview;

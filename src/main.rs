@@ -1,1 +1,136 @@
-fn main(){}
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The `decalbake` command line.
+
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+use decalbake::{Engine, Job};
+use std::path::{Path, PathBuf};
+
+#[derive(Parser)]
+#[command(
+    name = "decalbake",
+    version,
+    about = "Bakes decals onto 3D meshes, straight into the mesh's texture, on the GPU."
+)]
+struct Cli {
+    /// GPU backend: vulkan or gl (default: WGPU_BACKEND, else Vulkan then GL).
+    #[arg(long, global = true)]
+    backend: Option<String>,
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Bake the built-in demo scene (Spot with four decals).
+    Demo {
+        /// Output directory.
+        #[arg(long, default_value = "decalbake-demo")]
+        out: PathBuf,
+    },
+    /// Bake a job file.
+    Bake {
+        /// The job file (JSON).
+        job: PathBuf,
+        /// Output directory (default: next to the job file).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Print what the engine sees in a mesh.
+    Info {
+        /// A .gltf or .glb file.
+        mesh: PathBuf,
+    },
+    /// Benchmark the bake and print JSON figures.
+    Bench {
+        /// Mesh to bake onto (default: the largest mesh with UVs in ../shared/data/meshes, else the demo mesh).
+        #[arg(long)]
+        mesh: Option<PathBuf>,
+        /// Texture sides to measure.
+        #[arg(long, value_delimiter = ',', default_value = "2048,4096")]
+        sizes: Vec<u32>,
+        /// Decal counts to measure.
+        #[arg(long, value_delimiter = ',', default_value = "1,16,256")]
+        decals: Vec<usize>,
+        /// Repetitions per configuration (the median is reported).
+        #[arg(long, default_value_t = 3)]
+        reps: usize,
+    },
+}
+
+fn main() {
+    let cli = Cli::parse();
+    if let Err(e) = run(cli) {
+        eprintln!("error: {e:#}");
+        let input = e.chain().any(|c| {
+            c.downcast_ref::<decalbake::Error>()
+                .is_some_and(|d| d.is_input_error())
+        });
+        std::process::exit(if input { 2 } else { 1 });
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.cmd {
+        Cmd::Demo { out } => demo(&out, cli.backend.as_deref()),
+        Cmd::Bake { job, out } => {
+            let job = Job::load(&job, out.as_deref())?;
+            let engine = Engine::new(cli.backend.as_deref())?;
+            eprintln!("adapter: {}", engine.ctx.adapter);
+            bake(&engine, &job)
+        }
+        Cmd::Info { mesh } => info(&mesh),
+        Cmd::Bench { .. } => anyhow::bail!("not yet"),
+    }
+}
+
+fn bake(engine: &Engine, job: &Job) -> Result<()> {
+    let mesh = engine.load_mesh(&job.mesh)?;
+    let mut baked = engine.bake(&mesh, job)?;
+    let files = decalbake::output::write_outputs(engine, &mesh, job, &mut baked)?;
+    let r = &baked.report;
+    for l in &r.layers {
+        eprintln!(
+            "layer {}: {} triangles, {} texels, placed at {:?} (moved {:.4})",
+            l.index, l.triangles_covered, l.texels_covered, l.placement.point, l.distance_moved
+        );
+    }
+    for w in &r.warnings {
+        eprintln!("warning: {w}");
+    }
+    for f in files {
+        println!("{}", f.display());
+    }
+    Ok(())
+}
+
+fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
+    std::fs::create_dir_all(out.join("decals"))
+        .with_context(|| format!("creating {}", out.display()))?;
+    decalbake::image_io::write_atomic(&out.join("spot.glb"), decalbake::demo::SPOT_GLB)?;
+    for (name, img) in decalbake::demo::decals() {
+        decalbake::image_io::write_atomic(&out.join("decals").join(name), &img.encode_png(8))?;
+    }
+    let job_path = out.join("job.json");
+    decalbake::image_io::write_atomic(&job_path, decalbake::demo::job_json().as_bytes())?;
+    let job = Job::load(&job_path, None)?;
+    let engine = Engine::new(backend)?;
+    eprintln!("adapter: {}", engine.ctx.adapter);
+    bake(&engine, &job)?;
+    eprintln!(
+        "demo written to {} (edit job.json and run `decalbake bake {}` to re-bake)",
+        out.display(),
+        job_path.display()
+    );
+    Ok(())
+}
+
+fn info(path: &Path) -> Result<()> {
+    let t = std::time::Instant::now();
+    let mesh = decalbake::mesh::Mesh::load(path)?;
+    let topo = decalbake::mesh::Topology::build(&mesh, decalbake::mesh::DEFAULT_WELD_TOLERANCE);
+    let stats = decalbake::LoadedMesh::stats_of(&mesh, &topo);
+    println!("{}", serde_json::to_string_pretty(&stats)?);
+    eprintln!("({:.1} ms)", t.elapsed().as_secs_f64() * 1000.0);
+    Ok(())
+}

@@ -7,10 +7,16 @@
 
 /// Kernel and pipeline files: (name, text).
 pub const KERNELS: &[(&str, &str)] = &[
-    ("place_candidates", include_str!("../wgsl/place_candidates.wgsl")),
+    (
+        "place_candidates",
+        include_str!("../wgsl/place_candidates.wgsl"),
+    ),
     ("place_reduce", include_str!("../wgsl/place_reduce.wgsl")),
     ("planar_coords", include_str!("../wgsl/planar_coords.wgsl")),
-    ("select_triangles", include_str!("../wgsl/select_triangles.wgsl")),
+    (
+        "select_triangles",
+        include_str!("../wgsl/select_triangles.wgsl"),
+    ),
     ("layer_raster", include_str!("../wgsl/layer_raster.wgsl")),
     ("island_raster", include_str!("../wgsl/island_raster.wgsl")),
     ("island_mask", include_str!("../wgsl/island_mask.wgsl")),
@@ -27,6 +33,7 @@ pub const SHARED: &[(&str, &str)] = &[
     ("params", include_str!("../wgsl/shared/params.wgsl")),
     ("geometry", include_str!("../wgsl/shared/geometry.wgsl")),
     ("blend", include_str!("../wgsl/shared/blend.wgsl")),
+    ("acc", include_str!("../wgsl/shared/acc.wgsl")),
 ];
 
 /// The complete WGSL text of kernel `name`, imports resolved. Panics on an unknown name or import:

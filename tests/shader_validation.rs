@@ -13,7 +13,9 @@ fn every_wgsl_file_validates() {
     let mut failures = Vec::new();
     for name in &on_disk {
         if !decalbake::shaders::KERNELS.iter().any(|(n, _)| n == name) {
-            failures.push(format!("wgsl/{name}.wgsl is not registered in shaders::KERNELS"));
+            failures.push(format!(
+                "wgsl/{name}.wgsl is not registered in shaders::KERNELS"
+            ));
         }
     }
     for (name, _) in decalbake::shaders::KERNELS {
@@ -25,11 +27,23 @@ fn every_wgsl_file_validates() {
                 continue;
             }
         };
-        let mut validator = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default());
+        let mut validator = naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::default(),
+        );
         if let Err(e) = validator.validate(&module) {
             failures.push(e.emit_to_string_with_path(&src, &format!("wgsl/{name}.wgsl")));
         }
     }
-    assert!(failures.is_empty(), "{} shader problem(s):\n{}", failures.len(), failures.join("\n"));
-    assert!(on_disk.len() >= 12, "expected the kernel files under wgsl/, found {}", on_disk.len());
+    assert!(
+        failures.is_empty(),
+        "{} shader problem(s):\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+    assert!(
+        on_disk.len() >= 12,
+        "expected the kernel files under wgsl/, found {}",
+        on_disk.len()
+    );
 }

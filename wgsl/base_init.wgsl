@@ -2,15 +2,15 @@
 // Fills the linear accumulation buffer with the base: the base image sampled bilinearly at each texel
 // centre (a 1x1 image for a solid colour), straight alpha. Dispatch: (ceil(W / 8), ceil(H / 8), 1).
 #import params
+#import acc
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var base: texture_2d<f32>;
 @group(0) @binding(2) var samp: sampler;
-@group(0) @binding(3) var<storage, read_write> acc: array<vec4<f32>>;
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= params.tex_size.x || gid.y >= params.tex_size.y) { return; }
     let uv = (vec2<f32>(gid.xy) + 0.5) / vec2<f32>(params.tex_size);
-    acc[gid.y * params.tex_size.x + gid.x] = textureSampleLevel(base, samp, uv, 0.0);
+    acc_store(gid.y * params.tex_size.x + gid.x, textureSampleLevel(base, samp, uv, 0.0));
 }

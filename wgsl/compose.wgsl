@@ -5,13 +5,13 @@
 // Dispatch: (ceil(rect w / 8), ceil(rect h / 8), 1). CPU twin: `compose_rect` in src/compose/cpu.rs.
 #import params
 #import blend
+#import acc
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var layer_color: texture_2d<f32>;
 @group(0) @binding(2) var layer_cov: texture_2d<f32>;
-@group(0) @binding(3) var<storage, read_write> acc: array<vec4<f32>>;
-// Per slot, 8 words; word 5 counts texels the layer changed.
-@group(0) @binding(4) var<storage, read_write> stats: array<atomic<i32>>;
+// Per layer (params.aux), 8 words; word 5 counts texels the layer changed.
+@group(0) @binding(3) var<storage, read_write> stats: array<atomic<i32>>;
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -33,6 +33,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (src.a <= 0.0) { return; }
     let tex = vec2<u32>(vec2<i32>(gid.xy) + params.rect_origin);
     let idx = tex.y * params.tex_size.x + tex.x;
-    acc[idx] = blend(params.blend, acc[idx], src);
-    atomicAdd(&stats[params.slot * 8u + 5u], 1);
+    acc_store(idx, blend(params.blend, acc_load(idx), src));
+    atomicAdd(&stats[params.aux * 8u + 5u], 1);
 }

@@ -4,13 +4,13 @@
 // nearest island texel; a non-island texel within the padding radius copies that texel's colour.
 // One invocation per row. Dispatch: (ceil(H / 64), 1, 1). CPU twin: `padding` in src/compose/cpu.rs.
 #import params
+#import acc
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> mask: array<u32>;
 @group(0) @binding(2) var<storage, read> col_near: array<i32>;
 @group(0) @binding(3) var<storage, read_write> env_v: array<i32>;
 @group(0) @binding(4) var<storage, read_write> env_z: array<f32>;
-@group(0) @binding(5) var<storage, read_write> acc: array<vec4<f32>>;
 
 fn f_of(y: i32, w: u32, q: i32) -> i32 {
     let ny = col_near[u32(y) * w + u32(q)];
@@ -27,8 +27,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let y = i32(gid.x);
     let vb = gid.x * w;
     let zb = gid.x * (w + 1u);
-    // Radius squared; the `_pad` field carries the padding radius (0xffffffff = fill everything).
-    let radius = params._pad;
+    let radius = params.aux;
     var k = -1;
     for (var q = 0; q < i32(w); q++) {
         let fq = f_of(y, w, q);
@@ -75,7 +74,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let dy = ny - y;
         let d2 = u32(dx * dx + dy * dy);
         if (radius == 0xffffffffu || d2 <= radius * radius) {
-            acc[idx] = acc[u32(ny) * w + u32(vx)];
+            acc_store(idx, acc_load(u32(ny) * w + u32(vx)));
         }
     }
 }

@@ -13,7 +13,7 @@
 @group(0) @binding(4) var<storage, read> uvs: array<vec2<f32>>;
 @group(0) @binding(5) var<storage, read> coords: array<vec4<f32>>;
 @group(0) @binding(6) var<storage, read_write> lists: array<u32>;
-// Per slot, 8 words: count, min x, min y, max x, max y (texels), unused.
+// Per layer (params.aux), 8 words: count, min x, min y, max x, max y (texels), unused.
 @group(0) @binding(7) var<storage, read_write> stats: array<atomic<i32>>;
 
 @compute @workgroup_size(64)
@@ -37,7 +37,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let n = cross(positions[tri.y].xyz - a, positions[tri.z].xyz - a);
         if (dot(n, params.normal.xyz) <= 0.0) { return; }
     }
-    let s = params.slot * 8u;
+    let s = params.aux * 8u;
     let i = atomicAdd(&stats[s], 1);
     lists[params.slot * params.triangle_count + u32(i)] = t;
     let size = vec2<f32>(params.tex_size);

@@ -89,7 +89,13 @@ impl Mesh {
     /// allows only embedded data).
     pub fn from_bytes(bytes: &[u8], name: &Path, base: Option<&Path>) -> Result<Self> {
         let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| gltf_err(name, e))?;
-        let base_dir = base.map(|b| if b.as_os_str().is_empty() { Path::new(".") } else { b });
+        let base_dir = base.map(|b| {
+            if b.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                b
+            }
+        });
         let document = gltf.document;
         let buffers = gltf::import_buffers(&document, base_dir, gltf.blob)
             .map_err(|e| gltf_err(name, format!("loading buffers: {e}")))?;
@@ -110,7 +116,8 @@ impl Mesh {
         };
         let mut per_prim_uvs: Vec<Vec<Vec<Vec2>>> = Vec::new();
         let mut material_index: Option<usize> = None;
-        let mut stack: Vec<(gltf::Node, Mat4)> = scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
+        let mut stack: Vec<(gltf::Node, Mat4)> =
+            scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
         while let Some((node, parent)) = stack.pop() {
             let local = Mat4::from_cols_array_2d(&node.transform().matrix());
             let world = parent * local;
@@ -121,12 +128,21 @@ impl Mesh {
             for prim in gmesh.primitives() {
                 let pname = format!("meshes[{}].primitives[{}]", gmesh.index(), prim.index());
                 if prim.mode() != gltf::mesh::Mode::Triangles {
-                    log::warn!("{}: {pname} is {:?}, not triangles; skipped", name.display(), prim.mode());
+                    log::warn!(
+                        "{}: {pname} is {:?}, not triangles; skipped",
+                        name.display(),
+                        prim.mode()
+                    );
                     continue;
                 }
                 let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
                 let Some(pos_iter) = reader.read_positions() else {
-                    return Err(Error::mesh(name, format!("{pname} has no POSITION attribute; re-export the mesh with positions")));
+                    return Err(Error::mesh(
+                        name,
+                        format!(
+                            "{pname} has no POSITION attribute; re-export the mesh with positions"
+                        ),
+                    ));
                 };
                 let positions: Vec<Vec3> = pos_iter.map(Vec3::from).collect();
                 let nverts = positions.len() as u32;
@@ -140,18 +156,25 @@ impl Mesh {
                     None => (0..nverts).collect(),
                 };
                 if indices.len() % 3 != 0 {
-                    return Err(Error::mesh(name, format!("{pname} has {} indices, not a multiple of 3", indices.len())));
+                    return Err(Error::mesh(
+                        name,
+                        format!("{pname} has {} indices, not a multiple of 3", indices.len()),
+                    ));
                 }
                 if let Some((k, &bad)) = indices.iter().enumerate().find(|(_, &i)| i >= nverts) {
                     return Err(Error::mesh(name, format!("{pname} indices[{k}] = {bad} is out of range (the primitive has {nverts} vertices); the file is corrupt, re-export it")));
                 }
-                let normals: Option<Vec<Vec3>> = reader.read_normals().map(|n| n.map(Vec3::from).collect());
+                let normals: Option<Vec<Vec3>> =
+                    reader.read_normals().map(|n| n.map(Vec3::from).collect());
                 let mut sets = Vec::new();
                 let mut set = 0;
                 while let Some(tc) = reader.read_tex_coords(set) {
                     let uv: Vec<Vec2> = tc.into_f32().map(Vec2::from).collect();
                     if let Some((i, u)) = uv.iter().enumerate().find(|(_, u)| !u.is_finite()) {
-                        return Err(Error::mesh(name, format!("{pname} TEXCOORD_{set}[{i}] is {u} (not finite)")));
+                        return Err(Error::mesh(
+                            name,
+                            format!("{pname} TEXCOORD_{set}[{i}] is {u} (not finite)"),
+                        ));
                     }
                     sets.push(uv);
                     set += 1;
@@ -161,15 +184,21 @@ impl Mesh {
                 let flip = m3.determinant() < 0.0;
                 let base = mesh.positions.len() as u32;
                 let first_triangle = mesh.triangles.len() as u32;
-                mesh.positions.extend(positions.iter().map(|p| world.transform_point3(*p)));
+                mesh.positions
+                    .extend(positions.iter().map(|p| world.transform_point3(*p)));
                 let has_normals = normals.is_some();
                 match normals {
-                    Some(n) => mesh.normals.extend(n.iter().map(|n| (nmat * *n).normalize_or_zero())),
-                    None => mesh.normals.extend(std::iter::repeat_n(Vec3::ZERO, positions.len())),
+                    Some(n) => mesh
+                        .normals
+                        .extend(n.iter().map(|n| (nmat * *n).normalize_or_zero())),
+                    None => mesh
+                        .normals
+                        .extend(std::iter::repeat_n(Vec3::ZERO, positions.len())),
                 }
                 for t in indices.chunks_exact(3) {
                     let tri = [base + t[0], base + t[1], base + t[2]];
-                    mesh.triangles.push(if flip { [tri[0], tri[2], tri[1]] } else { tri });
+                    mesh.triangles
+                        .push(if flip { [tri[0], tri[2], tri[1]] } else { tri });
                 }
                 let material = prim.material().index();
                 if material_index.is_none() && material.is_some() {
@@ -193,7 +222,12 @@ impl Mesh {
         // Only UV sets every primitive has can be baked into.
         let common = per_prim_uvs.iter().map(|s| s.len()).min().unwrap_or(0);
         for n in 0..common {
-            mesh.uv_sets.push(per_prim_uvs.iter().flat_map(|s| s[n].iter().copied()).collect());
+            mesh.uv_sets.push(
+                per_prim_uvs
+                    .iter()
+                    .flat_map(|s| s[n].iter().copied())
+                    .collect(),
+            );
         }
         if let Some(mi) = material_index {
             mesh.material = Some(load_material(&document, mi, &buffers, name, base_dir)?);
@@ -203,9 +237,10 @@ impl Mesh {
 
     /// Bounding box (min, max) of the positions.
     pub fn bounds(&self) -> (Vec3, Vec3) {
-        self.positions
-            .iter()
-            .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), p| (lo.min(*p), hi.max(*p)))
+        self.positions.iter().fold(
+            (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        )
     }
 }
 
@@ -231,18 +266,28 @@ fn load_material(
     if let Some(tex) = pbr.base_color_texture() {
         info.base_color_uv_set = tex.tex_coord();
         let src = tex.texture().source();
-        let what = format!("materials[{index}] baseColorTexture (images[{}])", src.index());
-        let data = gltf::image::Data::from_source(src.source(), Some(base.unwrap_or(Path::new("."))), buffers)
-            .map_err(|e| Error::Image {
-                path: name.to_path_buf(),
-                action: "decoding",
-                detail: format!("{what}: {e}"),
-            })?;
-        info.base_color_texture = Some(LinearImage::from_gltf(&data, true).map_err(|d| Error::Image {
+        let what = format!(
+            "materials[{index}] baseColorTexture (images[{}])",
+            src.index()
+        );
+        let data = gltf::image::Data::from_source(
+            src.source(),
+            Some(base.unwrap_or(Path::new("."))),
+            buffers,
+        )
+        .map_err(|e| Error::Image {
             path: name.to_path_buf(),
             action: "decoding",
-            detail: format!("{what}: {d}"),
-        })?);
+            detail: format!("{what}: {e}"),
+        })?;
+        info.base_color_texture =
+            Some(
+                LinearImage::from_gltf(&data, true).map_err(|d| Error::Image {
+                    path: name.to_path_buf(),
+                    action: "decoding",
+                    detail: format!("{what}: {d}"),
+                })?,
+            );
     }
     Ok(info)
 }

@@ -60,7 +60,13 @@ impl Topology {
         let triangles: Vec<[u32; 3]> = mesh
             .triangles
             .iter()
-            .map(|t| [welded_of[t[0] as usize], welded_of[t[1] as usize], welded_of[t[2] as usize]])
+            .map(|t| {
+                [
+                    welded_of[t[0] as usize],
+                    welded_of[t[1] as usize],
+                    welded_of[t[2] as usize],
+                ]
+            })
             .collect();
         let area_eps = (eps * eps) as f64;
         let mut normals = vec![Vec3::ZERO; nv];
@@ -86,14 +92,18 @@ impl Topology {
         }
 
         // Edge -> triangles.
-        let mut edges: HashMap<(u32, u32), Vec<(u32, u8)>> = HashMap::with_capacity(triangles.len() * 2);
+        let mut edges: HashMap<(u32, u32), Vec<(u32, u8)>> =
+            HashMap::with_capacity(triangles.len() * 2);
         for (ti, t) in triangles.iter().enumerate() {
             if degenerate[ti] {
                 continue;
             }
             for k in 0..3 {
                 let (a, b) = (t[k], t[(k + 1) % 3]);
-                edges.entry((a.min(b), a.max(b))).or_default().push((ti as u32, k as u8));
+                edges
+                    .entry((a.min(b), a.max(b)))
+                    .or_default()
+                    .push((ti as u32, k as u8));
             }
         }
         let mut triangle_neighbors = vec![[NO_NEIGHBOR; 3]; triangles.len()];

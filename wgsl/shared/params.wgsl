@@ -21,14 +21,16 @@ struct Params {
     ss: u32,
     // Blend mode id (see shared/blend.wgsl).
     blend: u32,
-    // Slot of the layer in the current chunk (index into coords / lists / stats).
+    // Slot of the layer in the current chunk (index into coords / lists).
     slot: u32,
     // Bit 0: require front-facing triangles (planar projection). Bit 1: a mask image is bound.
     flags: u32,
     opacity: f32,
     vertex_count: u32,
     triangle_count: u32,
-    _pad: u32,
+    // Layer kernels: the layer's index in the job (row of the stats buffer).
+    // edt_rows_fill: padding radius in texels (0xffffffff = fill everything).
+    aux: u32,
 }
 
 const FLAG_FACING: u32 = 1u;

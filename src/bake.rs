@@ -1,0 +1,1283 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The bake: layers placed, rasterized at their global UVs and composed into the texture, then
+//! padding and encoding, all on the GPU.
+//!
+//! How it works:
+//! 1. `base_init` fills a linear f32 accumulation image (two planes, see `wgsl/shared/acc.wgsl`) with
+//!    the base; `island_raster` + `island_mask` mark the texels the UV islands cover (any of the
+//!    ss × ss samples inside a triangle).
+//! 2. All layers are placed in one submission ([`crate::place`]).
+//! 3. Layers are processed in chunks sized to a memory budget. Per chunk, one submission computes each
+//!    layer's local coordinates (`planar_coords`) and selects its triangles (`select_triangles`), and
+//!    one small read-back returns each layer's triangle count and texel box. The box is cut into
+//!    raster jobs (per integer UV tile, at most [`TILE_TARGET`] samples a side); each job draws the
+//!    layer's triangles into a pooled supersampled target and `compose` blends the covered texels
+//!    into the accumulation image with the layer's blend mode. Layers apply in job order.
+//! 4. Padding: an exact Euclidean distance transform of the island mask (`edt_columns`,
+//!    `edt_rows_fill`) gives each background texel its nearest island texel; those within `padding`
+//!    (or all, for `"full"`) copy its colour.
+//! 5. `encode` writes sRGB 8- or 16-bit texels; one read-back (or a copy into a host texture).
+
+use crate::error::{Error, Result};
+use crate::gpu::GpuContext;
+use crate::gpu_mesh::GpuMesh;
+use crate::image_io::LinearImage;
+use crate::job::{Base, Job, Method, Padding};
+use crate::layer::{Frame, Params, FLAG_16BIT, FLAG_FACING, FLAG_MASK};
+use crate::mesh::{Mesh, Topology};
+use crate::pipelines::{Pipelines, COVERAGE_FORMAT, LAYER_COLOR_FORMAT};
+use crate::place::{place_gpu, Query};
+use crate::report::{LayerReport, MeshStats, Report, Timings};
+use glam::Vec3;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+use wgpu::util::DeviceExt;
+
+/// Largest raster target side, in samples. A raster job covers at most `TILE_TARGET / ss` texels a side.
+pub const TILE_TARGET: u32 = 2048;
+/// Memory budget for one chunk's per-layer coordinates and triangle lists.
+const CHUNK_BUDGET: u64 = 64 << 20;
+/// Stride of `Params` entries in the uniform buffers (dynamic offsets need 256-byte alignment).
+const PARAMS_STRIDE: u64 = 256;
+
+/// A mesh loaded, welded and resident on the GPU.
+pub struct LoadedMesh {
+    /// The mesh as loaded.
+    pub mesh: Mesh,
+    /// Its welded surface.
+    pub topo: Topology,
+    /// Its GPU buffers.
+    pub gpu: GpuMesh,
+    /// Statistics.
+    pub stats: MeshStats,
+    /// Load, weld and upload times (ms).
+    pub timings: (f64, f64, f64),
+}
+
+impl LoadedMesh {
+    /// Statistics of a mesh and its topology.
+    pub fn stats_of(mesh: &Mesh, topo: &Topology) -> MeshStats {
+        let (lo, hi) = mesh.bounds();
+        MeshStats {
+            source: mesh.source.display().to_string(),
+            primitives: mesh.primitives.clone(),
+            vertices: mesh.positions.len(),
+            welded_vertices: topo.positions.len(),
+            triangles: mesh.triangles.len(),
+            degenerate_triangles: topo.degenerate_count(),
+            uv_sets: mesh.uv_sets.len(),
+            boundary_edges: topo.boundary_edges.len(),
+            non_manifold_edges: topo.non_manifold_edges.len(),
+            components: topo.components,
+            bbox_min: lo.to_array(),
+            bbox_max: hi.to_array(),
+            weld_distance: topo.weld_distance,
+            has_base_color_texture: mesh
+                .material
+                .as_ref()
+                .is_some_and(|m| m.base_color_texture.is_some()),
+        }
+    }
+}
+
+/// A baked texture on the CPU.
+#[derive(Debug, Clone)]
+pub struct Baked {
+    /// Width.
+    pub width: u32,
+    /// Height.
+    pub height: u32,
+    /// 8 or 16.
+    pub bit_depth: u8,
+    /// sRGB-encoded RGBA, row-major, top row first: 4 values a texel (0..=255 or 0..=65535).
+    pub texels: Vec<u16>,
+    /// The report.
+    pub report: Report,
+}
+
+impl Baked {
+    /// Texel (x, y) decoded to linear RGBA in [0, 1].
+    pub fn linear(&self, x: u32, y: u32) -> [f32; 4] {
+        let i = ((y * self.width + x) * 4) as usize;
+        let max = if self.bit_depth == 16 { 65535.0 } else { 255.0 };
+        let c = |k: usize| self.texels[i + k] as f32 / max;
+        [
+            crate::image_io::srgb_to_linear(c(0)),
+            crate::image_io::srgb_to_linear(c(1)),
+            crate::image_io::srgb_to_linear(c(2)),
+            c(3),
+        ]
+    }
+
+    /// PNG bytes at the bake's bit depth.
+    pub fn to_png(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        let enc = image::codecs::png::PngEncoder::new(&mut out);
+        use image::ImageEncoder;
+        if self.bit_depth == 16 {
+            let raw: Vec<u8> = self.texels.iter().flat_map(|v| v.to_be_bytes()).collect();
+            enc.write_image(
+                &raw,
+                self.width,
+                self.height,
+                image::ExtendedColorType::Rgba16,
+            )
+        } else {
+            let raw: Vec<u8> = self.texels.iter().map(|v| *v as u8).collect();
+            enc.write_image(
+                &raw,
+                self.width,
+                self.height,
+                image::ExtendedColorType::Rgba8,
+            )
+        }
+        .expect("PNG encoding into memory cannot fail for a well-formed buffer");
+        out
+    }
+
+    /// sRGB RGBA8 bytes (16-bit bakes are rounded).
+    pub fn rgba8(&self) -> Vec<u8> {
+        if self.bit_depth == 16 {
+            self.texels
+                .iter()
+                .map(|v| ((*v as u32 * 255 + 32767) / 65535) as u8)
+                .collect()
+        } else {
+            self.texels.iter().map(|v| *v as u8).collect()
+        }
+    }
+}
+
+/// Pooled raster targets of one size.
+struct Targets {
+    color_view: wgpu::TextureView,
+    cov_view: wgpu::TextureView,
+    _color: wgpu::Texture,
+    _cov: wgpu::Texture,
+}
+
+/// The engine: a device, its pipelines and pooled targets. Load meshes once, bake many jobs.
+pub struct Engine {
+    /// The GPU context.
+    pub ctx: GpuContext,
+    pub(crate) pipes: Pipelines,
+    targets: Mutex<HashMap<u32, Arc<Targets>>>,
+    pub(crate) linear_sampler: wgpu::Sampler,
+}
+
+/// A decoded image on the GPU.
+struct GpuImage {
+    view: wgpu::TextureView,
+    _tex: wgpu::Texture,
+}
+
+impl Engine {
+    /// An engine on its own headless device (see [`GpuContext::new`]).
+    pub fn new(backend: Option<&str>) -> Result<Self> {
+        Self::with_context(GpuContext::new(backend)?)
+    }
+
+    /// An engine on the host's device and queue. The device must support compute shaders.
+    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> Result<Self> {
+        Self::with_context(GpuContext::from_device(device, queue, None))
+    }
+
+    /// An engine on an existing context.
+    pub fn with_context(ctx: GpuContext) -> Result<Self> {
+        let pipes = ctx.scoped("pipeline creation", || Pipelines::new(&ctx.device))?;
+        let linear_sampler = ctx.device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("decalbake.linear"),
+            address_mode_u: wgpu::AddressMode::ClampToEdge,
+            address_mode_v: wgpu::AddressMode::ClampToEdge,
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            mipmap_filter: wgpu::MipmapFilterMode::Linear,
+            anisotropy_clamp: 16,
+            ..Default::default()
+        });
+        Ok(Self {
+            ctx,
+            pipes,
+            targets: Mutex::new(HashMap::new()),
+            linear_sampler,
+        })
+    }
+
+    /// Loads a mesh file, welds it and uploads it.
+    pub fn load_mesh(&self, path: &Path) -> Result<LoadedMesh> {
+        let t0 = Instant::now();
+        let mesh = Mesh::load(path)?;
+        self.prepare_mesh(mesh, t0)
+    }
+
+    /// Loads glTF bytes (embedded data only), welds and uploads.
+    pub fn load_mesh_bytes(&self, bytes: &[u8], name: &Path) -> Result<LoadedMesh> {
+        let t0 = Instant::now();
+        let mesh = Mesh::from_bytes(bytes, name, None)?;
+        self.prepare_mesh(mesh, t0)
+    }
+
+    fn prepare_mesh(&self, mut mesh: Mesh, t0: Instant) -> Result<LoadedMesh> {
+        let load = ms(t0);
+        let t1 = Instant::now();
+        let topo = Topology::build(&mesh, crate::mesh::DEFAULT_WELD_TOLERANCE);
+        for (i, n) in mesh.normals.iter_mut().enumerate() {
+            if *n == Vec3::ZERO {
+                *n = topo.normals[topo.welded_of[i] as usize];
+            }
+        }
+        let weld = ms(t1);
+        let t2 = Instant::now();
+        let gpu = self.ctx.scoped("mesh upload", || {
+            GpuMesh::upload(&self.ctx.device, &mesh, &topo)
+        })?;
+        let upload = ms(t2);
+        let stats = LoadedMesh::stats_of(&mesh, &topo);
+        Ok(LoadedMesh {
+            mesh,
+            topo,
+            gpu,
+            stats,
+            timings: (load, weld, upload),
+        })
+    }
+
+    fn targets(&self, side: u32) -> Arc<Targets> {
+        let mut pool = self.targets.lock().expect("target pool poisoned");
+        pool.entry(side)
+            .or_insert_with(|| {
+                let mk = |label: &str, format| {
+                    self.ctx.device.create_texture(&wgpu::TextureDescriptor {
+                        label: Some(label),
+                        size: wgpu::Extent3d {
+                            width: side,
+                            height: side,
+                            depth_or_array_layers: 1,
+                        },
+                        mip_level_count: 1,
+                        sample_count: 1,
+                        dimension: wgpu::TextureDimension::D2,
+                        format,
+                        usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                            | wgpu::TextureUsages::TEXTURE_BINDING,
+                        view_formats: &[],
+                    })
+                };
+                let color = mk("bake.target.color", LAYER_COLOR_FORMAT);
+                let cov = mk("bake.target.coverage", COVERAGE_FORMAT);
+                Arc::new(Targets {
+                    color_view: color.create_view(&Default::default()),
+                    cov_view: cov.create_view(&Default::default()),
+                    _color: color,
+                    _cov: cov,
+                })
+            })
+            .clone()
+    }
+
+    fn upload_image(&self, img: &LinearImage, mips: bool, label: &str) -> GpuImage {
+        let levels = if mips {
+            img.premultiplied_mips()
+        } else {
+            vec![img.clone()]
+        };
+        let format = self.pipes.image_format;
+        let tex = self.ctx.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: img.width,
+                height: img.height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: levels.len() as u32,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        for (level, l) in levels.iter().enumerate() {
+            let (bytes, bpp): (Vec<u8>, u32) = if format == wgpu::TextureFormat::Rgba32Float {
+                (bytemuck::cast_slice(&l.pixels).to_vec(), 16)
+            } else {
+                let h: Vec<u16> = l.pixels.iter().flatten().map(|v| f32_to_f16(*v)).collect();
+                (bytemuck::cast_slice(&h).to_vec(), 8)
+            };
+            self.ctx.queue.write_texture(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &tex,
+                    mip_level: level as u32,
+                    origin: wgpu::Origin3d::ZERO,
+                    aspect: wgpu::TextureAspect::All,
+                },
+                &bytes,
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(l.width * bpp),
+                    rows_per_image: Some(l.height),
+                },
+                wgpu::Extent3d {
+                    width: l.width,
+                    height: l.height,
+                    depth_or_array_layers: 1,
+                },
+            );
+        }
+        GpuImage {
+            view: tex.create_view(&Default::default()),
+            _tex: tex,
+        }
+    }
+
+    /// Bakes `job` onto `mesh` and reads the texture back.
+    pub fn bake(&self, mesh: &LoadedMesh, job: &Job) -> Result<Baked> {
+        let run = self.run(mesh, job)?;
+        let t = Instant::now();
+        let (w, h) = (job.width, job.height);
+        let bytes = self
+            .ctx
+            .read_buffer(&run.packed, run.packed_size, "encode read-back")?;
+        let words: &[u32] = bytemuck::cast_slice(&bytes);
+        let mut texels = Vec::with_capacity((w * h * 4) as usize);
+        for y in 0..h {
+            let row = &words[(y * run.stride) as usize..];
+            if job.bit_depth == 16 {
+                for x in 0..(2 * w) as usize {
+                    texels.push((row[x] & 0xffff) as u16);
+                    texels.push((row[x] >> 16) as u16);
+                }
+            } else {
+                for &word in &row[..w as usize] {
+                    texels.extend(word.to_le_bytes().map(u16::from));
+                }
+            }
+        }
+        let mut report = run.report;
+        report.timings.encode_ms += ms(t);
+        let stats_bytes = self
+            .ctx
+            .read_buffer(&run.stats, run.stats_size, "stats read-back")?;
+        let stats: &[i32] = bytemuck::cast_slice(&stats_bytes);
+        for l in &mut report.layers {
+            l.texels_covered = stats[l.index * 8 + 5].max(0) as u32;
+        }
+        Ok(Baked {
+            width: w,
+            height: h,
+            bit_depth: job.bit_depth,
+            texels,
+            report,
+        })
+    }
+
+    /// Bakes `job` onto `mesh` and returns the result as an `Rgba8UnormSrgb` texture that never leaves
+    /// the GPU (usages: `TEXTURE_BINDING | COPY_SRC | COPY_DST`). The job's `bit_depth` is ignored.
+    pub fn bake_to_texture(&self, mesh: &LoadedMesh, job: &Job) -> Result<(wgpu::Texture, Report)> {
+        let mut job8 = job.clone();
+        job8.bit_depth = 8;
+        let run = self.run(mesh, &job8)?;
+        let tex = self.ctx.scoped("texture output", || {
+            let tex = self.ctx.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("decalbake.baked"),
+                size: wgpu::Extent3d {
+                    width: job.width,
+                    height: job.height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Rgba8UnormSrgb,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_SRC
+                    | wgpu::TextureUsages::COPY_DST,
+                view_formats: &[],
+            });
+            let mut enc = self.ctx.device.create_command_encoder(&Default::default());
+            enc.copy_buffer_to_texture(
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &run.packed,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(run.stride * 4),
+                        rows_per_image: Some(job.height),
+                    },
+                },
+                tex.as_image_copy(),
+                wgpu::Extent3d {
+                    width: job.width,
+                    height: job.height,
+                    depth_or_array_layers: 1,
+                },
+            );
+            self.ctx.queue.submit([enc.finish()]);
+            tex
+        })?;
+        Ok((tex, run.report))
+    }
+
+    /// Checks what can only be checked against the mesh and the device.
+    fn check_job(&self, mesh: &LoadedMesh, job: &Job) -> Result<()> {
+        let src = &job.source;
+        let max_side = self.ctx.max_texture_side();
+        for (field, v) in [("texture.width", job.width), ("texture.height", job.height)] {
+            if v > max_side {
+                return Err(Error::job(
+                    src,
+                    field,
+                    format!("{v} exceeds this adapter's texture limit of {max_side} texels"),
+                ));
+            }
+        }
+        let limits = self.ctx.device.limits();
+        let max_binding = limits.max_storage_buffer_binding_size as u64;
+        let texels = job.width as u64 * job.height as u64;
+        if texels * 8 > max_binding {
+            return Err(Error::job(
+                src,
+                "texture.width",
+                format!(
+                    "{}x{} needs {} MiB per accumulation plane, above this adapter's storage binding limit of {} MiB (at most {} texels, e.g. {}x{})",
+                    job.width,
+                    job.height,
+                    texels * 8 >> 20,
+                    max_binding >> 20,
+                    max_binding / 8,
+                    1u64 << ((max_binding / 8).ilog2() / 2),
+                    1u64 << ((max_binding / 8).ilog2() / 2)
+                ),
+            ));
+        }
+        let sets = mesh.mesh.uv_sets.len();
+        if sets == 0 {
+            return Err(Error::mesh(
+                &mesh.mesh.source,
+                "the mesh has no UV coordinates (no TEXCOORD_0), so there is no texture layout to bake into; unwrap it first (for example Blender's Smart UV Project) and export again",
+            ));
+        }
+        if job.uv_set as usize >= sets {
+            return Err(Error::job(
+                src,
+                "uv_set",
+                format!(
+                    "{} does not exist: {} has {sets} UV set(s) (TEXCOORD_0..TEXCOORD_{})",
+                    job.uv_set,
+                    mesh.mesh.source.display(),
+                    sets - 1
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    fn load_base(&self, mesh: &LoadedMesh, job: &Job) -> Result<LinearImage> {
+        Ok(match &job.base {
+            Base::Color(c) => LinearImage::solid(1, 1, *c),
+            Base::Image(p) => self.checked_image(p, job, "texture.base", false)?,
+            Base::Material => match &mesh.mesh.material {
+                Some(m) => match &m.base_color_texture {
+                    Some(t) => t.clone(),
+                    None => LinearImage::solid(1, 1, m.base_color_factor),
+                },
+                None => LinearImage::solid(1, 1, [0.5, 0.5, 0.5, 1.0]),
+            },
+        })
+    }
+
+    fn checked_image(&self, path: &Path, job: &Job, field: &str, raw: bool) -> Result<LinearImage> {
+        let img = if raw {
+            load_raw(path)?
+        } else {
+            LinearImage::load(path)?
+        };
+        let max = self.ctx.max_texture_side();
+        if img.width > max || img.height > max {
+            return Err(Error::job(
+                &job.source,
+                field,
+                format!(
+                    "{} is {}x{}, above this adapter's texture limit of {max}; downscale it",
+                    path.display(),
+                    img.width,
+                    img.height
+                ),
+            ));
+        }
+        Ok(img)
+    }
+
+    fn run(&self, mesh: &LoadedMesh, job: &Job) -> Result<Run> {
+        self.check_job(mesh, job)?;
+        let dev = &self.ctx.device;
+        let pipes = &self.pipes;
+        let g = &mesh.gpu;
+        let (w, h, ss) = (job.width, job.height, job.ss);
+        let mut timings = Timings {
+            load_ms: mesh.timings.0,
+            weld_ms: mesh.timings.1,
+            upload_ms: mesh.timings.2,
+            ..Default::default()
+        };
+        let mut warnings = Vec::new();
+        let mut commands = 0u32;
+        let uvs = &g.uvs[job.uv_set as usize];
+
+        // Images.
+        let t = Instant::now();
+        let base_img = self.load_base(mesh, job)?;
+        let mut images: HashMap<PathBuf, Arc<GpuImage>> = HashMap::new();
+        let mut masks: HashMap<PathBuf, Arc<GpuImage>> = HashMap::new();
+        let mut layer_images = Vec::new();
+        for (i, l) in job.layers.iter().enumerate() {
+            let img = match images.get(&l.image) {
+                Some(x) => x.clone(),
+                None => {
+                    let im =
+                        self.checked_image(&l.image, job, &format!("layers[{i}].image"), false)?;
+                    let gi = Arc::new(self.upload_image(&im, true, "layer.image"));
+                    images.insert(l.image.clone(), gi.clone());
+                    gi
+                }
+            };
+            let mask = match &l.mask {
+                None => None,
+                Some(p) => Some(match masks.get(p) {
+                    Some(x) => x.clone(),
+                    None => {
+                        let im = self.checked_image(p, job, &format!("layers[{i}].mask"), true)?;
+                        let gi = Arc::new(self.upload_image(&im, true, "layer.mask"));
+                        masks.insert(p.clone(), gi.clone());
+                        gi
+                    }
+                }),
+            };
+            layer_images.push((img, mask));
+        }
+        let base_gpu = self.upload_image(&base_img, false, "bake.base");
+        let dummy = self.upload_image(&LinearImage::solid(1, 1, [1.0; 4]), false, "bake.dummy");
+        timings.images_ms = ms(t);
+
+        // Placement.
+        let t = Instant::now();
+        let queries: Vec<Query> = job
+            .layers
+            .iter()
+            .map(|l| match &l.at {
+                crate::job::AtSpec::Point(p) => Query::Point(Vec3::from(*p)),
+                crate::job::AtSpec::Ray { ray } => {
+                    Query::Ray(Vec3::from(ray.origin), Vec3::from(ray.dir))
+                }
+            })
+            .collect();
+        let placements = place_gpu(&self.ctx, pipes, g, &queries)?;
+        commands += 2;
+        let mut frames = Vec::new();
+        for (i, (l, p)) in job.layers.iter().zip(&placements).enumerate() {
+            if p.found == 0 {
+                return Err(Error::Placement {
+                    layer: i,
+                    detail: "the ray misses the mesh; aim it at the model (check origin, direction and the model's units in `decalbake info`)".into(),
+                });
+            }
+            let reach = l.size[0].max(l.size[1]);
+            if matches!(l.at, crate::job::AtSpec::Point(_)) && p.distance > reach {
+                return Err(Error::Placement {
+                    layer: i,
+                    detail: format!(
+                        "the point {:?} is {:.4} from the surface, farther than the decal's size {:.4}; place it on the mesh (its bounding box is in `decalbake info`) or use a ray",
+                        match l.at { crate::job::AtSpec::Point(p) => p, _ => [0.0; 3] },
+                        p.distance,
+                        reach
+                    ),
+                });
+            }
+            let f = Frame::new(p, l);
+            if f.up_fallback {
+                warnings.push(format!("layer {i}: `up` is parallel to the surface normal there; used a world axis instead"));
+            }
+            frames.push(f);
+        }
+        timings.placement_ms = ms(t);
+
+        let t_compose = Instant::now();
+        // Accumulation image, island mask, stats.
+        let texels = w as u64 * h as u64;
+        let plane = |label| {
+            dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: texels * 8,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        };
+        let acc_rg = plane("bake.acc_rg");
+        let acc_ba = plane("bake.acc_ba");
+        let mask = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("bake.island_mask"),
+            size: texels * 4,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let nl = job.layers.len().max(1) as u64;
+        let stats_init: Vec<i32> = (0..nl)
+            .flat_map(|_| [0, i32::MAX, i32::MAX, i32::MIN, i32::MIN, 0, 0, 0])
+            .collect();
+        let stats = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("bake.stats"),
+            contents: bytemuck::cast_slice(&stats_init),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        });
+        let stats_size = nl * 32;
+
+        let global = Params {
+            tex_size: [w, h],
+            ss,
+            vertex_count: g.vertex_count,
+            triangle_count: g.triangle_count,
+            ..Default::default()
+        };
+
+        // Base and islands: raster jobs over the whole texture for every UV tile the mesh touches.
+        let uv_lo_hi = uv_tile_range(&mesh.mesh.uv_sets[job.uv_set as usize]);
+        let mut island_jobs = Vec::new();
+        for tj in uv_lo_hi[1]..=uv_lo_hi[3] {
+            for ti in uv_lo_hi[0]..=uv_lo_hi[2] {
+                for rect in split_rect([0, 0, w as i32, h as i32], TILE_TARGET / ss) {
+                    island_jobs.push(Params {
+                        rect_origin: [rect[0], rect[1]],
+                        rect_size: [rect[2] as u32, rect[3] as u32],
+                        tile: [ti, tj],
+                        ..global
+                    });
+                }
+            }
+        }
+        let mut entries = vec![global];
+        entries.extend(island_jobs.iter().copied());
+        let island_params = params_buffer(dev, "bake.island_params", &entries);
+
+        self.ctx.scoped("base and islands", || {
+            let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("bake.islands"),
+            });
+            enc.clear_buffer(&mask, 0, None);
+            let bg_base = pipes.base_init.bind(
+                dev,
+                "bake.base_init",
+                &[
+                    (0, pbind(&island_params)),
+                    (1, wgpu::BindingResource::TextureView(&base_gpu.view)),
+                    (2, wgpu::BindingResource::Sampler(&self.linear_sampler)),
+                    (10, acc_rg.as_entire_binding()),
+                    (11, acc_ba.as_entire_binding()),
+                ],
+            );
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("bake.base_init"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(&pipes.base_init.pipeline);
+                pass.set_bind_group(0, &bg_base, &[0]);
+                pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+            }
+            commands += 1;
+            let bg_island = make_bg(
+                dev,
+                &pipes.island_raster.layout,
+                "bake.island_raster",
+                &[
+                    (0, pbind(&island_params)),
+                    (1, g.tris.as_entire_binding()),
+                    (2, g.split_tris.as_entire_binding()),
+                    (3, uvs.as_entire_binding()),
+                ],
+            );
+            for (k, j) in island_jobs.iter().enumerate() {
+                let off = ((k + 1) as u64 * PARAMS_STRIDE) as u32;
+                let side = target_side(j.rect_size, ss);
+                let tg = self.targets(side);
+                {
+                    let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                        label: Some("bake.island_raster"),
+                        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                            view: &tg.cov_view,
+                            depth_slice: None,
+                            resolve_target: None,
+                            ops: wgpu::Operations {
+                                load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                                store: wgpu::StoreOp::Store,
+                            },
+                        })],
+                        depth_stencil_attachment: None,
+                        timestamp_writes: None,
+                        occlusion_query_set: None,
+                        multiview_mask: None,
+                    });
+                    pass.set_pipeline(&pipes.island_raster.pipeline);
+                    pass.set_bind_group(0, &bg_island, &[off]);
+                    pass.set_viewport(
+                        0.0,
+                        0.0,
+                        (j.rect_size[0] * ss) as f32,
+                        (j.rect_size[1] * ss) as f32,
+                        0.0,
+                        1.0,
+                    );
+                    pass.draw(0..3 * g.triangle_count, 0..1);
+                }
+                let bg_mask = pipes.island_mask.bind(
+                    dev,
+                    "bake.island_mask",
+                    &[
+                        (0, pbind(&island_params)),
+                        (1, wgpu::BindingResource::TextureView(&tg.cov_view)),
+                        (2, mask.as_entire_binding()),
+                    ],
+                );
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("bake.island_mask"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(&pipes.island_mask.pipeline);
+                pass.set_bind_group(0, &bg_mask, &[off]);
+                pass.dispatch_workgroups(j.rect_size[0].div_ceil(8), j.rect_size[1].div_ceil(8), 1);
+                commands += 2;
+            }
+            self.ctx.queue.submit([enc.finish()]);
+        })?;
+
+        // Layers, in chunks.
+        let per_layer = g.vertex_count as u64 * 16 + g.triangle_count as u64 * 4;
+        let chunk =
+            ((CHUNK_BUDGET / per_layer.max(1)).max(1) as usize).min(job.layers.len().max(1));
+        let coords = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("bake.coords"),
+            size: (chunk as u64 * g.vertex_count as u64 * 16).max(16),
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let lists = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("bake.lists"),
+            size: (chunk as u64 * g.triangle_count as u64 * 4).max(16),
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let mut layer_reports = Vec::new();
+        for start in (0..job.layers.len()).step_by(chunk) {
+            let end = (start + chunk).min(job.layers.len());
+            let mut lp = Vec::new();
+            for i in start..end {
+                let l = &job.layers[i];
+                let mut p = frames[i].params();
+                p.tex_size = [w, h];
+                p.ss = ss;
+                p.slot = (i - start) as u32;
+                p.aux = i as u32;
+                p.vertex_count = g.vertex_count;
+                p.triangle_count = g.triangle_count;
+                p.blend = l.blend as u32;
+                p.opacity = l.opacity;
+                p.flags = match l.method {
+                    Method::Planar => FLAG_FACING,
+                } | if l.mask.is_some() { FLAG_MASK } else { 0 };
+                lp.push(p);
+            }
+            let layer_params = params_buffer(dev, "bake.layer_params", &lp);
+            self.ctx.scoped("layer coordinates", || {
+                let bg_planar = pipes.planar_coords.bind(
+                    dev,
+                    "bake.planar_coords",
+                    &[
+                        (0, pbind(&layer_params)),
+                        (1, g.positions.as_entire_binding()),
+                        (2, coords.as_entire_binding()),
+                    ],
+                );
+                let bg_select = pipes.select_triangles.bind(
+                    dev,
+                    "bake.select_triangles",
+                    &[
+                        (0, pbind(&layer_params)),
+                        (1, g.positions.as_entire_binding()),
+                        (2, g.tris.as_entire_binding()),
+                        (3, g.split_tris.as_entire_binding()),
+                        (4, uvs.as_entire_binding()),
+                        (5, coords.as_entire_binding()),
+                        (6, lists.as_entire_binding()),
+                        (7, stats.as_entire_binding()),
+                    ],
+                );
+                let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("bake.layers"),
+                });
+                {
+                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some("bake.layers"),
+                        timestamp_writes: None,
+                    });
+                    for (k, l) in job.layers[start..end].iter().enumerate() {
+                        let off = (k as u64 * PARAMS_STRIDE) as u32;
+                        match l.method {
+                            Method::Planar => {
+                                pass.set_pipeline(&pipes.planar_coords.pipeline);
+                                pass.set_bind_group(0, &bg_planar, &[off]);
+                                pass.dispatch_workgroups(g.vertex_count.div_ceil(64), 1, 1);
+                            }
+                        }
+                        pass.set_pipeline(&pipes.select_triangles.pipeline);
+                        pass.set_bind_group(0, &bg_select, &[off]);
+                        pass.dispatch_workgroups(g.triangle_count.div_ceil(64), 1, 1);
+                        commands += 2;
+                    }
+                }
+                self.ctx.queue.submit([enc.finish()]);
+            })?;
+            let sbytes = self
+                .ctx
+                .read_buffer(&stats, stats_size, "layer selection read-back")?;
+            let s: &[i32] = bytemuck::cast_slice(&sbytes);
+
+            // Plan raster jobs.
+            let mut raster_jobs: Vec<(usize, Params)> = Vec::new();
+            for i in start..end {
+                let row = &s[i * 8..i * 8 + 8];
+                let count = row[0].max(0) as u32;
+                let bx = [row[1], row[2], row[3], row[4]];
+                if count == 0 {
+                    return Err(Error::Placement {
+                        layer: i,
+                        detail: "the decal covers no triangle facing it (it misses the mesh, or all triangles under it face away); check `at`, `size` and `depth`".into(),
+                    });
+                }
+                layer_reports.push(LayerReport {
+                    index: i,
+                    image: job.layers[i].image.display().to_string(),
+                    method: job.layers[i].method,
+                    blend: job.layers[i].blend,
+                    placement: placements[i],
+                    distance_moved: placements[i].distance,
+                    frame: frames[i],
+                    triangles_covered: count,
+                    texels_covered: 0,
+                    texel_box: bx,
+                });
+                let base = lp[i - start];
+                for tj in bx[1].div_euclid(h as i32)..=(bx[3] - 1).max(bx[1]).div_euclid(h as i32) {
+                    for ti in
+                        bx[0].div_euclid(w as i32)..=(bx[2] - 1).max(bx[0]).div_euclid(w as i32)
+                    {
+                        let x0 = (bx[0] - ti * w as i32).max(0);
+                        let y0 = (bx[1] - tj * h as i32).max(0);
+                        let x1 = (bx[2] - ti * w as i32).min(w as i32);
+                        let y1 = (bx[3] - tj * h as i32).min(h as i32);
+                        if x1 <= x0 || y1 <= y0 {
+                            continue;
+                        }
+                        for r in split_rect([x0, y0, x1 - x0, y1 - y0], TILE_TARGET / ss) {
+                            raster_jobs.push((
+                                i,
+                                Params {
+                                    rect_origin: [r[0], r[1]],
+                                    rect_size: [r[2] as u32, r[3] as u32],
+                                    tile: [ti, tj],
+                                    ..base
+                                },
+                            ));
+                        }
+                    }
+                }
+            }
+            let jp: Vec<Params> = raster_jobs.iter().map(|(_, p)| *p).collect();
+            let job_params = params_buffer(dev, "bake.raster_params", &jp);
+            self.ctx.scoped("raster and compose", || {
+                let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("bake.compose"),
+                });
+                let mut layer_bgs: HashMap<usize, wgpu::BindGroup> = HashMap::new();
+                for (k, (i, p)) in raster_jobs.iter().enumerate() {
+                    let off = (k as u64 * PARAMS_STRIDE) as u32;
+                    let bg = layer_bgs.entry(*i).or_insert_with(|| {
+                        let (img, m) = &layer_images[*i];
+                        let mview = m.as_ref().map(|m| &m.view).unwrap_or(&dummy.view);
+                        make_bg(
+                            dev,
+                            &pipes.layer_raster.layout,
+                            "bake.layer_raster",
+                            &[
+                                (0, pbind(&job_params)),
+                                (1, lists.as_entire_binding()),
+                                (2, g.split_tris.as_entire_binding()),
+                                (3, uvs.as_entire_binding()),
+                                (4, g.welded_of.as_entire_binding()),
+                                (5, coords.as_entire_binding()),
+                                (6, wgpu::BindingResource::TextureView(&img.view)),
+                                (7, wgpu::BindingResource::TextureView(mview)),
+                                (8, wgpu::BindingResource::Sampler(&self.linear_sampler)),
+                            ],
+                        )
+                    });
+                    let tg = self.targets(target_side(p.rect_size, ss));
+                    let count = s[i * 8].max(0) as u32;
+                    {
+                        let clear = wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                            store: wgpu::StoreOp::Store,
+                        };
+                        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                            label: Some("bake.layer_raster"),
+                            color_attachments: &[
+                                Some(wgpu::RenderPassColorAttachment {
+                                    view: &tg.color_view,
+                                    depth_slice: None,
+                                    resolve_target: None,
+                                    ops: clear,
+                                }),
+                                Some(wgpu::RenderPassColorAttachment {
+                                    view: &tg.cov_view,
+                                    depth_slice: None,
+                                    resolve_target: None,
+                                    ops: clear,
+                                }),
+                            ],
+                            depth_stencil_attachment: None,
+                            timestamp_writes: None,
+                            occlusion_query_set: None,
+                            multiview_mask: None,
+                        });
+                        pass.set_pipeline(&pipes.layer_raster.pipeline);
+                        pass.set_bind_group(0, &*bg, &[off]);
+                        pass.set_viewport(
+                            0.0,
+                            0.0,
+                            (p.rect_size[0] * ss) as f32,
+                            (p.rect_size[1] * ss) as f32,
+                            0.0,
+                            1.0,
+                        );
+                        pass.draw(0..3 * count, 0..1);
+                    }
+                    let bg_compose = pipes.compose.bind(
+                        dev,
+                        "bake.compose",
+                        &[
+                            (0, pbind(&job_params)),
+                            (1, wgpu::BindingResource::TextureView(&tg.color_view)),
+                            (2, wgpu::BindingResource::TextureView(&tg.cov_view)),
+                            (3, stats.as_entire_binding()),
+                            (10, acc_rg.as_entire_binding()),
+                            (11, acc_ba.as_entire_binding()),
+                        ],
+                    );
+                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some("bake.compose"),
+                        timestamp_writes: None,
+                    });
+                    pass.set_pipeline(&pipes.compose.pipeline);
+                    pass.set_bind_group(0, &bg_compose, &[off]);
+                    pass.dispatch_workgroups(
+                        p.rect_size[0].div_ceil(8),
+                        p.rect_size[1].div_ceil(8),
+                        1,
+                    );
+                    commands += 2;
+                }
+                self.ctx.queue.submit([enc.finish()]);
+            })?;
+        }
+        self.ctx.wait("compose")?;
+        timings.compose_ms = ms(t_compose);
+
+        // Padding and encode.
+        let t = Instant::now();
+        let pad = match job.padding {
+            Padding::Texels(n) => n,
+            Padding::Full => u32::MAX,
+        };
+        let stride = if job.bit_depth == 16 {
+            (2 * w).next_multiple_of(64)
+        } else {
+            w.next_multiple_of(64)
+        };
+        let fin = [
+            Params { aux: pad, ..global },
+            Params {
+                rect_size: [stride, 0],
+                flags: if job.bit_depth == 16 { FLAG_16BIT } else { 0 },
+                ..global
+            },
+        ];
+        let fin_params = params_buffer(dev, "bake.final_params", &fin);
+        let packed_size = stride as u64 * h as u64 * 4;
+        let packed = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("bake.packed"),
+            size: packed_size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let padding_wanted = pad > 0;
+        self.ctx.scoped("padding and encode", || {
+            let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("bake.finish"),
+            });
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("bake.finish"),
+                timestamp_writes: None,
+            });
+            if padding_wanted {
+                let col_near = dev.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("bake.edt.col_near"),
+                    size: texels * 4,
+                    usage: wgpu::BufferUsages::STORAGE,
+                    mapped_at_creation: false,
+                });
+                let env_v = dev.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("bake.edt.env_v"),
+                    size: texels * 4,
+                    usage: wgpu::BufferUsages::STORAGE,
+                    mapped_at_creation: false,
+                });
+                let env_z = dev.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("bake.edt.env_z"),
+                    size: (w as u64 + 1) * h as u64 * 4,
+                    usage: wgpu::BufferUsages::STORAGE,
+                    mapped_at_creation: false,
+                });
+                let bg_cols = pipes.edt_columns.bind(
+                    dev,
+                    "bake.edt_columns",
+                    &[
+                        (0, pbind(&fin_params)),
+                        (1, mask.as_entire_binding()),
+                        (2, col_near.as_entire_binding()),
+                    ],
+                );
+                let bg_rows = pipes.edt_rows_fill.bind(
+                    dev,
+                    "bake.edt_rows_fill",
+                    &[
+                        (0, pbind(&fin_params)),
+                        (1, mask.as_entire_binding()),
+                        (2, col_near.as_entire_binding()),
+                        (3, env_v.as_entire_binding()),
+                        (4, env_z.as_entire_binding()),
+                        (10, acc_rg.as_entire_binding()),
+                        (11, acc_ba.as_entire_binding()),
+                    ],
+                );
+                pass.set_pipeline(&pipes.edt_columns.pipeline);
+                pass.set_bind_group(0, &bg_cols, &[0]);
+                pass.dispatch_workgroups(w.div_ceil(64), 1, 1);
+                pass.set_pipeline(&pipes.edt_rows_fill.pipeline);
+                pass.set_bind_group(0, &bg_rows, &[0]);
+                pass.dispatch_workgroups(h.div_ceil(64), 1, 1);
+                commands += 2;
+            }
+            let bg_enc = pipes.encode.bind(
+                dev,
+                "bake.encode",
+                &[
+                    (0, pbind(&fin_params)),
+                    (1, packed.as_entire_binding()),
+                    (10, acc_rg.as_entire_binding()),
+                    (11, acc_ba.as_entire_binding()),
+                ],
+            );
+            pass.set_pipeline(&pipes.encode.pipeline);
+            pass.set_bind_group(0, &bg_enc, &[PARAMS_STRIDE as u32]);
+            pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+            commands += 1;
+            drop(pass);
+            self.ctx.queue.submit([enc.finish()]);
+        })?;
+        self.ctx.wait("padding")?;
+        timings.padding_ms = ms(t);
+
+        let mask_bytes = self
+            .ctx
+            .read_buffer(&mask, texels * 4, "island read-back")?;
+        let island_texels = bytemuck::cast_slice::<u8, u32>(&mask_bytes)
+            .iter()
+            .filter(|m| **m != 0)
+            .count() as u64;
+
+        let report = Report {
+            version: env!("CARGO_PKG_VERSION"),
+            adapter: self.ctx.adapter.clone(),
+            job: job.source.display().to_string(),
+            mesh: mesh.stats.clone(),
+            uv_set: job.uv_set,
+            texture: [w, h],
+            samples: ss * ss,
+            padding: if pad == u32::MAX { None } else { Some(pad) },
+            layers: layer_reports,
+            island_texels,
+            warnings,
+            timings,
+            gpu_commands: commands,
+        };
+        Ok(Run {
+            packed,
+            packed_size,
+            stride,
+            stats,
+            stats_size,
+            report,
+            island_mask: mask,
+        })
+    }
+}
+
+/// GPU results of a bake before read-back.
+struct Run {
+    packed: wgpu::Buffer,
+    packed_size: u64,
+    stride: u32,
+    stats: wgpu::Buffer,
+    stats_size: u64,
+    report: Report,
+    #[allow(dead_code)]
+    island_mask: wgpu::Buffer,
+}
+
+/// A `Params` binding (128 bytes at a dynamic offset).
+fn pbind(buf: &wgpu::Buffer) -> wgpu::BindingResource<'_> {
+    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+        buffer: buf,
+        offset: 0,
+        size: wgpu::BufferSize::new(128),
+    })
+}
+
+fn make_bg(
+    dev: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    label: &str,
+    entries: &[(u32, wgpu::BindingResource<'_>)],
+) -> wgpu::BindGroup {
+    crate::pipelines::make_bind_group(dev, layout, label, entries)
+}
+
+fn params_buffer(dev: &wgpu::Device, label: &str, entries: &[Params]) -> wgpu::Buffer {
+    let mut bytes = vec![0u8; (entries.len().max(1) as u64 * PARAMS_STRIDE) as usize];
+    for (i, p) in entries.iter().enumerate() {
+        let o = i * PARAMS_STRIDE as usize;
+        bytes[o..o + 128].copy_from_slice(bytemuck::bytes_of(p));
+    }
+    dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: &bytes,
+        usage: wgpu::BufferUsages::UNIFORM,
+    })
+}
+
+/// Pooled target side for a raster rectangle: the next power of two of its samples, at least 64.
+fn target_side(rect: [u32; 2], ss: u32) -> u32 {
+    (rect[0].max(rect[1]) * ss)
+        .next_power_of_two()
+        .clamp(64, TILE_TARGET)
+}
+
+/// Splits rectangle (x, y, w, h) into pieces of at most `tile` a side.
+pub fn split_rect(r: [i32; 4], tile: u32) -> Vec<[i32; 4]> {
+    let t = tile as i32;
+    let mut out = Vec::new();
+    let mut y = r[1];
+    while y < r[1] + r[3] {
+        let hh = t.min(r[1] + r[3] - y);
+        let mut x = r[0];
+        while x < r[0] + r[2] {
+            let ww = t.min(r[0] + r[2] - x);
+            out.push([x, y, ww, hh]);
+            x += ww;
+        }
+        y += hh;
+    }
+    out
+}
+
+/// Integer UV tiles (min u, min v, max u, max v) a UV set touches.
+fn uv_tile_range(uvs: &[glam::Vec2]) -> [i32; 4] {
+    let mut r = [i32::MAX, i32::MAX, i32::MIN, i32::MIN];
+    for u in uvs {
+        // A UV exactly on 1.0 belongs to tile 0.
+        let tx = if u.x == u.x.floor() && u.x > 0.0 {
+            u.x as i32 - 1
+        } else {
+            u.x.floor() as i32
+        };
+        let ty = if u.y == u.y.floor() && u.y > 0.0 {
+            u.y as i32 - 1
+        } else {
+            u.y.floor() as i32
+        };
+        r = [r[0].min(tx), r[1].min(ty), r[2].max(tx), r[3].max(ty)];
+    }
+    if r[0] == i32::MAX {
+        return [0, 0, 0, 0];
+    }
+    // Guard against absurd UV ranges (each tile is a full-texture raster pass).
+    [r[0].max(-8), r[1].max(-8), r[2].min(8), r[3].min(8)]
+}
+
+fn load_raw(path: &Path) -> Result<LinearImage> {
+    let img = LinearImage::load(path)?;
+    // Masks are data, not colour: undo the sRGB decode so a mid-grey mask value means 50 %.
+    Ok(LinearImage {
+        pixels: img
+            .pixels
+            .iter()
+            .map(|p| {
+                [
+                    crate::image_io::linear_to_srgb(p[0]),
+                    crate::image_io::linear_to_srgb(p[1]),
+                    crate::image_io::linear_to_srgb(p[2]),
+                    p[3],
+                ]
+            })
+            .collect(),
+        ..img
+    })
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1000.0
+}
+
+/// f32 → IEEE half bits, round to nearest even (for devices without filterable f32 textures).
+pub fn f32_to_f16(v: f32) -> u16 {
+    let x = v.to_bits();
+    let sign = ((x >> 16) & 0x8000) as u16;
+    let exp = ((x >> 23) & 0xff) as i32;
+    let mant = x & 0x7f_ffff;
+    if exp == 255 {
+        return sign | 0x7c00 | if mant != 0 { 0x200 } else { 0 };
+    }
+    let e = exp - 127 + 15;
+    if e >= 31 {
+        return sign | 0x7c00;
+    }
+    if e <= 0 {
+        if e < -10 {
+            return sign;
+        }
+        let m = mant | 0x80_0000;
+        let shift = (14 - e) as u32;
+        let half = 1u32 << (shift - 1);
+        let rounded = (m + half - 1 + ((m >> shift) & 1)) >> shift;
+        return sign | rounded as u16;
+    }
+    let rounded = mant + 0xfff + ((mant >> 13) & 1);
+    if rounded & 0x80_0000 != 0 {
+        let e2 = e + 1;
+        if e2 >= 31 {
+            return sign | 0x7c00;
+        }
+        return sign | ((e2 as u16) << 10);
+    }
+    sign | ((e as u16) << 10) | (rounded >> 13) as u16
+}

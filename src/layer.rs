@@ -1,0 +1,207 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Layers: the decal frame at the placed point, the per-kernel `Params` block, and the CPU twins of
+//! the layer kernels (`planar_coords`, `select_triangles`).
+//!
+//! The interface every placement method implements: for each welded vertex, local coordinates
+//! `(x, y)` in model units in the decal's frame plus a validity flag (`vec4(x, y, extra, valid)` in
+//! the coords buffer). `select_triangles` then keeps the triangles whose three vertices are valid and
+//! whose coordinate box overlaps the decal rectangle. The planar method is the tangent-plane projection
+//! of Schmidt, Grimm & Wyvill 2006 (section 3, the projection their exponential map improves upon).
+
+use crate::job::Layer;
+use crate::mesh::{Mesh, Topology};
+use crate::place::Placement;
+use glam::{Vec2, Vec3};
+
+/// Per-dispatch parameters. Keep in sync with `Params` in wgsl/shared/params.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Params {
+    /// Decal centre.
+    pub center: [f32; 4],
+    /// Image +x direction; w = width.
+    pub axis_u: [f32; 4],
+    /// Image +y direction; w = height.
+    pub axis_v: [f32; 4],
+    /// Projection normal; w = planar depth limit.
+    pub normal: [f32; 4],
+    /// Output texture size.
+    pub tex_size: [u32; 2],
+    /// Raster rectangle origin (texels).
+    pub rect_origin: [i32; 2],
+    /// Raster rectangle size (texels); the encode kernel reads `rect_size[0]` as its row stride.
+    pub rect_size: [u32; 2],
+    /// UV tile.
+    pub tile: [i32; 2],
+    /// Supersampling per axis.
+    pub ss: u32,
+    /// Blend mode id.
+    pub blend: u32,
+    /// Slot in the chunk.
+    pub slot: u32,
+    /// Flags (`FLAG_*`).
+    pub flags: u32,
+    /// Opacity.
+    pub opacity: f32,
+    /// Welded vertex count.
+    pub vertex_count: u32,
+    /// Triangle count.
+    pub triangle_count: u32,
+    /// Layer kernels: the layer's index in the job (stats row); `edt_rows_fill`: padding radius
+    /// (`u32::MAX` = full).
+    pub aux: u32,
+}
+
+const _: () = assert!(std::mem::size_of::<Params>() == 128);
+
+/// Require front-facing triangles.
+pub const FLAG_FACING: u32 = 1;
+/// A mask image is bound.
+pub const FLAG_MASK: u32 = 2;
+/// Encode at 16 bits.
+pub const FLAG_16BIT: u32 = 4;
+
+/// The decal's frame on the surface.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct Frame {
+    /// Image centre on the surface.
+    pub center: Vec3,
+    /// Surface direction of the image's +x.
+    pub axis_u: Vec3,
+    /// Surface direction of the image's +y (up).
+    pub axis_v: Vec3,
+    /// Out of the surface.
+    pub normal: Vec3,
+    /// Width, height.
+    pub size: [f32; 2],
+    /// Planar depth limit.
+    pub depth: f32,
+    /// True when `up` was (nearly) parallel to the normal and a fallback direction was used.
+    pub up_fallback: bool,
+}
+
+impl Frame {
+    /// The frame at a placement: `up` projected into the tangent plane, then turned by `angle`
+    /// degrees counter-clockwise seen from outside.
+    pub fn new(p: &Placement, layer: &Layer) -> Self {
+        let n = Vec3::from(p.normal).normalize();
+        let up = Vec3::from(layer.up).normalize();
+        let mut t_up = up - up.dot(n) * n;
+        let mut up_fallback = false;
+        if t_up.length() < 1e-3 {
+            up_fallback = true;
+            // The world axis least aligned with the normal.
+            let a = n.abs();
+            let axis = if a.x <= a.y && a.x <= a.z {
+                Vec3::X
+            } else if a.y <= a.z {
+                Vec3::Y
+            } else {
+                Vec3::Z
+            };
+            t_up = axis - axis.dot(n) * n;
+        }
+        let up0 = t_up.normalize();
+        let right0 = up0.cross(n).normalize();
+        let (s, c) = layer.angle.to_radians().sin_cos();
+        Self {
+            center: Vec3::from(p.point),
+            axis_u: c * right0 + s * up0,
+            axis_v: -s * right0 + c * up0,
+            normal: n,
+            size: layer.size,
+            depth: layer.depth,
+            up_fallback,
+        }
+    }
+
+    /// Fills the frame fields of a `Params` block.
+    pub fn params(&self) -> Params {
+        Params {
+            center: self.center.extend(0.0).to_array(),
+            axis_u: self.axis_u.extend(self.size[0]).to_array(),
+            axis_v: self.axis_v.extend(self.size[1]).to_array(),
+            normal: self.normal.extend(self.depth).to_array(),
+            ..Default::default()
+        }
+    }
+}
+
+/// CPU twin of `planar_coords.wgsl`: `(x, y, depth, valid)` per welded vertex.
+pub fn planar_coords(topo: &Topology, f: &Frame) -> Vec<[f32; 4]> {
+    topo.positions
+        .iter()
+        .map(|p| {
+            let d = *p - f.center;
+            let z = d.dot(f.normal);
+            [
+                d.dot(f.axis_u),
+                d.dot(f.axis_v),
+                z,
+                if z.abs() <= f.depth { 1.0 } else { 0.0 },
+            ]
+        })
+        .collect()
+}
+
+/// What `select_triangles` produces for one layer.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Selection {
+    /// Covered triangles, ascending (the GPU appends in any order).
+    pub triangles: Vec<u32>,
+    /// Texel box (min x, min y, max x, max y), before UV wrapping.
+    pub texel_box: [i32; 4],
+}
+
+/// CPU twin of `select_triangles.wgsl`.
+pub fn select_triangles(
+    mesh: &Mesh,
+    topo: &Topology,
+    uvs: &[Vec2],
+    coords: &[[f32; 4]],
+    f: &Frame,
+    facing: bool,
+    tex: [u32; 2],
+) -> Selection {
+    let mut out = Selection {
+        triangles: Vec::new(),
+        texel_box: [i32::MAX, i32::MAX, i32::MIN, i32::MIN],
+    };
+    let (hx, hy) = (0.5 * f.size[0], 0.5 * f.size[1]);
+    for (t, tri) in topo.triangles.iter().enumerate() {
+        if topo.degenerate[t] {
+            continue;
+        }
+        let c = tri.map(|v| coords[v as usize]);
+        if c.iter().any(|c| c[3] < 0.5) {
+            continue;
+        }
+        let lo = Vec2::new(
+            c[0][0].min(c[1][0]).min(c[2][0]),
+            c[0][1].min(c[1][1]).min(c[2][1]),
+        );
+        let hi = Vec2::new(
+            c[0][0].max(c[1][0]).max(c[2][0]),
+            c[0][1].max(c[1][1]).max(c[2][1]),
+        );
+        if hi.x < -hx || lo.x > hx || hi.y < -hy || lo.y > hy {
+            continue;
+        }
+        if facing {
+            let [a, b, cc] = tri.map(|v| topo.positions[v as usize]);
+            if (b - a).cross(cc - a).dot(f.normal) <= 0.0 {
+                continue;
+            }
+        }
+        out.triangles.push(t as u32);
+        let size = Vec2::new(tex[0] as f32, tex[1] as f32);
+        let u = mesh.triangles[t].map(|s| uvs[s as usize] * size);
+        let tlo = u[0].min(u[1]).min(u[2]).floor();
+        let thi = u[0].max(u[1]).max(u[2]).ceil();
+        out.texel_box[0] = out.texel_box[0].min(tlo.x as i32);
+        out.texel_box[1] = out.texel_box[1].min(tlo.y as i32);
+        out.texel_box[2] = out.texel_box[2].max(thi.x as i32);
+        out.texel_box[3] = out.texel_box[3].max(thi.y as i32);
+    }
+    out
+}

@@ -1,0 +1,421 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Every compute and render pipeline of the engine, created once per [`crate::Engine`], with their
+//! bind-group layouts described as data (one [`Bind`] list per kernel, in WGSL binding order).
+
+use crate::shaders;
+
+/// Format of the supersampled layer colour target (premultiplied, linear).
+pub const LAYER_COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+/// Format of the coverage targets.
+pub const COVERAGE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
+/// Preview colour format.
+pub const PREVIEW_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+
+/// One binding's kind.
+#[derive(Clone, Copy, Debug)]
+pub enum Bind {
+    /// The `Params` uniform, with a dynamic offset.
+    Params,
+    /// A plain uniform buffer.
+    Uniform,
+    /// Read-only storage buffer.
+    Ro,
+    /// Read-write storage buffer.
+    Rw,
+    /// Float texture; `true` = filterable.
+    Tex(bool),
+    /// Filtering sampler.
+    Sampler,
+}
+
+fn layout(
+    device: &wgpu::Device,
+    label: &str,
+    binds: &[(u32, Bind)],
+    vis: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayout {
+    let entries: Vec<wgpu::BindGroupLayoutEntry> = binds
+        .iter()
+        .map(|&(binding, kind)| {
+            let buf = |ty, dynamic| wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: dynamic,
+                min_binding_size: None,
+            };
+            let ty = match kind {
+                Bind::Params => buf(wgpu::BufferBindingType::Uniform, true),
+                Bind::Uniform => buf(wgpu::BufferBindingType::Uniform, false),
+                Bind::Ro => buf(wgpu::BufferBindingType::Storage { read_only: true }, false),
+                Bind::Rw => buf(wgpu::BufferBindingType::Storage { read_only: false }, false),
+                Bind::Tex(filterable) => wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable },
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+                Bind::Sampler => wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+            };
+            wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility: vis,
+                ty,
+                count: None,
+            }
+        })
+        .collect();
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(label),
+        entries: &entries,
+    })
+}
+
+/// A compute pipeline and its bind-group layout.
+pub struct Kernel {
+    /// The pipeline.
+    pub pipeline: wgpu::ComputePipeline,
+    /// Its group-0 layout.
+    pub layout: wgpu::BindGroupLayout,
+}
+
+impl Kernel {
+    fn new(device: &wgpu::Device, name: &str, binds: &[(u32, Bind)]) -> Self {
+        let layout = layout(device, name, binds, wgpu::ShaderStages::COMPUTE);
+        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(name),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let module = shaders::module(device, name);
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(name),
+            layout: Some(&pl),
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        Self { pipeline, layout }
+    }
+
+    /// Builds a bind group from buffers/views/samplers in binding order.
+    pub fn bind(
+        &self,
+        device: &wgpu::Device,
+        label: &str,
+        entries: &[(u32, wgpu::BindingResource<'_>)],
+    ) -> wgpu::BindGroup {
+        make_bind_group(device, &self.layout, label, entries)
+    }
+}
+
+/// Builds a bind group.
+pub fn make_bind_group(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    label: &str,
+    entries: &[(u32, wgpu::BindingResource<'_>)],
+) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> = entries
+        .iter()
+        .map(|(binding, resource)| wgpu::BindGroupEntry {
+            binding: *binding,
+            resource: resource.clone(),
+        })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout,
+        entries: &entries,
+    })
+}
+
+/// A render pipeline and its bind-group layout.
+pub struct Raster {
+    /// The pipeline.
+    pub pipeline: wgpu::RenderPipeline,
+    /// Its group-0 layout.
+    pub layout: wgpu::BindGroupLayout,
+}
+
+/// All pipelines.
+pub struct Pipelines {
+    /// Placement stage 1.
+    pub place_candidates: Kernel,
+    /// Placement stage 2.
+    pub place_reduce: Kernel,
+    /// Planar layer coordinates.
+    pub planar_coords: Kernel,
+    /// Triangle selection.
+    pub select_triangles: Kernel,
+    /// Layer raster.
+    pub layer_raster: Raster,
+    /// Island raster.
+    pub island_raster: Raster,
+    /// Island mask reduction.
+    pub island_mask: Kernel,
+    /// Layer composition.
+    pub compose: Kernel,
+    /// Base fill.
+    pub base_init: Kernel,
+    /// EDT pass 1.
+    pub edt_columns: Kernel,
+    /// EDT pass 2 + fill.
+    pub edt_rows_fill: Kernel,
+    /// sRGB encode.
+    pub encode: Kernel,
+    /// Preview.
+    pub preview: Raster,
+    /// Whether the layer target blends premultiplied source-over within a layer
+    /// (needs `FLOAT32_BLENDABLE`; without it the last triangle drawn at a sample wins).
+    pub layer_blending: bool,
+    /// Format of decal/mask/base textures: `Rgba32Float` with `FLOAT32_FILTERABLE`, else `Rgba16Float`.
+    pub image_format: wgpu::TextureFormat,
+}
+
+impl Pipelines {
+    /// Creates every pipeline on `device`.
+    pub fn new(device: &wgpu::Device) -> Self {
+        use Bind::*;
+        let features = device.features();
+        let layer_blending = features.contains(wgpu::Features::FLOAT32_BLENDABLE);
+        let image_format = if features.contains(wgpu::Features::FLOAT32_FILTERABLE) {
+            wgpu::TextureFormat::Rgba32Float
+        } else {
+            wgpu::TextureFormat::Rgba16Float
+        };
+        let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
+
+        let layer_layout = layout(
+            device,
+            "layer_raster",
+            &[
+                (0, Params),
+                (1, Ro),
+                (2, Ro),
+                (3, Ro),
+                (4, Ro),
+                (5, Ro),
+                (6, Tex(true)),
+                (7, Tex(true)),
+                (8, Sampler),
+            ],
+            vf,
+        );
+        let premult_over = wgpu::BlendState {
+            color: wgpu::BlendComponent {
+                src_factor: wgpu::BlendFactor::One,
+                dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
+                operation: wgpu::BlendOperation::Add,
+            },
+            alpha: wgpu::BlendComponent {
+                src_factor: wgpu::BlendFactor::One,
+                dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
+                operation: wgpu::BlendOperation::Add,
+            },
+        };
+        let layer_raster = raster(
+            device,
+            "layer_raster",
+            layer_layout,
+            &[],
+            &[
+                Some(wgpu::ColorTargetState {
+                    format: LAYER_COLOR_FORMAT,
+                    blend: layer_blending.then_some(premult_over),
+                    write_mask: wgpu::ColorWrites::ALL,
+                }),
+                Some(COVERAGE_FORMAT.into()),
+            ],
+            None,
+            1,
+        );
+        let island_layout = layout(
+            device,
+            "island_raster",
+            &[(0, Params), (1, Ro), (2, Ro), (3, Ro)],
+            vf,
+        );
+        let island_raster = raster(
+            device,
+            "island_raster",
+            island_layout,
+            &[],
+            &[Some(COVERAGE_FORMAT.into())],
+            None,
+            1,
+        );
+
+        let preview_layout = layout(
+            device,
+            "preview",
+            &[(0, Uniform), (1, Tex(true)), (2, Sampler)],
+            vf,
+        );
+        let vb = |loc: u32, fmt: wgpu::VertexFormat| -> Vec<wgpu::VertexAttribute> {
+            vec![wgpu::VertexAttribute {
+                format: fmt,
+                offset: 0,
+                shader_location: loc,
+            }]
+        };
+        let a0 = vb(0, wgpu::VertexFormat::Float32x3);
+        let a1 = vb(1, wgpu::VertexFormat::Float32x3);
+        let a2 = vb(2, wgpu::VertexFormat::Float32x2);
+        let buffers = [
+            Some(wgpu::VertexBufferLayout {
+                array_stride: 12,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &a0,
+            }),
+            Some(wgpu::VertexBufferLayout {
+                array_stride: 12,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &a1,
+            }),
+            Some(wgpu::VertexBufferLayout {
+                array_stride: 8,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &a2,
+            }),
+        ];
+        let preview = raster(
+            device,
+            "preview",
+            preview_layout,
+            &buffers,
+            &[Some(PREVIEW_FORMAT.into())],
+            Some(wgpu::DepthStencilState {
+                format: wgpu::TextureFormat::Depth32Float,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            4,
+        );
+
+        Self {
+            place_candidates: Kernel::new(
+                device,
+                "place_candidates",
+                &[(0, Ro), (1, Ro), (2, Ro), (3, Rw)],
+            ),
+            place_reduce: Kernel::new(
+                device,
+                "place_reduce",
+                &[(0, Ro), (1, Ro), (2, Ro), (3, Ro), (4, Ro), (5, Rw)],
+            ),
+            planar_coords: Kernel::new(device, "planar_coords", &[(0, Params), (1, Ro), (2, Rw)]),
+            select_triangles: Kernel::new(
+                device,
+                "select_triangles",
+                &[
+                    (0, Params),
+                    (1, Ro),
+                    (2, Ro),
+                    (3, Ro),
+                    (4, Ro),
+                    (5, Ro),
+                    (6, Rw),
+                    (7, Rw),
+                ],
+            ),
+            layer_raster,
+            island_raster,
+            island_mask: Kernel::new(
+                device,
+                "island_mask",
+                &[(0, Params), (1, Tex(false)), (2, Rw)],
+            ),
+            compose: Kernel::new(
+                device,
+                "compose",
+                &[
+                    (0, Params),
+                    (1, Tex(false)),
+                    (2, Tex(false)),
+                    (3, Rw),
+                    (10, Rw),
+                    (11, Rw),
+                ],
+            ),
+            base_init: Kernel::new(
+                device,
+                "base_init",
+                &[
+                    (0, Params),
+                    (1, Tex(true)),
+                    (2, Sampler),
+                    (10, Rw),
+                    (11, Rw),
+                ],
+            ),
+            edt_columns: Kernel::new(device, "edt_columns", &[(0, Params), (1, Ro), (2, Rw)]),
+            edt_rows_fill: Kernel::new(
+                device,
+                "edt_rows_fill",
+                &[
+                    (0, Params),
+                    (1, Ro),
+                    (2, Ro),
+                    (3, Rw),
+                    (4, Rw),
+                    (10, Rw),
+                    (11, Rw),
+                ],
+            ),
+            encode: Kernel::new(
+                device,
+                "encode",
+                &[(0, Params), (1, Rw), (10, Rw), (11, Rw)],
+            ),
+            preview,
+            layer_blending,
+            image_format,
+        }
+    }
+}
+
+fn raster(
+    device: &wgpu::Device,
+    name: &str,
+    layout: wgpu::BindGroupLayout,
+    buffers: &[Option<wgpu::VertexBufferLayout<'_>>],
+    targets: &[Option<wgpu::ColorTargetState>],
+    depth: Option<wgpu::DepthStencilState>,
+    samples: u32,
+) -> Raster {
+    let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(name),
+        bind_group_layouts: &[Some(&layout)],
+        immediate_size: 0,
+    });
+    let module = shaders::module(device, name);
+    let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(name),
+        layout: Some(&pl),
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vs_main"),
+            compilation_options: Default::default(),
+            buffers,
+        },
+        primitive: wgpu::PrimitiveState {
+            cull_mode: None,
+            ..Default::default()
+        },
+        depth_stencil: depth,
+        multisample: wgpu::MultisampleState {
+            count: samples,
+            ..Default::default()
+        },
+        fragment: Some(wgpu::FragmentState {
+            module: &module,
+            entry_point: Some("fs_main"),
+            compilation_options: Default::default(),
+            targets,
+        }),
+        multiview_mask: None,
+        cache: None,
+    });
+    Raster { pipeline, layout }
+}

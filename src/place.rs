@@ -1,0 +1,281 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Placement: snapping a layer's point to the closest surface point, or casting its ray, on the GPU.
+//!
+//! All layers of a job are placed in one submission: `place_candidates` tests every (non-degenerate)
+//! triangle against every query and reduces per workgroup in a fixed order (ties go to the lower
+//! triangle id, so results are deterministic); `place_reduce` finishes the reduction per layer and
+//! computes the point, barycentric coordinates and the smooth normal there. [`place_cpu`] is the plain
+//! CPU twin the tests compare against.
+
+use crate::error::Result;
+use crate::gpu::GpuContext;
+use crate::gpu_mesh::GpuMesh;
+use crate::mesh::Topology;
+use crate::pipelines::Pipelines;
+use glam::Vec3;
+use wgpu::util::DeviceExt;
+
+/// Workgroups per layer in `place_candidates`. Keep in sync with the WGSL constant.
+pub const PLACE_GROUPS: u32 = 32;
+
+/// A placement query.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Query {
+    /// Snap this point to the surface.
+    Point(Vec3),
+    /// First hit of this ray (origin, direction).
+    Ray(Vec3, Vec3),
+}
+
+/// GPU layout of a query. Keep in sync with `Query` in wgsl/shared/geometry.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct GpuQuery {
+    origin: [f32; 4],
+    dir: [f32; 4],
+}
+
+/// Where a layer landed. Keep in sync with `PlaceResult` in wgsl/place_reduce.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable, serde::Serialize)]
+pub struct Placement {
+    /// The surface point.
+    pub point: [f32; 3],
+    /// Its triangle.
+    pub triangle: u32,
+    /// Barycentric coordinates in that triangle.
+    pub bary: [f32; 3],
+    /// Distance from the query point to the surface, or along the ray to the hit.
+    pub distance: f32,
+    /// Unit normal (interpolated vertex normals).
+    pub normal: [f32; 3],
+    /// 1 if anything was found (a ray can miss).
+    pub found: u32,
+}
+
+impl Query {
+    fn gpu(&self) -> GpuQuery {
+        match *self {
+            Query::Point(p) => GpuQuery {
+                origin: [p.x, p.y, p.z, 0.0],
+                dir: [0.0; 4],
+            },
+            Query::Ray(o, d) => {
+                let d = d.normalize();
+                GpuQuery {
+                    origin: [o.x, o.y, o.z, 0.0],
+                    dir: [d.x, d.y, d.z, 1.0],
+                }
+            }
+        }
+    }
+}
+
+/// Places every query on the GPU in one submission (two dispatches) and one read-back.
+pub fn place_gpu(
+    ctx: &GpuContext,
+    pipes: &Pipelines,
+    mesh: &GpuMesh,
+    queries: &[Query],
+) -> Result<Vec<Placement>> {
+    if queries.is_empty() {
+        return Ok(Vec::new());
+    }
+    let device = &ctx.device;
+    ctx.scoped("placement", || {
+        let q: Vec<GpuQuery> = queries.iter().map(Query::gpu).collect();
+        let qbuf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("place.queries"),
+            contents: bytemuck::cast_slice(&q),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let n = queries.len() as u64;
+        let partials = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("place.partials"),
+            size: n * PLACE_GROUPS as u64 * 8,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let result_size = n * std::mem::size_of::<Placement>() as u64;
+        let results = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("place.results"),
+            size: result_size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let bg1 = pipes.place_candidates.bind(
+            device,
+            "place.candidates",
+            &[
+                (0, mesh.positions.as_entire_binding()),
+                (1, mesh.tris.as_entire_binding()),
+                (2, qbuf.as_entire_binding()),
+                (3, partials.as_entire_binding()),
+            ],
+        );
+        let bg2 = pipes.place_reduce.bind(
+            device,
+            "place.reduce",
+            &[
+                (0, mesh.positions.as_entire_binding()),
+                (1, mesh.tris.as_entire_binding()),
+                (2, mesh.normals.as_entire_binding()),
+                (3, qbuf.as_entire_binding()),
+                (4, partials.as_entire_binding()),
+                (5, results.as_entire_binding()),
+            ],
+        );
+        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("place"),
+        });
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("place"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&pipes.place_candidates.pipeline);
+            pass.set_bind_group(0, &bg1, &[]);
+            pass.dispatch_workgroups(PLACE_GROUPS, queries.len() as u32, 1);
+            pass.set_pipeline(&pipes.place_reduce.pipeline);
+            pass.set_bind_group(0, &bg2, &[]);
+            pass.dispatch_workgroups(queries.len() as u32, 1, 1);
+        }
+        ctx.queue.submit([enc.finish()]);
+        (results, result_size)
+    })
+    .and_then(|(results, size)| {
+        let bytes = ctx.read_buffer(&results, size, "placement read-back")?;
+        Ok(bytemuck::cast_slice::<u8, Placement>(&bytes).to_vec())
+    })
+}
+
+/// Closest point on triangle (a, b, c) to p, barycentric (Ericson 5.1.5). Twin of
+/// `closest_barycentric` in wgsl/shared/geometry.wgsl.
+pub fn closest_barycentric(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = ab.dot(ap);
+    let d2 = ac.dot(ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return Vec3::X;
+    }
+    let bp = p - b;
+    let d3 = ab.dot(bp);
+    let d4 = ac.dot(bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return Vec3::Y;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return Vec3::new(1.0 - v, v, 0.0);
+    }
+    let cp = p - c;
+    let d5 = ab.dot(cp);
+    let d6 = ac.dot(cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return Vec3::Z;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return Vec3::new(1.0 - w, 0.0, w);
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return Vec3::new(0.0, 1.0 - w, w);
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let v = vb * denom;
+    let w = vc * denom;
+    Vec3::new(1.0 - v - w, v, w)
+}
+
+/// Ray/triangle (Moller-Trumbore, both sides): (t, u, v), t < 0 on a miss. Twin of `ray_triangle`.
+pub fn ray_triangle(o: Vec3, d: Vec3, a: Vec3, b: Vec3, c: Vec3) -> (f32, f32, f32) {
+    let e1 = b - a;
+    let e2 = c - a;
+    let pv = d.cross(e2);
+    let det = e1.dot(pv);
+    if det.abs() < 1e-30 {
+        return (-1.0, 0.0, 0.0);
+    }
+    let inv = 1.0 / det;
+    let tv = o - a;
+    let u = tv.dot(pv) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return (-1.0, 0.0, 0.0);
+    }
+    let qv = tv.cross(e1);
+    let v = d.dot(qv) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return (-1.0, 0.0, 0.0);
+    }
+    (e2.dot(qv) * inv, u, v)
+}
+
+/// CPU twin of the placement kernels: brute force over every non-degenerate triangle.
+pub fn place_cpu(topo: &Topology, query: Query) -> Placement {
+    let mut best: Option<(f32, u32)> = None;
+    for (t, tri) in topo.triangles.iter().enumerate() {
+        if topo.degenerate[t] {
+            continue;
+        }
+        let [a, b, c] = tri.map(|i| topo.positions[i as usize]);
+        let key = match query {
+            Query::Point(p) => {
+                let bc = closest_barycentric(p, a, b, c);
+                (bc.x * a + bc.y * b + bc.z * c).distance_squared(p)
+            }
+            Query::Ray(o, d) => {
+                let (t, _, _) = ray_triangle(o, d.normalize(), a, b, c);
+                if t >= 0.0 {
+                    t
+                } else {
+                    continue;
+                }
+            }
+        };
+        if best.is_none_or(|(k, _)| key < k) {
+            best = Some((key, t as u32));
+        }
+    }
+    let Some((key, t)) = best else {
+        return Placement {
+            point: [0.0; 3],
+            triangle: u32::MAX,
+            bary: [0.0; 3],
+            distance: 0.0,
+            normal: [0.0; 3],
+            found: 0,
+        };
+    };
+    let tri = topo.triangles[t as usize];
+    let [a, b, c] = tri.map(|i| topo.positions[i as usize]);
+    let (bc, distance) = match query {
+        Query::Point(p) => (closest_barycentric(p, a, b, c), key.sqrt()),
+        Query::Ray(o, d) => {
+            let (t, u, v) = ray_triangle(o, d.normalize(), a, b, c);
+            (Vec3::new(1.0 - u - v, u, v), t)
+        }
+    };
+    let point = bc.x * a + bc.y * b + bc.z * c;
+    let n = bc.x * topo.normals[tri[0] as usize]
+        + bc.y * topo.normals[tri[1] as usize]
+        + bc.z * topo.normals[tri[2] as usize];
+    let normal = if n.length_squared() > 1e-12 {
+        n.normalize()
+    } else {
+        (b - a).cross(c - a).normalize()
+    };
+    Placement {
+        point: point.to_array(),
+        triangle: t,
+        bary: bc.to_array(),
+        distance,
+        normal: normal.to_array(),
+        found: 1,
+    }
+}
