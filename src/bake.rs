@@ -344,9 +344,9 @@ impl Engine {
         for y in 0..h {
             let row = &words[(y * run.stride) as usize..];
             if job.bit_depth == 16 {
-                for x in 0..(2 * w) as usize {
-                    texels.push((row[x] & 0xffff) as u16);
-                    texels.push((row[x] >> 16) as u16);
+                for &word in &row[..(2 * w) as usize] {
+                    texels.push((word & 0xffff) as u16);
+                    texels.push((word >> 16) as u16);
                 }
             } else {
                 for &word in &row[..w as usize] {
@@ -432,7 +432,7 @@ impl Engine {
             }
         }
         let limits = self.ctx.device.limits();
-        let max_binding = limits.max_storage_buffer_binding_size as u64;
+        let max_binding = limits.max_storage_buffer_binding_size;
         let texels = job.width as u64 * job.height as u64;
         if texels * 8 > max_binding {
             return Err(Error::job(
@@ -442,7 +442,7 @@ impl Engine {
                     "{}x{} needs {} MiB per accumulation plane, above this adapter's storage binding limit of {} MiB (at most {} texels, e.g. {}x{})",
                     job.width,
                     job.height,
-                    texels * 8 >> 20,
+                    (texels * 8) >> 20,
                     max_binding >> 20,
                     max_binding / 8,
                     1u64 << ((max_binding / 8).ilog2() / 2),
@@ -771,9 +771,8 @@ impl Engine {
         for start in (0..job.layers.len()).step_by(chunk) {
             let end = (start + chunk).min(job.layers.len());
             let mut lp = Vec::new();
-            for i in start..end {
-                let l = &job.layers[i];
-                let mut p = frames[i].params();
+            for (i, (l, frame)) in job.layers.iter().zip(&frames).enumerate().take(end).skip(start) {
+                let mut p = frame.params();
                 p.tex_size = [w, h];
                 p.ss = ss;
                 p.slot = (i - start) as u32;

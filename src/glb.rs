@@ -10,7 +10,7 @@ use crate::bake::LoadedMesh;
 use serde_json::json;
 
 fn pad4(buf: &mut Vec<u8>, fill: u8) {
-    while buf.len() % 4 != 0 {
+    while !buf.len().is_multiple_of(4) {
         buf.push(fill);
     }
 }

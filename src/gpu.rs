@@ -199,8 +199,7 @@ impl GpuContext {
             let _ = tx.send(r);
         });
         self.wait(stage)?;
-        let mapped = rx
-            .recv()
+        rx.recv()
             .map_err(|e| Error::Gpu {
                 stage: stage.to_string(),
                 detail: e.to_string(),
@@ -209,7 +208,6 @@ impl GpuContext {
                 stage: stage.to_string(),
                 detail: e.to_string(),
             })?;
-        let _ = mapped;
         let view = staging
             .slice(..)
             .get_mapped_range()

@@ -155,7 +155,7 @@ impl Mesh {
                     Some(ix) => ix.into_u32().collect(),
                     None => (0..nverts).collect(),
                 };
-                if indices.len() % 3 != 0 {
+                if !indices.len().is_multiple_of(3) {
                     return Err(Error::mesh(
                         name,
                         format!("{pname} has {} indices, not a multiple of 3", indices.len()),
