@@ -194,7 +194,9 @@ impl Engine {
             mag_filter: wgpu::FilterMode::Linear,
             min_filter: wgpu::FilterMode::Linear,
             mipmap_filter: wgpu::MipmapFilterMode::Linear,
-            anisotropy_clamp: 16,
+            // Trilinear, no anisotropic filtering: lavapipe's anisotropic path (Mesa 22.3) shifts
+            // samples by half a texel even at an explicit level 0, which blurs the base copy.
+            anisotropy_clamp: 1,
             ..Default::default()
         });
         Ok(Self {

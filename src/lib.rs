@@ -23,3 +23,4 @@ pub mod demo;
 pub mod glb;
 pub mod output;
 pub mod preview;
+pub mod compose_cpu;

@@ -1,0 +1,151 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Helpers shared by the integration tests: a GPU engine, scratch directories, and small glTF files
+//! written from code.
+#![allow(dead_code, reason = "each test binary uses a different subset")]
+
+use decalbake::image_io::LinearImage;
+use decalbake::Engine;
+use std::path::{Path, PathBuf};
+
+/// An engine on the backend `WGPU_BACKEND` names (CI: vulkan = lavapipe).
+pub fn engine() -> Engine {
+    Engine::new(None).expect("a GPU adapter (install mesa-vulkan-drivers for lavapipe)")
+}
+
+/// A fresh scratch directory for one test.
+pub fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("decalbake-test-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The repository's test-data directory.
+pub fn data(file: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(file)
+}
+
+/// Writes a minimal GLB: one primitive, no material.
+pub fn write_glb(path: &Path, positions: &[[f32; 3]], uvs: Option<&[[f32; 2]]>, indices: &[u32]) {
+    let mut bin: Vec<u8> = Vec::new();
+    let pos_bytes: &[u8] = bytemuck::cast_slice(positions);
+    bin.extend_from_slice(pos_bytes);
+    let mut views = vec![serde_json::json!({"buffer": 0, "byteOffset": 0, "byteLength": pos_bytes.len()})];
+    let mut lo = [f32::MAX; 3];
+    let mut hi = [f32::MIN; 3];
+    for p in positions {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    let mut accessors = vec![serde_json::json!({"bufferView": 0, "componentType": 5126, "count": positions.len(), "type": "VEC3", "min": lo, "max": hi})];
+    let mut attributes = serde_json::json!({"POSITION": 0});
+    if let Some(uv) = uvs {
+        let off = bin.len();
+        let b: &[u8] = bytemuck::cast_slice(uv);
+        bin.extend_from_slice(b);
+        views.push(serde_json::json!({"buffer": 0, "byteOffset": off, "byteLength": b.len()}));
+        accessors.push(serde_json::json!({"bufferView": views.len() - 1, "componentType": 5126, "count": uv.len(), "type": "VEC2"}));
+        attributes["TEXCOORD_0"] = serde_json::json!(accessors.len() - 1);
+    }
+    let off = bin.len();
+    let ib: &[u8] = bytemuck::cast_slice(indices);
+    bin.extend_from_slice(ib);
+    views.push(serde_json::json!({"buffer": 0, "byteOffset": off, "byteLength": ib.len()}));
+    accessors.push(serde_json::json!({"bufferView": views.len() - 1, "componentType": 5125, "count": indices.len(), "type": "SCALAR"}));
+    let doc = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": attributes, "indices": accessors.len() - 1}]}],
+        "buffers": [{"byteLength": bin.len()}], "bufferViews": views, "accessors": accessors,
+    });
+    let mut json = serde_json::to_vec(&doc).unwrap();
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut out = Vec::new();
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&bin);
+    std::fs::write(path, out).unwrap();
+}
+
+/// A small "open book": two 4×4-quad panels meeting at x = 0.5 (the right one tilted up), each its own
+/// UV island, so the shared edge is a UV seam. Returns (positions, uvs, indices).
+pub fn book_mesh() -> (Vec<[f32; 3]>, Vec<[f32; 2]>, Vec<u32>) {
+    let n = 4;
+    let mut pos = Vec::new();
+    let mut uv = Vec::new();
+    let mut idx = Vec::new();
+    for panel in 0..2 {
+        let base = pos.len() as u32;
+        for j in 0..=n {
+            for i in 0..=n {
+                let s = i as f32 / n as f32;
+                let t = j as f32 / n as f32;
+                let x = 0.5 * panel as f32 + 0.5 * s;
+                let z = if panel == 1 { 0.25 * s } else { 0.0 };
+                pos.push([x, t, z]);
+                let u0 = if panel == 0 { 0.1 } else { 0.55 };
+                // v runs down the texture (glTF convention): top of the panel at small v.
+                uv.push([u0 + 0.33 * s, 0.12 + 0.72 * (1.0 - t)]);
+            }
+        }
+        for j in 0..n {
+            for i in 0..n {
+                let a = base + j * (n + 1) + i;
+                let b = a + 1;
+                let c = a + n + 1;
+                let d = c + 1;
+                idx.extend_from_slice(&[a, b, d, a, d, c]);
+            }
+        }
+    }
+    (pos, uv, idx)
+}
+
+/// A deterministic pseudo-random image (xorshift), with smooth structure plus noise, alpha varying
+/// when `alpha` is set.
+pub fn test_image(w: u32, h: u32, seed: u32, alpha: bool) -> LinearImage {
+    let mut s = seed.wrapping_mul(2654435761).max(1);
+    let mut rnd = || {
+        s ^= s << 13;
+        s ^= s >> 17;
+        s ^= s << 5;
+        (s % 10000) as f32 / 10000.0
+    };
+    let mut img = LinearImage::solid(w, h, [0.0; 4]);
+    for y in 0..h {
+        for x in 0..w {
+            let fx = x as f32 / w as f32;
+            let fy = y as f32 / h as f32;
+            let r = 0.5 + 0.45 * (6.0 * fx + seed as f32).sin();
+            let g = 0.5 + 0.45 * (5.0 * fy).cos();
+            let b = 0.3 * rnd() + 0.6 * fx * fy;
+            let a = if alpha { (0.2 + 0.8 * ((3.0 * fx).sin() * (3.0 * fy).sin()).abs()).min(1.0) } else { 1.0 };
+            img.pixels[(y * w + x) as usize] = [r, g, b, a];
+        }
+    }
+    img
+}
+
+/// Runs the CLI, returning (exit code, stdout, stderr).
+pub fn cli(args: &[&str]) -> (i32, String, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_decalbake")).args(args).output().expect("runs the CLI");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}

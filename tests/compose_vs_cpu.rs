@@ -1,0 +1,182 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The GPU bake equals the plain CPU twin (`decalbake::compose_cpu`) texel by texel, for every blend
+//! mode, on a small two-island mesh with a UV seam; and the padding follows its rule exactly.
+//!
+//! Tolerance: 1e-4 in linear light per channel on island texels. The bake is read back at 16 bits
+//! (sRGB quantization up to about 1.5e-5 in linear light) and both sides compute in f32, so what is
+//! left is rounding in the blend formulas and in bilinear filtering; lavapipe filters f32 textures with
+//! f32 weights (measured worst case 1.7e-5). A GPU with 8-bit sub-texel filtering precision would need
+//! about 1/256 of the largest step between neighbouring decal texels (0.2 here), i.e. 1e-3.
+
+mod common;
+use common::*;
+use decalbake::blend::BlendMode;
+use decalbake::compose_cpu::{bake_cpu, nearest_island};
+use decalbake::image_io::LinearImage;
+use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
+use decalbake::Job;
+
+const TOL: f32 = 1e-4;
+
+fn job_text(mode: &str, with_mask: bool, padding: u32) -> String {
+    let mask = if with_mask { "\"mask.png\"" } else { "null" };
+    format!(
+        r#"{{
+  "mesh": "book.glb",
+  "texture": {{ "width": 64, "height": 64, "base": "base.png", "padding": {padding}, "samples": 4 }},
+  "layers": [
+    {{ "image": "decal_a.png", "at": [0.3, 0.45, 0.02], "size": [0.4, 0.5], "angle": -10, "blend": "normal", "opacity": 0.8 }},
+    {{ "image": "decal_b.png", "mask": {mask}, "at": [0.52, 0.55, 0.01], "size": [0.6, 0.5], "angle": 25, "blend": "{mode}", "opacity": 1.0 }}
+  ],
+  "output": {{ "texture": "out.png", "bit_depth": 16, "report": null }}
+}}"#
+    )
+}
+
+#[test]
+fn gpu_compose_matches_cpu_twin_for_every_blend_mode() {
+    let dir = scratch("compose");
+    let (pos, uv, idx) = book_mesh();
+    write_glb(&dir.join("book.glb"), &pos, Some(&uv), &idx);
+    std::fs::write(dir.join("base.png"), test_image(64, 64, 7, false).encode_png(16)).unwrap();
+    std::fs::write(dir.join("decal_a.png"), test_image(12, 16, 3, true).encode_png(16)).unwrap();
+    std::fs::write(dir.join("decal_b.png"), test_image(16, 12, 5, true).encode_png(16)).unwrap();
+    // Mask: a radial ramp (raw values, no sRGB).
+    let mut mask = LinearImage::solid(16, 16, [0.0; 4]);
+    for y in 0..16 {
+        for x in 0..16 {
+            let d = (((x as f32 - 7.5).powi(2) + (y as f32 - 7.5).powi(2)).sqrt() / 8.0).min(1.0);
+            let v = decalbake::image_io::srgb_to_linear(1.0 - d);
+            mask.pixels[y * 16 + x] = [v, v, v, 1.0];
+        }
+    }
+    std::fs::write(dir.join("mask.png"), mask.encode_png(16)).unwrap();
+
+    let engine = engine();
+    let loaded = engine.load_mesh(&dir.join("book.glb")).unwrap();
+    let mesh = Mesh::load(&dir.join("book.glb")).unwrap();
+    let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
+    assert_eq!(topo.positions.len(), 45, "the two panels share their seam column after welding");
+    let base = LinearImage::load(&dir.join("base.png")).unwrap();
+    let decal_a = LinearImage::load(&dir.join("decal_a.png")).unwrap();
+    let decal_b = LinearImage::load(&dir.join("decal_b.png")).unwrap();
+    let raw = |img: LinearImage| LinearImage {
+        pixels: img.pixels.iter().map(|p| [decalbake::image_io::linear_to_srgb(p[0]), 0.0, 0.0, p[3]]).collect(),
+        ..img
+    };
+    let mask_raw = raw(LinearImage::load(&dir.join("mask.png")).unwrap());
+
+    let mut worst_all = 0.0f32;
+    for (k, mode) in BlendMode::ALL.iter().enumerate() {
+        let with_mask = k % 2 == 1;
+        let job = Job::parse(&job_text(mode.name(), with_mask, 6), &dir.join("job.json"), &dir, &dir).unwrap();
+        let baked = engine.bake(&loaded, &job).unwrap();
+        let placements: Vec<_> = baked.report.layers.iter().map(|l| l.placement).collect();
+        let images = vec![(decal_a.clone(), None), (decal_b.clone(), with_mask.then(|| mask_raw.clone()))];
+        let cpu = bake_cpu(&mesh, &topo, &job, &placements, &base, &images);
+        for (l, sel) in baked.report.layers.iter().zip(&cpu.selected) {
+            assert_eq!(l.triangles_covered as usize, sel.len(), "{mode:?}: layer {} triangle selection differs", l.index);
+        }
+        let (w, h) = (64u32, 64u32);
+        let mut worst = (0.0f32, 0u32, 0u32);
+        let mut changed = 0;
+        for y in 0..h {
+            for x in 0..w {
+                let i = (y * w + x) as usize;
+                if !cpu.island[i] {
+                    continue;
+                }
+                let g = baked.linear(x, y);
+                let c = cpu.composed.pixels[i];
+                if (c[0] - base.pixels[i][0]).abs() > 0.01 {
+                    changed += 1;
+                }
+                for ch in 0..4 {
+                    let d = (g[ch] - c[ch]).abs();
+                    if d > worst.0 {
+                        worst = (d, x, y);
+                    }
+                }
+            }
+        }
+        if worst.0 > TOL {
+            let gpu_img = LinearImage { width: w, height: h, pixels: (0..w * h).map(|i| baked.linear(i % w, i / w)).collect() };
+            std::fs::write(dir.join(format!("gpu_{}.png", mode.name())), gpu_img.encode_png(8)).unwrap();
+            std::fs::write(dir.join(format!("cpu_{}.png", mode.name())), cpu.composed.encode_png(8)).unwrap();
+            eprintln!("wrote {}/{{gpu,cpu}}_{}.png", dir.display(), mode.name());
+        }
+        eprintln!("{mode:?} (mask {with_mask}): max |GPU - CPU| = {:.2e} at texel ({}, {}); {changed} texels changed", worst.0, worst.1, worst.2);
+        assert!(changed > 200, "{mode:?}: the layers should change many texels, changed {changed}");
+        assert!(
+            worst.0 <= TOL,
+            "{mode:?}: GPU differs from the CPU twin by {} at texel ({}, {}): gpu {:?} cpu {:?}",
+            worst.0,
+            worst.1,
+            worst.2,
+            baked.linear(worst.1, worst.2),
+            cpu.composed.pixels[(worst.2 * w + worst.1) as usize]
+        );
+        worst_all = worst_all.max(worst.0);
+
+        // The island mask agrees with the CPU twin.
+        let island_gpu = baked.report.island_texels as usize;
+        let island_cpu = cpu.island.iter().filter(|b| **b).count();
+        assert_eq!(island_gpu, island_cpu, "{mode:?}: island texel count");
+    }
+    eprintln!("worst over all modes: {worst_all:.2e} (tolerance {TOL:.0e})");
+}
+
+/// Padding: island texels are unchanged by padding; every background texel within `padding` takes the
+/// colour of one of its nearest island texels; everything farther keeps the base.
+fn texel(b: &decalbake::Baked, i: usize) -> &[u16] {
+    &b.texels[i * 4..i * 4 + 4]
+}
+
+#[test]
+fn padding_fills_exactly_the_band_from_the_nearest_island_texel() {
+    let dir = scratch("padding");
+    let (pos, uv, idx) = book_mesh();
+    write_glb(&dir.join("book.glb"), &pos, Some(&uv), &idx);
+    std::fs::write(dir.join("base.png"), test_image(64, 64, 7, false).encode_png(16)).unwrap();
+    std::fs::write(dir.join("decal_a.png"), test_image(12, 16, 3, true).encode_png(16)).unwrap();
+    std::fs::write(dir.join("decal_b.png"), test_image(16, 12, 5, true).encode_png(16)).unwrap();
+    let engine = engine();
+    let loaded = engine.load_mesh(&dir.join("book.glb")).unwrap();
+    let bake = |pad: &str| {
+        let text = job_text("normal", false, 0).replace("\"padding\": 0", &format!("\"padding\": {pad}"));
+        engine.bake(&loaded, &Job::parse(&text, &dir.join("job.json"), &dir, &dir).unwrap()).unwrap()
+    };
+    let none = bake("0");
+    let pad = bake("5");
+    let full = bake("\"full\"");
+    let mesh = Mesh::load(&dir.join("book.glb")).unwrap();
+    let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
+    let base = LinearImage::load(&dir.join("base.png")).unwrap();
+    let job = Job::parse(&job_text("normal", false, 0), &dir.join("job.json"), &dir, &dir).unwrap();
+    let cpu = bake_cpu(&mesh, &topo, &job, &[none.report.layers[0].placement, none.report.layers[1].placement], &base, &[(base.clone(), None), (base.clone(), None)]);
+    let nearest = nearest_island(&cpu.island, 64, 64);
+    let (mut filled, mut kept, mut full_filled) = (0, 0, 0);
+    for i in 0..64 * 64usize {
+        match &nearest[i] {
+            None => {
+                // Island texel: padding never touches it.
+                assert_eq!(texel(&pad, i), texel(&none, i), "island texel {i} changed by padding");
+                assert_eq!(texel(&full, i), texel(&none, i), "island texel {i} changed by full padding");
+            }
+            Some((d2, who)) => {
+                let from_nearest = |b: &decalbake::Baked| who.iter().any(|&j| texel(b, j as usize) == texel(b, i));
+                if *d2 <= 25 {
+                    assert!(from_nearest(&pad), "texel {i} at distance^2 {d2} is not a copy of its nearest island texel(s) {who:?}");
+                    filled += 1;
+                } else {
+                    assert_eq!(texel(&pad, i), texel(&none, i), "texel {i} beyond the padding radius was touched");
+                    kept += 1;
+                }
+                assert!(from_nearest(&full), "full padding: texel {i} is not from its nearest island texel");
+                full_filled += 1;
+            }
+        }
+    }
+    eprintln!("padding 5: {filled} texels filled, {kept} kept; full: {full_filled} filled");
+    assert!(filled > 300 && kept > 300, "the test image should have both a band and a far background");
+}
