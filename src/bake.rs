@@ -117,7 +117,7 @@ impl Baked {
         let enc = image::codecs::png::PngEncoder::new(&mut out);
         use image::ImageEncoder;
         if self.bit_depth == 16 {
-            let raw: Vec<u8> = self.texels.iter().flat_map(|v| v.to_be_bytes()).collect();
+            let raw: Vec<u8> = self.texels.iter().flat_map(|v| v.to_ne_bytes()).collect();
             enc.write_image(
                 &raw,
                 self.width,
@@ -773,7 +773,14 @@ impl Engine {
         for start in (0..job.layers.len()).step_by(chunk) {
             let end = (start + chunk).min(job.layers.len());
             let mut lp = Vec::new();
-            for (i, (l, frame)) in job.layers.iter().zip(&frames).enumerate().take(end).skip(start) {
+            for (i, (l, frame)) in job
+                .layers
+                .iter()
+                .zip(&frames)
+                .enumerate()
+                .take(end)
+                .skip(start)
+            {
                 let mut p = frame.params();
                 p.tex_size = [w, h];
                 p.ss = ss;

@@ -27,10 +27,16 @@ pub fn sample_bilinear(img: &LinearImage, uv: Vec2) -> [f32; 4] {
         let yi = (yi as i64).clamp(0, img.height as i64 - 1) as u32;
         img.pixels[(yi * img.width + xi) as usize]
     };
-    let (a, b, c, d) = (at(x0, y0), at(x0 + 1.0, y0), at(x0, y0 + 1.0), at(x0 + 1.0, y0 + 1.0));
+    let (a, b, c, d) = (
+        at(x0, y0),
+        at(x0 + 1.0, y0),
+        at(x0, y0 + 1.0),
+        at(x0 + 1.0, y0 + 1.0),
+    );
     let mut out = [0.0; 4];
     for k in 0..4 {
-        out[k] = (a[k] * (1.0 - fx) + b[k] * fx) * (1.0 - fy) + (c[k] * (1.0 - fx) + d[k] * fx) * fy;
+        out[k] =
+            (a[k] * (1.0 - fx) + b[k] * fx) * (1.0 - fy) + (c[k] * (1.0 - fx) + d[k] * fx) * fy;
     }
     out
 }
@@ -78,7 +84,10 @@ pub fn bake_cpu(
         }
     }
     let sample_pos = |x: u32, y: u32, i: u32, j: u32| {
-        Vec2::new(x as f32 + (i as f32 + 0.5) / ss as f32, y as f32 + (j as f32 + 0.5) / ss as f32) / size
+        Vec2::new(
+            x as f32 + (i as f32 + 0.5) / ss as f32,
+            y as f32 + (j as f32 + 0.5) / ss as f32,
+        ) / size
     };
     let tri_uv = |t: usize| mesh.triangles[t].map(|s| uvs[s as usize]);
     // Islands (UVs assumed inside the [0,1] tile here; the GPU also handles other tiles).
@@ -116,7 +125,11 @@ pub fn bake_cpu(
         let sel = select_triangles(mesh, topo, uvs, &coords, &frame, true, [w, h]);
         let (img, mask) = &images[li];
         let premult = LinearImage {
-            pixels: img.pixels.iter().map(|p| [p[0] * p[3], p[1] * p[3], p[2] * p[3], p[3]]).collect(),
+            pixels: img
+                .pixels
+                .iter()
+                .map(|p| [p[0] * p[3], p[1] * p[3], p[2] * p[3], p[3]])
+                .collect(),
             ..img.clone()
         };
         let b = sel.texel_box;
@@ -132,7 +145,9 @@ pub fn bake_cpu(
                         let mut acc = [0.0f32; 4];
                         for &t in &sel.triangles {
                             let [a, bb, c] = tri_uv(t as usize);
-                            let Some(bc) = barycentric(p, a, bb, c) else { continue };
+                            let Some(bc) = barycentric(p, a, bb, c) else {
+                                continue;
+                            };
                             covered = true;
                             let tri = topo.triangles[t as usize];
                             let lc = tri.map(|v| coords[v as usize]);
@@ -175,14 +190,20 @@ pub fn bake_cpu(
         }
         selected.push(sel.triangles);
     }
-    CpuBake { composed, island, selected }
+    CpuBake {
+        composed,
+        island,
+        selected,
+    }
 }
 
 /// For every non-island texel, the squared distance to the nearest island texel and the island texels
 /// at that distance (ties kept). Brute force: for small test textures only.
 pub fn nearest_island(island: &[bool], w: u32, h: u32) -> Vec<Option<(u64, Vec<u32>)>> {
-    let isl: Vec<(i64, i64)> =
-        (0..w * h).filter(|&i| island[i as usize]).map(|i| ((i % w) as i64, (i / w) as i64)).collect();
+    let isl: Vec<(i64, i64)> = (0..w * h)
+        .filter(|&i| island[i as usize])
+        .map(|i| ((i % w) as i64, (i / w) as i64))
+        .collect();
     (0..w * h)
         .map(|i| {
             if island[i as usize] || isl.is_empty() {

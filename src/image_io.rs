@@ -160,7 +160,8 @@ impl LinearImage {
                     } else {
                         c.clamp(0.0, 1.0)
                     };
-                    raw.extend_from_slice(&((e * 65535.0).round() as u16).to_be_bytes());
+                    // The image crate takes 16-bit samples in native byte order.
+                    raw.extend_from_slice(&((e * 65535.0).round() as u16).to_ne_bytes());
                 }
             }
             enc.write_image(
@@ -283,6 +284,20 @@ mod tests {
             let lin = srgb_to_linear(c as f32 / 255.0);
             let back = (linear_to_srgb(lin) * 255.0).round() as u32;
             assert_eq!(back, c);
+        }
+    }
+
+    #[test]
+    fn sixteen_bit_png_round_trips() {
+        let mut img = LinearImage::solid(3, 2, [0.0; 4]);
+        for (i, p) in img.pixels.iter_mut().enumerate() {
+            *p = [i as f32 / 7.0, 0.25, 0.999, 0.5];
+        }
+        let back = LinearImage::decode(&img.encode_png(16)).unwrap();
+        for (a, b) in img.pixels.iter().zip(&back.pixels) {
+            for k in 0..4 {
+                assert!((a[k] - b[k]).abs() < 1e-4, "{a:?} vs {b:?}");
+            }
         }
     }
 

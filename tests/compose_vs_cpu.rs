@@ -38,9 +38,21 @@ fn gpu_compose_matches_cpu_twin_for_every_blend_mode() {
     let dir = scratch("compose");
     let (pos, uv, idx) = book_mesh();
     write_glb(&dir.join("book.glb"), &pos, Some(&uv), &idx);
-    std::fs::write(dir.join("base.png"), test_image(64, 64, 7, false).encode_png(16)).unwrap();
-    std::fs::write(dir.join("decal_a.png"), test_image(12, 16, 3, true).encode_png(16)).unwrap();
-    std::fs::write(dir.join("decal_b.png"), test_image(16, 12, 5, true).encode_png(16)).unwrap();
+    std::fs::write(
+        dir.join("base.png"),
+        test_image(64, 64, 7, false).encode_png(16),
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("decal_a.png"),
+        test_image(12, 16, 3, true).encode_png(16),
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("decal_b.png"),
+        test_image(16, 12, 5, true).encode_png(16),
+    )
+    .unwrap();
     // Mask: a radial ramp (raw values, no sRGB).
     let mut mask = LinearImage::solid(16, 16, [0.0; 4]);
     for y in 0..16 {
@@ -56,12 +68,20 @@ fn gpu_compose_matches_cpu_twin_for_every_blend_mode() {
     let loaded = engine.load_mesh(&dir.join("book.glb")).unwrap();
     let mesh = Mesh::load(&dir.join("book.glb")).unwrap();
     let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
-    assert_eq!(topo.positions.len(), 45, "the two panels share their seam column after welding");
+    assert_eq!(
+        topo.positions.len(),
+        45,
+        "the two panels share their seam column after welding"
+    );
     let base = LinearImage::load(&dir.join("base.png")).unwrap();
     let decal_a = LinearImage::load(&dir.join("decal_a.png")).unwrap();
     let decal_b = LinearImage::load(&dir.join("decal_b.png")).unwrap();
     let raw = |img: LinearImage| LinearImage {
-        pixels: img.pixels.iter().map(|p| [decalbake::image_io::linear_to_srgb(p[0]), 0.0, 0.0, p[3]]).collect(),
+        pixels: img
+            .pixels
+            .iter()
+            .map(|p| [decalbake::image_io::linear_to_srgb(p[0]), 0.0, 0.0, p[3]])
+            .collect(),
         ..img
     };
     let mask_raw = raw(LinearImage::load(&dir.join("mask.png")).unwrap());
@@ -69,13 +89,27 @@ fn gpu_compose_matches_cpu_twin_for_every_blend_mode() {
     let mut worst_all = 0.0f32;
     for (k, mode) in BlendMode::ALL.iter().enumerate() {
         let with_mask = k % 2 == 1;
-        let job = Job::parse(&job_text(mode.name(), with_mask, 6), &dir.join("job.json"), &dir, &dir).unwrap();
+        let job = Job::parse(
+            &job_text(mode.name(), with_mask, 6),
+            &dir.join("job.json"),
+            &dir,
+            &dir,
+        )
+        .unwrap();
         let baked = engine.bake(&loaded, &job).unwrap();
         let placements: Vec<_> = baked.report.layers.iter().map(|l| l.placement).collect();
-        let images = vec![(decal_a.clone(), None), (decal_b.clone(), with_mask.then(|| mask_raw.clone()))];
+        let images = vec![
+            (decal_a.clone(), None),
+            (decal_b.clone(), with_mask.then(|| mask_raw.clone())),
+        ];
         let cpu = bake_cpu(&mesh, &topo, &job, &placements, &base, &images);
         for (l, sel) in baked.report.layers.iter().zip(&cpu.selected) {
-            assert_eq!(l.triangles_covered as usize, sel.len(), "{mode:?}: layer {} triangle selection differs", l.index);
+            assert_eq!(
+                l.triangles_covered as usize,
+                sel.len(),
+                "{mode:?}: layer {} triangle selection differs",
+                l.index
+            );
         }
         let (w, h) = (64u32, 64u32);
         let mut worst = (0.0f32, 0u32, 0u32);
@@ -100,13 +134,28 @@ fn gpu_compose_matches_cpu_twin_for_every_blend_mode() {
             }
         }
         if worst.0 > TOL {
-            let gpu_img = LinearImage { width: w, height: h, pixels: (0..w * h).map(|i| baked.linear(i % w, i / w)).collect() };
-            std::fs::write(dir.join(format!("gpu_{}.png", mode.name())), gpu_img.encode_png(8)).unwrap();
-            std::fs::write(dir.join(format!("cpu_{}.png", mode.name())), cpu.composed.encode_png(8)).unwrap();
+            let gpu_img = LinearImage {
+                width: w,
+                height: h,
+                pixels: (0..w * h).map(|i| baked.linear(i % w, i / w)).collect(),
+            };
+            std::fs::write(
+                dir.join(format!("gpu_{}.png", mode.name())),
+                gpu_img.encode_png(8),
+            )
+            .unwrap();
+            std::fs::write(
+                dir.join(format!("cpu_{}.png", mode.name())),
+                cpu.composed.encode_png(8),
+            )
+            .unwrap();
             eprintln!("wrote {}/{{gpu,cpu}}_{}.png", dir.display(), mode.name());
         }
         eprintln!("{mode:?} (mask {with_mask}): max |GPU - CPU| = {:.2e} at texel ({}, {}); {changed} texels changed", worst.0, worst.1, worst.2);
-        assert!(changed > 200, "{mode:?}: the layers should change many texels, changed {changed}");
+        assert!(
+            changed > 200,
+            "{mode:?}: the layers should change many texels, changed {changed}"
+        );
         assert!(
             worst.0 <= TOL,
             "{mode:?}: GPU differs from the CPU twin by {} at texel ({}, {}): gpu {:?} cpu {:?}",
@@ -137,14 +186,32 @@ fn padding_fills_exactly_the_band_from_the_nearest_island_texel() {
     let dir = scratch("padding");
     let (pos, uv, idx) = book_mesh();
     write_glb(&dir.join("book.glb"), &pos, Some(&uv), &idx);
-    std::fs::write(dir.join("base.png"), test_image(64, 64, 7, false).encode_png(16)).unwrap();
-    std::fs::write(dir.join("decal_a.png"), test_image(12, 16, 3, true).encode_png(16)).unwrap();
-    std::fs::write(dir.join("decal_b.png"), test_image(16, 12, 5, true).encode_png(16)).unwrap();
+    std::fs::write(
+        dir.join("base.png"),
+        test_image(64, 64, 7, false).encode_png(16),
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("decal_a.png"),
+        test_image(12, 16, 3, true).encode_png(16),
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("decal_b.png"),
+        test_image(16, 12, 5, true).encode_png(16),
+    )
+    .unwrap();
     let engine = engine();
     let loaded = engine.load_mesh(&dir.join("book.glb")).unwrap();
     let bake = |pad: &str| {
-        let text = job_text("normal", false, 0).replace("\"padding\": 0", &format!("\"padding\": {pad}"));
-        engine.bake(&loaded, &Job::parse(&text, &dir.join("job.json"), &dir, &dir).unwrap()).unwrap()
+        let text =
+            job_text("normal", false, 0).replace("\"padding\": 0", &format!("\"padding\": {pad}"));
+        engine
+            .bake(
+                &loaded,
+                &Job::parse(&text, &dir.join("job.json"), &dir, &dir).unwrap(),
+            )
+            .unwrap()
     };
     let none = bake("0");
     let pad = bake("5");
@@ -152,31 +219,66 @@ fn padding_fills_exactly_the_band_from_the_nearest_island_texel() {
     let mesh = Mesh::load(&dir.join("book.glb")).unwrap();
     let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
     let base = LinearImage::load(&dir.join("base.png")).unwrap();
-    let job = Job::parse(&job_text("normal", false, 0), &dir.join("job.json"), &dir, &dir).unwrap();
-    let cpu = bake_cpu(&mesh, &topo, &job, &[none.report.layers[0].placement, none.report.layers[1].placement], &base, &[(base.clone(), None), (base.clone(), None)]);
+    let job = Job::parse(
+        &job_text("normal", false, 0),
+        &dir.join("job.json"),
+        &dir,
+        &dir,
+    )
+    .unwrap();
+    let cpu = bake_cpu(
+        &mesh,
+        &topo,
+        &job,
+        &[
+            none.report.layers[0].placement,
+            none.report.layers[1].placement,
+        ],
+        &base,
+        &[(base.clone(), None), (base.clone(), None)],
+    );
     let nearest = nearest_island(&cpu.island, 64, 64);
     let (mut filled, mut kept, mut full_filled) = (0, 0, 0);
     for i in 0..64 * 64usize {
         match &nearest[i] {
             None => {
                 // Island texel: padding never touches it.
-                assert_eq!(texel(&pad, i), texel(&none, i), "island texel {i} changed by padding");
-                assert_eq!(texel(&full, i), texel(&none, i), "island texel {i} changed by full padding");
+                assert_eq!(
+                    texel(&pad, i),
+                    texel(&none, i),
+                    "island texel {i} changed by padding"
+                );
+                assert_eq!(
+                    texel(&full, i),
+                    texel(&none, i),
+                    "island texel {i} changed by full padding"
+                );
             }
             Some((d2, who)) => {
-                let from_nearest = |b: &decalbake::Baked| who.iter().any(|&j| texel(b, j as usize) == texel(b, i));
+                let from_nearest =
+                    |b: &decalbake::Baked| who.iter().any(|&j| texel(b, j as usize) == texel(b, i));
                 if *d2 <= 25 {
                     assert!(from_nearest(&pad), "texel {i} at distance^2 {d2} is not a copy of its nearest island texel(s) {who:?}");
                     filled += 1;
                 } else {
-                    assert_eq!(texel(&pad, i), texel(&none, i), "texel {i} beyond the padding radius was touched");
+                    assert_eq!(
+                        texel(&pad, i),
+                        texel(&none, i),
+                        "texel {i} beyond the padding radius was touched"
+                    );
                     kept += 1;
                 }
-                assert!(from_nearest(&full), "full padding: texel {i} is not from its nearest island texel");
+                assert!(
+                    from_nearest(&full),
+                    "full padding: texel {i} is not from its nearest island texel"
+                );
                 full_filled += 1;
             }
         }
     }
     eprintln!("padding 5: {filled} texels filled, {kept} kept; full: {full_filled} filled");
-    assert!(filled > 300 && kept > 300, "the test image should have both a band and a far background");
+    assert!(
+        filled > 300 && kept > 300,
+        "the test image should have both a band and a far background"
+    );
 }

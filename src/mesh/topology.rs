@@ -79,7 +79,8 @@ impl Topology {
                 let [a, b, c] = t.map(|i| positions[i as usize]);
                 let n = (b - a).cross(c - a);
                 // NaN areas count as degenerate too.
-                let bad = (n.length() as f64 * 0.5).partial_cmp(&area_eps) != Some(std::cmp::Ordering::Greater);
+                let bad = (n.length() as f64 * 0.5).partial_cmp(&area_eps)
+                    != Some(std::cmp::Ordering::Greater);
                 if !bad {
                     for &i in t {
                         normals[i as usize] += n;

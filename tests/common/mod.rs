@@ -22,7 +22,9 @@ pub fn scratch(name: &str) -> PathBuf {
 
 /// The repository's test-data directory.
 pub fn data(file: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(file)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(file)
 }
 
 /// Writes a minimal GLB: one primitive, no material.
@@ -30,7 +32,8 @@ pub fn write_glb(path: &Path, positions: &[[f32; 3]], uvs: Option<&[[f32; 2]]>, 
     let mut bin: Vec<u8> = Vec::new();
     let pos_bytes: &[u8] = bytemuck::cast_slice(positions);
     bin.extend_from_slice(pos_bytes);
-    let mut views = vec![serde_json::json!({"buffer": 0, "byteOffset": 0, "byteLength": pos_bytes.len()})];
+    let mut views =
+        vec![serde_json::json!({"buffer": 0, "byteOffset": 0, "byteLength": pos_bytes.len()})];
     let mut lo = [f32::MAX; 3];
     let mut hi = [f32::MIN; 3];
     for p in positions {
@@ -39,7 +42,9 @@ pub fn write_glb(path: &Path, positions: &[[f32; 3]], uvs: Option<&[[f32; 2]]>, 
             hi[k] = hi[k].max(p[k]);
         }
     }
-    let mut accessors = vec![serde_json::json!({"bufferView": 0, "componentType": 5126, "count": positions.len(), "type": "VEC3", "min": lo, "max": hi})];
+    let mut accessors = vec![
+        serde_json::json!({"bufferView": 0, "componentType": 5126, "count": positions.len(), "type": "VEC3", "min": lo, "max": hi}),
+    ];
     let mut attributes = serde_json::json!({"POSITION": 0});
     if let Some(uv) = uvs {
         let off = bin.len();
@@ -133,7 +138,11 @@ pub fn test_image(w: u32, h: u32, seed: u32, alpha: bool) -> LinearImage {
             let r = 0.5 + 0.45 * (6.0 * fx + seed as f32).sin();
             let g = 0.5 + 0.45 * (5.0 * fy).cos();
             let b = 0.3 * rnd() + 0.6 * fx * fy;
-            let a = if alpha { (0.2 + 0.8 * ((3.0 * fx).sin() * (3.0 * fy).sin()).abs()).min(1.0) } else { 1.0 };
+            let a = if alpha {
+                (0.2 + 0.8 * ((3.0 * fx).sin() * (3.0 * fy).sin()).abs()).min(1.0)
+            } else {
+                1.0
+            };
             img.pixels[(y * w + x) as usize] = [r, g, b, a];
         }
     }
@@ -142,7 +151,10 @@ pub fn test_image(w: u32, h: u32, seed: u32, alpha: bool) -> LinearImage {
 
 /// Runs the CLI, returning (exit code, stdout, stderr).
 pub fn cli(args: &[&str]) -> (i32, String, String) {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_decalbake")).args(args).output().expect("runs the CLI");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_decalbake"))
+        .args(args)
+        .output()
+        .expect("runs the CLI");
     (
         out.status.code().unwrap_or(-1),
         String::from_utf8_lossy(&out.stdout).into_owned(),

@@ -1,0 +1,199 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Seam continuity on a real model with 13 UV islands (Spot, bundled in `assets/`): a decal straddling
+//! UV seams gives the same colour on both sides. Each surface point on a seam edge has two UVs (one
+//! per island); the baked texture, sampled bilinearly at both, must agree.
+//!
+//! Metric and tolerance: per channel, linear light, at 7 points along every seam edge under the decal.
+//! The decal is a linear colour ramp (slope 0.8 / 0.3 per model unit). A texture can only agree
+//! across a seam to within what one texel represents on the coarser side, so each point's tolerance is
+//! 2 × slope × (surface length of one texel, in the worst direction, of the coarser of the two
+//! triangles) + 0.01: bilinear reconstruction is exact for a ramp inside an island, and at the island
+//! border padding repeats edge texels, so the 2×2 bilinear footprint can be off by up to about two
+//! texels of ramp. Where a triangle's
+//! UVs are so squashed that one texel spans more than 0.01 model units (Spot has sliver triangles in
+//! UV, almost zero width), no bake can resolve the decal and the edge is skipped. The mean difference
+//! must also stay under 0.01.
+
+mod common;
+use common::*;
+use decalbake::compose_cpu::sample_bilinear;
+use decalbake::image_io::LinearImage;
+use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
+use decalbake::Job;
+use glam::Vec2;
+use std::collections::HashMap;
+use std::path::Path;
+
+#[test]
+fn decal_across_uv_seams_is_continuous_on_spot() {
+    let dir = scratch("seam");
+    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
+    let mesh = Mesh::load(&spot).unwrap();
+    let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
+    let uvs = &mesh.uv_sets[0];
+
+    // Seam edges: welded edges whose two triangles use different UVs for the same endpoints.
+    let mut sides: HashMap<(u32, u32), Vec<(Vec2, Vec2, usize)>> = HashMap::new();
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (sa, sb) = (tri[k], tri[(k + 1) % 3]);
+            let (wa, wb) = (topo.welded_of[sa as usize], topo.welded_of[sb as usize]);
+            let (key, ua, ub) = if wa < wb {
+                ((wa, wb), uvs[sa as usize], uvs[sb as usize])
+            } else {
+                ((wb, wa), uvs[sb as usize], uvs[sa as usize])
+            };
+            sides.entry(key).or_default().push((ua, ub, t));
+        }
+    }
+    // Surface length of one texel in the worst direction of triangle t (largest singular value of
+    // the texel -> surface Jacobian): how coarse the texture is there.
+    let footprint = |t: usize| {
+        let p = topo.triangles[t].map(|v| topo.positions[v as usize]);
+        let q = mesh.triangles[t].map(|s| uvs[s as usize] * 512.0);
+        let (e1, e2) = (q[1] - q[0], q[2] - q[0]);
+        let det = e1.perp_dot(e2);
+        if det.abs() < 1e-9 {
+            return f32::INFINITY;
+        }
+        // J = [P1-P0, P2-P0] * inverse([e1 e2]).
+        let inv = [[e2.y / det, -e2.x / det], [-e1.y / det, e1.x / det]];
+        let (d1, d2) = (p[1] - p[0], p[2] - p[0]);
+        let c0 = d1 * inv[0][0] + d2 * inv[1][0];
+        let c1 = d1 * inv[0][1] + d2 * inv[1][1];
+        let (a, b, c) = (c0.dot(c0), c0.dot(c1), c1.dot(c1));
+        (0.5 * (a + c + ((a - c).powi(2) + 4.0 * b * b).sqrt())).sqrt()
+    };
+    let seams: Vec<((u32, u32), (Vec2, Vec2, usize), (Vec2, Vec2, usize))> = sides
+        .iter()
+        .filter(|(_, s)| {
+            s.len() == 2 && (s[0].0.distance(s[1].0) > 1e-4 || s[0].1.distance(s[1].1) > 1e-4)
+        })
+        .map(|(k, s)| (*k, s[0], s[1]))
+        .collect();
+    assert!(seams.len() > 50, "Spot has UV seams, found {}", seams.len());
+
+    // Centre the decal where seam edges are densest.
+    let mid = |e: &(u32, u32)| 0.5 * (topo.positions[e.0 as usize] + topo.positions[e.1 as usize]);
+    let size = 0.3f32;
+    let center = seams
+        .iter()
+        .map(|(e, _, _)| mid(e))
+        .max_by_key(|c| {
+            seams
+                .iter()
+                .filter(|(e, _, _)| mid(e).distance(*c) < 0.4 * size)
+                .count()
+        })
+        .unwrap();
+
+    // A smooth decal: a colour ramp, opaque.
+    let mut decal = LinearImage::solid(64, 64, [0.0; 4]);
+    for y in 0..64 {
+        for x in 0..64 {
+            decal.pixels[y * 64 + x] = [
+                0.1 + 0.8 * x as f32 / 63.0,
+                0.1 + 0.8 * y as f32 / 63.0,
+                0.5,
+                1.0,
+            ];
+        }
+    }
+    std::fs::write(dir.join("ramp.png"), decal.encode_png(16)).unwrap();
+    let job_text = format!(
+        r#"{{ "mesh": "{}", "texture": {{ "width": 512, "height": 512, "padding": 8, "samples": 4 }},
+            "layers": [ {{ "image": "ramp.png", "at": [{}, {}, {}], "size": [{size}, {size}], "depth": 0.3 }} ],
+            "output": {{ "texture": null, "bit_depth": 16, "report": null }} }}"#,
+        spot.display(),
+        center.x,
+        center.y,
+        center.z
+    );
+    let job = Job::parse(&job_text, &dir.join("job.json"), &dir, &dir).unwrap();
+    let engine = engine();
+    let loaded = engine.load_mesh(&spot).unwrap();
+    let baked = engine.bake(&loaded, &job).unwrap();
+    let layer = &baked.report.layers[0];
+    let texture = LinearImage {
+        width: 512,
+        height: 512,
+        pixels: (0..512 * 512)
+            .map(|i| baked.linear(i % 512, i / 512))
+            .collect(),
+    };
+    std::fs::write(dir.join("baked.png"), texture.encode_png(8)).unwrap();
+    let base = mesh
+        .material
+        .as_ref()
+        .unwrap()
+        .base_color_texture
+        .as_ref()
+        .unwrap();
+
+    let f = &layer.frame;
+    let inside = |p: glam::Vec3| {
+        let d = p - f.center;
+        d.dot(f.axis_u).abs() < 0.4 * size
+            && d.dot(f.axis_v).abs() < 0.4 * size
+            && d.dot(f.normal).abs() < 0.25
+    };
+    let slope = 0.8 / size;
+    let (mut n, mut sum, mut worst, mut decal_visible, mut skipped) = (0, 0.0f32, 0.0f32, 0, 0);
+    for ((a, b), (a0, b0, t0), (a1, b1, t1)) in &seams {
+        let (pa, pb) = (topo.positions[*a as usize], topo.positions[*b as usize]);
+        if !inside(pa) || !inside(pb) {
+            continue;
+        }
+        let texel = footprint(*t0).max(footprint(*t1));
+        if texel > 0.01 {
+            // Fewer than 3 texels across the decal's 0.03 model units there: no bake can resolve it.
+            skipped += 1;
+            continue;
+        }
+        let tol = 2.0 * slope * texel + 0.01;
+        for k in 1..8 {
+            let t = k as f32 / 8.0;
+            let c0 = sample_bilinear(&texture, a0.lerp(*b0, t));
+            let c1 = sample_bilinear(&texture, a1.lerp(*b1, t));
+            let orig = sample_bilinear(base, a0.lerp(*b0, t));
+            if (c0[2] - orig[2]).abs() > 0.05 || (c0[0] - orig[0]).abs() > 0.05 {
+                decal_visible += 1;
+            }
+            if (c0[0] - c1[0]).abs().max((c0[1] - c1[1]).abs()) > tol
+                && std::env::var("SEAM_DEBUG").is_ok()
+            {
+                let q = pa.lerp(pb, t) - f.center;
+                let (ix, iy) = (q.dot(f.axis_u) / size + 0.5, 0.5 - q.dot(f.axis_v) / size);
+                eprintln!("expected r {:.4} g {:.4}", 0.1 + 0.8 * ix, 0.1 + 0.8 * iy);
+                eprintln!("edge {a}-{b} t {t} texel {texel:.4} tol {tol:.4}");
+                let orig1 = sample_bilinear(base, a1.lerp(*b1, t));
+                eprintln!(
+                    "uv {:?} {:?}: c0 {:?} c1 {:?} base0 {:?} base1 {:?}",
+                    a0.lerp(*b0, t) * 512.0,
+                    a1.lerp(*b1, t) * 512.0,
+                    c0,
+                    c1,
+                    orig,
+                    orig1
+                );
+            }
+            for ch in 0..3 {
+                let d = (c0[ch] - c1[ch]).abs();
+                if std::env::var("SEAM_DEBUG").is_err() {
+                    assert!(d <= tol, "seam edge {a}-{b} at t = {t}: sides differ by {d} in channel {ch} (tolerance {tol}): {c0:?} vs {c1:?}");
+                }
+                worst = worst.max(d / tol);
+                sum += d;
+            }
+            n += 1;
+        }
+    }
+    let mean = sum / (3 * n.max(1)) as f32;
+    eprintln!("seam points compared: {n} ({skipped} sub-texel edges skipped), decal visible at {decal_visible}; worst difference / tolerance = {worst:.3}, mean difference = {mean:.5}");
+    assert!(n >= 40, "too few seam points under the decal: {n}");
+    assert!(
+        decal_visible * 10 >= n * 9,
+        "the decal should cover the seam points: {decal_visible} of {n}"
+    );
+    assert!(mean <= 0.01, "seam discontinuity: mean {mean}");
+}
