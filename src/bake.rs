@@ -358,13 +358,6 @@ impl Engine {
         }
         let mut report = run.report;
         report.timings.encode_ms += ms(t);
-        let stats_bytes = self
-            .ctx
-            .read_buffer(&run.stats, run.stats_size, "stats read-back")?;
-        let stats: &[i32] = bytemuck::cast_slice(&stats_bytes);
-        for l in &mut report.layers {
-            l.texels_covered = stats[l.index * 8 + 5].max(0) as u32;
-        }
         Ok(Baked {
             width: w,
             height: h,
@@ -579,6 +572,7 @@ impl Engine {
         for (i, (l, p)) in job.layers.iter().zip(&placements).enumerate() {
             if p.found == 0 {
                 return Err(Error::Placement {
+                    path: job.source.clone(),
                     layer: i,
                     detail: "the ray misses the mesh; aim it at the model (check origin, direction and the model's units in `decalbake info`)".into(),
                 });
@@ -586,6 +580,7 @@ impl Engine {
             let reach = l.size[0].max(l.size[1]);
             if matches!(l.at, crate::job::AtSpec::Point(_)) && p.distance > reach {
                 return Err(Error::Placement {
+                    path: job.source.clone(),
                     layer: i,
                     detail: format!(
                         "the point {:?} is {:.4} from the surface, farther than the decal's size {:.4}; place it on the mesh (its bounding box is in `decalbake info`) or use a ray",
@@ -624,7 +619,8 @@ impl Engine {
                 | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let nl = job.layers.len().max(1) as u64;
+        // One stats row per layer, plus a last row whose word 0 counts island texels.
+        let nl = job.layers.len() as u64 + 1;
         let stats_init: Vec<i32> = (0..nl)
             .flat_map(|_| [0, i32::MAX, i32::MAX, i32::MIN, i32::MIN, 0, 0, 0])
             .collect();
@@ -653,6 +649,7 @@ impl Engine {
                         rect_origin: [rect[0], rect[1]],
                         rect_size: [rect[2] as u32, rect[3] as u32],
                         tile: [ti, tj],
+                        aux: job.layers.len() as u32,
                         ..global
                     });
                 }
@@ -739,6 +736,7 @@ impl Engine {
                         (0, pbind(&island_params)),
                         (1, wgpu::BindingResource::TextureView(&tg.cov_view)),
                         (2, mask.as_entire_binding()),
+                        (3, stats.as_entire_binding()),
                     ],
                 );
                 let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -858,6 +856,7 @@ impl Engine {
                 let bx = [row[1], row[2], row[3], row[4]];
                 if count == 0 {
                     return Err(Error::Placement {
+                    path: job.source.clone(),
                         layer: i,
                         detail: "the decal covers no triangle facing it (it misses the mesh, or all triangles under it face away); check `at`, `size` and `depth`".into(),
                     });
@@ -1105,13 +1104,14 @@ impl Engine {
         self.ctx.wait("padding")?;
         timings.padding_ms = ms(t);
 
-        let mask_bytes = self
+        let stats_bytes = self
             .ctx
-            .read_buffer(&mask, texels * 4, "island read-back")?;
-        let island_texels = bytemuck::cast_slice::<u8, u32>(&mask_bytes)
-            .iter()
-            .filter(|m| **m != 0)
-            .count() as u64;
+            .read_buffer(&stats, stats_size, "stats read-back")?;
+        let stats_words: &[i32] = bytemuck::cast_slice(&stats_bytes);
+        for l in &mut layer_reports {
+            l.texels_covered = stats_words[l.index * 8 + 5].max(0) as u32;
+        }
+        let island_texels = stats_words[job.layers.len() * 8] as u32 as u64;
 
         let report = Report {
             version: env!("CARGO_PKG_VERSION"),
@@ -1132,10 +1132,7 @@ impl Engine {
             packed,
             packed_size,
             stride,
-            stats,
-            stats_size,
             report,
-            island_mask: mask,
         })
     }
 }
@@ -1145,11 +1142,7 @@ struct Run {
     packed: wgpu::Buffer,
     packed_size: u64,
     stride: u32,
-    stats: wgpu::Buffer,
-    stats_size: u64,
     report: Report,
-    #[allow(dead_code)]
-    island_mask: wgpu::Buffer,
 }
 
 /// A `Params` binding (128 bytes at a dynamic offset).

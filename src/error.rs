@@ -89,8 +89,10 @@ pub enum Error {
         detail: String,
     },
     /// A layer could not be placed on the mesh.
-    #[error("layer {layer}: {detail}")]
+    #[error("{}: layer {layer} (`layers[{layer}]`): {detail}", path.display())]
     Placement {
+        /// The job file.
+        path: PathBuf,
         /// Index of the layer in the job.
         layer: usize,
         /// What is wrong and what to do.

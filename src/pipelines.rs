@@ -324,7 +324,7 @@ impl Pipelines {
             island_mask: Kernel::new(
                 device,
                 "island_mask",
-                &[(0, Params), (1, Tex(false)), (2, Rw)],
+                &[(0, Params), (1, Tex(false)), (2, Rw), (3, Rw)],
             ),
             compose: Kernel::new(
                 device,

@@ -279,3 +279,12 @@ pub fn place_cpu(topo: &Topology, query: Query) -> Placement {
         found: 1,
     }
 }
+
+/// [`place_gpu`] on an engine's own device and pipelines (for tests and benchmarks).
+pub fn place_gpu_for_tests(
+    engine: &crate::Engine,
+    mesh: &crate::LoadedMesh,
+    queries: &[Query],
+) -> Vec<Placement> {
+    place_gpu(&engine.ctx, &engine.pipes, &mesh.gpu, queries).expect("placement on the GPU")
+}

@@ -1,12 +1,14 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // Marks texels of a rasterized island rectangle: a texel is an island texel when any of its ss x ss
-// samples is covered. Only ever writes 1, so overlapping rectangles (UV tiles) need no ordering.
+// samples is covered. Only ever sets 1, so overlapping rectangles (UV tiles) need no ordering; the
+// first setter of a texel counts it in stats row `params.aux` (word 0).
 // Dispatch: (ceil(rect w / 8), ceil(rect h / 8), 1). CPU twin: `island_mask` in src/compose/cpu.rs.
 #import params
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var cov: texture_2d<f32>;
-@group(0) @binding(2) var<storage, read_write> mask: array<u32>;
+@group(0) @binding(2) var<storage, read_write> mask: array<atomic<u32>>;
+@group(0) @binding(3) var<storage, read_write> stats: array<atomic<u32>>;
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -20,6 +22,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     if (any) {
         let tex = vec2<u32>(vec2<i32>(gid.xy) + params.rect_origin);
-        mask[tex.y * params.tex_size.x + tex.x] = 1u;
+        if (atomicExchange(&mask[tex.y * params.tex_size.x + tex.x], 1u) == 0u) {
+            atomicAdd(&stats[params.aux * 8u], 1u);
+        }
     }
 }

@@ -33,7 +33,11 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid
         let tri = tris[t];
         if ((tri.w & 1u) != 0u) { continue; }
         let key = candidate_key(q, positions[tri.x].xyz, positions[tri.y].xyz, positions[tri.z].xyz);
-        best = better(best, vec2<u32>(bitcast<u32>(key), t));
+        let bits = bitcast<u32>(key);
+        // +inf (a ray miss) or NaN is never a candidate.
+        if (bits < 0x7f800000u) {
+            best = better(best, vec2<u32>(bits, t));
+        }
     }
     sh[lid.x] = best;
     workgroupBarrier();

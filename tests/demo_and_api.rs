@@ -1,0 +1,230 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The demo runs and its outputs decode (the `.glb` loads back with the baked texture); the library
+//! API works on a host's device and hands back a GPU texture equal to the read-back bake; `.gltf`
+//! files with external and data-URI buffers and node transforms load.
+
+mod common;
+use common::*;
+use decalbake::image_io::LinearImage;
+use decalbake::mesh::Mesh;
+use decalbake::{Engine, Job};
+use std::path::Path;
+
+#[test]
+fn demo_writes_decodable_outputs_and_a_glb_that_loads_back() {
+    let dir = scratch("demo");
+    let out = dir.join("demo");
+    let (code, stdout, stderr) = cli(&["demo", "--out", out.to_str().unwrap()]);
+    assert_eq!(code, 0, "demo failed:\n{stderr}");
+    for f in ["baked.png", "baked.glb", "preview.png", "report.json"] {
+        assert!(stdout.contains(f), "demo should list {f}: {stdout}");
+    }
+    let baked = LinearImage::load(&out.join("baked.png")).unwrap();
+    assert_eq!((baked.width, baked.height), (1024, 1024));
+    let preview = LinearImage::load(&out.join("preview.png")).unwrap();
+    assert_eq!((preview.width, preview.height), (1024, 1024));
+    // Each quadrant of the preview shows the model: its centre is not the background colour.
+    let bg = preview.pixels[0];
+    for (qx, qy) in [(256, 256), (768, 256), (256, 768), (768, 768)] {
+        let p = preview.pixels[qy * 1024 + qx];
+        assert!(
+            (p[0] - bg[0]).abs() + (p[1] - bg[1]).abs() + (p[2] - bg[2]).abs() > 0.05,
+            "preview quadrant at ({qx},{qy}) is empty"
+        );
+    }
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let layers = report["layers"].as_array().unwrap();
+    assert_eq!(layers.len(), 4);
+    for l in layers {
+        assert!(
+            l["texels_covered"].as_u64().unwrap() > 500,
+            "every demo decal lands: {l}"
+        );
+        assert!(l["triangles_covered"].as_u64().unwrap() > 10);
+    }
+    assert!(report["adapter"].as_str().unwrap().len() > 3);
+    // The glb loads back, with the baked texture as its base colour.
+    let glb = Mesh::load(&out.join("baked.glb")).unwrap();
+    assert_eq!(glb.triangles.len(), 5856);
+    let tex = glb
+        .material
+        .as_ref()
+        .and_then(|m| m.base_color_texture.as_ref())
+        .expect("glb has a base-colour texture");
+    assert_eq!((tex.width, tex.height), (1024, 1024));
+    assert!(
+        tex.pixels
+            .iter()
+            .zip(&baked.pixels)
+            .all(|(a, b)| (0..4).all(|k| (a[k] - b[k]).abs() < 1e-6)),
+        "glb texture differs from baked.png"
+    );
+    // The demo's job file re-bakes with `decalbake bake`, writing into another directory.
+    let again = dir.join("again");
+    let (code, _, stderr) = cli(&[
+        "bake",
+        out.join("job.json").to_str().unwrap(),
+        "--out",
+        again.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    assert_eq!(
+        LinearImage::load(&again.join("baked.png")).unwrap(),
+        baked,
+        "the same job bakes the same texture"
+    );
+}
+
+#[test]
+fn host_device_api_returns_a_texture_equal_to_the_read_back() {
+    // A host creates its own device...
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+        backends: wgpu::Backends::from_env().unwrap_or(wgpu::Backends::VULKAN | wgpu::Backends::GL),
+        ..wgpu::InstanceDescriptor::new_without_display_handle()
+    });
+    let adapter =
+        pollster::block_on(instance.request_adapter(&Default::default())).expect("adapter");
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("host"),
+        required_limits: adapter.limits(),
+        ..Default::default()
+    }))
+    .unwrap();
+    let engine = Engine::from_device(device.clone(), queue.clone()).unwrap();
+    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
+    let mesh = engine.load_mesh(&spot).unwrap();
+    let dir = scratch("api");
+    std::fs::write(dir.join("d.png"), test_image(32, 32, 4, true).encode_png(8)).unwrap();
+    let text = r#"{ "mesh": "unused.glb", "texture": { "width": 200, "height": 136, "samples": 4 },
+        "layers": [ { "image": "d.png", "at": { "ray": { "origin": [1.5, 0.0, 0.45], "dir": [-1, 0, 0] } }, "size": [0.4, 0.3], "blend": "overlay" } ] }"#;
+    let job = Job::parse(text, &dir.join("job.json"), &dir, &dir).unwrap();
+    // ...bakes many jobs against one loaded mesh...
+    let baked = engine.bake(&mesh, &job).unwrap();
+    let (texture, report) = engine.bake_to_texture(&mesh, &job).unwrap();
+    assert_eq!(
+        report.layers[0].triangles_covered,
+        baked.report.layers[0].triangles_covered
+    );
+    assert_eq!(texture.format(), wgpu::TextureFormat::Rgba8UnormSrgb);
+    // ...and reads the texture back itself.
+    let row = (200 * 4u32).next_multiple_of(256);
+    let buf = device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: (row * 136) as u64,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = device.create_command_encoder(&Default::default());
+    enc.copy_texture_to_buffer(
+        texture.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buf,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row),
+                rows_per_image: None,
+            },
+        },
+        texture.size(),
+    );
+    queue.submit([enc.finish()]);
+    let bytes = engine.ctx.map_and_read(&buf, "test read-back").unwrap();
+    let expected = baked.rgba8();
+    for y in 0..136usize {
+        assert_eq!(
+            &bytes[y * row as usize..y * row as usize + 800],
+            &expected[y * 800..(y + 1) * 800],
+            "row {y} differs"
+        );
+    }
+    assert!(baked.report.layers[0].texels_covered > 100);
+    assert_eq!(
+        report.layers[0].texels_covered,
+        baked.report.layers[0].texels_covered
+    );
+}
+
+#[test]
+fn gltf_with_external_and_data_uri_buffers_and_node_transforms_loads() {
+    let dir = scratch("gltf");
+    let (pos, uv, idx) = book_mesh();
+    let mut bin: Vec<u8> = Vec::new();
+    bin.extend_from_slice(bytemuck::cast_slice(&pos));
+    let uv_off = bin.len();
+    bin.extend_from_slice(bytemuck::cast_slice(&uv));
+    let idx_off = bin.len();
+    bin.extend_from_slice(bytemuck::cast_slice(&idx));
+    let doc = |uri: String| {
+        serde_json::json!({
+            "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+            "nodes": [{"children": [1], "translation": [1.0, 2.0, 3.0]}, {"mesh": 0, "scale": [2.0, 2.0, 2.0]}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2}]}],
+            "buffers": [{"byteLength": bin.len(), "uri": uri}],
+            "bufferViews": [
+                {"buffer": 0, "byteOffset": 0, "byteLength": uv_off},
+                {"buffer": 0, "byteOffset": uv_off, "byteLength": idx_off - uv_off},
+                {"buffer": 0, "byteOffset": idx_off, "byteLength": bin.len() - idx_off}],
+            "accessors": [
+                {"bufferView": 0, "componentType": 5126, "count": pos.len(), "type": "VEC3", "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 0.25]},
+                {"bufferView": 1, "componentType": 5126, "count": uv.len(), "type": "VEC2"},
+                {"bufferView": 2, "componentType": 5125, "count": idx.len(), "type": "SCALAR"}]
+        })
+    };
+    std::fs::write(dir.join("book.bin"), &bin).unwrap();
+    std::fs::write(
+        dir.join("external.gltf"),
+        serde_json::to_vec(&doc("book.bin".into())).unwrap(),
+    )
+    .unwrap();
+    let b64 = base64_encode(&bin);
+    std::fs::write(
+        dir.join("inline.gltf"),
+        serde_json::to_vec(&doc(format!("data:application/octet-stream;base64,{b64}"))).unwrap(),
+    )
+    .unwrap();
+    for f in ["external.gltf", "inline.gltf"] {
+        let m = Mesh::load(&dir.join(f)).unwrap();
+        assert_eq!(m.triangles.len(), idx.len() / 3, "{f}");
+        assert_eq!(m.uv_sets.len(), 1);
+        let (lo, hi) = m.bounds();
+        assert!(
+            (lo - glam::Vec3::new(1.0, 2.0, 3.0)).length() < 1e-6,
+            "{f}: node transforms applied: {lo}"
+        );
+        assert!(
+            (hi - glam::Vec3::new(3.0, 4.0, 3.5)).length() < 1e-6,
+            "{f}: {hi}"
+        );
+        assert!(
+            m.normals
+                .iter()
+                .all(|n| n.z > 0.0 || n.length() == 0.0 || n.x < 0.0),
+            "{f}: computed normals point out of the book"
+        );
+    }
+    let (code, out, err) = cli(&["info", dir.join("external.gltf").to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let info: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(info["welded_vertices"], 45);
+    // Each 4x4-quad panel has 16 border edges; the 4 they share are interior after welding.
+    assert_eq!(info["boundary_edges"], 24);
+    assert_eq!(info["components"], 1);
+}
+
+fn base64_encode(data: &[u8]) -> String {
+    const T: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut s = String::new();
+    for c in data.chunks(3) {
+        let b = [c[0], *c.get(1).unwrap_or(&0), *c.get(2).unwrap_or(&0)];
+        let n = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
+        for k in 0..4 {
+            if k <= c.len() {
+                s.push(T[(n >> (18 - 6 * k) & 63) as usize] as char);
+            } else {
+                s.push('=');
+            }
+        }
+    }
+    s
+}
