@@ -66,10 +66,10 @@ pub fn write_glb(path: &Path, positions: &[[f32; 3]], uvs: Option<&[[f32; 2]]>, 
         "buffers": [{"byteLength": bin.len()}], "bufferViews": views, "accessors": accessors,
     });
     let mut json = serde_json::to_vec(&doc).unwrap();
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let total = 12 + 8 + json.len() + 8 + bin.len();
