@@ -239,8 +239,8 @@ fn padding_fills_exactly_the_band_from_the_nearest_island_texel() {
     );
     let nearest = nearest_island(&cpu.island, 64, 64);
     let (mut filled, mut kept, mut full_filled) = (0, 0, 0);
-    for i in 0..64 * 64usize {
-        match &nearest[i] {
+    for (i, near) in nearest.iter().enumerate() {
+        match near {
             None => {
                 // Island texel: padding never touches it.
                 assert_eq!(

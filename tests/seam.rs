@@ -24,6 +24,9 @@ use glam::Vec2;
 use std::collections::HashMap;
 use std::path::Path;
 
+/// One side of a seam edge: the UVs of its two endpoints and the triangle.
+type Side = (Vec2, Vec2, usize);
+
 #[test]
 fn decal_across_uv_seams_is_continuous_on_spot() {
     let dir = scratch("seam");
@@ -33,7 +36,7 @@ fn decal_across_uv_seams_is_continuous_on_spot() {
     let uvs = &mesh.uv_sets[0];
 
     // Seam edges: welded edges whose two triangles use different UVs for the same endpoints.
-    let mut sides: HashMap<(u32, u32), Vec<(Vec2, Vec2, usize)>> = HashMap::new();
+    let mut sides: HashMap<(u32, u32), Vec<Side>> = HashMap::new();
     for (t, tri) in mesh.triangles.iter().enumerate() {
         for k in 0..3 {
             let (sa, sb) = (tri[k], tri[(k + 1) % 3]);
@@ -64,7 +67,7 @@ fn decal_across_uv_seams_is_continuous_on_spot() {
         let (a, b, c) = (c0.dot(c0), c0.dot(c1), c1.dot(c1));
         (0.5 * (a + c + ((a - c).powi(2) + 4.0 * b * b).sqrt())).sqrt()
     };
-    let seams: Vec<((u32, u32), (Vec2, Vec2, usize), (Vec2, Vec2, usize))> = sides
+    let seams: Vec<((u32, u32), Side, Side)> = sides
         .iter()
         .filter(|(_, s)| {
             s.len() == 2 && (s[0].0.distance(s[1].0) > 1e-4 || s[0].1.distance(s[1].1) > 1e-4)
