@@ -54,6 +54,8 @@ pub struct LoadedMesh {
     pub stats: MeshStats,
     /// Load, weld and upload times (ms).
     pub timings: (f64, f64, f64),
+    /// The material's base-colour texture on the GPU, uploaded by the first bake that uses it.
+    material_texture: std::sync::OnceLock<Arc<GpuImage>>,
 }
 
 impl LoadedMesh {
@@ -163,7 +165,7 @@ pub struct Engine {
     /// The GPU context.
     pub ctx: GpuContext,
     pub(crate) pipes: Pipelines,
-    targets: Mutex<HashMap<u32, Arc<Targets>>>,
+    targets: Mutex<HashMap<[u32; 2], Arc<Targets>>>,
     pub(crate) linear_sampler: wgpu::Sampler,
 }
 
@@ -221,6 +223,11 @@ impl Engine {
         self.prepare_mesh(mesh, t0)
     }
 
+    /// Welds and uploads a mesh already in memory.
+    pub fn prepare(&self, mesh: Mesh) -> Result<LoadedMesh> {
+        self.prepare_mesh(mesh, Instant::now())
+    }
+
     fn prepare_mesh(&self, mut mesh: Mesh, t0: Instant) -> Result<LoadedMesh> {
         let load = ms(t0);
         let t1 = Instant::now();
@@ -243,19 +250,20 @@ impl Engine {
             gpu,
             stats,
             timings: (load, weld, upload),
+            material_texture: std::sync::OnceLock::new(),
         })
     }
 
-    fn targets(&self, side: u32) -> Arc<Targets> {
+    fn targets(&self, size: [u32; 2]) -> Arc<Targets> {
         let mut pool = self.targets.lock().expect("target pool poisoned");
-        pool.entry(side)
+        pool.entry(size)
             .or_insert_with(|| {
                 let mk = |label: &str, format| {
                     self.ctx.device.create_texture(&wgpu::TextureDescriptor {
                         label: Some(label),
                         size: wgpu::Extent3d {
-                            width: side,
-                            height: side,
+                            width: size[0],
+                            height: size[1],
                             depth_or_array_layers: 1,
                         },
                         mip_level_count: 1,
@@ -467,16 +475,25 @@ impl Engine {
         Ok(())
     }
 
-    fn load_base(&self, mesh: &LoadedMesh, job: &Job) -> Result<LinearImage> {
+    fn load_base(&self, mesh: &LoadedMesh, job: &Job) -> Result<Arc<GpuImage>> {
+        let solid = |c: [f32; 4]| {
+            Arc::new(self.upload_image(&LinearImage::solid(1, 1, c), false, "bake.base"))
+        };
         Ok(match &job.base {
-            Base::Color(c) => LinearImage::solid(1, 1, *c),
-            Base::Image(p) => self.checked_image(p, job, "texture.base", false)?,
+            Base::Color(c) => solid(*c),
+            Base::Image(p) => {
+                let img = self.checked_image(p, job, "texture.base", false)?;
+                Arc::new(self.upload_image(&img, false, "bake.base"))
+            }
             Base::Material => match &mesh.mesh.material {
                 Some(m) => match &m.base_color_texture {
-                    Some(t) => t.clone(),
-                    None => LinearImage::solid(1, 1, m.base_color_factor),
+                    Some(t) => mesh
+                        .material_texture
+                        .get_or_init(|| Arc::new(self.upload_image(t, false, "mesh.base_color")))
+                        .clone(),
+                    None => solid(m.base_color_factor),
                 },
-                None => LinearImage::solid(1, 1, [0.5, 0.5, 0.5, 1.0]),
+                None => solid([0.5, 0.5, 0.5, 1.0]),
             },
         })
     }
@@ -521,7 +538,7 @@ impl Engine {
 
         // Images.
         let t = Instant::now();
-        let base_img = self.load_base(mesh, job)?;
+        let base_gpu = self.load_base(mesh, job)?;
         let mut images: HashMap<PathBuf, Arc<GpuImage>> = HashMap::new();
         let mut masks: HashMap<PathBuf, Arc<GpuImage>> = HashMap::new();
         let mut layer_images = Vec::new();
@@ -550,7 +567,7 @@ impl Engine {
             };
             layer_images.push((img, mask));
         }
-        let base_gpu = self.upload_image(&base_img, false, "bake.base");
+
         let dummy = self.upload_image(&LinearImage::solid(1, 1, [1.0; 4]), false, "bake.dummy");
         timings.images_ms = ms(t);
 
@@ -619,23 +636,34 @@ impl Engine {
                 | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        // One stats row per layer, plus a last row whose word 0 counts island texels.
+        // One stats row per layer, plus a last row whose word 0 counts island texels. A row is 8
+        // counters and the layer's cell mask.
         let nl = job.layers.len() as u64 + 1;
+        let grid = [w.div_ceil(CELL), h.div_ceil(CELL)];
+        let mask_words = (grid[0] * grid[1]).div_ceil(32);
+        let stats_stride = 8 + mask_words;
         let stats_init: Vec<i32> = (0..nl)
-            .flat_map(|_| [0, i32::MAX, i32::MAX, i32::MIN, i32::MIN, 0, 0, 0])
+            .flat_map(|_| {
+                [0, i32::MAX, i32::MAX, i32::MIN, i32::MIN, 0, 0, 0]
+                    .into_iter()
+                    .chain(std::iter::repeat_n(0, mask_words as usize))
+            })
             .collect();
         let stats = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("bake.stats"),
             contents: bytemuck::cast_slice(&stats_init),
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         });
-        let stats_size = nl * 32;
+        let stats_size = nl * stats_stride as u64 * 4;
 
         let global = Params {
             tex_size: [w, h],
             ss,
             vertex_count: g.vertex_count,
             triangle_count: g.triangle_count,
+            stats_stride,
+            cell: CELL,
+            grid,
             ..Default::default()
         };
 
@@ -699,7 +727,7 @@ impl Engine {
             for (k, j) in island_jobs.iter().enumerate() {
                 let off = ((k + 1) as u64 * PARAMS_STRIDE) as u32;
                 let side = target_side(j.rect_size, ss);
-                let tg = self.targets(side);
+                let tg = self.targets([side, side]);
                 {
                     let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                         label: Some("bake.island_raster"),
@@ -779,9 +807,12 @@ impl Engine {
                 .take(end)
                 .skip(start)
             {
-                let mut p = frame.params();
-                p.tex_size = [w, h];
-                p.ss = ss;
+                let mut p = Params {
+                    center: [0.0; 4],
+                    ..global
+                };
+                let f = frame.params();
+                (p.center, p.axis_u, p.axis_v, p.normal) = (f.center, f.axis_u, f.axis_v, f.normal);
                 p.slot = (i - start) as u32;
                 p.aux = i as u32;
                 p.vertex_count = g.vertex_count;
@@ -851,7 +882,7 @@ impl Engine {
             // Plan raster jobs.
             let mut raster_jobs: Vec<(usize, Params)> = Vec::new();
             for i in start..end {
-                let row = &s[i * 8..i * 8 + 8];
+                let row = &s[i * stats_stride as usize..(i + 1) * stats_stride as usize];
                 let count = row[0].max(0) as u32;
                 let bx = [row[1], row[2], row[3], row[4]];
                 if count == 0 {
@@ -874,18 +905,12 @@ impl Engine {
                     texel_box: bx,
                 });
                 let base = lp[i - start];
+                let rects = plan_cells(&row[8..], grid, CELL, [w, h], TILE_TARGET / ss);
                 for tj in bx[1].div_euclid(h as i32)..=(bx[3] - 1).max(bx[1]).div_euclid(h as i32) {
                     for ti in
                         bx[0].div_euclid(w as i32)..=(bx[2] - 1).max(bx[0]).div_euclid(w as i32)
                     {
-                        let x0 = (bx[0] - ti * w as i32).max(0);
-                        let y0 = (bx[1] - tj * h as i32).max(0);
-                        let x1 = (bx[2] - ti * w as i32).min(w as i32);
-                        let y1 = (bx[3] - tj * h as i32).min(h as i32);
-                        if x1 <= x0 || y1 <= y0 {
-                            continue;
-                        }
-                        for r in split_rect([x0, y0, x1 - x0, y1 - y0], TILE_TARGET / ss) {
+                        for r in &rects {
                             raster_jobs.push((
                                 i,
                                 Params {
@@ -899,6 +924,43 @@ impl Engine {
                     }
                 }
             }
+            // Pack the raster jobs, in order, into atlas batches: one render pass (one clear) per
+            // batch, each job drawn into its own region, then one compose dispatch per job in job
+            // order (so overlapping layers still apply in order).
+            let mut batches: Vec<Batch> = Vec::new();
+            {
+                let (mut cur, mut sx, mut sy, mut sh) = (Vec::new(), 0u32, 0u32, 0u32);
+                for (k, (_, p)) in raster_jobs.iter_mut().enumerate() {
+                    let (jw, jh) = (p.rect_size[0] * ss, p.rect_size[1] * ss);
+                    if sx + jw > TILE_TARGET {
+                        sy += sh;
+                        sx = 0;
+                        sh = 0;
+                    }
+                    if sy + jh > TILE_TARGET {
+                        batches.push((std::mem::take(&mut cur), sy + sh));
+                        (sx, sy, sh) = (0, 0, 0);
+                    }
+                    p.atlas_origin = [sx, sy];
+                    cur.push((k, [sx, sy]));
+                    sx += jw;
+                    sh = sh.max(jh);
+                }
+                if !cur.is_empty() {
+                    batches.push((cur, sy + sh));
+                }
+            }
+            if std::env::var("DECALBAKE_DEBUG").is_ok() {
+                let covered: u64 = raster_jobs
+                    .iter()
+                    .map(|(_, p)| p.rect_size[0] as u64 * p.rect_size[1] as u64)
+                    .sum();
+                eprintln!(
+                    "raster jobs {} in {} batches, rect texels {covered}",
+                    raster_jobs.len(),
+                    batches.len()
+                );
+            }
             let jp: Vec<Params> = raster_jobs.iter().map(|(_, p)| *p).collect();
             let job_params = params_buffer(dev, "bake.raster_params", &jp);
             self.ctx.scoped("raster and compose", || {
@@ -906,30 +968,8 @@ impl Engine {
                     label: Some("bake.compose"),
                 });
                 let mut layer_bgs: HashMap<usize, wgpu::BindGroup> = HashMap::new();
-                for (k, (i, p)) in raster_jobs.iter().enumerate() {
-                    let off = (k as u64 * PARAMS_STRIDE) as u32;
-                    let bg = layer_bgs.entry(*i).or_insert_with(|| {
-                        let (img, m) = &layer_images[*i];
-                        let mview = m.as_ref().map(|m| &m.view).unwrap_or(&dummy.view);
-                        make_bg(
-                            dev,
-                            &pipes.layer_raster.layout,
-                            "bake.layer_raster",
-                            &[
-                                (0, pbind(&job_params)),
-                                (1, lists.as_entire_binding()),
-                                (2, g.split_tris.as_entire_binding()),
-                                (3, uvs.as_entire_binding()),
-                                (4, g.welded_of.as_entire_binding()),
-                                (5, coords.as_entire_binding()),
-                                (6, wgpu::BindingResource::TextureView(&img.view)),
-                                (7, wgpu::BindingResource::TextureView(mview)),
-                                (8, wgpu::BindingResource::Sampler(&self.linear_sampler)),
-                            ],
-                        )
-                    });
-                    let tg = self.targets(target_side(p.rect_size, ss));
-                    let count = s[i * 8].max(0) as u32;
+                for (batch, used_h) in &batches {
+                    let tg = self.targets([TILE_TARGET, used_h.next_power_of_two().max(64)]);
                     {
                         let clear = wgpu::Operations {
                             load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
@@ -957,16 +997,45 @@ impl Engine {
                             multiview_mask: None,
                         });
                         pass.set_pipeline(&pipes.layer_raster.pipeline);
-                        pass.set_bind_group(0, &*bg, &[off]);
-                        pass.set_viewport(
-                            0.0,
-                            0.0,
-                            (p.rect_size[0] * ss) as f32,
-                            (p.rect_size[1] * ss) as f32,
-                            0.0,
-                            1.0,
-                        );
-                        pass.draw(0..3 * count, 0..1);
+                        for &(k, origin) in batch {
+                            let (i, p) = &raster_jobs[k];
+                            let off = (k as u64 * PARAMS_STRIDE) as u32;
+                            let bg = layer_bgs.entry(*i).or_insert_with(|| {
+                                let (img, m) = &layer_images[*i];
+                                let mview = m.as_ref().map(|m| &m.view).unwrap_or(&dummy.view);
+                                make_bg(
+                                    dev,
+                                    &pipes.layer_raster.layout,
+                                    "bake.layer_raster",
+                                    &[
+                                        (0, pbind(&job_params)),
+                                        (1, lists.as_entire_binding()),
+                                        (2, g.split_tris.as_entire_binding()),
+                                        (3, uvs.as_entire_binding()),
+                                        (4, g.welded_of.as_entire_binding()),
+                                        (5, coords.as_entire_binding()),
+                                        (6, wgpu::BindingResource::TextureView(&img.view)),
+                                        (7, wgpu::BindingResource::TextureView(mview)),
+                                        (8, wgpu::BindingResource::Sampler(&self.linear_sampler)),
+                                    ],
+                                )
+                            });
+                            let count =
+                                (s[i * stats_stride as usize].max(0) as u32).min(g.triangle_count);
+                            let (jw, jh) = (p.rect_size[0] * ss, p.rect_size[1] * ss);
+                            pass.set_bind_group(0, &*bg, &[off]);
+                            pass.set_viewport(
+                                origin[0] as f32,
+                                origin[1] as f32,
+                                jw as f32,
+                                jh as f32,
+                                0.0,
+                                1.0,
+                            );
+                            pass.set_scissor_rect(origin[0], origin[1], jw, jh);
+                            pass.draw(0..3 * count, 0..1);
+                            commands += 1;
+                        }
                     }
                     let bg_compose = pipes.compose.bind(
                         dev,
@@ -985,13 +1054,16 @@ impl Engine {
                         timestamp_writes: None,
                     });
                     pass.set_pipeline(&pipes.compose.pipeline);
-                    pass.set_bind_group(0, &bg_compose, &[off]);
-                    pass.dispatch_workgroups(
-                        p.rect_size[0].div_ceil(8),
-                        p.rect_size[1].div_ceil(8),
-                        1,
-                    );
-                    commands += 2;
+                    for &(k, _) in batch {
+                        let p = &raster_jobs[k].1;
+                        pass.set_bind_group(0, &bg_compose, &[(k as u64 * PARAMS_STRIDE) as u32]);
+                        pass.dispatch_workgroups(
+                            p.rect_size[0].div_ceil(8),
+                            p.rect_size[1].div_ceil(8),
+                            1,
+                        );
+                        commands += 1;
+                    }
                 }
                 self.ctx.queue.submit([enc.finish()]);
             })?;
@@ -1109,9 +1181,9 @@ impl Engine {
             .read_buffer(&stats, stats_size, "stats read-back")?;
         let stats_words: &[i32] = bytemuck::cast_slice(&stats_bytes);
         for l in &mut layer_reports {
-            l.texels_covered = stats_words[l.index * 8 + 5].max(0) as u32;
+            l.texels_covered = stats_words[l.index * stats_stride as usize + 5].max(0) as u32;
         }
-        let island_texels = stats_words[job.layers.len() * 8] as u32 as u64;
+        let island_texels = stats_words[job.layers.len() * stats_stride as usize] as u32 as u64;
 
         let report = Report {
             version: env!("CARGO_PKG_VERSION"),
@@ -1137,6 +1209,9 @@ impl Engine {
     }
 }
 
+/// Raster jobs packed into one atlas target: (job index, origin in samples) and the height used.
+type Batch = (Vec<(usize, [u32; 2])>, u32);
+
 /// GPU results of a bake before read-back.
 struct Run {
     packed: wgpu::Buffer,
@@ -1145,12 +1220,12 @@ struct Run {
     report: Report,
 }
 
-/// A `Params` binding (128 bytes at a dynamic offset).
+/// A `Params` binding (one entry at a dynamic offset).
 fn pbind(buf: &wgpu::Buffer) -> wgpu::BindingResource<'_> {
     wgpu::BindingResource::Buffer(wgpu::BufferBinding {
         buffer: buf,
         offset: 0,
-        size: wgpu::BufferSize::new(128),
+        size: wgpu::BufferSize::new(std::mem::size_of::<Params>() as u64),
     })
 }
 
@@ -1167,13 +1242,76 @@ fn params_buffer(dev: &wgpu::Device, label: &str, entries: &[Params]) -> wgpu::B
     let mut bytes = vec![0u8; (entries.len().max(1) as u64 * PARAMS_STRIDE) as usize];
     for (i, p) in entries.iter().enumerate() {
         let o = i * PARAMS_STRIDE as usize;
-        bytes[o..o + 128].copy_from_slice(bytemuck::bytes_of(p));
+        bytes[o..o + std::mem::size_of::<Params>()].copy_from_slice(bytemuck::bytes_of(p));
     }
     dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(label),
         contents: &bytes,
         usage: wgpu::BufferUsages::UNIFORM,
     })
+}
+
+/// Side of a cell of the per-layer coverage mask, in texels.
+pub const CELL: u32 = 64;
+
+/// Raster rectangles covering the marked cells of a layer's mask: runs of marked cells along each
+/// cell row, merged downwards while the next row has the same run, each at most `max_side` texels a
+/// side and clipped to the texture.
+pub fn plan_cells(
+    mask: &[i32],
+    grid: [u32; 2],
+    cell: u32,
+    tex: [u32; 2],
+    max_side: u32,
+) -> Vec<[i32; 4]> {
+    let bit = |cx: u32, cy: u32| {
+        let b = cy * grid[0] + cx;
+        (mask[(b / 32) as usize] as u32 >> (b % 32)) & 1 == 1
+    };
+    let max_cells = (max_side / cell).max(1);
+    // Runs per row: (x0, x1) in cells, half-open.
+    let mut open: Vec<[u32; 4]> = Vec::new(); // x0, x1, y0, y1 (cells)
+    let mut done: Vec<[u32; 4]> = Vec::new();
+    for cy in 0..grid[1] {
+        let mut runs = Vec::new();
+        let mut cx = 0;
+        while cx < grid[0] {
+            if bit(cx, cy) {
+                let x0 = cx;
+                while cx < grid[0] && bit(cx, cy) && cx - x0 < max_cells {
+                    cx += 1;
+                }
+                runs.push((x0, cx));
+            } else {
+                cx += 1;
+            }
+        }
+        let mut next_open = Vec::new();
+        for r in open.drain(..) {
+            if let Some(k) = runs.iter().position(|&(a, b)| a == r[0] && b == r[1]) {
+                if r[3] - r[2] < max_cells {
+                    runs.remove(k);
+                    next_open.push([r[0], r[1], r[2], cy + 1]);
+                    continue;
+                }
+            }
+            done.push(r);
+        }
+        for (a, b) in runs {
+            next_open.push([a, b, cy, cy + 1]);
+        }
+        open = next_open;
+    }
+    done.extend(open);
+    done.iter()
+        .map(|r| {
+            let x0 = r[0] * cell;
+            let y0 = r[2] * cell;
+            let x1 = (r[1] * cell).min(tex[0]);
+            let y1 = (r[3] * cell).min(tex[1]);
+            [x0 as i32, y0 as i32, (x1 - x0) as i32, (y1 - y0) as i32]
+        })
+        .collect()
 }
 
 /// Pooled target side for a raster rectangle: the next power of two of its samples, at least 64.

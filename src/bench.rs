@@ -1,2 +1,242 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-//! `decalbake bench`: placeholder replaced below.
+//! `decalbake bench`: bake time per stage for N planar decals at several texture sizes, printed as one
+//! JSON object per configuration, with the CPU twin (`compose_cpu`) timed in the same run as the
+//! baseline where it finishes in reasonable time.
+//!
+//! Decals are placed at deterministic pseudo-random surface points (area-weighted), each 8 % of the
+//! bounding-box diagonal wide, with random angles and the blend modes in turn.
+
+use crate::bake::{Engine, LoadedMesh};
+use crate::error::Result;
+use crate::image_io::LinearImage;
+use crate::job::Job;
+use crate::mesh::{Mesh, Topology};
+use glam::Vec3;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Where the shared meshes live, relative to the repository.
+pub const SHARED_MESHES: &str = "../shared/data/meshes";
+
+/// The largest mesh with UVs in `dir` (by triangle count), if any loads.
+pub fn largest_uv_mesh(dir: &Path) -> Option<PathBuf> {
+    let mut best: Option<(usize, PathBuf)> = None;
+    let mut candidates: Vec<PathBuf> = std::fs::read_dir(dir)
+        .ok()?
+        .filter_map(|e| e.ok())
+        .map(|e| e.path())
+        .collect();
+    // Models kept as .gltf live in a folder of their own.
+    let subdirs: Vec<PathBuf> = candidates.iter().filter(|p| p.is_dir()).cloned().collect();
+    for d in subdirs {
+        if let Ok(rd) = std::fs::read_dir(&d) {
+            candidates.extend(rd.filter_map(|e| e.ok()).map(|e| e.path()));
+        }
+    }
+    for p in candidates {
+        let ext = p.extension().and_then(|e| e.to_str()).unwrap_or("");
+        if ext != "glb" && ext != "gltf" {
+            continue;
+        }
+        if let Ok(m) = Mesh::load(&p) {
+            if !m.uv_sets.is_empty() && best.as_ref().is_none_or(|(n, _)| m.triangles.len() > *n) {
+                best = Some((m.triangles.len(), p));
+            }
+        }
+    }
+    best.map(|(_, p)| p)
+}
+
+/// A job with `n` random planar decals on `mesh`, images in `dir`.
+pub fn random_job(mesh: &LoadedMesh, n: usize, side: u32, dir: &Path, seed: u32) -> Result<Job> {
+    let topo = &mesh.topo;
+    let mut s = seed.max(1);
+    let mut rnd = move || {
+        s ^= s << 13;
+        s ^= s >> 17;
+        s ^= s << 5;
+        (s >> 8) as f32 / (1u32 << 24) as f32
+    };
+    let areas: Vec<f32> = topo
+        .triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| topo.positions[i as usize]);
+            0.5 * (b - a).cross(c - a).length()
+        })
+        .collect();
+    let total: f32 = areas.iter().sum();
+    let (lo, hi) = mesh.mesh.bounds();
+    let size = 0.08 * (hi - lo).length();
+    let modes = crate::blend::BlendMode::ALL;
+    let images = ["bench_a.png", "bench_b.png", "bench_c.png", "bench_d.png"];
+    for (i, name) in images.iter().enumerate() {
+        let p = dir.join(name);
+        if !p.exists() {
+            let img = match i {
+                0 => crate::demo::badge(256),
+                1 => crate::demo::stripes(256),
+                2 => crate::demo::rings(256),
+                _ => crate::demo::glow(256),
+            };
+            crate::image_io::write_atomic(&p, &img.encode_png(8))?;
+        }
+    }
+    let mut layers = Vec::new();
+    for i in 0..n {
+        let mut r = rnd() * total;
+        let mut t = 0;
+        while t + 1 < areas.len() && r > areas[t] {
+            r -= areas[t];
+            t += 1;
+        }
+        let (mut u, mut v) = (rnd(), rnd());
+        if u + v > 1.0 {
+            (u, v) = (1.0 - u, 1.0 - v);
+        }
+        let [a, b, c] = topo.triangles[t].map(|k| topo.positions[k as usize]);
+        let p: Vec3 = a + u * (b - a) + v * (c - a);
+        layers.push(serde_json::json!({
+            "image": images[i % images.len()], "at": p.to_array(), "size": [size, size],
+            "angle": rnd() * 360.0, "blend": modes[i % modes.len()].name(), "opacity": 0.9
+        }));
+    }
+    let job = serde_json::json!({
+        "mesh": mesh.mesh.source, "texture": { "width": side, "height": side, "padding": 16, "samples": 4 },
+        "layers": layers, "output": { "texture": null, "report": null }
+    });
+    Job::parse(&job.to_string(), &dir.join("bench-job.json"), dir, dir)
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+/// Options of `decalbake bench`.
+pub struct BenchOptions {
+    /// Mesh file (default: the largest mesh with UVs in [`SHARED_MESHES`], else the bundled Spot).
+    pub mesh: Option<PathBuf>,
+    /// Midpoint subdivisions applied to the mesh first.
+    pub subdivide: u32,
+    /// Texture sides.
+    pub sizes: Vec<u32>,
+    /// Decal counts.
+    pub decals: Vec<usize>,
+    /// Repetitions (median reported).
+    pub reps: usize,
+    /// Largest `decals × side²` for which the CPU twin is timed too.
+    pub cpu_budget: u64,
+}
+
+/// Runs the benchmark, calling `emit` with one JSON object per configuration.
+pub fn run(
+    engine: &Engine,
+    opts: &BenchOptions,
+    mut emit: impl FnMut(serde_json::Value),
+) -> Result<()> {
+    let t = Instant::now();
+    let path = opts
+        .mesh
+        .clone()
+        .or_else(|| largest_uv_mesh(Path::new(SHARED_MESHES)));
+    let mut mesh = match &path {
+        Some(p) => Mesh::load(p)?,
+        None => Mesh::from_bytes(crate::demo::SPOT_GLB, Path::new("spot.glb (bundled)"), None)?,
+    };
+    for _ in 0..opts.subdivide {
+        mesh = mesh.subdivide();
+    }
+    let load_ms = t.elapsed().as_secs_f64() * 1000.0;
+    let loaded = engine.prepare(mesh)?;
+    let dir = std::env::temp_dir().join(format!("decalbake-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).map_err(|source| crate::Error::Io {
+        path: dir.clone(),
+        action: "creating",
+        source,
+    })?;
+    for &side in &opts.sizes {
+        for &n in &opts.decals {
+            let job = random_job(&loaded, n, side, &dir, 7 + n as u32)?;
+            // Warm-up: first use of each pipeline and target size compiles shaders in the driver.
+            engine.bake(&loaded, &job)?;
+            let mut totals = Vec::new();
+            let mut stages: Vec<crate::report::Timings> = Vec::new();
+            let mut last = None;
+            for _ in 0..opts.reps.max(1) {
+                let t = Instant::now();
+                let baked = engine.bake(&loaded, &job)?;
+                let te = Instant::now();
+                let png = baked.to_png();
+                let encode_png_ms = te.elapsed().as_secs_f64() * 1000.0;
+                let total = t.elapsed().as_secs_f64() * 1000.0;
+                totals.push(total);
+                let mut tm = baked.report.timings.clone();
+                tm.write_ms = encode_png_ms;
+                stages.push(tm);
+                let _ = png;
+                last = Some(baked);
+            }
+            let baked = last.expect("at least one repetition");
+            let texels: u64 = baked
+                .report
+                .layers
+                .iter()
+                .map(|l| l.texels_covered as u64)
+                .sum();
+            let med =
+                |f: fn(&crate::report::Timings) -> f64| median(stages.iter().map(f).collect());
+            let compose = med(|t| t.compose_ms);
+            let gpu_total = median(totals.clone());
+            let mut cpu_ms = None;
+            if (n as u64) * (side as u64).pow(2) <= opts.cpu_budget {
+                let topo = Topology::build(&loaded.mesh, crate::mesh::DEFAULT_WELD_TOLERANCE);
+                let images: Vec<(LinearImage, Option<LinearImage>)> = job
+                    .layers
+                    .iter()
+                    .map(|l| LinearImage::load(&l.image).map(|i| (i, None)))
+                    .collect::<Result<_>>()?;
+                let placements: Vec<_> = baked.report.layers.iter().map(|l| l.placement).collect();
+                let base = loaded
+                    .mesh
+                    .material
+                    .as_ref()
+                    .and_then(|m| m.base_color_texture.clone())
+                    .unwrap_or_else(|| LinearImage::solid(1, 1, [0.5, 0.5, 0.5, 1.0]));
+                let t = Instant::now();
+                let _ = crate::compose_cpu::bake_cpu(
+                    &loaded.mesh,
+                    &topo,
+                    &job,
+                    &placements,
+                    &base,
+                    &images,
+                );
+                cpu_ms = Some(t.elapsed().as_secs_f64() * 1000.0);
+            }
+            emit(serde_json::json!({
+                "mesh": loaded.stats.source,
+                "triangles": loaded.stats.triangles,
+                "welded_vertices": loaded.stats.welded_vertices,
+                "texture": side,
+                "decals": n,
+                "reps": opts.reps,
+                "adapter": engine.ctx.adapter,
+                "median_ms": {
+                    "total": gpu_total,
+                    "load": load_ms, "weld": loaded.timings.1, "upload": loaded.timings.2,
+                    "images": med(|t| t.images_ms), "placement": med(|t| t.placement_ms),
+                    "compose": compose, "padding": med(|t| t.padding_ms), "encode_readback": med(|t| t.encode_ms),
+                    "png_encode": med(|t| t.write_ms),
+                },
+                "texels_composed": texels,
+                "composed_texels_per_s": texels as f64 / (compose / 1000.0),
+                "gpu_commands": baked.report.gpu_commands,
+                "cpu_twin_compose_ms": cpu_ms,
+                "cpu_twin_over_gpu_compose": cpu_ms.map(|c| c / compose),
+            }));
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    Ok(())
+}

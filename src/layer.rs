@@ -50,9 +50,19 @@ pub struct Params {
     /// Layer kernels: the layer's index in the job (stats row); `edt_rows_fill`: padding radius
     /// (`u32::MAX` = full).
     pub aux: u32,
+    /// Words per row of the stats buffer (8 counters + the cell mask).
+    pub stats_stride: u32,
+    /// Side of a mask cell in texels.
+    pub cell: u32,
+    /// Cells per row and column.
+    pub grid: [u32; 2],
+    /// Raster job: origin of its samples in the batch's atlas target.
+    pub atlas_origin: [u32; 2],
+    /// Unused.
+    pub pad: [u32; 2],
 }
 
-const _: () = assert!(std::mem::size_of::<Params>() == 128);
+const _: () = assert!(std::mem::size_of::<Params>() == 160);
 
 /// Require front-facing triangles.
 pub const FLAG_FACING: u32 = 1;

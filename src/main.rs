@@ -55,6 +55,12 @@ enum Cmd {
         /// Repetitions per configuration (the median is reported).
         #[arg(long, default_value_t = 3)]
         reps: usize,
+        /// Midpoint subdivisions of the mesh (each multiplies the triangles by 4).
+        #[arg(long, default_value_t = 0)]
+        subdivide: u32,
+        /// Time the CPU twin too when decals × side² is at most this.
+        #[arg(long, default_value_t = 16 * 2048 * 2048)]
+        cpu_budget: u64,
     },
 }
 
@@ -80,7 +86,27 @@ fn run(cli: Cli) -> Result<()> {
             bake(&engine, &job)
         }
         Cmd::Info { mesh } => info(&mesh),
-        Cmd::Bench { .. } => anyhow::bail!("not yet"),
+        Cmd::Bench {
+            mesh,
+            subdivide,
+            sizes,
+            decals,
+            reps,
+            cpu_budget,
+        } => {
+            let engine = Engine::new(cli.backend.as_deref())?;
+            eprintln!("adapter: {}", engine.ctx.adapter);
+            let opts = decalbake::bench::BenchOptions {
+                mesh,
+                subdivide,
+                sizes,
+                decals,
+                reps,
+                cpu_budget,
+            };
+            decalbake::bench::run(&engine, &opts, |v| println!("{v}"))?;
+            Ok(())
+        }
     }
 }
 

@@ -10,7 +10,7 @@
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var layer_color: texture_2d<f32>;
 @group(0) @binding(2) var layer_cov: texture_2d<f32>;
-// Per layer (params.aux), 8 words; word 5 counts texels the layer changed.
+// Per layer (params.aux), `stats_stride` words; word 5 counts texels the layer changed.
 @group(0) @binding(3) var<storage, read_write> stats: array<atomic<i32>>;
 
 @compute @workgroup_size(8, 8)
@@ -20,7 +20,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var n = 0.0;
     for (var j = 0u; j < params.ss; j++) {
         for (var i = 0u; i < params.ss; i++) {
-            let p = vec2<i32>(gid.xy * params.ss + vec2<u32>(i, j));
+            let p = vec2<i32>(params.atlas_origin + gid.xy * params.ss + vec2<u32>(i, j));
             let cov = textureLoad(layer_cov, p, 0).r;
             if (cov > 0.5) {
                 sum += textureLoad(layer_color, p, 0);
@@ -34,5 +34,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let tex = vec2<u32>(vec2<i32>(gid.xy) + params.rect_origin);
     let idx = tex.y * params.tex_size.x + tex.x;
     acc_store(idx, blend(params.blend, acc_load(idx), src));
-    atomicAdd(&stats[params.aux * 8u + 5u], 1);
+    atomicAdd(&stats[params.aux * params.stats_stride + 5u], 1);
 }

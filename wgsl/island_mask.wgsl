@@ -23,7 +23,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (any) {
         let tex = vec2<u32>(vec2<i32>(gid.xy) + params.rect_origin);
         if (atomicExchange(&mask[tex.y * params.tex_size.x + tex.x], 1u) == 0u) {
-            atomicAdd(&stats[params.aux * 8u], 1u);
+            atomicAdd(&stats[params.aux * params.stats_stride], 1u);
         }
     }
 }

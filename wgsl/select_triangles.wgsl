@@ -13,7 +13,9 @@
 @group(0) @binding(4) var<storage, read> uvs: array<vec2<f32>>;
 @group(0) @binding(5) var<storage, read> coords: array<vec4<f32>>;
 @group(0) @binding(6) var<storage, read_write> lists: array<u32>;
-// Per layer (params.aux), 8 words: count, min x, min y, max x, max y (texels), unused.
+// Per layer (params.aux), `stats_stride` words: count, min x, min y, max x, max y (texels), texels
+// composed, 2 unused, then the cell mask: the texel blocks this layer's triangles touch, wrapped into
+// the texture (UV repeat), so rasterization only visits blocks that can change.
 @group(0) @binding(7) var<storage, read_write> stats: array<atomic<i32>>;
 
 @compute @workgroup_size(64)
@@ -37,7 +39,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let n = cross(positions[tri.y].xyz - a, positions[tri.z].xyz - a);
         if (dot(n, params.normal.xyz) <= 0.0) { return; }
     }
-    let s = params.aux * 8u;
+    let s = params.aux * params.stats_stride;
     let i = atomicAdd(&stats[s], 1);
     lists[params.slot * params.triangle_count + u32(i)] = t;
     let size = vec2<f32>(params.tex_size);
@@ -50,4 +52,18 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     atomicMin(&stats[s + 2u], tlo.y);
     atomicMax(&stats[s + 3u], thi.x);
     atomicMax(&stats[s + 4u], thi.y);
+    let g = vec2<i32>(params.grid);
+    let first = vec2<i32>(floor(vec2<f32>(tlo) / f32(params.cell)));
+    let last = vec2<i32>(floor(vec2<f32>(thi - vec2<i32>(1)) / f32(params.cell)));
+    // A triangle spanning more than the whole grid touches every block; clamp the loop to one wrap.
+    let cy1 = min(last.y, first.y + g.y - 1);
+    let cx1 = min(last.x, first.x + g.x - 1);
+    for (var cy = first.y; cy <= cy1; cy++) {
+        for (var cx = first.x; cx <= cx1; cx++) {
+            let wx = ((cx % g.x) + g.x) % g.x;
+            let wy = ((cy % g.y) + g.y) % g.y;
+            let bit = u32(wy * g.x + wx);
+            atomicOr(&stats[s + 8u + bit / 32u], i32(1u << (bit % 32u)));
+        }
+    }
 }

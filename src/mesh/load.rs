@@ -291,3 +291,46 @@ fn load_material(
     }
     Ok(info)
 }
+
+impl Mesh {
+    /// Midpoint subdivision: every triangle becomes four; positions, normals and every UV set are
+    /// interpolated at edge midpoints (no smoothing, so the surface is unchanged). Seams stay seams:
+    /// midpoints are shared per split-vertex edge, and welding joins the two sides again. Used to make
+    /// large benchmark meshes from the bundled ones.
+    pub fn subdivide(&self) -> Mesh {
+        use std::collections::HashMap;
+        let mut out = self.clone();
+        let mut mids: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut tris = Vec::with_capacity(self.triangles.len() * 4);
+        for t in &self.triangles {
+            let mut m = [0u32; 3];
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                let key = (a.min(b), a.max(b));
+                m[k] = *mids.entry(key).or_insert_with(|| {
+                    let (a, b) = (a as usize, b as usize);
+                    out.positions
+                        .push(0.5 * (self.positions[a] + self.positions[b]));
+                    out.normals
+                        .push((self.normals[a] + self.normals[b]).normalize_or_zero());
+                    for (set, src) in out.uv_sets.iter_mut().zip(&self.uv_sets) {
+                        set.push(0.5 * (src[a] + src[b]));
+                    }
+                    (out.positions.len() - 1) as u32
+                });
+            }
+            tris.push([t[0], m[0], m[2]]);
+            tris.push([m[0], t[1], m[1]]);
+            tris.push([m[2], m[1], t[2]]);
+            tris.push([m[0], m[1], m[2]]);
+        }
+        out.triangles = tris;
+        let mut first = 0;
+        for p in &mut out.primitives {
+            p.first_triangle = first;
+            p.triangles *= 4;
+            first += p.triangles;
+        }
+        out
+    }
+}

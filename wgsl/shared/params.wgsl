@@ -31,6 +31,14 @@ struct Params {
     // Layer kernels: the layer's index in the job (row of the stats buffer).
     // edt_rows_fill: padding radius in texels (0xffffffff = fill everything).
     aux: u32,
+    // Words per row of the stats buffer: 8 counters, then the layer's cell mask (one bit per
+    // `cell` x `cell` texel block of the texture, `grid` blocks, row-major).
+    stats_stride: u32,
+    cell: u32,
+    grid: vec2<u32>,
+    // Raster job: where its samples sit in the batch's atlas target.
+    atlas_origin: vec2<u32>,
+    _pad: vec2<u32>,
 }
 
 const FLAG_FACING: u32 = 1u;
