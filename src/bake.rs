@@ -56,6 +56,19 @@ pub struct LoadedMesh {
     pub timings: (f64, f64, f64),
     /// The material's base-colour texture on the GPU, uploaded by the first bake that uses it.
     material_texture: std::sync::OnceLock<Arc<GpuImage>>,
+    /// Island masks and nearest-island maps by (UV set, width, height, supersampling).
+    islands: Mutex<HashMap<IslandKey, Arc<Islands>>>,
+}
+
+/// (UV set, width, height, supersampling).
+type IslandKey = (u32, u32, u32, u32);
+
+/// A UV layout rasterized at one texture size: which texels the islands cover, and for every texel
+/// the index of its nearest island texel (exact Euclidean distance transform).
+struct Islands {
+    mask: wgpu::Buffer,
+    nearest: wgpu::Buffer,
+    count: u64,
 }
 
 impl LoadedMesh {
@@ -251,6 +264,7 @@ impl Engine {
             stats,
             timings: (load, weld, upload),
             material_texture: std::sync::OnceLock::new(),
+            islands: Mutex::new(HashMap::new()),
         })
     }
 
@@ -419,6 +433,192 @@ impl Engine {
             tex
         })?;
         Ok((tex, run.report))
+    }
+
+    /// The island mask and nearest-island map of `mesh` for a UV set, texture size and sampling,
+    /// computed on first use and cached on the mesh: the island raster (`island_raster`,
+    /// `island_mask`) and the exact distance transform (`edt_columns`, `edt_rows`).
+    fn islands(
+        &self,
+        mesh: &LoadedMesh,
+        uv_set: u32,
+        size: [u32; 2],
+        ss: u32,
+        commands: &mut u32,
+    ) -> Result<Arc<Islands>> {
+        let key = (uv_set, size[0], size[1], ss);
+        if let Some(c) = mesh
+            .islands
+            .lock()
+            .expect("island cache poisoned")
+            .get(&key)
+        {
+            return Ok(c.clone());
+        }
+        let dev = &self.ctx.device;
+        let pipes = &self.pipes;
+        let g = &mesh.gpu;
+        let uvs = &g.uvs[uv_set as usize];
+        let [w, h] = size;
+        let texels = w as u64 * h as u64;
+        let buf = |label, bytes: u64| {
+            dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let mask = buf("islands.mask", texels * 4);
+        let nearest = buf("islands.nearest", texels * 4);
+        let counter = buf("islands.count", 16);
+        let global = Params {
+            tex_size: size,
+            ss,
+            triangle_count: g.triangle_count,
+            stats_stride: 1,
+            ..Default::default()
+        };
+        let range = uv_tile_range(&mesh.mesh.uv_sets[uv_set as usize]);
+        let mut jobs = Vec::new();
+        for tj in range[1]..=range[3] {
+            for ti in range[0]..=range[2] {
+                for rect in split_rect([0, 0, w as i32, h as i32], TILE_TARGET / ss) {
+                    jobs.push(Params {
+                        rect_origin: [rect[0], rect[1]],
+                        rect_size: [rect[2] as u32, rect[3] as u32],
+                        tile: [ti, tj],
+                        ..global
+                    });
+                }
+            }
+        }
+        let mut entries = vec![global];
+        entries.extend(jobs.iter().copied());
+        let params = params_buffer(dev, "islands.params", &entries);
+        self.ctx.scoped("islands", || {
+            let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("islands"),
+            });
+            enc.clear_buffer(&mask, 0, None);
+            enc.clear_buffer(&counter, 0, None);
+            let bg_island = make_bg(
+                dev,
+                &pipes.island_raster.layout,
+                "islands.raster",
+                &[
+                    (0, pbind(&params)),
+                    (1, g.tris.as_entire_binding()),
+                    (2, g.split_tris.as_entire_binding()),
+                    (3, uvs.as_entire_binding()),
+                ],
+            );
+            for (k, j) in jobs.iter().enumerate() {
+                let off = ((k + 1) as u64 * PARAMS_STRIDE) as u32;
+                let side = target_side(j.rect_size, ss);
+                let tg = self.targets([side, side]);
+                {
+                    let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                        label: Some("islands.raster"),
+                        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                            view: &tg.cov_view,
+                            depth_slice: None,
+                            resolve_target: None,
+                            ops: wgpu::Operations {
+                                load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                                store: wgpu::StoreOp::Store,
+                            },
+                        })],
+                        depth_stencil_attachment: None,
+                        timestamp_writes: None,
+                        occlusion_query_set: None,
+                        multiview_mask: None,
+                    });
+                    pass.set_pipeline(&pipes.island_raster.pipeline);
+                    pass.set_bind_group(0, &bg_island, &[off]);
+                    pass.set_viewport(
+                        0.0,
+                        0.0,
+                        (j.rect_size[0] * ss) as f32,
+                        (j.rect_size[1] * ss) as f32,
+                        0.0,
+                        1.0,
+                    );
+                    pass.draw(0..3 * g.triangle_count, 0..1);
+                }
+                let bg_mask = pipes.island_mask.bind(
+                    dev,
+                    "islands.mask",
+                    &[
+                        (0, pbind(&params)),
+                        (1, wgpu::BindingResource::TextureView(&tg.cov_view)),
+                        (2, mask.as_entire_binding()),
+                        (3, counter.as_entire_binding()),
+                    ],
+                );
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("islands.mask"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(&pipes.island_mask.pipeline);
+                pass.set_bind_group(0, &bg_mask, &[off]);
+                pass.dispatch_workgroups(j.rect_size[0].div_ceil(8), j.rect_size[1].div_ceil(8), 1);
+                *commands += 2;
+            }
+            let col_near = buf("islands.edt.col_near", texels * 4);
+            let env_v = buf("islands.edt.env_v", texels * 4);
+            let env_z = buf("islands.edt.env_z", (w as u64 + 1) * h as u64 * 4);
+            let bg_cols = pipes.edt_columns.bind(
+                dev,
+                "islands.edt_columns",
+                &[
+                    (0, pbind(&params)),
+                    (1, mask.as_entire_binding()),
+                    (2, col_near.as_entire_binding()),
+                ],
+            );
+            let bg_rows = pipes.edt_rows.bind(
+                dev,
+                "islands.edt_rows",
+                &[
+                    (0, pbind(&params)),
+                    (1, mask.as_entire_binding()),
+                    (2, col_near.as_entire_binding()),
+                    (3, env_v.as_entire_binding()),
+                    (4, env_z.as_entire_binding()),
+                    (5, nearest.as_entire_binding()),
+                ],
+            );
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("islands.edt"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&pipes.edt_columns.pipeline);
+            pass.set_bind_group(0, &bg_cols, &[0]);
+            pass.dispatch_workgroups(w.div_ceil(64), 1, 1);
+            pass.set_pipeline(&pipes.edt_rows.pipeline);
+            pass.set_bind_group(0, &bg_rows, &[0]);
+            pass.dispatch_workgroups(h.div_ceil(64), 1, 1);
+            *commands += 2;
+            drop(pass);
+            self.ctx.queue.submit([enc.finish()]);
+        })?;
+        let count_bytes = self
+            .ctx
+            .read_buffer(&counter, 16, "island count read-back")?;
+        let count = bytemuck::cast_slice::<u8, u32>(&count_bytes)[0] as u64;
+        let islands = Arc::new(Islands {
+            mask,
+            nearest,
+            count,
+        });
+        mesh.islands
+            .lock()
+            .expect("island cache poisoned")
+            .insert(key, islands.clone());
+        Ok(islands)
     }
 
     /// Checks what can only be checked against the mesh and the device.
@@ -628,17 +828,8 @@ impl Engine {
         };
         let acc_rg = plane("bake.acc_rg");
         let acc_ba = plane("bake.acc_ba");
-        let mask = dev.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("bake.island_mask"),
-            size: texels * 4,
-            usage: wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_SRC
-                | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        // One stats row per layer, plus a last row whose word 0 counts island texels. A row is 8
-        // counters and the layer's cell mask.
-        let nl = job.layers.len() as u64 + 1;
+        // One stats row per layer: 8 counters and the layer's cell mask.
+        let nl = job.layers.len().max(1) as u64;
         let grid = [w.div_ceil(CELL), h.div_ceil(CELL)];
         let mask_words = (grid[0] * grid[1]).div_ceil(32);
         let stats_stride = 8 + mask_words;
@@ -667,36 +858,18 @@ impl Engine {
             ..Default::default()
         };
 
-        // Base and islands: raster jobs over the whole texture for every UV tile the mesh touches.
-        let uv_lo_hi = uv_tile_range(&mesh.mesh.uv_sets[job.uv_set as usize]);
-        let mut island_jobs = Vec::new();
-        for tj in uv_lo_hi[1]..=uv_lo_hi[3] {
-            for ti in uv_lo_hi[0]..=uv_lo_hi[2] {
-                for rect in split_rect([0, 0, w as i32, h as i32], TILE_TARGET / ss) {
-                    island_jobs.push(Params {
-                        rect_origin: [rect[0], rect[1]],
-                        rect_size: [rect[2] as u32, rect[3] as u32],
-                        tile: [ti, tj],
-                        aux: job.layers.len() as u32,
-                        ..global
-                    });
-                }
-            }
-        }
-        let mut entries = vec![global];
-        entries.extend(island_jobs.iter().copied());
-        let island_params = params_buffer(dev, "bake.island_params", &entries);
-
-        self.ctx.scoped("base and islands", || {
+        // Islands and their distance transform: cached per (UV set, size, samples) on the mesh.
+        let islands = self.islands(mesh, job.uv_set, [w, h], ss, &mut commands)?;
+        let base_params = params_buffer(dev, "bake.base_params", &[global]);
+        self.ctx.scoped("base", || {
             let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("bake.islands"),
+                label: Some("bake.base"),
             });
-            enc.clear_buffer(&mask, 0, None);
             let bg_base = pipes.base_init.bind(
                 dev,
                 "bake.base_init",
                 &[
-                    (0, pbind(&island_params)),
+                    (0, pbind(&base_params)),
                     (1, wgpu::BindingResource::TextureView(&base_gpu.view)),
                     (2, wgpu::BindingResource::Sampler(&self.linear_sampler)),
                     (10, acc_rg.as_entire_binding()),
@@ -713,69 +886,6 @@ impl Engine {
                 pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
             }
             commands += 1;
-            let bg_island = make_bg(
-                dev,
-                &pipes.island_raster.layout,
-                "bake.island_raster",
-                &[
-                    (0, pbind(&island_params)),
-                    (1, g.tris.as_entire_binding()),
-                    (2, g.split_tris.as_entire_binding()),
-                    (3, uvs.as_entire_binding()),
-                ],
-            );
-            for (k, j) in island_jobs.iter().enumerate() {
-                let off = ((k + 1) as u64 * PARAMS_STRIDE) as u32;
-                let side = target_side(j.rect_size, ss);
-                let tg = self.targets([side, side]);
-                {
-                    let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                        label: Some("bake.island_raster"),
-                        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                            view: &tg.cov_view,
-                            depth_slice: None,
-                            resolve_target: None,
-                            ops: wgpu::Operations {
-                                load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                                store: wgpu::StoreOp::Store,
-                            },
-                        })],
-                        depth_stencil_attachment: None,
-                        timestamp_writes: None,
-                        occlusion_query_set: None,
-                        multiview_mask: None,
-                    });
-                    pass.set_pipeline(&pipes.island_raster.pipeline);
-                    pass.set_bind_group(0, &bg_island, &[off]);
-                    pass.set_viewport(
-                        0.0,
-                        0.0,
-                        (j.rect_size[0] * ss) as f32,
-                        (j.rect_size[1] * ss) as f32,
-                        0.0,
-                        1.0,
-                    );
-                    pass.draw(0..3 * g.triangle_count, 0..1);
-                }
-                let bg_mask = pipes.island_mask.bind(
-                    dev,
-                    "bake.island_mask",
-                    &[
-                        (0, pbind(&island_params)),
-                        (1, wgpu::BindingResource::TextureView(&tg.cov_view)),
-                        (2, mask.as_entire_binding()),
-                        (3, stats.as_entire_binding()),
-                    ],
-                );
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("bake.island_mask"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(&pipes.island_mask.pipeline);
-                pass.set_bind_group(0, &bg_mask, &[off]);
-                pass.dispatch_workgroups(j.rect_size[0].div_ceil(8), j.rect_size[1].div_ceil(8), 1);
-                commands += 2;
-            }
             self.ctx.queue.submit([enc.finish()]);
         })?;
 
@@ -1108,53 +1218,21 @@ impl Engine {
                 timestamp_writes: None,
             });
             if padding_wanted {
-                let col_near = dev.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("bake.edt.col_near"),
-                    size: texels * 4,
-                    usage: wgpu::BufferUsages::STORAGE,
-                    mapped_at_creation: false,
-                });
-                let env_v = dev.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("bake.edt.env_v"),
-                    size: texels * 4,
-                    usage: wgpu::BufferUsages::STORAGE,
-                    mapped_at_creation: false,
-                });
-                let env_z = dev.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("bake.edt.env_z"),
-                    size: (w as u64 + 1) * h as u64 * 4,
-                    usage: wgpu::BufferUsages::STORAGE,
-                    mapped_at_creation: false,
-                });
-                let bg_cols = pipes.edt_columns.bind(
+                let bg_fill = pipes.pad_fill.bind(
                     dev,
-                    "bake.edt_columns",
+                    "bake.pad_fill",
                     &[
                         (0, pbind(&fin_params)),
-                        (1, mask.as_entire_binding()),
-                        (2, col_near.as_entire_binding()),
-                    ],
-                );
-                let bg_rows = pipes.edt_rows_fill.bind(
-                    dev,
-                    "bake.edt_rows_fill",
-                    &[
-                        (0, pbind(&fin_params)),
-                        (1, mask.as_entire_binding()),
-                        (2, col_near.as_entire_binding()),
-                        (3, env_v.as_entire_binding()),
-                        (4, env_z.as_entire_binding()),
+                        (1, islands.mask.as_entire_binding()),
+                        (2, islands.nearest.as_entire_binding()),
                         (10, acc_rg.as_entire_binding()),
                         (11, acc_ba.as_entire_binding()),
                     ],
                 );
-                pass.set_pipeline(&pipes.edt_columns.pipeline);
-                pass.set_bind_group(0, &bg_cols, &[0]);
-                pass.dispatch_workgroups(w.div_ceil(64), 1, 1);
-                pass.set_pipeline(&pipes.edt_rows_fill.pipeline);
-                pass.set_bind_group(0, &bg_rows, &[0]);
-                pass.dispatch_workgroups(h.div_ceil(64), 1, 1);
-                commands += 2;
+                pass.set_pipeline(&pipes.pad_fill.pipeline);
+                pass.set_bind_group(0, &bg_fill, &[0]);
+                pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+                commands += 1;
             }
             let bg_enc = pipes.encode.bind(
                 dev,
@@ -1183,7 +1261,7 @@ impl Engine {
         for l in &mut layer_reports {
             l.texels_covered = stats_words[l.index * stats_stride as usize + 5].max(0) as u32;
         }
-        let island_texels = stats_words[job.layers.len() * stats_stride as usize] as u32 as u64;
+        let island_texels = islands.count;
 
         let report = Report {
             version: env!("CARGO_PKG_VERSION"),

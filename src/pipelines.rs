@@ -158,8 +158,10 @@ pub struct Pipelines {
     pub base_init: Kernel,
     /// EDT pass 1.
     pub edt_columns: Kernel,
-    /// EDT pass 2 + fill.
-    pub edt_rows_fill: Kernel,
+    /// EDT pass 2: nearest island texel per texel.
+    pub edt_rows: Kernel,
+    /// Padding fill from the nearest island texel.
+    pub pad_fill: Kernel,
     /// sRGB encode.
     pub encode: Kernel,
     /// Preview.
@@ -350,18 +352,15 @@ impl Pipelines {
                 ],
             ),
             edt_columns: Kernel::new(device, "edt_columns", &[(0, Params), (1, Ro), (2, Rw)]),
-            edt_rows_fill: Kernel::new(
+            edt_rows: Kernel::new(
                 device,
-                "edt_rows_fill",
-                &[
-                    (0, Params),
-                    (1, Ro),
-                    (2, Ro),
-                    (3, Rw),
-                    (4, Rw),
-                    (10, Rw),
-                    (11, Rw),
-                ],
+                "edt_rows",
+                &[(0, Params), (1, Ro), (2, Ro), (3, Rw), (4, Rw), (5, Rw)],
+            ),
+            pad_fill: Kernel::new(
+                device,
+                "pad_fill",
+                &[(0, Params), (1, Ro), (2, Ro), (10, Rw), (11, Rw)],
             ),
             encode: Kernel::new(
                 device,
