@@ -1192,14 +1192,12 @@ impl Engine {
         } else {
             w.next_multiple_of(64)
         };
-        let fin = [
-            Params { aux: pad, ..global },
-            Params {
-                rect_size: [stride, 0],
-                flags: if job.bit_depth == 16 { FLAG_16BIT } else { 0 },
-                ..global
-            },
-        ];
+        let fin = [Params {
+            rect_size: [stride, 0],
+            flags: if job.bit_depth == 16 { FLAG_16BIT } else { 0 },
+            aux: pad,
+            ..global
+        }];
         let fin_params = params_buffer(dev, "bake.final_params", &fin);
         let packed_size = stride as u64 * h as u64 * 4;
         let packed = dev.create_buffer(&wgpu::BufferDescriptor {
@@ -1208,7 +1206,6 @@ impl Engine {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        let padding_wanted = pad > 0;
         self.ctx.scoped("padding and encode", || {
             let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("bake.finish"),
@@ -1217,35 +1214,20 @@ impl Engine {
                 label: Some("bake.finish"),
                 timestamp_writes: None,
             });
-            if padding_wanted {
-                let bg_fill = pipes.pad_fill.bind(
-                    dev,
-                    "bake.pad_fill",
-                    &[
-                        (0, pbind(&fin_params)),
-                        (1, islands.mask.as_entire_binding()),
-                        (2, islands.nearest.as_entire_binding()),
-                        (10, acc_rg.as_entire_binding()),
-                        (11, acc_ba.as_entire_binding()),
-                    ],
-                );
-                pass.set_pipeline(&pipes.pad_fill.pipeline);
-                pass.set_bind_group(0, &bg_fill, &[0]);
-                pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
-                commands += 1;
-            }
             let bg_enc = pipes.encode.bind(
                 dev,
                 "bake.encode",
                 &[
                     (0, pbind(&fin_params)),
                     (1, packed.as_entire_binding()),
+                    (2, islands.mask.as_entire_binding()),
+                    (3, islands.nearest.as_entire_binding()),
                     (10, acc_rg.as_entire_binding()),
                     (11, acc_ba.as_entire_binding()),
                 ],
             );
             pass.set_pipeline(&pipes.encode.pipeline);
-            pass.set_bind_group(0, &bg_enc, &[PARAMS_STRIDE as u32]);
+            pass.set_bind_group(0, &bg_enc, &[0]);
             pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
             commands += 1;
             drop(pass);

@@ -160,8 +160,6 @@ pub struct Pipelines {
     pub edt_columns: Kernel,
     /// EDT pass 2: nearest island texel per texel.
     pub edt_rows: Kernel,
-    /// Padding fill from the nearest island texel.
-    pub pad_fill: Kernel,
     /// sRGB encode.
     pub encode: Kernel,
     /// Preview.
@@ -357,15 +355,10 @@ impl Pipelines {
                 "edt_rows",
                 &[(0, Params), (1, Ro), (2, Ro), (3, Rw), (4, Rw), (5, Rw)],
             ),
-            pad_fill: Kernel::new(
-                device,
-                "pad_fill",
-                &[(0, Params), (1, Ro), (2, Ro), (10, Rw), (11, Rw)],
-            ),
             encode: Kernel::new(
                 device,
                 "encode",
-                &[(0, Params), (1, Rw), (10, Rw), (11, Rw)],
+                &[(0, Params), (1, Rw), (2, Ro), (3, Ro), (10, Rw), (11, Rw)],
             ),
             preview,
             layer_blending,

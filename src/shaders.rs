@@ -24,7 +24,6 @@ pub const KERNELS: &[(&str, &str)] = &[
     ("base_init", include_str!("../wgsl/base_init.wgsl")),
     ("edt_columns", include_str!("../wgsl/edt_columns.wgsl")),
     ("edt_rows", include_str!("../wgsl/edt_rows.wgsl")),
-    ("pad_fill", include_str!("../wgsl/pad_fill.wgsl")),
     ("encode", include_str!("../wgsl/encode.wgsl")),
     ("preview", include_str!("../wgsl/preview.wgsl")),
 ];

@@ -1,7 +1,9 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-// Encodes the linear accumulation buffer to sRGB: 8 bits (one u32 per texel, RGBA8) or, with flag
-// bit 2, 16 bits (two u32 per texel, RGBA16). Alpha stays linear. CPU twin: `LinearImage::encode_png`
-// and `linear_to_srgb` in src/image_io.rs. Dispatch: (ceil(W / 8), ceil(H / 8), 1).
+// Pads and encodes. Padding: a background texel whose nearest island texel (exact distance transform,
+// see edt_rows.wgsl) lies within `params.aux` texels (0xffffffff = any distance) takes that texel's
+// colour. Encoding: sRGB, 8 bits (one u32 per texel, RGBA8) or, with flag bit 2, 16 bits (two u32 per
+// texel, RGBA16), rows `rect_size.x` words apart; alpha stays linear. CPU twins: `nearest_island` in
+// src/compose_cpu.rs, `linear_to_srgb` in src/image_io.rs. Dispatch: (ceil(W / 8), ceil(H / 8), 1).
 #import params
 #import acc
 
@@ -9,6 +11,8 @@ const FLAG_16BIT: u32 = 4u;
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read_write> packed: array<u32>;
+@group(0) @binding(2) var<storage, read> mask: array<u32>;
+@group(0) @binding(3) var<storage, read> nearest: array<u32>;
 
 fn to_srgb(c: f32) -> f32 {
     let x = clamp(c, 0.0, 1.0);
@@ -19,8 +23,21 @@ fn to_srgb(c: f32) -> f32 {
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= params.tex_size.x || gid.y >= params.tex_size.y) { return; }
-    let i = gid.y * params.tex_size.x + gid.x;
-    let c = acc_load(i);
+    let w = params.tex_size.x;
+    let i = gid.y * w + gid.x;
+    var src = i;
+    if (mask[i] == 0u) {
+        let n = nearest[i];
+        if (n != 0xffffffffu) {
+            let dx = i32(n % w) - i32(gid.x);
+            let dy = i32(n / w) - i32(gid.y);
+            let d2 = u32(dx * dx + dy * dy);
+            if (params.aux == 0xffffffffu || d2 <= params.aux * params.aux) {
+                src = n;
+            }
+        }
+    }
+    let c = acc_load(src);
     // Row stride of `packed` in u32 words (rows padded to 256 bytes for texture copies).
     let row = gid.y * params.rect_size.x;
     let e = vec4<f32>(to_srgb(c.r), to_srgb(c.g), to_srgb(c.b), clamp(c.a, 0.0, 1.0));
