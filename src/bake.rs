@@ -25,7 +25,7 @@ use crate::image_io::LinearImage;
 use crate::job::{Base, Job, Method, Padding};
 use crate::layer::{Frame, Params, FLAG_16BIT, FLAG_FACING, FLAG_MASK};
 use crate::mesh::{Mesh, Topology};
-use crate::pipelines::{Pipelines, COVERAGE_FORMAT, LAYER_COLOR_FORMAT};
+use crate::pipelines::{Pipelines, COVERAGE_FORMAT};
 use crate::place::{place_gpu, Query};
 use crate::report::{LayerReport, MeshStats, Report, Timings};
 use glam::Vec3;
@@ -289,7 +289,7 @@ impl Engine {
                         view_formats: &[],
                     })
                 };
-                let color = mk("bake.target.color", LAYER_COLOR_FORMAT);
+                let color = mk("bake.target.color", self.pipes.layer_format);
                 let cov = mk("bake.target.coverage", COVERAGE_FORMAT);
                 Arc::new(Targets {
                     color_view: color.create_view(&Default::default()),
@@ -605,6 +605,22 @@ impl Engine {
             drop(pass);
             self.ctx.queue.submit([enc.finish()]);
         })?;
+        if self.ctx.backend == Some(wgpu::Backend::Gl) {
+            // wgpu's GL backend (Mesa llvmpipe) gets the GPU distance transform wrong (not yet
+            // understood; Vulkan is exact, see tests/padding_edt.rs). There, compute the same exact
+            // transform with its CPU twin, once per mesh and size, and upload it.
+            let m = self
+                .ctx
+                .read_buffer(&mask, texels * 4, "island mask read-back")?;
+            let island: Vec<bool> = bytemuck::cast_slice::<u8, u32>(&m)
+                .iter()
+                .map(|v| *v != 0)
+                .collect();
+            let near = crate::compose_cpu::nearest_island_map(&island, w, h);
+            self.ctx
+                .queue
+                .write_buffer(&nearest, 0, bytemuck::cast_slice(&near));
+        }
         let count_bytes = self
             .ctx
             .read_buffer(&counter, 16, "island count read-back")?;
@@ -619,6 +635,31 @@ impl Engine {
             .expect("island cache poisoned")
             .insert(key, islands.clone());
         Ok(islands)
+    }
+
+    /// The island mask (1 = island texel) and the nearest-island-texel index of every texel, as the
+    /// bake uses them, read back to the CPU. For tests and debugging; `samples` is 1, 4, 9 or 16.
+    pub fn island_maps(
+        &self,
+        mesh: &LoadedMesh,
+        uv_set: u32,
+        size: [u32; 2],
+        samples: u32,
+    ) -> Result<(Vec<u32>, Vec<u32>)> {
+        let ss = (samples as f32).sqrt().round() as u32;
+        let mut commands = 0;
+        let isl = self.islands(mesh, uv_set, size, ss.max(1), &mut commands)?;
+        let bytes = size[0] as u64 * size[1] as u64 * 4;
+        let mask = self
+            .ctx
+            .read_buffer(&isl.mask, bytes, "island mask read-back")?;
+        let nearest = self
+            .ctx
+            .read_buffer(&isl.nearest, bytes, "nearest map read-back")?;
+        Ok((
+            bytemuck::cast_slice(&mask).to_vec(),
+            bytemuck::cast_slice(&nearest).to_vec(),
+        ))
     }
 
     /// Checks what can only be checked against the mesh and the device.

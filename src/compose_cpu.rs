@@ -226,3 +226,91 @@ pub fn nearest_island(island: &[bool], w: u32, h: u32) -> Vec<Option<(u64, Vec<u
         })
         .collect()
 }
+
+/// CPU twin of `edt_columns.wgsl` + `edt_rows.wgsl`: for every texel, the index of its nearest island
+/// texel (exact Euclidean distance, Felzenszwalb & Huttenlocher 2012, separable), island texels
+/// pointing at themselves, `u32::MAX` when there is no island. O(texels).
+pub fn nearest_island_map(island: &[bool], w: u32, h: u32) -> Vec<u32> {
+    let (wi, hi) = (w as usize, h as usize);
+    // Pass 1: nearest island row in each column.
+    let mut col_near = vec![-1i64; wi * hi];
+    for x in 0..wi {
+        let mut last = -1i64;
+        for y in 0..hi {
+            if island[y * wi + x] {
+                last = y as i64;
+            }
+            col_near[y * wi + x] = last;
+        }
+        let mut next = -1i64;
+        for y in (0..hi).rev() {
+            if island[y * wi + x] {
+                next = y as i64;
+            }
+            let prev = col_near[y * wi + x];
+            if next >= 0 && (prev < 0 || next - (y as i64) < (y as i64) - prev) {
+                col_near[y * wi + x] = next;
+            }
+        }
+    }
+    // Pass 2: lower envelope of parabolas per row.
+    let mut out = vec![u32::MAX; wi * hi];
+    let mut v = vec![0i64; wi];
+    let mut z = vec![0f64; wi + 1];
+    for y in 0..hi {
+        let f = |q: i64| -> Option<i64> {
+            let ny = col_near[y * wi + q as usize];
+            (ny >= 0).then(|| (ny - y as i64).pow(2))
+        };
+        let mut k: i64 = -1;
+        for q in 0..wi as i64 {
+            let Some(fq) = f(q) else { continue };
+            if k < 0 {
+                k = 0;
+                v[0] = q;
+                z[0] = f64::NEG_INFINITY;
+                z[1] = f64::INFINITY;
+                continue;
+            }
+            let mut s;
+            loop {
+                let vk = v[k as usize];
+                let fv = f(vk).expect("envelope holds island columns only");
+                s = ((fq + q * q) - (fv + vk * vk)) as f64 / (2 * (q - vk)) as f64;
+                if s <= z[k as usize] && k > 0 {
+                    k -= 1;
+                } else {
+                    break;
+                }
+            }
+            if s <= z[k as usize] {
+                v[0] = q;
+                z[0] = f64::NEG_INFINITY;
+                z[1] = f64::INFINITY;
+                k = 0;
+                continue;
+            }
+            k += 1;
+            v[k as usize] = q;
+            z[k as usize] = s;
+            z[k as usize + 1] = f64::INFINITY;
+        }
+        if k < 0 {
+            continue;
+        }
+        let mut j = 0usize;
+        for x in 0..wi {
+            while z[j + 1] < x as f64 {
+                j += 1;
+            }
+            let idx = y * wi + x;
+            if island[idx] {
+                out[idx] = idx as u32;
+            } else {
+                let vx = v[j] as usize;
+                out[idx] = (col_near[y * wi + vx] as usize * wi + vx) as u32;
+            }
+        }
+    }
+    out
+}

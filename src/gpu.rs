@@ -19,6 +19,8 @@ pub struct GpuContext {
     pub queue: wgpu::Queue,
     /// Adapter description (name, backend, driver), for logs and reports.
     pub adapter: String,
+    /// The backend, when known (`None` for a host device created elsewhere).
+    pub backend: Option<wgpu::Backend>,
     lost: Arc<Mutex<Option<String>>>,
 }
 
@@ -116,6 +118,7 @@ impl GpuContext {
         device.on_uncaptured_error(Arc::new(|e| {
             log::error!("uncaptured wgpu error: {e}");
         }));
+        let backend = info.as_ref().map(|i| i.backend);
         let adapter = match info {
             Some(i) => format!(
                 "{} ({:?}, {:?}, {} {})",
@@ -129,6 +132,7 @@ impl GpuContext {
             device,
             queue,
             adapter,
+            backend,
             lost,
         }
     }

@@ -4,7 +4,8 @@
 
 use crate::shaders;
 
-/// Format of the supersampled layer colour target (premultiplied, linear).
+/// Preferred format of the supersampled layer colour target (premultiplied, linear). Devices that
+/// cannot render to it (wgpu's GL backend) use `Rgba16Float`; see [`Pipelines::layer_format`].
 pub const LAYER_COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 /// Format of the coverage targets.
 pub const COVERAGE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
@@ -167,6 +168,8 @@ pub struct Pipelines {
     /// Whether the layer target blends premultiplied source-over within a layer
     /// (needs `FLOAT32_BLENDABLE`; without it the last triangle drawn at a sample wins).
     pub layer_blending: bool,
+    /// Format of the layer colour targets.
+    pub layer_format: wgpu::TextureFormat,
     /// Format of decal/mask/base textures: `Rgba32Float` with `FLOAT32_FILTERABLE`, else `Rgba16Float`.
     pub image_format: wgpu::TextureFormat,
 }
@@ -212,22 +215,35 @@ impl Pipelines {
                 operation: wgpu::BlendOperation::Add,
             },
         };
-        let layer_raster = raster(
-            device,
-            "layer_raster",
-            layer_layout,
-            &[],
-            &[
-                Some(wgpu::ColorTargetState {
-                    format: LAYER_COLOR_FORMAT,
-                    blend: layer_blending.then_some(premult_over),
-                    write_mask: wgpu::ColorWrites::ALL,
-                }),
-                Some(COVERAGE_FORMAT.into()),
-            ],
-            None,
-            1,
-        );
+        let make_layer = |format: wgpu::TextureFormat, blend: bool| {
+            raster(
+                device,
+                "layer_raster",
+                layer_layout.clone(),
+                &[],
+                &[
+                    Some(wgpu::ColorTargetState {
+                        format,
+                        blend: blend.then_some(premult_over),
+                        write_mask: wgpu::ColorWrites::ALL,
+                    }),
+                    Some(COVERAGE_FORMAT.into()),
+                ],
+                None,
+                1,
+            )
+        };
+        // f32 targets keep 16-bit output exact; where f32 is not renderable (GL), fall back to f16.
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let first = make_layer(LAYER_COLOR_FORMAT, layer_blending);
+        let (layer_raster, layer_format, layer_blending) = match pollster::block_on(scope.pop()) {
+            None => (first, LAYER_COLOR_FORMAT, layer_blending),
+            Some(_) => (
+                make_layer(wgpu::TextureFormat::Rgba16Float, true),
+                wgpu::TextureFormat::Rgba16Float,
+                true,
+            ),
+        };
         let island_layout = layout(
             device,
             "island_raster",
@@ -362,6 +378,7 @@ impl Pipelines {
             ),
             preview,
             layer_blending,
+            layer_format,
             image_format,
         }
     }
