@@ -24,3 +24,4 @@ pub mod demo;
 pub mod glb;
 pub mod output;
 pub mod preview;
+pub mod geodesic;

@@ -26,6 +26,7 @@ pub const KERNELS: &[(&str, &str)] = &[
     ("edt_rows", include_str!("../wgsl/edt_rows.wgsl")),
     ("encode", include_str!("../wgsl/encode.wgsl")),
     ("preview", include_str!("../wgsl/preview.wgsl")),
+    ("expmap_relax", include_str!("../wgsl/expmap_relax.wgsl")),
 ];
 
 /// Shared files that `#import` can name.
@@ -34,6 +35,7 @@ pub const SHARED: &[(&str, &str)] = &[
     ("geometry", include_str!("../wgsl/shared/geometry.wgsl")),
     ("blend", include_str!("../wgsl/shared/blend.wgsl")),
     ("acc", include_str!("../wgsl/shared/acc.wgsl")),
+    ("expmap", include_str!("../wgsl/shared/expmap.wgsl")),
 ];
 
 /// The complete WGSL text of kernel `name`, imports resolved. Panics on an unknown name or import:

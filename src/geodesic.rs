@@ -1,0 +1,200 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Discrete exponential maps (Schmidt, Grimm & Wyvill 2006, "Interactive Decal Compositing with
+//! Discrete Exponential Maps", sections 4.2-4.3 and 5): geodesic distance and normal coordinates
+//! around a seed point, for surface-following decals (`"method": "expmap"`).
+//!
+//! The update (their eq. 2-3): a vertex q reached through its upwind neighbour r gets
+//! `u_q = u_r + T(r → p) · L_r(q)`, where `L_r(q)` is the edge r→q laid into r's tangent plane with
+//! its length kept, and `T(r → p)` is the minimal rotation taking r's normal onto the seed's normal
+//! (applied directly, not through every previous plane, as the paper prescribes), after which the
+//! vector is read in the seed frame. Distances are Dijkstra's graph distances; the upwind neighbour
+//! is the one that attains the minimum (ties go to the lower vertex id).
+//!
+//! [`dem_cpu`] is the paper's serial Dijkstra version, the CPU twin. The GPU (`wgsl/expmap_relax.wgsl`)
+//! computes the same fixed point by parallel relaxation: every sweep each candidate vertex takes the
+//! best of its neighbours, until a sweep changes nothing.
+
+use crate::mesh::Topology;
+use glam::Vec3;
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
+
+/// The seed of a map: a surface point in a triangle and the tangent frame there.
+#[derive(Debug, Clone, Copy)]
+pub struct Seed {
+    /// Welded triangle containing the point.
+    pub triangle: u32,
+    /// The point.
+    pub point: Vec3,
+    /// Unit normal at the point.
+    pub normal: Vec3,
+    /// First tangent axis (the decal's image +x).
+    pub e1: Vec3,
+    /// Second tangent axis (the decal's image +y).
+    pub e2: Vec3,
+}
+
+/// A discrete exponential map over the vertices it reached.
+#[derive(Debug, Clone)]
+pub struct ExpMap {
+    /// Geodesic distance estimate per welded vertex (`f32::INFINITY` where not reached).
+    pub dist: Vec<f32>,
+    /// Normal coordinates (model units) in the seed frame.
+    pub uv: Vec<[f32; 2]>,
+    /// Upwind neighbour (`u32::MAX` for seed-triangle vertices and unreached ones).
+    pub parent: Vec<u32>,
+}
+
+/// `v` rotated by the minimal rotation taking unit `from` onto unit `to` (Rodrigues, in the form
+/// `v c + a × v + a (a · v) / (1 + c)` with `a = from × to`, `c = from · to`). Twin of `rotate_min`
+/// in `wgsl/shared/expmap.wgsl`.
+pub fn rotate_min(from: Vec3, to: Vec3, v: Vec3) -> Vec3 {
+    let a = from.cross(to);
+    let c = from.dot(to);
+    if c <= -0.999_999 {
+        // Opposite normals: no unique minimal rotation; flip through the plane.
+        return -v;
+    }
+    v * c + a.cross(v) + a * (a.dot(v) / (1.0 + c))
+}
+
+/// The edge r→q laid into r's tangent plane (length kept), turned into the seed's plane and read in
+/// the seed frame. Twin of `transfer` in `wgsl/shared/expmap.wgsl`.
+pub fn transfer(r: Vec3, nr: Vec3, q: Vec3, seed: &Seed) -> [f32; 2] {
+    let d = q - r;
+    let len = d.length();
+    let t = d - nr * d.dot(nr);
+    let tl = t.length();
+    if tl <= 0.0 || len <= 0.0 {
+        return [0.0, 0.0];
+    }
+    let v = rotate_min(nr, seed.normal, t * (len / tl));
+    [v.dot(seed.e1), v.dot(seed.e2)]
+}
+
+#[derive(PartialEq)]
+struct Item(f32, u32);
+impl Eq for Item {}
+impl Ord for Item {
+    fn cmp(&self, o: &Self) -> Ordering {
+        o.0.total_cmp(&self.0).then(o.1.cmp(&self.1))
+    }
+}
+impl PartialOrd for Item {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}
+
+/// Options of a map.
+#[derive(Debug, Clone, Copy)]
+pub struct Options {
+    /// Vertices farther than this (geodesic) are reached but not expanded.
+    pub radius: f32,
+    /// Vertices whose |Gaussian curvature| exceeds this are reached but not expanded (partial
+    /// decals, section 5.2). `f32::INFINITY` turns it off.
+    pub curvature_stop: f32,
+}
+
+/// The paper's Dijkstra-based discrete exponential map (f32, the CPU twin of the GPU relaxation).
+/// `curvature` is |K| per welded vertex (see [`gaussian_curvature`]); unused when the stop is off.
+pub fn dem_cpu(topo: &Topology, seed: &Seed, opts: Options, curvature: &[f32]) -> ExpMap {
+    let n = topo.positions.len();
+    let mut map = ExpMap { dist: vec![f32::INFINITY; n], uv: vec![[0.0; 2]; n], parent: vec![u32::MAX; n] };
+    let mut done = vec![false; n];
+    let mut heap = BinaryHeap::new();
+    let flat = Seed { normal: seed.normal, ..*seed };
+    for &v in &topo.triangles[seed.triangle as usize] {
+        let p = topo.positions[v as usize];
+        map.dist[v as usize] = (p - seed.point).length();
+        map.uv[v as usize] = transfer(seed.point, seed.normal, p, &flat);
+        done[v as usize] = true;
+    }
+    // Seed vertices are final; expand them first.
+    let expandable = |v: usize, d: f32| d <= opts.radius && curvature.get(v).is_none_or(|k| *k <= opts.curvature_stop);
+    for &v in &topo.triangles[seed.triangle as usize] {
+        let v = v as usize;
+        if expandable(v, map.dist[v]) {
+            push_neighbors(topo, v, &map, &done, &mut heap);
+        }
+    }
+    while let Some(Item(key, q)) = heap.pop() {
+        let q = q as usize;
+        if done[q] || key > best_key(topo, q, &map, &done, &expandable).map_or(f32::INFINITY, |b| b.0) {
+            continue;
+        }
+        let Some((d, r)) = best_key(topo, q, &map, &done, &expandable) else { continue };
+        let rr = r as usize;
+        let t = transfer(topo.positions[rr], topo.normals[rr], topo.positions[q], seed);
+        map.dist[q] = d;
+        map.uv[q] = [map.uv[rr][0] + t[0], map.uv[rr][1] + t[1]];
+        map.parent[q] = r;
+        done[q] = true;
+        if expandable(q, d) {
+            push_neighbors(topo, q, &map, &done, &mut heap);
+        }
+    }
+    map
+}
+
+/// The best upwind neighbour of q among finished, expandable vertices: (distance, neighbour).
+fn best_key(topo: &Topology, q: usize, map: &ExpMap, done: &[bool], expandable: &impl Fn(usize, f32) -> bool) -> Option<(f32, u32)> {
+    let (a, b) = (topo.adjacency_offsets[q] as usize, topo.adjacency_offsets[q + 1] as usize);
+    let mut best: Option<(f32, u32)> = None;
+    for &r in &topo.adjacency[a..b] {
+        let ri = r as usize;
+        if !done[ri] || !expandable(ri, map.dist[ri]) {
+            continue;
+        }
+        let key = map.dist[ri] + (topo.positions[q] - topo.positions[ri]).length();
+        if best.is_none_or(|(k, br)| key < k || (key == k && r < br)) {
+            best = Some((key, r));
+        }
+    }
+    best
+}
+
+fn push_neighbors(topo: &Topology, v: usize, map: &ExpMap, done: &[bool], heap: &mut BinaryHeap<Item>) {
+    let (a, b) = (topo.adjacency_offsets[v] as usize, topo.adjacency_offsets[v + 1] as usize);
+    for &q in &topo.adjacency[a..b] {
+        if !done[q as usize] {
+            let key = map.dist[v] + (topo.positions[q as usize] - topo.positions[v]).length();
+            heap.push(Item(key, q));
+        }
+    }
+}
+
+/// |Gaussian curvature| per welded vertex: angle defect over a third of the incident area
+/// (boundary vertices: defect against π). Degenerate triangles are skipped.
+pub fn gaussian_curvature(topo: &Topology) -> Vec<f32> {
+    let n = topo.positions.len();
+    let mut angle = vec![0f64; n];
+    let mut area = vec![0f64; n];
+    for (t, tri) in topo.triangles.iter().enumerate() {
+        if topo.degenerate[t] {
+            continue;
+        }
+        let p = tri.map(|i| topo.positions[i as usize].as_dvec3());
+        let a = 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length();
+        for k in 0..3 {
+            let (u, v) = (p[(k + 1) % 3] - p[k], p[(k + 2) % 3] - p[k]);
+            angle[tri[k] as usize] += u.angle_between(v);
+            area[tri[k] as usize] += a / 3.0;
+        }
+    }
+    let mut boundary = vec![false; n];
+    for e in &topo.boundary_edges {
+        boundary[e[0] as usize] = true;
+        boundary[e[1] as usize] = true;
+    }
+    (0..n)
+        .map(|v| {
+            let full = if boundary[v] { std::f64::consts::PI } else { 2.0 * std::f64::consts::PI };
+            if area[v] > 0.0 {
+                ((full - angle[v]).abs() / area[v]) as f32
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}

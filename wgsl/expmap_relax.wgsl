@@ -1,0 +1,128 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+// Discrete exponential maps by parallel relaxation, one workgroup per decal, the whole solve in one
+// dispatch: every sweep, each candidate vertex takes the neighbour that minimises (distance + edge
+// length) among reached, expandable neighbours (distance <= radius, |K| <= curvature stop) and sets
+// its normal coordinates from it (shared/expmap.wgsl); sweeps repeat until one changes nothing. The
+// fixed point is the serial Dijkstra map of the paper (`dem_cpu` in src/geodesic.rs).
+// Candidates (the connected vertices within a Euclidean ball that contains the geodesic disc, plus
+// one ring) come from the CPU, so the work is proportional to the disc, not to the mesh.
+// Output per vertex in the layer's coords slot: (u, v, distance, 1) reached, 2 for seed vertices.
+// Dispatch: (decals, 1, 1).
+#import expmap
+
+const WG: u32 = 256u;
+const INF: f32 = 3.0e38;
+const NONE: u32 = 0xffffffffu;
+
+// Keep in sync with `GeoJob` in src/geodesic_gpu.rs.
+struct GeoJob {
+    seed: vec4<f32>,
+    normal: vec4<f32>,
+    e1: vec4<f32>,
+    e2: vec4<f32>,
+    // Seed triangle's welded vertices; w: coords slot.
+    tri: vec4<u32>,
+    radius: f32,
+    curvature_stop: f32,
+    cand_offset: u32,
+    cand_count: u32,
+    vertex_count: u32,
+    max_sweeps: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+// Keep in sync with `GeoResult` in src/geodesic_gpu.rs.
+struct GeoResult {
+    sweeps: u32,
+    reached: u32,
+    converged: u32,
+    _pad: u32,
+}
+
+@group(0) @binding(0) var<storage, read> jobs: array<GeoJob>;
+@group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> normals: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> adj_offsets: array<u32>;
+@group(0) @binding(4) var<storage, read> adjacency: array<u32>;
+@group(0) @binding(5) var<storage, read> curvature: array<f32>;
+@group(0) @binding(6) var<storage, read> candidates: array<u32>;
+@group(0) @binding(7) var<storage, read_write> coords: array<vec4<f32>>;
+@group(0) @binding(8) var<storage, read_write> results: array<GeoResult>;
+
+var<workgroup> changed: atomic<u32>;
+var<workgroup> changed_copy: u32;
+var<workgroup> reached: atomic<u32>;
+
+@compute @workgroup_size(256)
+fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let job = jobs[wid.x];
+    let base = job.tri.w * job.vertex_count;
+    let seed_n = job.normal.xyz;
+    for (var i = lid; i < job.cand_count; i += WG) {
+        coords[base + candidates[job.cand_offset + i]] = vec4<f32>(0.0, 0.0, INF, 0.0);
+    }
+    storageBarrier();
+    workgroupBarrier();
+    if (lid < 3u) {
+        let v = job.tri[lid];
+        let p = positions[v].xyz;
+        let d = p - job.seed.xyz;
+        coords[base + v] = vec4<f32>(transfer(job.seed.xyz, seed_n, p, seed_n, job.e1.xyz, job.e2.xyz), length(d), 2.0);
+    }
+    if (lid == 0u) {
+        atomicStore(&reached, 0u);
+    }
+    storageBarrier();
+    workgroupBarrier();
+    var sweeps = 0u;
+    loop {
+        if (lid == 0u) { atomicStore(&changed, 0u); }
+        workgroupBarrier();
+        for (var i = lid; i < job.cand_count; i += WG) {
+            let v = candidates[job.cand_offset + i];
+            let c = coords[base + v];
+            if (c.w > 1.5) { continue; }
+            let pv = positions[v].xyz;
+            var best = INF;
+            var best_r = NONE;
+            for (var k = adj_offsets[v]; k < adj_offsets[v + 1u]; k++) {
+                let r = adjacency[k];
+                let cr = coords[base + r];
+                if (cr.w > 0.5 && cr.z <= job.radius && curvature[r] <= job.curvature_stop) {
+                    let key = cr.z + length(pv - positions[r].xyz);
+                    if (key < best || (key == best && r < best_r)) {
+                        best = key;
+                        best_r = r;
+                    }
+                }
+            }
+            if (best_r != NONE) {
+                let cr = coords[base + best_r];
+                let t = transfer(positions[best_r].xyz, normals[best_r].xyz, pv, seed_n, job.e1.xyz, job.e2.xyz);
+                let nc = vec4<f32>(cr.xy + t, best, 1.0);
+                if (any(nc != c)) {
+                    coords[base + v] = nc;
+                    atomicStore(&changed, 1u);
+                }
+            }
+        }
+        storageBarrier();
+        workgroupBarrier();
+        if (lid == 0u) { changed_copy = atomicLoad(&changed); }
+        sweeps += 1u;
+        let any_change = workgroupUniformLoad(&changed_copy);
+        if (any_change == 0u || sweeps >= job.max_sweeps) { break; }
+    }
+    for (var i = lid; i < job.cand_count; i += WG) {
+        if (coords[base + candidates[job.cand_offset + i]].w > 0.5) { atomicAdd(&reached, 1u); }
+    }
+    workgroupBarrier();
+    if (lid == 0u) {
+        var r: GeoResult;
+        r.sweeps = sweeps;
+        r.reached = atomicLoad(&reached);
+        r.converged = select(0u, 1u, changed_copy == 0u);
+        results[wid.x] = r;
+    }
+}
