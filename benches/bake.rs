@@ -32,7 +32,9 @@ fn bake(c: &mut Criterion) {
         let job = decalbake::bench::random_job(&mesh, n, 1024, &dir, 11).unwrap();
         engine.bake(&mesh, &job).unwrap(); // warm-up: shaders, island cache
         group.throughput(Throughput::Elements(n as u64));
-        group.bench_with_input(BenchmarkId::new("decals", n), &job, |b, job| b.iter(|| engine.bake(&mesh, job).unwrap()));
+        group.bench_with_input(BenchmarkId::new("decals", n), &job, |b, job| {
+            b.iter(|| engine.bake(&mesh, job).unwrap())
+        });
     }
     group.finish();
     let _ = std::fs::remove_dir_all(&dir);
@@ -43,13 +45,19 @@ fn placement(c: &mut Criterion) {
     let queries: Vec<Query> = (0..256)
         .map(|i| {
             let a = i as f32 * 0.1;
-            Query::Point(glam::Vec3::new(a.sin() * 0.5, (a * 0.7).cos() * 0.8, a.cos() * 0.8))
+            Query::Point(glam::Vec3::new(
+                a.sin() * 0.5,
+                (a * 0.7).cos() * 0.8,
+                a.cos() * 0.8,
+            ))
         })
         .collect();
     let mut group = c.benchmark_group("placement");
     group.sample_size(20);
     group.throughput(Throughput::Elements(queries.len() as u64));
-    group.bench_function("256_points", |b| b.iter(|| place_gpu_for_tests(&engine, &mesh, &queries)));
+    group.bench_function("256_points", |b| {
+        b.iter(|| place_gpu_for_tests(&engine, &mesh, &queries))
+    });
     group.finish();
 }
 

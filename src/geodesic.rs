@@ -37,7 +37,8 @@ pub struct Seed {
 /// A discrete exponential map over the vertices it reached.
 #[derive(Debug, Clone)]
 pub struct ExpMap {
-    /// Geodesic distance estimate per welded vertex (`f32::INFINITY` where not reached).
+    /// Dijkstra graph distance per welded vertex (`f32::INFINITY` where not reached): the
+    /// propagation order. The geodesic distance estimate is the length of `uv`.
     pub dist: Vec<f32>,
     /// Normal coordinates (model units) in the seed frame.
     pub uv: Vec<[f32; 2]>,
@@ -89,7 +90,9 @@ impl PartialOrd for Item {
 /// Options of a map.
 #[derive(Debug, Clone, Copy)]
 pub struct Options {
-    /// Vertices farther than this (geodesic) are reached but not expanded.
+    /// Vertices whose graph distance exceeds this are reached but not expanded. Graph distance
+    /// overestimates geodesic distance (by up to about 15 % on typical meshes), so callers that need
+    /// a geodesic disc of radius r pass a little more.
     pub radius: f32,
     /// Vertices whose |Gaussian curvature| exceeds this are reached but not expanded (partial
     /// decals, section 5.2). `f32::INFINITY` turns it off.
@@ -100,10 +103,17 @@ pub struct Options {
 /// `curvature` is |K| per welded vertex (see [`gaussian_curvature`]); unused when the stop is off.
 pub fn dem_cpu(topo: &Topology, seed: &Seed, opts: Options, curvature: &[f32]) -> ExpMap {
     let n = topo.positions.len();
-    let mut map = ExpMap { dist: vec![f32::INFINITY; n], uv: vec![[0.0; 2]; n], parent: vec![u32::MAX; n] };
+    let mut map = ExpMap {
+        dist: vec![f32::INFINITY; n],
+        uv: vec![[0.0; 2]; n],
+        parent: vec![u32::MAX; n],
+    };
     let mut done = vec![false; n];
     let mut heap = BinaryHeap::new();
-    let flat = Seed { normal: seed.normal, ..*seed };
+    let flat = Seed {
+        normal: seed.normal,
+        ..*seed
+    };
     for &v in &topo.triangles[seed.triangle as usize] {
         let p = topo.positions[v as usize];
         map.dist[v as usize] = (p - seed.point).length();
@@ -111,7 +121,9 @@ pub fn dem_cpu(topo: &Topology, seed: &Seed, opts: Options, curvature: &[f32]) -
         done[v as usize] = true;
     }
     // Seed vertices are final; expand them first.
-    let expandable = |v: usize, d: f32| d <= opts.radius && curvature.get(v).is_none_or(|k| *k <= opts.curvature_stop);
+    let expandable = |v: usize, d: f32| {
+        d <= opts.radius && curvature.get(v).is_none_or(|k| *k <= opts.curvature_stop)
+    };
     for &v in &topo.triangles[seed.triangle as usize] {
         let v = v as usize;
         if expandable(v, map.dist[v]) {
@@ -120,12 +132,21 @@ pub fn dem_cpu(topo: &Topology, seed: &Seed, opts: Options, curvature: &[f32]) -
     }
     while let Some(Item(key, q)) = heap.pop() {
         let q = q as usize;
-        if done[q] || key > best_key(topo, q, &map, &done, &expandable).map_or(f32::INFINITY, |b| b.0) {
+        if done[q]
+            || key > best_key(topo, q, &map, &done, &expandable).map_or(f32::INFINITY, |b| b.0)
+        {
             continue;
         }
-        let Some((d, r)) = best_key(topo, q, &map, &done, &expandable) else { continue };
+        let Some((d, r)) = best_key(topo, q, &map, &done, &expandable) else {
+            continue;
+        };
         let rr = r as usize;
-        let t = transfer(topo.positions[rr], topo.normals[rr], topo.positions[q], seed);
+        let t = transfer(
+            topo.positions[rr],
+            topo.normals[rr],
+            topo.positions[q],
+            seed,
+        );
         map.dist[q] = d;
         map.uv[q] = [map.uv[rr][0] + t[0], map.uv[rr][1] + t[1]];
         map.parent[q] = r;
@@ -138,8 +159,17 @@ pub fn dem_cpu(topo: &Topology, seed: &Seed, opts: Options, curvature: &[f32]) -
 }
 
 /// The best upwind neighbour of q among finished, expandable vertices: (distance, neighbour).
-fn best_key(topo: &Topology, q: usize, map: &ExpMap, done: &[bool], expandable: &impl Fn(usize, f32) -> bool) -> Option<(f32, u32)> {
-    let (a, b) = (topo.adjacency_offsets[q] as usize, topo.adjacency_offsets[q + 1] as usize);
+fn best_key(
+    topo: &Topology,
+    q: usize,
+    map: &ExpMap,
+    done: &[bool],
+    expandable: &impl Fn(usize, f32) -> bool,
+) -> Option<(f32, u32)> {
+    let (a, b) = (
+        topo.adjacency_offsets[q] as usize,
+        topo.adjacency_offsets[q + 1] as usize,
+    );
     let mut best: Option<(f32, u32)> = None;
     for &r in &topo.adjacency[a..b] {
         let ri = r as usize;
@@ -154,8 +184,17 @@ fn best_key(topo: &Topology, q: usize, map: &ExpMap, done: &[bool], expandable: 
     best
 }
 
-fn push_neighbors(topo: &Topology, v: usize, map: &ExpMap, done: &[bool], heap: &mut BinaryHeap<Item>) {
-    let (a, b) = (topo.adjacency_offsets[v] as usize, topo.adjacency_offsets[v + 1] as usize);
+fn push_neighbors(
+    topo: &Topology,
+    v: usize,
+    map: &ExpMap,
+    done: &[bool],
+    heap: &mut BinaryHeap<Item>,
+) {
+    let (a, b) = (
+        topo.adjacency_offsets[v] as usize,
+        topo.adjacency_offsets[v + 1] as usize,
+    );
     for &q in &topo.adjacency[a..b] {
         if !done[q as usize] {
             let key = map.dist[v] + (topo.positions[q as usize] - topo.positions[v]).length();
@@ -189,7 +228,11 @@ pub fn gaussian_curvature(topo: &Topology) -> Vec<f32> {
     }
     (0..n)
         .map(|v| {
-            let full = if boundary[v] { std::f64::consts::PI } else { 2.0 * std::f64::consts::PI };
+            let full = if boundary[v] {
+                std::f64::consts::PI
+            } else {
+                2.0 * std::f64::consts::PI
+            };
             if area[v] > 0.0 {
                 ((full - angle[v]).abs() / area[v]) as f32
             } else {

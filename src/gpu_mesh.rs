@@ -40,6 +40,8 @@ pub struct GpuMesh {
     pub adjacency: wgpu::Buffer,
     /// Triangle across each edge, `vec4<u32>` (w unused; `0xffffffff` = none).
     pub triangle_neighbors: wgpu::Buffer,
+    /// |Gaussian curvature| per welded vertex, `f32` (partial decals).
+    pub curvature: wgpu::Buffer,
 }
 
 fn storage(
@@ -152,6 +154,12 @@ impl GpuMesh {
                 device,
                 "mesh.triangle_neighbors",
                 bytemuck::cast_slice(&neighbors),
+                none,
+            ),
+            curvature: storage(
+                device,
+                "mesh.curvature",
+                bytemuck::cast_slice(&crate::geodesic::gaussian_curvature(topo)),
                 none,
             ),
         }

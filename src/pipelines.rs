@@ -163,6 +163,8 @@ pub struct Pipelines {
     pub edt_rows: Kernel,
     /// sRGB encode.
     pub encode: Kernel,
+    /// Exponential-map relaxation.
+    pub expmap_relax: Kernel,
     /// Preview.
     pub preview: Raster,
     /// Whether the layer target blends premultiplied source-over within a layer
@@ -375,6 +377,21 @@ impl Pipelines {
                 device,
                 "encode",
                 &[(0, Params), (1, Rw), (2, Ro), (3, Ro), (10, Rw), (11, Rw)],
+            ),
+            expmap_relax: Kernel::new(
+                device,
+                "expmap_relax",
+                &[
+                    (0, Ro),
+                    (1, Ro),
+                    (2, Ro),
+                    (3, Ro),
+                    (4, Ro),
+                    (5, Ro),
+                    (6, Ro),
+                    (7, Rw),
+                    (8, Rw),
+                ],
             ),
             preview,
             layer_blending,

@@ -1,12 +1,14 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // Discrete exponential maps by parallel relaxation, one workgroup per decal, the whole solve in one
-// dispatch: every sweep, each candidate vertex takes the neighbour that minimises (distance + edge
-// length) among reached, expandable neighbours (distance <= radius, |K| <= curvature stop) and sets
-// its normal coordinates from it (shared/expmap.wgsl); sweeps repeat until one changes nothing. The
+// dispatch: every sweep, each candidate vertex takes the neighbour that minimises (graph distance +
+// edge length) among reached, expandable neighbours (graph distance <= radius, |K| <= curvature
+// stop) and sets its normal coordinates from it (shared/expmap.wgsl); sweeps repeat until one changes
+// nothing. Distances only decrease (Bellman-Ford), so the in-place, unordered updates converge. The
 // fixed point is the serial Dijkstra map of the paper (`dem_cpu` in src/geodesic.rs).
 // Candidates (the connected vertices within a Euclidean ball that contains the geodesic disc, plus
 // one ring) come from the CPU, so the work is proportional to the disc, not to the mesh.
-// Output per vertex in the layer's coords slot: (u, v, distance, 1) reached, 2 for seed vertices.
+// Output per vertex in the layer's coords slot: (u, v, graph distance, 1) reached, 2 for seed
+// vertices. The geodesic distance estimate is |(u, v)| (Schmidt et al. 4.2).
 // Dispatch: (decals, 1, 1).
 #import expmap
 

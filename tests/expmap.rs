@@ -1,0 +1,287 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Discrete exponential maps (Schmidt et al. 2006): the GPU relaxation reaches the same fixed point
+//! as the serial Dijkstra twin (`geodesic::dem_cpu`); both are exact on a plane; the error against the
+//! analytic exponential map of a sphere is measured and printed.
+
+mod common;
+use common::*;
+use decalbake::geodesic::{dem_cpu, gaussian_curvature, Options, Seed};
+use decalbake::geodesic_gpu::expmaps_gpu;
+use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
+use glam::Vec3;
+use std::path::Path;
+
+/// A flat n×n grid on z = 0 over [0, 1]², with UVs.
+fn plane(dir: &Path, n: u32) -> std::path::PathBuf {
+    let mut pos = Vec::new();
+    let mut uv = Vec::new();
+    let mut idx = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            let (x, y) = (i as f32 / n as f32, j as f32 / n as f32);
+            // A little deterministic jitter so the grid is irregular.
+            let jx = if i > 0 && i < n {
+                0.2 * ((i * 7 + j * 3) % 5) as f32 / 5.0 / n as f32
+            } else {
+                0.0
+            };
+            pos.push([x + jx, y, 0.0]);
+            uv.push([x, 1.0 - y]);
+        }
+    }
+    for j in 0..n {
+        for i in 0..n {
+            let a = j * (n + 1) + i;
+            idx.extend_from_slice(&[a, a + 1, a + n + 2, a, a + n + 2, a + n + 1]);
+        }
+    }
+    let p = dir.join("plane.glb");
+    write_glb(&p, &pos, Some(&uv), &idx);
+    p
+}
+
+fn seed_at(topo: &Topology, point: Vec3, e1: Vec3) -> Seed {
+    let q = decalbake::place::place_cpu(topo, decalbake::place::Query::Point(point));
+    let n = Vec3::from(q.normal);
+    let e1 = (e1 - n * e1.dot(n)).normalize();
+    Seed {
+        triangle: q.triangle,
+        point: Vec3::from(q.point),
+        normal: n,
+        e1,
+        e2: n.cross(e1),
+    }
+}
+
+#[test]
+fn plane_maps_are_exact_on_gpu_and_cpu() {
+    let dir = scratch("expmap-plane");
+    let path = plane(&dir, 24);
+    let engine = engine();
+    let mesh = engine.load_mesh(&path).unwrap();
+    let topo = Topology::build(&Mesh::load(&path).unwrap(), DEFAULT_WELD_TOLERANCE);
+    let seed = seed_at(&topo, Vec3::new(0.43, 0.51, 0.0), Vec3::new(1.0, 0.3, 0.0));
+    let opts = Options {
+        radius: 0.35,
+        curvature_stop: f32::INFINITY,
+    };
+    let cpu = dem_cpu(&topo, &seed, opts, &gaussian_curvature(&topo));
+    let gpu = expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap();
+    let (coords, res) = &gpu[0];
+    assert_eq!(res.converged, 1, "relaxation converged: {res:?}");
+    let mut reached = 0;
+    for (v, p) in topo.positions.iter().enumerate() {
+        let exact = [
+            (*p - seed.point).dot(seed.e1),
+            (*p - seed.point).dot(seed.e2),
+        ];
+        if cpu.dist[v].is_finite() {
+            reached += 1;
+            for k in 0..2 {
+                // Exact up to f32 rounding accumulated along the path (< 40 edges of length 0.04).
+                assert!(
+                    (cpu.uv[v][k] - exact[k]).abs() < 2e-6,
+                    "CPU vertex {v}: {:?} vs {exact:?}",
+                    cpu.uv[v]
+                );
+                assert!(
+                    (coords[v][k] - exact[k]).abs() < 2e-6,
+                    "GPU vertex {v}: {:?} vs {exact:?}",
+                    coords[v]
+                );
+            }
+        }
+        assert_eq!(
+            coords[v][3] > 0.5,
+            cpu.dist[v].is_finite(),
+            "vertex {v}: reached on one side only"
+        );
+    }
+    // The disc of radius 0.35 holds about pi * 0.35^2 / (1/24)^2 = 220 vertices, plus one ring.
+    assert!(reached > 200 && reached < 400, "reached {reached}");
+    assert_eq!(res.reached as usize, reached);
+}
+
+#[test]
+fn gpu_relaxation_reaches_the_dijkstra_fixed_point_on_spot() {
+    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
+    let engine = engine();
+    let mesh = engine.load_mesh(&spot).unwrap();
+    let topo = Topology::build(&Mesh::load(&spot).unwrap(), DEFAULT_WELD_TOLERANCE);
+    let k = gaussian_curvature(&topo);
+    let points = [
+        Vec3::new(0.33, 0.0, 0.45),
+        Vec3::new(0.0, 0.3, 0.55),
+        Vec3::new(0.0, 0.55, -0.55),
+        Vec3::new(-0.2, -0.4, 0.2),
+    ];
+    let maps: Vec<(Seed, Options)> = points
+        .iter()
+        .map(|p| {
+            (
+                seed_at(&topo, *p, Vec3::Y),
+                Options {
+                    radius: 0.45,
+                    curvature_stop: f32::INFINITY,
+                },
+            )
+        })
+        .collect();
+    let gpu = expmaps_gpu(&engine, &mesh, &maps).unwrap();
+    for ((seed, opts), (coords, res)) in maps.iter().zip(&gpu) {
+        let cpu = dem_cpu(&topo, seed, *opts, &k);
+        assert_eq!(res.converged, 1, "{res:?}");
+        let (mut n, mut worst, mut differ) = (0, 0.0f32, 0);
+        for v in 0..topo.positions.len() {
+            assert_eq!(
+                coords[v][3] > 0.5,
+                cpu.dist[v].is_finite(),
+                "vertex {v} reached on one side only"
+            );
+            if !cpu.dist[v].is_finite() {
+                continue;
+            }
+            n += 1;
+            let d = (coords[v][0] - cpu.uv[v][0])
+                .abs()
+                .max((coords[v][1] - cpu.uv[v][1]).abs());
+            worst = worst.max(d);
+            if d > 1e-5 {
+                differ += 1;
+            }
+        }
+        eprintln!("seed {:?}: {n} vertices, {} sweeps, max |GPU - CPU| = {worst:.2e}, {differ} above 1e-5", seed.point, res.sweeps);
+        // Same arithmetic in the same order: equal up to f32 rounding, except where rounding flips
+        // a near-tie between two upwind neighbours (then the two paths differ by the map's own error).
+        assert!(n > 250, "the disc should hold hundreds of vertices: {n}");
+        assert!(
+            differ * 100 <= n,
+            "more than 1 % of vertices differ: {differ} of {n}"
+        );
+        assert!(worst < 0.02, "max difference {worst}");
+    }
+}
+
+/// A unit icosphere with `f` subdivisions per edge (written as glTF so the engine loads it).
+fn icosphere(dir: &Path, f: u32) -> std::path::PathBuf {
+    let t = (1.0 + 5f32.sqrt()) / 2.0;
+    let v = [
+        Vec3::new(-1.0, t, 0.0),
+        Vec3::new(1.0, t, 0.0),
+        Vec3::new(-1.0, -t, 0.0),
+        Vec3::new(1.0, -t, 0.0),
+        Vec3::new(0.0, -1.0, t),
+        Vec3::new(0.0, 1.0, t),
+        Vec3::new(0.0, -1.0, -t),
+        Vec3::new(0.0, 1.0, -t),
+        Vec3::new(t, 0.0, -1.0),
+        Vec3::new(t, 0.0, 1.0),
+        Vec3::new(-t, 0.0, -1.0),
+        Vec3::new(-t, 0.0, 1.0),
+    ];
+    let faces = [
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    let mut pos: Vec<[f32; 3]> = Vec::new();
+    let mut idx = Vec::new();
+    for face in faces {
+        let [a, b, c] = face.map(|i| v[i]);
+        let base = pos.len() as u32;
+        let row = |i: u32| base + i * (i + 1) / 2;
+        for i in 0..=f {
+            for j in 0..=i {
+                let p = a + (b - a) * (i as f32 / f as f32) + (c - b) * (j as f32 / f as f32);
+                pos.push(p.normalize().to_array());
+            }
+        }
+        for i in 0..f {
+            for j in 0..=i {
+                idx.extend_from_slice(&[row(i) + j, row(i + 1) + j, row(i + 1) + j + 1]);
+                if j < i {
+                    idx.extend_from_slice(&[row(i) + j, row(i + 1) + j + 1, row(i) + j + 1]);
+                }
+            }
+        }
+    }
+    let uv: Vec<[f32; 2]> = pos
+        .iter()
+        .map(|p| [0.5 + 0.5 * p[0], 0.5 + 0.5 * p[1]])
+        .collect();
+    let path = dir.join(format!("ico{f}.glb"));
+    write_glb(&path, &pos, Some(&uv), &idx);
+    path
+}
+
+#[test]
+fn sphere_error_against_the_analytic_exponential_map() {
+    let dir = scratch("expmap-sphere");
+    let engine = engine();
+    let mut results = Vec::new();
+    for f in [12u32, 24] {
+        let path = icosphere(&dir, f);
+        let mesh = engine.load_mesh(&path).unwrap();
+        let topo = &mesh.topo;
+        let seed = seed_at(topo, Vec3::new(0.3, 0.2, 1.0).normalize() * 1.01, Vec3::X);
+        let opts = Options {
+            radius: 1.0,
+            curvature_stop: f32::INFINITY,
+        };
+        let (coords, res) = &expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap()[0];
+        assert_eq!(res.converged, 1);
+        // Analytic: log map of the unit sphere at p: angle * (q - (q.p) p) normalised, read in (e1, e2).
+        let p = seed.point.normalize();
+        let (mut max_e, mut sum2, mut n) = (0.0f32, 0.0f64, 0);
+        for (v, q) in topo.positions.iter().enumerate() {
+            if coords[v][3] < 0.5 {
+                continue;
+            }
+            let q = q.normalize();
+            let ang = p.dot(q).clamp(-1.0, 1.0).acos();
+            if ang > 1.0 {
+                continue;
+            }
+            let t = q - p * p.dot(q);
+            let dir = if t.length() > 1e-9 {
+                t.normalize()
+            } else {
+                Vec3::ZERO
+            };
+            let exact = [ang * dir.dot(seed.e1), ang * dir.dot(seed.e2)];
+            let e = ((coords[v][0] - exact[0]).powi(2) + (coords[v][1] - exact[1]).powi(2)).sqrt();
+            max_e = max_e.max(e);
+            sum2 += (e as f64).powi(2);
+            n += 1;
+        }
+        let rms = (sum2 / n as f64).sqrt();
+        eprintln!("icosphere f={f} ({} vertices): {n} vertices within geodesic radius 1: max error {max_e:.4}, RMS {rms:.4}, {} sweeps", topo.positions.len(), res.sweeps);
+        results.push((max_e, rms));
+    }
+    // The paper's update ("fast") is first order and its error does not shrink under refinement
+    // (the issue quotes 4.6e-2 for a plain DEM); these bounds only guard against regressions. The
+    // accuracy target of the geodesic issue (2.7e-3) needs the "smooth" mode, not built yet.
+    for (max_e, rms) in &results {
+        assert!(
+            *max_e < 0.15 && *rms < 0.06,
+            "sphere error regressed: max {max_e}, rms {rms}"
+        );
+    }
+}
