@@ -132,9 +132,9 @@ fn gpu_relaxation_reaches_the_dijkstra_fixed_point_on_spot() {
         let cpu = dem_cpu(&topo, seed, *opts, &k);
         assert_eq!(res.converged, 1, "{res:?}");
         let (mut n, mut worst, mut differ) = (0, 0.0f32, 0);
-        for v in 0..topo.positions.len() {
+        for (v, c) in coords.iter().enumerate() {
             assert_eq!(
-                coords[v][3] > 0.5,
+                c[3] > 0.5,
                 cpu.dist[v].is_finite(),
                 "vertex {v} reached on one side only"
             );
@@ -142,9 +142,7 @@ fn gpu_relaxation_reaches_the_dijkstra_fixed_point_on_spot() {
                 continue;
             }
             n += 1;
-            let d = (coords[v][0] - cpu.uv[v][0])
-                .abs()
-                .max((coords[v][1] - cpu.uv[v][1]).abs());
+            let d = (c[0] - cpu.uv[v][0]).abs().max((c[1] - cpu.uv[v][1]).abs());
             worst = worst.max(d);
             if d > 1e-5 {
                 differ += 1;
