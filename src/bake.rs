@@ -937,7 +937,7 @@ impl Engine {
         let coords = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("bake.coords"),
             size: (chunk as u64 * g.vertex_count as u64 * 16).max(16),
-            usage: wgpu::BufferUsages::STORAGE,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let lists = dev.create_buffer(&wgpu::BufferDescriptor {
@@ -972,10 +972,33 @@ impl Engine {
                 p.opacity = l.opacity;
                 p.flags = match l.method {
                     Method::Planar => FLAG_FACING,
+                    Method::Expmap => 0,
                 } | if l.mask.is_some() { FLAG_MASK } else { 0 };
                 lp.push(p);
             }
             let layer_params = params_buffer(dev, "bake.layer_params", &lp);
+            // Exponential maps of this chunk: one dispatch, one workgroup per decal.
+            let geo_layers: Vec<usize> = (start..end)
+                .filter(|&i| job.layers[i].method == Method::Expmap)
+                .collect();
+            let geo_maps: Vec<_> = geo_layers
+                .iter()
+                .map(|&i| {
+                    let opts = crate::geodesic::Options {
+                        radius: frames[i].expmap_radius(),
+                        curvature_stop: job.layers[i].curvature_stop,
+                    };
+                    (frames[i].seed(&placements[i]), opts, (i - start) as u32)
+                })
+                .collect();
+            let (geo_jobs, geo_cands) = crate::geodesic_gpu::build_jobs(&mesh.topo, &geo_maps);
+            let geo_results_size = (geo_jobs.len() as u64 * 16).max(16);
+            let geo_results = dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("bake.expmap_results"),
+                size: geo_results_size,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
             self.ctx.scoped("layer coordinates", || {
                 let bg_planar = pipes.planar_coords.bind(
                     dev,
@@ -1003,6 +1026,19 @@ impl Engine {
                 let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("bake.layers"),
                 });
+                if !geo_jobs.is_empty() {
+                    crate::geodesic_gpu::record(
+                        dev,
+                        pipes,
+                        g,
+                        &geo_jobs,
+                        &geo_cands,
+                        &coords,
+                        &geo_results,
+                        &mut enc,
+                    );
+                    commands += 1;
+                }
                 {
                     let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                         label: Some("bake.layers"),
@@ -1015,12 +1051,14 @@ impl Engine {
                                 pass.set_pipeline(&pipes.planar_coords.pipeline);
                                 pass.set_bind_group(0, &bg_planar, &[off]);
                                 pass.dispatch_workgroups(g.vertex_count.div_ceil(64), 1, 1);
+                                commands += 1;
                             }
+                            Method::Expmap => {}
                         }
                         pass.set_pipeline(&pipes.select_triangles.pipeline);
                         pass.set_bind_group(0, &bg_select, &[off]);
                         pass.dispatch_workgroups(g.triangle_count.div_ceil(64), 1, 1);
-                        commands += 2;
+                        commands += 1;
                     }
                 }
                 self.ctx.queue.submit([enc.finish()]);
@@ -1029,6 +1067,14 @@ impl Engine {
                 .ctx
                 .read_buffer(&stats, stats_size, "layer selection read-back")?;
             let s: &[i32] = bytemuck::cast_slice(&sbytes);
+            let geo_stats: Vec<crate::geodesic_gpu::GeoResult> = if geo_jobs.is_empty() {
+                Vec::new()
+            } else {
+                let b = self
+                    .ctx
+                    .read_buffer(&geo_results, geo_results_size, "expmap read-back")?;
+                bytemuck::cast_slice(&b)[..geo_jobs.len()].to_vec()
+            };
 
             // Plan raster jobs.
             let mut raster_jobs: Vec<(usize, Params)> = Vec::new();
@@ -1054,7 +1100,23 @@ impl Engine {
                     triangles_covered: count,
                     texels_covered: 0,
                     texel_box: bx,
+                    expmap: geo_layers
+                        .iter()
+                        .position(|&g| g == i)
+                        .map(|k| geo_stats[k]),
                 });
+                if let Some(gs) = geo_layers
+                    .iter()
+                    .position(|&g| g == i)
+                    .map(|k| geo_stats[k])
+                {
+                    if gs.converged == 0 {
+                        warnings.push(format!(
+                            "layer {i}: the exponential map did not converge in {} sweeps; the decal may be incomplete",
+                            gs.sweeps
+                        ));
+                    }
+                }
                 let base = lp[i - start];
                 let rects = plan_cells(&row[8..], grid, CELL, [w, h], TILE_TARGET / ss);
                 for tj in bx[1].div_euclid(h as i32)..=(bx[3] - 1).max(bx[1]).div_euclid(h as i32) {

@@ -121,8 +121,22 @@ pub fn bake_cpu(
         let frame = Frame::new(&placements[li], layer);
         let coords = match layer.method {
             Method::Planar => planar_coords(topo, &frame),
+            Method::Expmap => {
+                let opts = crate::geodesic::Options {
+                    radius: frame.expmap_radius(),
+                    curvature_stop: layer.curvature_stop,
+                };
+                let k = crate::geodesic::gaussian_curvature(topo);
+                let map = crate::geodesic::dem_cpu(topo, &frame.seed(&placements[li]), opts, &k);
+                map.dist
+                    .iter()
+                    .zip(&map.uv)
+                    .map(|(d, uv)| [uv[0], uv[1], *d, if d.is_finite() { 1.0 } else { 0.0 }])
+                    .collect()
+            }
         };
-        let sel = select_triangles(mesh, topo, uvs, &coords, &frame, true, [w, h]);
+        let facing = layer.method == Method::Planar;
+        let sel = select_triangles(mesh, topo, uvs, &coords, &frame, facing, [w, h]);
         let (img, mask) = &images[li];
         let premult = LinearImage {
             pixels: img

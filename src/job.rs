@@ -178,6 +178,9 @@ pub struct LayerSpec {
     /// Planar projection depth limit (model units, each side of the surface).
     #[serde(default)]
     pub depth: Option<f32>,
+    /// Expmap: halt propagation at vertices whose |Gaussian curvature| exceeds this (partial decals).
+    #[serde(default)]
+    pub curvature_stop: Option<f32>,
 }
 
 fn default_kind() -> String {
@@ -248,16 +251,21 @@ pub const MAX_SIZE_MODEL_UNITS: f32 = 1.0e6;
 pub enum Method {
     /// Tangent-plane projection along the normal at the placed point.
     Planar,
+    /// Discrete exponential map around the placed point (Schmidt et al. 2006): follows the surface.
+    Expmap,
 }
 
 impl Method {
     fn parse(s: &str) -> std::result::Result<Self, String> {
         match s {
             "planar" => Ok(Method::Planar),
-            "expmap" | "lscm" | "hybrid" => Err(format!(
-                "method \"{s}\" is not available in this build yet; use \"planar\""
+            "expmap" => Ok(Method::Expmap),
+            "lscm" | "hybrid" => Err(format!(
+                "method \"{s}\" is not available in this build yet; use \"expmap\" or \"planar\""
             )),
-            other => Err(format!("unknown method \"{other}\"; use \"planar\"")),
+            other => Err(format!(
+                "unknown method \"{other}\"; use \"expmap\" or \"planar\""
+            )),
         }
     }
 }
@@ -285,6 +293,8 @@ pub struct Layer {
     pub opacity: f32,
     /// Planar depth limit.
     pub depth: f32,
+    /// Expmap curvature stop (`f32::INFINITY` = off).
+    pub curvature_stop: f32,
 }
 
 /// Texture base after validation.
@@ -476,6 +486,16 @@ impl Job {
             }
             let method = Method::parse(&l.method).map_err(|d| err(&field("method"), d))?;
             let blend = BlendMode::parse(&l.blend).map_err(|d| err(&field("blend"), d))?;
+            let curvature_stop = match l.curvature_stop {
+                Some(k) if !k.is_finite() || k < 0.0 => {
+                    return Err(err(
+                        &field("curvature_stop"),
+                        format!("{k} must be a non-negative curvature (1 / model units²)"),
+                    ))
+                }
+                Some(k) => k,
+                None => f32::INFINITY,
+            };
             let depth = match l.depth {
                 Some(d) if !d.is_finite() || d <= 0.0 => {
                     return Err(err(
@@ -497,6 +517,7 @@ impl Job {
                 blend,
                 opacity: l.opacity,
                 depth,
+                curvature_stop,
             });
         }
         let out = |p: &Option<PathBuf>| p.as_ref().map(|p| output_dir.join(p));

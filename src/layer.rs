@@ -125,6 +125,23 @@ impl Frame {
         }
     }
 
+    /// The exponential-map seed of this frame at `placement` (image axes as the tangent frame).
+    pub fn seed(&self, placement: &Placement) -> crate::geodesic::Seed {
+        crate::geodesic::Seed {
+            triangle: placement.triangle,
+            point: self.center,
+            normal: self.normal,
+            e1: self.axis_u,
+            e2: self.axis_v,
+        }
+    }
+
+    /// The geodesic radius an exponential-map decal needs: its rectangle's half-diagonal, with 20 %
+    /// added because the propagation limit is a graph distance, which overestimates geodesics.
+    pub fn expmap_radius(&self) -> f32 {
+        1.2 * 0.5 * (self.size[0] * self.size[0] + self.size[1] * self.size[1]).sqrt()
+    }
+
     /// Fills the frame fields of a `Params` block.
     pub fn params(&self) -> Params {
         Params {
