@@ -1583,3 +1583,105 @@ pub fn f32_to_f16(v: f32) -> u16 {
     }
     sign | ((e as u16) << 10) | (rounded >> 13) as u16
 }
+
+/// One row of `decalbake param`: a welded vertex reached by a layer's map.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ParamRow {
+    /// Welded vertex id.
+    pub vertex: u32,
+    /// Position (model units).
+    pub position: [f32; 3],
+    /// Geodesic distance estimate (|normal coordinates|), where the method computes one.
+    pub distance: Option<f32>,
+    /// Local coordinates in model units (image +x, image +y), before scaling to the image.
+    pub uv: [f32; 2],
+}
+
+impl Engine {
+    /// The local coordinates of layer `index` of `job` for every vertex its map reaches: for
+    /// `expmap` the GPU map's reached vertices (distance = |(u, v)|), for `planar` the vertices of the
+    /// triangles the projection covers (no distance).
+    pub fn layer_param(&self, mesh: &LoadedMesh, job: &Job, index: usize) -> Result<Vec<ParamRow>> {
+        let layer = job.layers.get(index).ok_or_else(|| {
+            Error::job(
+                &job.source,
+                "layers",
+                format!(
+                    "--layer {index} does not exist: the job has {} layer(s)",
+                    job.layers.len()
+                ),
+            )
+        })?;
+        let query = match &layer.at {
+            crate::job::AtSpec::Point(p) => Query::Point(Vec3::from(*p)),
+            crate::job::AtSpec::Ray { ray } => {
+                Query::Ray(Vec3::from(ray.origin), Vec3::from(ray.dir))
+            }
+        };
+        let placement = place_gpu(&self.ctx, &self.pipes, &mesh.gpu, &[query])?[0];
+        if placement.found == 0 {
+            return Err(Error::Placement {
+                path: job.source.clone(),
+                layer: index,
+                detail: "the ray misses the mesh".into(),
+            });
+        }
+        let frame = Frame::new(&placement, layer);
+        let topo = &mesh.topo;
+        let mut rows = Vec::new();
+        match layer.method {
+            Method::Expmap => {
+                let opts = crate::geodesic::Options {
+                    radius: frame.expmap_radius(),
+                    curvature_stop: layer.curvature_stop,
+                };
+                let maps = crate::geodesic_gpu::expmaps_gpu(
+                    self,
+                    mesh,
+                    &[(frame.seed(&placement), opts)],
+                )?;
+                for (v, c) in maps[0].0.iter().enumerate() {
+                    if c[3] > 0.5 {
+                        rows.push(ParamRow {
+                            vertex: v as u32,
+                            position: topo.positions[v].to_array(),
+                            distance: Some((c[0] * c[0] + c[1] * c[1]).sqrt()),
+                            uv: [c[0], c[1]],
+                        });
+                    }
+                }
+            }
+            Method::Planar => {
+                let coords = crate::layer::planar_coords(topo, &frame);
+                // Selection needs UVs only for the texel box, which param does not use.
+                let no_uvs = vec![glam::Vec2::ZERO; mesh.mesh.positions.len()];
+                let sel = crate::layer::select_triangles(
+                    &mesh.mesh,
+                    topo,
+                    &no_uvs,
+                    &coords,
+                    &frame,
+                    true,
+                    [1, 1],
+                )
+                .triangles;
+                let mut seen = vec![false; topo.positions.len()];
+                for t in sel {
+                    for v in topo.triangles[t as usize] {
+                        if !std::mem::replace(&mut seen[v as usize], true) {
+                            let c = coords[v as usize];
+                            rows.push(ParamRow {
+                                vertex: v,
+                                position: topo.positions[v as usize].to_array(),
+                                distance: None,
+                                uv: [c[0], c[1]],
+                            });
+                        }
+                    }
+                }
+                rows.sort_by_key(|r| r.vertex);
+            }
+        }
+        Ok(rows)
+    }
+}

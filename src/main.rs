@@ -36,6 +36,17 @@ enum Cmd {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Write a layer's local coordinates per reached vertex as CSV: x,y,z,distance,u,v.
+    Param {
+        /// The job file (JSON).
+        job: PathBuf,
+        /// Which layer (0-based).
+        #[arg(long, default_value_t = 0)]
+        layer: usize,
+        /// Output CSV file.
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Print what the engine sees in a mesh.
     Info {
         /// A .gltf or .glb file.
@@ -86,6 +97,23 @@ fn run(cli: Cli) -> Result<()> {
             bake(&engine, &job)
         }
         Cmd::Info { mesh } => info(&mesh),
+        Cmd::Param { job, layer, out } => {
+            let job = Job::load(&job, None)?;
+            let engine = Engine::new(cli.backend.as_deref())?;
+            let mesh = engine.load_mesh(&job.mesh)?;
+            let rows = engine.layer_param(&mesh, &job, layer)?;
+            let mut csv = String::from("x,y,z,distance,u,v\n");
+            for r in &rows {
+                let d = r.distance.map(|d| d.to_string()).unwrap_or_default();
+                csv.push_str(&format!(
+                    "{},{},{},{d},{},{}\n",
+                    r.position[0], r.position[1], r.position[2], r.uv[0], r.uv[1]
+                ));
+            }
+            decalbake::image_io::write_atomic(&out, csv.as_bytes())?;
+            eprintln!("{} vertices written to {}", rows.len(), out.display());
+            Ok(())
+        }
         Cmd::Bench {
             mesh,
             subdivide,

@@ -283,3 +283,61 @@ fn sphere_error_against_the_analytic_exponential_map() {
         );
     }
 }
+
+#[test]
+fn param_command_writes_the_layer_map_as_csv() {
+    let dir = scratch("expmap-param");
+    let path = plane(&dir, 16);
+    std::fs::write(dir.join("d.png"), test_image(8, 8, 2, false).encode_png(8)).unwrap();
+    let job = serde_json::json!({
+        "mesh": path.file_name().unwrap().to_str().unwrap(),
+        "layers": [
+            { "image": "d.png", "at": [0.5, 0.5, 0.1], "size": [0.3, 0.2], "method": "expmap", "up": [0, 1, 0] },
+            { "image": "d.png", "at": [0.5, 0.5, 0.1], "size": [0.3, 0.2], "method": "planar" }
+        ]
+    });
+    std::fs::write(dir.join("job.json"), serde_json::to_vec(&job).unwrap()).unwrap();
+    for (layer, has_distance) in [("0", true), ("1", false)] {
+        let out = dir.join(format!("p{layer}.csv"));
+        let (code, _, err) = cli(&[
+            "param",
+            dir.join("job.json").to_str().unwrap(),
+            "--layer",
+            layer,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 0, "{err}");
+        let text = std::fs::read_to_string(&out).unwrap();
+        let mut lines = text.lines();
+        assert_eq!(lines.next(), Some("x,y,z,distance,u,v"));
+        let mut n = 0;
+        for line in lines {
+            let f: Vec<&str> = line.split(',').collect();
+            let num = |i: usize| f[i].parse::<f32>().unwrap();
+            // On the plane with up = +y and the seed at (0.5, 0.5): u = x - 0.5, v = y - 0.5.
+            assert!(
+                (num(4) - (num(0) - 0.5)).abs() < 1e-5 && (num(5) - (num(1) - 0.5)).abs() < 1e-5,
+                "{line}"
+            );
+            if has_distance {
+                assert!((num(3) - num(4).hypot(num(5))).abs() < 1e-5, "{line}");
+            } else {
+                assert!(f[3].is_empty(), "planar rows have no distance: {line}");
+            }
+            n += 1;
+        }
+        assert!(n > 20, "layer {layer}: {n} rows");
+    }
+    let (code, _, err) = cli(&[
+        "param",
+        dir.join("job.json").to_str().unwrap(),
+        "--layer",
+        "5",
+        "--out",
+        dir.join("x.csv").to_str().unwrap(),
+    ]);
+    assert_eq!(code, 2);
+    assert!(err.contains("--layer 5 does not exist"), "{err}");
+    assert!(!dir.join("x.csv").exists());
+}
