@@ -45,6 +45,18 @@ fn spot_topology_matches_the_data_sheet() {
         .iter()
         .flatten()
         .all(|n| *n != decalbake::mesh::NO_NEIGHBOR));
+    // Vertex -> triangle lists: every triangle listed under each of its corners.
+    assert_eq!(t.vertex_triangles.len(), 3 * m.triangles.len());
+    for v in 0..t.positions.len() {
+        let (a, b) = (
+            t.vertex_triangle_offsets[v] as usize,
+            t.vertex_triangle_offsets[v + 1] as usize,
+        );
+        assert!(b > a, "vertex {v} has no triangle");
+        for &tri in &t.vertex_triangles[a..b] {
+            assert!(t.triangles[tri as usize].contains(&(v as u32)));
+        }
+    }
     // Euler characteristic of a closed genus-0 surface.
     let chi = t.positions.len() as i64 - (t.adjacency.len() / 2) as i64 + m.triangles.len() as i64;
     assert_eq!(chi, 2);

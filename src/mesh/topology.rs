@@ -45,6 +45,10 @@ pub struct Topology {
     pub components: u32,
     /// Component id of each triangle (`u32::MAX` for degenerate ones).
     pub triangle_component: Vec<u32>,
+    /// CSR offsets of the (non-degenerate) triangles around each vertex (length = vertices + 1).
+    pub vertex_triangle_offsets: Vec<u32>,
+    /// Triangle ids around each vertex.
+    pub vertex_triangles: Vec<u32>,
     /// The absolute welding distance used.
     pub weld_distance: f32,
 }
@@ -162,7 +166,31 @@ impl Topology {
             components += 1;
         }
 
+        let mut counts = vec![0u32; nv + 1];
+        for (t, tri) in triangles.iter().enumerate() {
+            if !degenerate[t] {
+                for &v in tri {
+                    counts[v as usize + 1] += 1;
+                }
+            }
+        }
+        for i in 0..nv {
+            counts[i + 1] += counts[i];
+        }
+        let vertex_triangle_offsets = counts.clone();
+        let mut vertex_triangles = vec![0u32; counts[nv] as usize];
+        for (t, tri) in triangles.iter().enumerate() {
+            if !degenerate[t] {
+                for &v in tri {
+                    vertex_triangles[counts[v as usize] as usize] = t as u32;
+                    counts[v as usize] += 1;
+                }
+            }
+        }
+
         Self {
+            vertex_triangle_offsets,
+            vertex_triangles,
             welded_of,
             positions,
             normals,
