@@ -992,13 +992,9 @@ impl Engine {
                 })
                 .collect();
             let (geo_jobs, geo_cands) = crate::geodesic_gpu::build_jobs(&mesh.topo, &geo_maps);
-            let geo_results_size = (geo_jobs.len() as u64 * 16).max(16);
-            let geo_results = dev.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("bake.expmap_results"),
-                size: geo_results_size,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            });
+            let (geo_stats, geo_dispatches) =
+                crate::geodesic_gpu::run(&self.ctx, pipes, g, &geo_jobs, &geo_cands, &coords)?;
+            commands += geo_dispatches;
             self.ctx.scoped("layer coordinates", || {
                 let bg_planar = pipes.planar_coords.bind(
                     dev,
@@ -1026,19 +1022,6 @@ impl Engine {
                 let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("bake.layers"),
                 });
-                if !geo_jobs.is_empty() {
-                    crate::geodesic_gpu::record(
-                        dev,
-                        pipes,
-                        g,
-                        &geo_jobs,
-                        &geo_cands,
-                        &coords,
-                        &geo_results,
-                        &mut enc,
-                    );
-                    commands += 1;
-                }
                 {
                     let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                         label: Some("bake.layers"),
@@ -1067,14 +1050,6 @@ impl Engine {
                 .ctx
                 .read_buffer(&stats, stats_size, "layer selection read-back")?;
             let s: &[i32] = bytemuck::cast_slice(&sbytes);
-            let geo_stats: Vec<crate::geodesic_gpu::GeoResult> = if geo_jobs.is_empty() {
-                Vec::new()
-            } else {
-                let b = self
-                    .ctx
-                    .read_buffer(&geo_results, geo_results_size, "expmap read-back")?;
-                bytemuck::cast_slice(&b)[..geo_jobs.len()].to_vec()
-            };
 
             // Plan raster jobs.
             let mut raster_jobs: Vec<(usize, Params)> = Vec::new();

@@ -244,3 +244,128 @@ pub fn run(
     let _ = std::fs::remove_dir_all(&dir);
     Ok(())
 }
+
+/// `decalbake bench --geodesic`: exponential-map timings. For each mesh size and target disc size
+/// (vertices reached), the GPU relaxation (`expmaps_gpu`: candidate disc on the CPU, one dispatch,
+/// read-back) against the CPU twin (`dem_cpu`, serial Dijkstra) on the same seed; then `batch` maps
+/// of about 1k vertices each in one dispatch.
+pub fn run_geodesic(
+    engine: &Engine,
+    opts: &BenchOptions,
+    batch: usize,
+    mut emit: impl FnMut(serde_json::Value),
+) -> Result<()> {
+    use crate::geodesic::{dem_cpu, gaussian_curvature, Options, Seed};
+    let path = opts
+        .mesh
+        .clone()
+        .or_else(|| largest_uv_mesh(Path::new(SHARED_MESHES)));
+    let base = match &path {
+        Some(p) => Mesh::load(p)?,
+        None => Mesh::from_bytes(crate::demo::SPOT_GLB, Path::new("spot.glb (bundled)"), None)?,
+    };
+    let mut levels = vec![opts.subdivide];
+    if opts.subdivide == 0 {
+        levels = vec![2, 3];
+    }
+    for level in levels {
+        let mut mesh = base.clone();
+        for _ in 0..level {
+            mesh = mesh.subdivide();
+        }
+        let loaded = engine.prepare(mesh)?;
+        let topo = &loaded.topo;
+        let k = gaussian_curvature(topo);
+        let area: f32 = topo
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| topo.positions[i as usize]);
+                0.5 * (b - a).cross(c - a).length()
+            })
+            .sum();
+        let nv = topo.positions.len() as f32;
+        let seed_for = |t: usize| {
+            let tri = topo.triangles[t];
+            let [a, b, c] = tri.map(|i| topo.positions[i as usize]);
+            let n = (b - a).cross(c - a).normalize();
+            let e1 = (b - a).normalize();
+            Seed {
+                triangle: t as u32,
+                point: (a + b + c) / 3.0,
+                normal: n,
+                e1,
+                e2: n.cross(e1),
+            }
+        };
+        for target in [1_000f32, 10_000.0, 100_000.0] {
+            if target > 0.5 * nv {
+                continue;
+            }
+            // A disc holding `target` of the mesh's vertices has about that share of its area.
+            let radius = (target / nv * area / std::f32::consts::PI).sqrt();
+            let seed = seed_for(topo.triangles.len() / 3);
+            let o = Options {
+                radius,
+                curvature_stop: f32::INFINITY,
+            };
+            expmaps_warm(engine, &loaded, &[(seed, o)])?;
+            let mut g = Vec::new();
+            let mut last = None;
+            for _ in 0..opts.reps.max(1) {
+                let t = Instant::now();
+                let r = crate::geodesic_gpu::expmaps_gpu(engine, &loaded, &[(seed, o)])?;
+                g.push(t.elapsed().as_secs_f64() * 1000.0);
+                last = Some(r[0].1);
+            }
+            let t = Instant::now();
+            let cpu = dem_cpu(topo, &seed, o, &k);
+            let cpu_ms = t.elapsed().as_secs_f64() * 1000.0;
+            let res = last.expect("one repetition");
+            let gpu_ms = median(g);
+            emit(serde_json::json!({
+                "bench": "expmap", "mesh_triangles": topo.triangles.len(), "mesh_vertices": topo.positions.len(),
+                "disc_vertices": res.reached, "cpu_reached": cpu.dist.iter().filter(|d| d.is_finite()).count(),
+                "sweeps": res.sweeps, "converged": res.converged == 1, "dispatches": 1,
+                "gpu_ms": gpu_ms, "cpu_twin_ms": cpu_ms, "cpu_over_gpu": cpu_ms / gpu_ms,
+            }));
+        }
+        // Many small maps in one dispatch.
+        let radius = (1000.0 / nv * area / std::f32::consts::PI).sqrt();
+        let maps: Vec<(Seed, Options)> = (0..batch)
+            .map(|i| {
+                (
+                    seed_for((i * 7919) % topo.triangles.len()),
+                    Options {
+                        radius,
+                        curvature_stop: f32::INFINITY,
+                    },
+                )
+            })
+            .collect();
+        expmaps_warm(engine, &loaded, &maps)?;
+        let t = Instant::now();
+        let r = crate::geodesic_gpu::expmaps_gpu(engine, &loaded, &maps)?;
+        let gpu_ms = t.elapsed().as_secs_f64() * 1000.0;
+        let t = Instant::now();
+        for (s, o) in &maps {
+            let _ = dem_cpu(topo, s, *o, &k);
+        }
+        let cpu_ms = t.elapsed().as_secs_f64() * 1000.0;
+        let mean_reached = r.iter().map(|x| x.1.reached as f64).sum::<f64>() / r.len() as f64;
+        emit(serde_json::json!({
+            "bench": "expmap_batch", "mesh_triangles": topo.triangles.len(), "maps": batch, "mean_disc_vertices": mean_reached,
+            "dispatches": 1, "gpu_ms": gpu_ms, "gpu_maps_per_s": batch as f64 / (gpu_ms / 1000.0),
+            "cpu_twin_ms": cpu_ms, "cpu_maps_per_s": batch as f64 / (cpu_ms / 1000.0),
+        }));
+    }
+    Ok(())
+}
+
+fn expmaps_warm(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    maps: &[(crate::geodesic::Seed, crate::geodesic::Options)],
+) -> Result<()> {
+    crate::geodesic_gpu::expmaps_gpu(engine, mesh, maps).map(|_| ())
+}

@@ -105,115 +105,170 @@ pub fn build_jobs(topo: &Topology, maps: &[(Seed, Options, u32)]) -> (Vec<GeoJob
     (jobs, cands)
 }
 
-/// Records the relaxation of `jobs` into `enc` (one dispatch). `coords` holds one slot of
-/// `vertex_count` entries per job slot; the slots used are cleared first.
-#[allow(
-    clippy::too_many_arguments,
-    reason = "the kernel's bindings, in binding order"
-)]
-pub fn record(
-    device: &wgpu::Device,
+/// Per-dispatch round parameters. Keep in sync with `Round` in wgsl/expmap_relax.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Round {
+    init: u32,
+    sweeps: u32,
+    pad: [u32; 2],
+}
+
+/// Loop iterations one invocation may run in a dispatch, kept well under lavapipe's cut-off (65535
+/// loop iterations per invocation, after which it silently abandons the shader).
+const LOOP_BUDGET: u32 = 20_000;
+/// Rounds recorded per submission before the host checks convergence.
+const ROUNDS_PER_SUBMIT: u32 = 4;
+
+/// Runs the relaxation of `jobs` to convergence: seeds the maps (clearing their coords slots), then
+/// dispatches rounds of sweeps, `ROUNDS_PER_SUBMIT` per submission, reading back only the per-map
+/// status between submissions. Returns the per-map results and the dispatches issued.
+#[allow(clippy::too_many_arguments, reason = "the kernel's resources")]
+pub fn run(
+    ctx: &crate::gpu::GpuContext,
     pipes: &Pipelines,
     mesh: &GpuMesh,
     jobs: &[GeoJob],
     cands: &[u32],
     coords: &wgpu::Buffer,
-    results: &wgpu::Buffer,
-    enc: &mut wgpu::CommandEncoder,
-) {
-    let slot_bytes = mesh.vertex_count as u64 * 16;
-    for j in jobs {
-        enc.clear_buffer(coords, j.tri[3] as u64 * slot_bytes, Some(slot_bytes));
+) -> Result<(Vec<GeoResult>, u32)> {
+    if jobs.is_empty() {
+        return Ok((Vec::new(), 0));
     }
-    let jobs_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("expmap.jobs"),
-        contents: bytemuck::cast_slice(jobs),
-        usage: wgpu::BufferUsages::STORAGE,
-    });
-    let cand_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("expmap.candidates"),
-        contents: bytemuck::cast_slice(cands),
-        usage: wgpu::BufferUsages::STORAGE,
-    });
-    let bg = pipes.expmap_relax.bind(
-        device,
-        "expmap.relax",
-        &[
-            (0, jobs_buf.as_entire_binding()),
-            (1, mesh.positions.as_entire_binding()),
-            (2, mesh.normals.as_entire_binding()),
-            (3, mesh.adjacency_offsets.as_entire_binding()),
-            (4, mesh.adjacency.as_entire_binding()),
-            (5, mesh.curvature.as_entire_binding()),
-            (6, cand_buf.as_entire_binding()),
-            (7, coords.as_entire_binding()),
-            (8, results.as_entire_binding()),
-        ],
-    );
-    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-        label: Some("expmap.relax"),
-        timestamp_writes: None,
-    });
-    pass.set_pipeline(&pipes.expmap_relax.pipeline);
-    pass.set_bind_group(0, &bg, &[]);
-    pass.dispatch_workgroups(jobs.len() as u32, 1, 1);
+    let device = &ctx.device;
+    let max_count = jobs.iter().map(|j| j.cand_count).max().unwrap_or(1);
+    // Per sweep an invocation visits ceil(count / 256) candidates with about ten loop steps each.
+    let sweeps_per_round = (LOOP_BUDGET / (max_count.div_ceil(256) * 10)).clamp(1, 1024);
+    let max_sweeps = jobs.iter().map(|j| j.max_sweeps).max().unwrap_or(16);
+    let results_size = jobs.len() as u64 * 16;
+    let (jobs_buf, cand_buf, results, rounds) = ctx.scoped("exponential maps", || {
+        let jobs_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("expmap.jobs"),
+            contents: bytemuck::cast_slice(jobs),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let cand_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("expmap.candidates"),
+            contents: bytemuck::cast_slice(cands),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let results = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("expmap.results"),
+            size: results_size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let mk = |init: u32| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("expmap.round"),
+                contents: bytemuck::bytes_of(&Round {
+                    init,
+                    sweeps: sweeps_per_round,
+                    pad: [0; 2],
+                }),
+                usage: wgpu::BufferUsages::UNIFORM,
+            })
+        };
+        (jobs_buf, cand_buf, results, [mk(1), mk(0)])
+    })?;
+    let bind = |round: &wgpu::Buffer| {
+        pipes.expmap_relax.bind(
+            device,
+            "expmap.relax",
+            &[
+                (0, jobs_buf.as_entire_binding()),
+                (1, mesh.positions.as_entire_binding()),
+                (2, mesh.normals.as_entire_binding()),
+                (3, mesh.adjacency_offsets.as_entire_binding()),
+                (4, mesh.adjacency.as_entire_binding()),
+                (5, mesh.curvature.as_entire_binding()),
+                (6, cand_buf.as_entire_binding()),
+                (7, coords.as_entire_binding()),
+                (8, results.as_entire_binding()),
+                (9, round.as_entire_binding()),
+            ],
+        )
+    };
+    let (bg_init, bg_more) =
+        ctx.scoped("exponential maps", || (bind(&rounds[0]), bind(&rounds[1])))?;
+    let slot_bytes = mesh.vertex_count as u64 * 16;
+    let mut dispatches = 0;
+    let mut first = true;
+    loop {
+        ctx.scoped("exponential maps", || {
+            let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("expmap"),
+            });
+            if first {
+                for j in jobs {
+                    enc.clear_buffer(coords, j.tri[3] as u64 * slot_bytes, Some(slot_bytes));
+                }
+            }
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("expmap.relax"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(&pipes.expmap_relax.pipeline);
+                for k in 0..ROUNDS_PER_SUBMIT {
+                    pass.set_bind_group(0, if first && k == 0 { &bg_init } else { &bg_more }, &[]);
+                    pass.dispatch_workgroups(jobs.len() as u32, 1, 1);
+                }
+            }
+            ctx.queue.submit([enc.finish()]);
+        })?;
+        dispatches += ROUNDS_PER_SUBMIT;
+        first = false;
+        let bytes = ctx.read_buffer(&results, results_size, "expmap status read-back")?;
+        let res: Vec<GeoResult> = bytemuck::cast_slice(&bytes).to_vec();
+        let pending = res
+            .iter()
+            .any(|r| r.converged == 0 && r.sweeps < max_sweeps);
+        if !pending {
+            return Ok((res, dispatches));
+        }
+    }
 }
 
 /// Per-vertex result of a GPU map read back: (u, v, distance, state) with state 0 = unreached,
 /// 1 = reached, 2 = seed-triangle vertex.
 pub type MapCoords = Vec<[f32; 4]>;
 
-/// Computes maps on the GPU and reads them back (for tests, `decalbake param` and benchmarks).
+/// Computes maps on the GPU and reads them back (for tests, `decalbake param` and benchmarks),
+/// in chunks whose coords slots fit a 64 MiB buffer.
 pub fn expmaps_gpu(
     engine: &crate::Engine,
     mesh: &crate::LoadedMesh,
     maps: &[(Seed, Options)],
 ) -> Result<Vec<(MapCoords, GeoResult)>> {
     let ctx = &engine.ctx;
-    let dev = &ctx.device;
-    let slots: Vec<(Seed, Options, u32)> = maps
-        .iter()
-        .enumerate()
-        .map(|(i, (s, o))| (*s, *o, i as u32))
-        .collect();
-    let (jobs, cands) = build_jobs(&mesh.topo, &slots);
     let nv = mesh.gpu.vertex_count as u64;
-    let coords_size = (maps.len() as u64 * nv * 16).max(16);
-    let results_size = (maps.len() as u64 * 16).max(16);
-    let (coords, results) = ctx.scoped("exponential maps", || {
-        let coords = dev.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("expmap.coords"),
-            size: coords_size,
-            usage: wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_SRC
-                | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let results = dev.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("expmap.results"),
-            size: results_size,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let mut enc = dev.create_command_encoder(&Default::default());
-        record(
-            dev,
-            &engine.pipes,
-            &mesh.gpu,
-            &jobs,
-            &cands,
-            &coords,
-            &results,
-            &mut enc,
-        );
-        ctx.queue.submit([enc.finish()]);
-        (coords, results)
-    })?;
-    let c = ctx.read_buffer(&coords, coords_size, "expmap read-back")?;
-    let r = ctx.read_buffer(&results, results_size, "expmap results read-back")?;
-    let c: &[[f32; 4]] = bytemuck::cast_slice(&c);
-    let r: &[GeoResult] = bytemuck::cast_slice(&r);
-    Ok((0..maps.len())
-        .map(|i| (c[i * nv as usize..(i + 1) * nv as usize].to_vec(), r[i]))
-        .collect())
+    let per_chunk = ((64u64 << 20) / (nv * 16)).max(1) as usize;
+    let mut out = Vec::with_capacity(maps.len());
+    for chunk in maps.chunks(per_chunk) {
+        let slots: Vec<(Seed, Options, u32)> = chunk
+            .iter()
+            .enumerate()
+            .map(|(i, (s, o))| (*s, *o, i as u32))
+            .collect();
+        let (jobs, cands) = build_jobs(&mesh.topo, &slots);
+        let coords_size = chunk.len() as u64 * nv * 16;
+        let coords = ctx.scoped("exponential maps", || {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("expmap.coords"),
+                size: coords_size,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        })?;
+        let (results, _) = run(ctx, &engine.pipes, &mesh.gpu, &jobs, &cands, &coords)?;
+        let c = ctx.read_buffer(&coords, coords_size, "expmap read-back")?;
+        let c: &[[f32; 4]] = bytemuck::cast_slice(&c);
+        for (i, r) in results.iter().enumerate() {
+            out.push((c[i * nv as usize..(i + 1) * nv as usize].to_vec(), *r));
+        }
+    }
+    Ok(out)
 }

@@ -72,6 +72,13 @@ enum Cmd {
         /// Time the CPU twin too when decals × side² is at most this.
         #[arg(long, default_value_t = 16 * 2048 * 2048)]
         cpu_budget: u64,
+        /// Benchmark exponential maps instead of bakes (discs of about 1k, 10k and 100k vertices on
+        /// the mesh subdivided 2 and 3 times, or `--subdivide` times; then a batch of small maps).
+        #[arg(long)]
+        geodesic: bool,
+        /// Maps in the batched geodesic benchmark.
+        #[arg(long, default_value_t = 256)]
+        batch: usize,
     },
 }
 
@@ -121,6 +128,8 @@ fn run(cli: Cli) -> Result<()> {
             decals,
             reps,
             cpu_budget,
+            geodesic,
+            batch,
         } => {
             let engine = Engine::new(cli.backend.as_deref())?;
             eprintln!("adapter: {}", engine.ctx.adapter);
@@ -132,7 +141,11 @@ fn run(cli: Cli) -> Result<()> {
                 reps,
                 cpu_budget,
             };
-            decalbake::bench::run(&engine, &opts, |v| println!("{v}"))?;
+            if geodesic {
+                decalbake::bench::run_geodesic(&engine, &opts, batch, |v| println!("{v}"))?;
+            } else {
+                decalbake::bench::run(&engine, &opts, |v| println!("{v}"))?;
+            }
             Ok(())
         }
     }

@@ -391,6 +391,7 @@ impl Pipelines {
                     (6, Ro),
                     (7, Rw),
                     (8, Rw),
+                    (9, Uniform),
                 ],
             ),
             preview,

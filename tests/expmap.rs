@@ -341,3 +341,38 @@ fn param_command_writes_the_layer_map_as_csv() {
     assert!(err.contains("--layer 5 does not exist"), "{err}");
     assert!(!dir.join("x.csv").exists());
 }
+
+/// A disc of about ten thousand vertices needs many sweeps: they run in several rounds (lavapipe
+/// abandons shaders that loop too long), and the result must still equal the serial twin.
+#[test]
+fn large_discs_converge_over_several_rounds() {
+    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
+    let engine = engine();
+    let mesh = engine
+        .prepare(Mesh::load(&spot).unwrap().subdivide().subdivide())
+        .unwrap();
+    let topo = &mesh.topo;
+    let seed = seed_at(topo, Vec3::new(0.33, 0.0, 0.45), Vec3::Y);
+    let opts = Options {
+        radius: 0.8,
+        curvature_stop: f32::INFINITY,
+    };
+    let (coords, res) = &expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap()[0];
+    let cpu = dem_cpu(topo, &seed, opts, &gaussian_curvature(topo));
+    eprintln!("{} vertices, {} sweeps", res.reached, res.sweeps);
+    assert_eq!(res.converged, 1);
+    assert!(res.reached > 8000, "reached {}", res.reached);
+    let mut differ = 0;
+    for (v, c) in coords.iter().enumerate() {
+        assert_eq!(c[3] > 0.5, cpu.dist[v].is_finite(), "vertex {v}");
+        if cpu.dist[v].is_finite()
+            && ((c[0] - cpu.uv[v][0]).abs() > 1e-5 || (c[1] - cpu.uv[v][1]).abs() > 1e-5)
+        {
+            differ += 1;
+        }
+    }
+    assert!(
+        differ * 100 <= res.reached as usize,
+        "{differ} vertices differ"
+    );
+}

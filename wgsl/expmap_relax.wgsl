@@ -9,7 +9,10 @@
 // one ring) come from the CPU, so the work is proportional to the disc, not to the mesh.
 // Output per vertex in the layer's coords slot: (u, v, graph distance, 1) reached, 2 for seed
 // vertices. The geodesic distance estimate is |(u, v)| (Schmidt et al. 4.2).
-// Dispatch: (decals, 1, 1).
+// Rounds: the first dispatch (`round.init`) seeds the maps; each dispatch runs at most `round.sweeps`
+// sweeps, so that no invocation loops too long (lavapipe cuts off shaders whose loops run more than
+// 65535 iterations in all), and the host dispatches rounds until every map has converged.
+// Dispatch: (decals, 1, 1) per round.
 #import expmap
 
 const WG: u32 = 256u;
@@ -34,6 +37,14 @@ struct GeoJob {
     _pad1: u32,
 }
 
+// Keep in sync with `Round` in src/geodesic_gpu.rs.
+struct Round {
+    init: u32,
+    sweeps: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
 // Keep in sync with `GeoResult` in src/geodesic_gpu.rs.
 struct GeoResult {
     sweeps: u32,
@@ -51,32 +62,39 @@ struct GeoResult {
 @group(0) @binding(6) var<storage, read> candidates: array<u32>;
 @group(0) @binding(7) var<storage, read_write> coords: array<vec4<f32>>;
 @group(0) @binding(8) var<storage, read_write> results: array<GeoResult>;
+@group(0) @binding(9) var<uniform> round: Round;
 
 var<workgroup> changed: atomic<u32>;
 var<workgroup> changed_copy: u32;
 var<workgroup> reached: atomic<u32>;
+var<workgroup> done_before: u32;
 
 @compute @workgroup_size(256)
 fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let job = jobs[wid.x];
     let base = job.tri.w * job.vertex_count;
     let seed_n = job.normal.xyz;
-    for (var i = lid; i < job.cand_count; i += WG) {
-        coords[base + candidates[job.cand_offset + i]] = vec4<f32>(0.0, 0.0, INF, 0.0);
-    }
-    storageBarrier();
-    workgroupBarrier();
-    if (lid < 3u) {
-        let v = job.tri[lid];
-        let p = positions[v].xyz;
-        let d = p - job.seed.xyz;
-        coords[base + v] = vec4<f32>(transfer(job.seed.xyz, seed_n, p, seed_n, job.e1.xyz, job.e2.xyz), length(d), 2.0);
-    }
     if (lid == 0u) {
         atomicStore(&reached, 0u);
+        done_before = 0u;
+        if (round.init == 0u) { done_before = results[wid.x].converged; }
     }
-    storageBarrier();
-    workgroupBarrier();
+    if (workgroupUniformLoad(&done_before) != 0u) { return; }
+    if (round.init != 0u) {
+        for (var i = lid; i < job.cand_count; i += WG) {
+            coords[base + candidates[job.cand_offset + i]] = vec4<f32>(0.0, 0.0, INF, 0.0);
+        }
+        storageBarrier();
+        workgroupBarrier();
+        if (lid < 3u) {
+            let v = job.tri[lid];
+            let p = positions[v].xyz;
+            let d = p - job.seed.xyz;
+            coords[base + v] = vec4<f32>(transfer(job.seed.xyz, seed_n, p, seed_n, job.e1.xyz, job.e2.xyz), length(d), 2.0);
+        }
+        storageBarrier();
+        workgroupBarrier();
+    }
     var sweeps = 0u;
     loop {
         if (lid == 0u) { atomicStore(&changed, 0u); }
@@ -114,7 +132,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         if (lid == 0u) { changed_copy = atomicLoad(&changed); }
         sweeps += 1u;
         let any_change = workgroupUniformLoad(&changed_copy);
-        if (any_change == 0u || sweeps >= job.max_sweeps) { break; }
+        if (any_change == 0u || sweeps >= round.sweeps) { break; }
     }
     for (var i = lid; i < job.cand_count; i += WG) {
         if (coords[base + candidates[job.cand_offset + i]].w > 0.5) { atomicAdd(&reached, 1u); }
@@ -123,6 +141,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
     if (lid == 0u) {
         var r: GeoResult;
         r.sweeps = sweeps;
+        if (round.init == 0u) { r.sweeps += results[wid.x].sweeps; }
         r.reached = atomicLoad(&reached);
         r.converged = select(0u, 1u, changed_copy == 0u);
         results[wid.x] = r;
