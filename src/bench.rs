@@ -314,19 +314,20 @@ pub fn run_geodesic(
             let mut last = None;
             for _ in 0..opts.reps.max(1) {
                 let t = Instant::now();
-                let r = crate::geodesic_gpu::expmaps_gpu(engine, &loaded, &[(seed, o)])?;
+                let (r, d) =
+                    crate::geodesic_gpu::expmaps_gpu_status(engine, &loaded, &[(seed, o)])?;
                 g.push(t.elapsed().as_secs_f64() * 1000.0);
-                last = Some(r[0].1);
+                last = Some((r[0], d));
             }
             let t = Instant::now();
             let cpu = dem_cpu(topo, &seed, o, &k);
             let cpu_ms = t.elapsed().as_secs_f64() * 1000.0;
-            let res = last.expect("one repetition");
+            let (res, dispatches) = last.expect("one repetition");
             let gpu_ms = median(g);
             emit(serde_json::json!({
                 "bench": "expmap", "mesh_triangles": topo.triangles.len(), "mesh_vertices": topo.positions.len(),
                 "disc_vertices": res.reached, "cpu_reached": cpu.dist.iter().filter(|d| d.is_finite()).count(),
-                "sweeps": res.sweeps, "converged": res.converged == 1,
+                "sweeps": res.sweeps, "converged": res.converged == 1, "dispatches": dispatches,
                 "gpu_ms": gpu_ms, "cpu_twin_ms": cpu_ms, "cpu_over_gpu": cpu_ms / gpu_ms,
             }));
         }
@@ -345,17 +346,17 @@ pub fn run_geodesic(
             .collect();
         expmaps_warm(engine, &loaded, &maps)?;
         let t = Instant::now();
-        let r = crate::geodesic_gpu::expmaps_gpu(engine, &loaded, &maps)?;
+        let (r, dispatches) = crate::geodesic_gpu::expmaps_gpu_status(engine, &loaded, &maps)?;
         let gpu_ms = t.elapsed().as_secs_f64() * 1000.0;
         let t = Instant::now();
         for (s, o) in &maps {
             let _ = dem_cpu(topo, s, *o, &k);
         }
         let cpu_ms = t.elapsed().as_secs_f64() * 1000.0;
-        let mean_reached = r.iter().map(|x| x.1.reached as f64).sum::<f64>() / r.len() as f64;
+        let mean_reached = r.iter().map(|x| x.reached as f64).sum::<f64>() / r.len() as f64;
         emit(serde_json::json!({
             "bench": "expmap_batch", "mesh_triangles": topo.triangles.len(), "maps": batch, "mean_disc_vertices": mean_reached,
-            "gpu_ms": gpu_ms, "gpu_maps_per_s": batch as f64 / (gpu_ms / 1000.0),
+            "dispatches": dispatches, "gpu_ms": gpu_ms, "gpu_maps_per_s": batch as f64 / (gpu_ms / 1000.0),
             "cpu_twin_ms": cpu_ms, "cpu_maps_per_s": batch as f64 / (cpu_ms / 1000.0),
         }));
     }
@@ -367,5 +368,5 @@ fn expmaps_warm(
     mesh: &LoadedMesh,
     maps: &[(crate::geodesic::Seed, crate::geodesic::Options)],
 ) -> Result<()> {
-    crate::geodesic_gpu::expmaps_gpu(engine, mesh, maps).map(|_| ())
+    crate::geodesic_gpu::expmaps_gpu_status(engine, mesh, maps).map(|_| ())
 }

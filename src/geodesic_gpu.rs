@@ -24,7 +24,10 @@ pub struct GeoJob {
     cand_count: u32,
     vertex_count: u32,
     max_sweeps: u32,
-    pad: [u32; 2],
+    /// Vertices next to the candidates but outside them, listed right after the candidates: the
+    /// first round marks them as not reachable, so no slot ever needs clearing in full.
+    halo_count: u32,
+    pad: u32,
 }
 
 /// What the relaxation reports per decal. Keep in sync with `GeoResult` in wgsl/expmap_relax.wgsl.
@@ -81,6 +84,20 @@ pub fn build_jobs(topo: &Topology, maps: &[(Seed, Options, u32)]) -> (Vec<GeoJob
     let mut cands = Vec::new();
     for (seed, opts, slot) in maps {
         let c = candidates(topo, seed, opts.radius);
+        let inside: std::collections::HashSet<u32> = c.iter().copied().collect();
+        let mut halo: Vec<u32> = Vec::new();
+        let mut seen = std::collections::HashSet::new();
+        for &v in &c {
+            let (a, b) = (
+                topo.adjacency_offsets[v as usize] as usize,
+                topo.adjacency_offsets[v as usize + 1] as usize,
+            );
+            for &q in &topo.adjacency[a..b] {
+                if !inside.contains(&q) && seen.insert(q) {
+                    halo.push(q);
+                }
+            }
+        }
         let t = topo.triangles[seed.triangle as usize];
         jobs.push(GeoJob {
             seed: seed.point.extend(0.0).to_array(),
@@ -95,9 +112,11 @@ pub fn build_jobs(topo: &Topology, maps: &[(Seed, Options, u32)]) -> (Vec<GeoJob
             vertex_count: topo.positions.len() as u32,
             // Each sweep settles at least one more ring; four times the candidates is a generous cap.
             max_sweeps: 4 * c.len() as u32 + 16,
-            pad: [0; 2],
+            halo_count: halo.len() as u32,
+            pad: 0,
         });
         cands.extend(c);
+        cands.extend(halo);
     }
     if cands.is_empty() {
         cands.push(0);
@@ -137,40 +156,62 @@ pub fn run(
     }
     let device = &ctx.device;
     let max_count = jobs.iter().map(|j| j.cand_count).max().unwrap_or(1);
-    // Per sweep an invocation visits ceil(count / 256) candidates with about ten loop steps each.
-    let sweeps_per_round = (LOOP_BUDGET / (max_count.div_ceil(256) * 10)).clamp(1, 1024);
+    // Per sweep an invocation visits at most ceil(count / 256) front vertices, with about twenty
+    // loop steps each (neighbours read, then neighbours queued).
+    let sweeps_per_round = (LOOP_BUDGET / (max_count.div_ceil(256) * 20)).clamp(1, 1024);
     let max_sweeps = jobs.iter().map(|j| j.max_sweeps).max().unwrap_or(16);
     let results_size = jobs.len() as u64 * 16;
-    let (jobs_buf, cand_buf, results, rounds) = ctx.scoped("exponential maps", || {
-        let jobs_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("expmap.jobs"),
-            contents: bytemuck::cast_slice(jobs),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
-        let cand_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("expmap.candidates"),
-            contents: bytemuck::cast_slice(cands),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
-        let results = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("expmap.results"),
-            size: results_size,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let mk = |init: u32| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("expmap.round"),
-                contents: bytemuck::bytes_of(&Round {
-                    init,
-                    sweeps: sweeps_per_round,
-                    pad: [0; 2],
-                }),
-                usage: wgpu::BufferUsages::UNIFORM,
-            })
-        };
-        (jobs_buf, cand_buf, results, [mk(1), mk(0)])
-    })?;
+    let slots = jobs.iter().map(|j| j.tri[3] as u64 + 1).max().unwrap_or(1);
+    let (jobs_buf, cand_buf, results, rounds, fstate, fronts, marks) =
+        ctx.scoped("exponential maps", || {
+            let plain = |label, size: u64| {
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size: size.max(16),
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                })
+            };
+            let fstate = plain("expmap.front_state", jobs.len() as u64 * 16);
+            let fronts = plain("expmap.fronts", 2 * cands.len() as u64 * 4);
+            let marks = plain("expmap.marks", slots * mesh.vertex_count as u64 * 4);
+            let jobs_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("expmap.jobs"),
+                contents: bytemuck::cast_slice(jobs),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+            let cand_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("expmap.candidates"),
+                contents: bytemuck::cast_slice(cands),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+            let results = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("expmap.results"),
+                size: results_size,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let mk = |init: u32| {
+                device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("expmap.round"),
+                    contents: bytemuck::bytes_of(&Round {
+                        init,
+                        sweeps: sweeps_per_round,
+                        pad: [0; 2],
+                    }),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                })
+            };
+            (
+                jobs_buf,
+                cand_buf,
+                results,
+                [mk(1), mk(0)],
+                fstate,
+                fronts,
+                marks,
+            )
+        })?;
     let bind = |round: &wgpu::Buffer| {
         pipes.expmap_relax.bind(
             device,
@@ -186,12 +227,14 @@ pub fn run(
                 (7, coords.as_entire_binding()),
                 (8, results.as_entire_binding()),
                 (9, round.as_entire_binding()),
+                (10, fstate.as_entire_binding()),
+                (11, fronts.as_entire_binding()),
+                (12, marks.as_entire_binding()),
             ],
         )
     };
     let (bg_init, bg_more) =
         ctx.scoped("exponential maps", || (bind(&rounds[0]), bind(&rounds[1])))?;
-    let slot_bytes = mesh.vertex_count as u64 * 16;
     let mut dispatches = 0;
     let mut first = true;
     loop {
@@ -199,11 +242,6 @@ pub fn run(
             let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("expmap"),
             });
-            if first {
-                for j in jobs {
-                    enc.clear_buffer(coords, j.tri[3] as u64 * slot_bytes, Some(slot_bytes));
-                }
-            }
             {
                 let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some("expmap.relax"),
@@ -233,6 +271,40 @@ pub fn run(
 /// Per-vertex result of a GPU map read back: (u, v, distance, state) with state 0 = unreached,
 /// 1 = reached, 2 = seed-triangle vertex.
 pub type MapCoords = Vec<[f32; 4]>;
+
+/// Computes maps on the GPU and reads back only their status (the coordinates stay on the GPU, as
+/// in a bake); returns the status and the dispatches issued. For benchmarks.
+pub fn expmaps_gpu_status(
+    engine: &crate::Engine,
+    mesh: &crate::LoadedMesh,
+    maps: &[(Seed, Options)],
+) -> Result<(Vec<GeoResult>, u32)> {
+    let ctx = &engine.ctx;
+    let nv = mesh.gpu.vertex_count as u64;
+    let per_chunk = ((64u64 << 20) / (nv * 16)).max(1) as usize;
+    let mut out = Vec::with_capacity(maps.len());
+    let mut dispatches = 0;
+    let coords = ctx.scoped("exponential maps", || {
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("expmap.coords"),
+            size: per_chunk.min(maps.len().max(1)) as u64 * nv * 16,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        })
+    })?;
+    for chunk in maps.chunks(per_chunk) {
+        let slots: Vec<(Seed, Options, u32)> = chunk
+            .iter()
+            .enumerate()
+            .map(|(i, (s, o))| (*s, *o, i as u32))
+            .collect();
+        let (jobs, cands) = build_jobs(&mesh.topo, &slots);
+        let (results, d) = run(ctx, &engine.pipes, &mesh.gpu, &jobs, &cands, &coords)?;
+        out.extend(results);
+        dispatches += d;
+    }
+    Ok((out, dispatches))
+}
 
 /// Computes maps on the GPU and reads them back (for tests, `decalbake param` and benchmarks),
 /// in chunks whose coords slots fit a 64 MiB buffer.

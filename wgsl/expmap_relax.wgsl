@@ -1,9 +1,11 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-// Discrete exponential maps by parallel relaxation, one workgroup per decal, the whole solve in one
-// dispatch: every sweep, each candidate vertex takes the neighbour that minimises (graph distance +
+// Discrete exponential maps by parallel relaxation over an active front, one workgroup per decal:
+// every sweep, each vertex of the front takes the neighbour that minimises (graph distance +
 // edge length) among reached, expandable neighbours (graph distance <= radius, |K| <= curvature
 // stop) and sets its normal coordinates from it (shared/expmap.wgsl); sweeps repeat until one changes
-// nothing. Distances only decrease (Bellman-Ford), so the in-place, unordered updates converge. The
+// nothing. Only vertices next to a vertex that changed in the previous sweep are in the next front,
+// so the work is proportional to the updates, not to sweeps x disc. Distances only decrease
+// (Bellman-Ford), so the in-place, unordered updates converge. The
 // fixed point is the serial Dijkstra map of the paper (`dem_cpu` in src/geodesic.rs).
 // Candidates (the connected vertices within a Euclidean ball that contains the geodesic disc, plus
 // one ring) come from the CPU, so the work is proportional to the disc, not to the mesh.
@@ -33,8 +35,9 @@ struct GeoJob {
     cand_count: u32,
     vertex_count: u32,
     max_sweeps: u32,
+    // Vertices around the candidates, listed right after them: reset to "not a candidate".
+    halo_count: u32,
     _pad0: u32,
-    _pad1: u32,
 }
 
 // Keep in sync with `Round` in src/geodesic_gpu.rs.
@@ -63,11 +66,17 @@ struct GeoResult {
 @group(0) @binding(7) var<storage, read_write> coords: array<vec4<f32>>;
 @group(0) @binding(8) var<storage, read_write> results: array<GeoResult>;
 @group(0) @binding(9) var<uniform> round: Round;
+// Per map: front length, parity of the current front list, sweep stamp, sweeps so far.
+@group(0) @binding(10) var<storage, read_write> fstate: array<u32>;
+// Two front lists per map, each `cand_count` long, at 2 * cand_offset + parity * cand_count.
+@group(0) @binding(11) var<storage, read_write> fronts: array<u32>;
+// Per slot and vertex: the stamp of the sweep that last queued it (dedupes the next front).
+@group(0) @binding(12) var<storage, read_write> marks: array<atomic<u32>>;
 
-var<workgroup> changed: atomic<u32>;
-var<workgroup> changed_copy: u32;
 var<workgroup> reached: atomic<u32>;
 var<workgroup> done_before: u32;
+var<workgroup> next_len: atomic<u32>;
+var<workgroup> front_len: u32;
 
 @compute @workgroup_size(256)
 fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
@@ -82,7 +91,12 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
     if (workgroupUniformLoad(&done_before) != 0u) { return; }
     if (round.init != 0u) {
         for (var i = lid; i < job.cand_count; i += WG) {
-            coords[base + candidates[job.cand_offset + i]] = vec4<f32>(0.0, 0.0, INF, 0.0);
+            let v = candidates[job.cand_offset + i];
+            coords[base + v] = vec4<f32>(0.0, 0.0, INF, 0.0);
+            atomicStore(&marks[base + v], 0u);
+        }
+        for (var i = lid; i < job.halo_count; i += WG) {
+            coords[base + candidates[job.cand_offset + job.cand_count + i]] = vec4<f32>(0.0);
         }
         storageBarrier();
         workgroupBarrier();
@@ -92,15 +106,32 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
             let d = p - job.seed.xyz;
             coords[base + v] = vec4<f32>(transfer(job.seed.xyz, seed_n, p, seed_n, job.e1.xyz, job.e2.xyz), length(d), 2.0);
         }
+        for (var i = lid; i < job.cand_count; i += WG) {
+            fronts[2u * job.cand_offset + i] = candidates[job.cand_offset + i];
+        }
+        if (lid == 0u) {
+            fstate[4u * wid.x] = job.cand_count;
+            fstate[4u * wid.x + 1u] = 0u;
+            fstate[4u * wid.x + 2u] = 1u;
+            fstate[4u * wid.x + 3u] = 0u;
+        }
         storageBarrier();
         workgroupBarrier();
     }
     var sweeps = 0u;
     loop {
-        if (lid == 0u) { atomicStore(&changed, 0u); }
-        workgroupBarrier();
-        for (var i = lid; i < job.cand_count; i += WG) {
-            let v = candidates[job.cand_offset + i];
+        if (lid == 0u) {
+            front_len = fstate[4u * wid.x];
+            atomicStore(&next_len, 0u);
+        }
+        let len = workgroupUniformLoad(&front_len);
+        if (len == 0u || sweeps >= round.sweeps) { break; }
+        let parity = fstate[4u * wid.x + 1u];
+        let stamp = fstate[4u * wid.x + 2u];
+        let cur = 2u * job.cand_offset + parity * job.cand_count;
+        let nxt = 2u * job.cand_offset + (1u - parity) * job.cand_count;
+        for (var i = lid; i < len; i += WG) {
+            let v = fronts[cur + i];
             let c = coords[base + v];
             if (c.w > 1.5) { continue; }
             let pv = positions[v].xyz;
@@ -123,16 +154,31 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
                 let nc = vec4<f32>(cr.xy + t, best, 1.0);
                 if (any(nc != c)) {
                     coords[base + v] = nc;
-                    atomicStore(&changed, 1u);
+                    // Queue the neighbours that are candidates (cleared non-candidates have z = 0,
+                    // candidates start at INF) and not seed vertices.
+                    for (var k = adj_offsets[v]; k < adj_offsets[v + 1u]; k++) {
+                        let q = adjacency[k];
+                        let cq = coords[base + q];
+                        if ((cq.w > 0.5 || cq.z > 1.0e30) && cq.w < 1.5) {
+                            if (atomicExchange(&marks[base + q], stamp) != stamp) {
+                                fronts[nxt + atomicAdd(&next_len, 1u)] = q;
+                            }
+                        }
+                    }
                 }
             }
         }
         storageBarrier();
         workgroupBarrier();
-        if (lid == 0u) { changed_copy = atomicLoad(&changed); }
+        if (lid == 0u) {
+            fstate[4u * wid.x] = atomicLoad(&next_len);
+            fstate[4u * wid.x + 1u] = 1u - parity;
+            fstate[4u * wid.x + 2u] = stamp + 1u;
+            fstate[4u * wid.x + 3u] += 1u;
+        }
+        storageBarrier();
+        workgroupBarrier();
         sweeps += 1u;
-        let any_change = workgroupUniformLoad(&changed_copy);
-        if (any_change == 0u || sweeps >= round.sweeps) { break; }
     }
     for (var i = lid; i < job.cand_count; i += WG) {
         if (coords[base + candidates[job.cand_offset + i]].w > 0.5) { atomicAdd(&reached, 1u); }
@@ -140,10 +186,9 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
     workgroupBarrier();
     if (lid == 0u) {
         var r: GeoResult;
-        r.sweeps = sweeps;
-        if (round.init == 0u) { r.sweeps += results[wid.x].sweeps; }
+        r.sweeps = fstate[4u * wid.x + 3u];
         r.reached = atomicLoad(&reached);
-        r.converged = select(0u, 1u, changed_copy == 0u);
+        r.converged = select(0u, 1u, fstate[4u * wid.x] == 0u);
         results[wid.x] = r;
     }
 }
