@@ -128,28 +128,7 @@ impl Baked {
 
     /// PNG bytes at the bake's bit depth.
     pub fn to_png(&self) -> Vec<u8> {
-        let mut out = Vec::new();
-        let enc = image::codecs::png::PngEncoder::new(&mut out);
-        use image::ImageEncoder;
-        if self.bit_depth == 16 {
-            let raw: Vec<u8> = self.texels.iter().flat_map(|v| v.to_ne_bytes()).collect();
-            enc.write_image(
-                &raw,
-                self.width,
-                self.height,
-                image::ExtendedColorType::Rgba16,
-            )
-        } else {
-            let raw: Vec<u8> = self.texels.iter().map(|v| *v as u8).collect();
-            enc.write_image(
-                &raw,
-                self.width,
-                self.height,
-                image::ExtendedColorType::Rgba8,
-            )
-        }
-        .expect("PNG encoding into memory cannot fail for a well-formed buffer");
-        out
+        crate::image_io::png_bytes(self.width, self.height, self.bit_depth, &self.texels)
     }
 
     /// sRGB RGBA8 bytes (16-bit bakes are rounded).

@@ -272,23 +272,22 @@ pub fn run(
 /// 1 = reached, 2 = seed-triangle vertex.
 pub type MapCoords = Vec<[f32; 4]>;
 
-/// Computes maps on the GPU and reads back only their status (the coordinates stay on the GPU, as
-/// in a bake); returns the status and the dispatches issued. For benchmarks.
-pub fn expmaps_gpu_status(
+/// Runs `maps` in chunks whose coords slots fit 64 MiB, calling `each(results, coords, dispatches)`
+/// after every chunk.
+fn in_chunks(
     engine: &crate::Engine,
     mesh: &crate::LoadedMesh,
     maps: &[(Seed, Options)],
-) -> Result<(Vec<GeoResult>, u32)> {
+    mut each: impl FnMut(Vec<GeoResult>, &wgpu::Buffer, u32) -> Result<()>,
+) -> Result<()> {
     let ctx = &engine.ctx;
     let nv = mesh.gpu.vertex_count as u64;
     let per_chunk = ((64u64 << 20) / (nv * 16)).max(1) as usize;
-    let mut out = Vec::with_capacity(maps.len());
-    let mut dispatches = 0;
     let coords = ctx.scoped("exponential maps", || {
         ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("expmap.coords"),
             size: per_chunk.min(maps.len().max(1)) as u64 * nv * 16,
-            usage: wgpu::BufferUsages::STORAGE,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         })
     })?;
@@ -300,47 +299,44 @@ pub fn expmaps_gpu_status(
             .collect();
         let (jobs, cands) = build_jobs(&mesh.topo, &slots);
         let (results, d) = run(ctx, &engine.pipes, &mesh.gpu, &jobs, &cands, &coords)?;
-        out.extend(results);
-        dispatches += d;
+        each(results, &coords, d)?;
     }
+    Ok(())
+}
+
+/// Computes maps on the GPU and reads back only their status (the coordinates stay on the GPU, as
+/// in a bake); returns the status and the dispatches issued. For benchmarks.
+pub fn expmaps_gpu_status(
+    engine: &crate::Engine,
+    mesh: &crate::LoadedMesh,
+    maps: &[(Seed, Options)],
+) -> Result<(Vec<GeoResult>, u32)> {
+    let mut out = Vec::with_capacity(maps.len());
+    let mut dispatches = 0;
+    in_chunks(engine, mesh, maps, |r, _, d| {
+        out.extend(r);
+        dispatches += d;
+        Ok(())
+    })?;
     Ok((out, dispatches))
 }
 
-/// Computes maps on the GPU and reads them back (for tests, `decalbake param` and benchmarks),
-/// in chunks whose coords slots fit a 64 MiB buffer.
+/// Computes maps on the GPU and reads them back (for tests, `decalbake param` and benchmarks).
 pub fn expmaps_gpu(
     engine: &crate::Engine,
     mesh: &crate::LoadedMesh,
     maps: &[(Seed, Options)],
 ) -> Result<Vec<(MapCoords, GeoResult)>> {
-    let ctx = &engine.ctx;
-    let nv = mesh.gpu.vertex_count as u64;
-    let per_chunk = ((64u64 << 20) / (nv * 16)).max(1) as usize;
+    let nv = mesh.gpu.vertex_count as usize;
     let mut out = Vec::with_capacity(maps.len());
-    for chunk in maps.chunks(per_chunk) {
-        let slots: Vec<(Seed, Options, u32)> = chunk
-            .iter()
-            .enumerate()
-            .map(|(i, (s, o))| (*s, *o, i as u32))
-            .collect();
-        let (jobs, cands) = build_jobs(&mesh.topo, &slots);
-        let coords_size = chunk.len() as u64 * nv * 16;
-        let coords = ctx.scoped("exponential maps", || {
-            ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("expmap.coords"),
-                size: coords_size,
-                usage: wgpu::BufferUsages::STORAGE
-                    | wgpu::BufferUsages::COPY_SRC
-                    | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        })?;
-        let (results, _) = run(ctx, &engine.pipes, &mesh.gpu, &jobs, &cands, &coords)?;
-        let c = ctx.read_buffer(&coords, coords_size, "expmap read-back")?;
+    in_chunks(engine, mesh, maps, |results, coords, _| {
+        let size = (results.len() * nv * 16) as u64;
+        let c = engine.ctx.read_buffer(coords, size, "expmap read-back")?;
         let c: &[[f32; 4]] = bytemuck::cast_slice(&c);
         for (i, r) in results.iter().enumerate() {
-            out.push((c[i * nv as usize..(i + 1) * nv as usize].to_vec(), *r));
+            out.push((c[i * nv..(i + 1) * nv].to_vec(), *r));
         }
-    }
+        Ok(())
+    })?;
     Ok(out)
 }

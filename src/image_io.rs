@@ -148,44 +148,12 @@ impl LinearImage {
 
     /// Encodes to PNG bytes, sRGB, 8 or 16 bits per channel.
     pub fn encode_png(&self, bit_depth: u8) -> Vec<u8> {
-        let mut out = Vec::new();
-        let enc = image::codecs::png::PngEncoder::new(&mut out);
-        use image::ImageEncoder;
-        if bit_depth == 16 {
-            let mut raw: Vec<u8> = Vec::with_capacity(self.pixels.len() * 8);
-            for p in &self.pixels {
-                for (k, c) in p.iter().enumerate() {
-                    let e = if k < 3 {
-                        linear_to_srgb(*c)
-                    } else {
-                        c.clamp(0.0, 1.0)
-                    };
-                    // The image crate takes 16-bit samples in native byte order.
-                    raw.extend_from_slice(&((e * 65535.0).round() as u16).to_ne_bytes());
-                }
-            }
-            enc.write_image(
-                &raw,
-                self.width,
-                self.height,
-                image::ExtendedColorType::Rgba16,
-            )
-            .expect("PNG encoding into memory cannot fail for a well-formed buffer");
-        } else {
-            let raw = self.to_srgb8();
-            enc.write_image(
-                &raw,
-                self.width,
-                self.height,
-                image::ExtendedColorType::Rgba8,
-            )
-            .expect("PNG encoding into memory cannot fail for a well-formed buffer");
-        }
-        out
+        png_bytes(self.width, self.height, bit_depth, &self.to_srgb(bit_depth))
     }
 
-    /// sRGB-encoded RGBA8 bytes.
-    pub fn to_srgb8(&self) -> Vec<u8> {
+    /// sRGB-encoded RGBA values at `bit_depth` (0..=255 or 0..=65535); alpha stays linear.
+    pub fn to_srgb(&self, bit_depth: u8) -> Vec<u16> {
+        let max = if bit_depth == 16 { 65535.0 } else { 255.0 };
         let mut raw = Vec::with_capacity(self.pixels.len() * 4);
         for p in &self.pixels {
             for (k, c) in p.iter().enumerate() {
@@ -194,10 +162,15 @@ impl LinearImage {
                 } else {
                     c.clamp(0.0, 1.0)
                 };
-                raw.push((e * 255.0).round() as u8);
+                raw.push((e * max).round() as u16);
             }
         }
         raw
+    }
+
+    /// sRGB-encoded RGBA8 bytes.
+    pub fn to_srgb8(&self) -> Vec<u8> {
+        self.to_srgb(8).into_iter().map(|v| v as u8).collect()
     }
 
     /// Premultiplied-alpha mip chain (level 0 first), each level a 2×2 box filter of the previous,
@@ -245,6 +218,23 @@ impl LinearImage {
         }
         out
     }
+}
+
+/// PNG bytes of RGBA samples already encoded at `bit_depth` (8: 0..=255, 16: 0..=65535).
+pub fn png_bytes(width: u32, height: u32, bit_depth: u8, samples: &[u16]) -> Vec<u8> {
+    use image::ImageEncoder;
+    let mut out = Vec::new();
+    let enc = image::codecs::png::PngEncoder::new(&mut out);
+    if bit_depth == 16 {
+        // The image crate takes 16-bit samples in native byte order.
+        let raw: Vec<u8> = samples.iter().flat_map(|v| v.to_ne_bytes()).collect();
+        enc.write_image(&raw, width, height, image::ExtendedColorType::Rgba16)
+    } else {
+        let raw: Vec<u8> = samples.iter().map(|v| *v as u8).collect();
+        enc.write_image(&raw, width, height, image::ExtendedColorType::Rgba8)
+    }
+    .expect("PNG encoding into memory cannot fail for a well-formed buffer");
+    out
 }
 
 /// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so a reader

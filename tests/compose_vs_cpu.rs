@@ -37,26 +37,23 @@ fn job_text_method(mode: &str, with_mask: bool, padding: u32, method: &str) -> S
     )
 }
 
+/// The book mesh, a 64² base image and two decals, as 16-bit PNGs, into `dir`.
+fn write_inputs(dir: &std::path::Path) {
+    let (pos, uv, idx) = book_mesh();
+    write_glb(&dir.join("book.glb"), &pos, Some(&uv), &idx);
+    for (name, img) in [
+        ("base.png", test_image(64, 64, 7, false)),
+        ("decal_a.png", test_image(12, 16, 3, true)),
+        ("decal_b.png", test_image(16, 12, 5, true)),
+    ] {
+        std::fs::write(dir.join(name), img.encode_png(16)).unwrap();
+    }
+}
+
 #[test]
 fn gpu_compose_matches_cpu_twin_for_every_blend_mode() {
     let dir = scratch("compose");
-    let (pos, uv, idx) = book_mesh();
-    write_glb(&dir.join("book.glb"), &pos, Some(&uv), &idx);
-    std::fs::write(
-        dir.join("base.png"),
-        test_image(64, 64, 7, false).encode_png(16),
-    )
-    .unwrap();
-    std::fs::write(
-        dir.join("decal_a.png"),
-        test_image(12, 16, 3, true).encode_png(16),
-    )
-    .unwrap();
-    std::fs::write(
-        dir.join("decal_b.png"),
-        test_image(16, 12, 5, true).encode_png(16),
-    )
-    .unwrap();
+    write_inputs(&dir);
     // Mask: a radial ramp (raw values, no sRGB).
     let mut mask = LinearImage::solid(16, 16, [0.0; 4]);
     for y in 0..16 {
@@ -196,23 +193,7 @@ fn texel(b: &decalbake::Baked, i: usize) -> &[u16] {
 #[test]
 fn padding_fills_exactly_the_band_from_the_nearest_island_texel() {
     let dir = scratch("padding");
-    let (pos, uv, idx) = book_mesh();
-    write_glb(&dir.join("book.glb"), &pos, Some(&uv), &idx);
-    std::fs::write(
-        dir.join("base.png"),
-        test_image(64, 64, 7, false).encode_png(16),
-    )
-    .unwrap();
-    std::fs::write(
-        dir.join("decal_a.png"),
-        test_image(12, 16, 3, true).encode_png(16),
-    )
-    .unwrap();
-    std::fs::write(
-        dir.join("decal_b.png"),
-        test_image(16, 12, 5, true).encode_png(16),
-    )
-    .unwrap();
+    write_inputs(&dir);
     let engine = engine();
     let loaded = engine.load_mesh(&dir.join("book.glb")).unwrap();
     let bake = |pad: &str| {
