@@ -1054,6 +1054,7 @@ impl Engine {
                     triangles_covered: count,
                     texels_covered: 0,
                     texel_box: bx,
+                    distortion: Default::default(),
                     expmap: geo_layers
                         .iter()
                         .position(|&g| g == i)
@@ -1130,10 +1131,44 @@ impl Engine {
             }
             let jp: Vec<Params> = raster_jobs.iter().map(|(_, p)| *p).collect();
             let job_params = params_buffer(dev, "bake.raster_params", &jp);
+            let n_chunk = (end - start) as u64;
+            let partials_size = n_chunk * crate::layer::DIST_GROUPS as u64 * 32;
+            let partials = dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("bake.distortion"),
+                size: partials_size,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
             self.ctx.scoped("raster and compose", || {
                 let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("bake.compose"),
                 });
+                {
+                    // Distortion of each layer's map over its triangles (reads coords and lists).
+                    let bg = pipes.distortion.bind(
+                        dev,
+                        "bake.distortion",
+                        &[
+                            (0, pbind(&layer_params)),
+                            (1, g.positions.as_entire_binding()),
+                            (2, g.tris.as_entire_binding()),
+                            (3, coords.as_entire_binding()),
+                            (4, lists.as_entire_binding()),
+                            (5, stats.as_entire_binding()),
+                            (6, partials.as_entire_binding()),
+                        ],
+                    );
+                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some("bake.distortion"),
+                        timestamp_writes: None,
+                    });
+                    pass.set_pipeline(&pipes.distortion.pipeline);
+                    for k in 0..n_chunk {
+                        pass.set_bind_group(0, &bg, &[(k * PARAMS_STRIDE) as u32]);
+                        pass.dispatch_workgroups(crate::layer::DIST_GROUPS, 1, 1);
+                        commands += 1;
+                    }
+                }
                 let mut layer_bgs: HashMap<usize, wgpu::BindGroup> = HashMap::new();
                 for (batch, used_h) in &batches {
                     let tg = self.targets([TILE_TARGET, used_h.next_power_of_two().max(64)]);
@@ -1234,6 +1269,18 @@ impl Engine {
                 }
                 self.ctx.queue.submit([enc.finish()]);
             })?;
+            let pb = self
+                .ctx
+                .read_buffer(&partials, partials_size, "distortion read-back")?;
+            let pf: &[[f32; 4]] = bytemuck::cast_slice(&pb);
+            let per = 2 * crate::layer::DIST_GROUPS as usize;
+            for l in layer_reports
+                .iter_mut()
+                .filter(|l| l.index >= start && l.index < end)
+            {
+                let k = l.index - start;
+                l.distortion = crate::layer::Distortion::from_partials(&pf[k * per..(k + 1) * per]);
+            }
         }
         self.ctx.wait("compose")?;
         timings.compose_ms = ms(t_compose);

@@ -165,6 +165,8 @@ pub struct Pipelines {
     pub encode: Kernel,
     /// Exponential-map relaxation.
     pub expmap_relax: Kernel,
+    /// Per-layer distortion partials.
+    pub distortion: Kernel,
     /// Preview.
     pub preview: Raster,
     /// Whether the layer target blends premultiplied source-over within a layer
@@ -377,6 +379,19 @@ impl Pipelines {
                 device,
                 "encode",
                 &[(0, Params), (1, Rw), (2, Ro), (3, Ro), (10, Rw), (11, Rw)],
+            ),
+            distortion: Kernel::new(
+                device,
+                "distortion",
+                &[
+                    (0, Params),
+                    (1, Ro),
+                    (2, Ro),
+                    (3, Ro),
+                    (4, Ro),
+                    (5, Ro),
+                    (6, Rw),
+                ],
             ),
             expmap_relax: Kernel::new(
                 device,

@@ -61,6 +61,8 @@ pub struct LayerReport {
     pub texels_covered: u32,
     /// Texel bounding box (min x, min y, max x, max y) before UV wrapping.
     pub texel_box: [i32; 4],
+    /// Distortion of the layer's map over the triangles it covers.
+    pub distortion: crate::layer::Distortion,
     /// Exponential-map layers: relaxation sweeps, vertices reached, convergence.
     pub expmap: Option<crate::geodesic_gpu::GeoResult>,
 }

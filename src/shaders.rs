@@ -27,6 +27,7 @@ pub const KERNELS: &[(&str, &str)] = &[
     ("encode", include_str!("../wgsl/encode.wgsl")),
     ("preview", include_str!("../wgsl/preview.wgsl")),
     ("expmap_relax", include_str!("../wgsl/expmap_relax.wgsl")),
+    ("distortion", include_str!("../wgsl/distortion.wgsl")),
 ];
 
 /// Shared files that `#import` can name.

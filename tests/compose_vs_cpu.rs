@@ -275,3 +275,68 @@ fn padding_fills_exactly_the_band_from_the_nearest_island_texel() {
         "the test image should have both a band and a far background"
     );
 }
+
+/// The report's distortion on the folded sheet: a planar projection along the flat panel's normal
+/// keeps that panel's areas (ratio 1) and shrinks the tilted panel's by cos(tilt) = 1/sqrt(1.25)
+/// (slope 0.25 over 0.5); the exponential map of this developable sheet keeps both up to the crease:
+/// the vertices on the fold carry the average of the two panels' normals, so the edges leaving them
+/// are laid into a plane halfway between (within 3 % here). The GPU figures also equal the CPU twin
+/// `layer::distortion`.
+#[test]
+fn distortion_report_matches_analytic_values_on_the_folded_sheet() {
+    let dir = scratch("distortion");
+    write_inputs(&dir);
+    let engine = engine();
+    let loaded = engine.load_mesh(&dir.join("book.glb")).unwrap();
+    let text = r#"{ "mesh": "book.glb", "texture": { "width": 64, "height": 64 },
+        "layers": [
+          { "image": "decal_a.png", "at": [0.25, 0.5, 0.0], "size": [0.65, 0.5], "method": "planar", "depth": 1.0 },
+          { "image": "decal_a.png", "at": [0.45, 0.5, 0.0], "size": [0.5, 0.5], "method": "expmap" } ],
+        "output": { "texture": null, "report": null } }"#;
+    let job = Job::parse(text, &dir.join("job.json"), &dir, &dir).unwrap();
+    let baked = engine.bake(&loaded, &job).unwrap();
+    let planar = baked.report.layers[0].distortion;
+    let expmap = baked.report.layers[1].distortion;
+    eprintln!("planar {planar:?}\nexpmap {expmap:?}");
+    let cos = 1.0 / 1.25f32.sqrt();
+    assert!((planar.area_ratio_max - 1.0).abs() < 1e-5, "{planar:?}");
+    assert!((planar.area_ratio_min - cos).abs() < 1e-5, "{planar:?}");
+    assert!(planar.area_ratio_mean < 1.0 && planar.area_ratio_mean > cos);
+    assert!(
+        (planar.angle_distortion_max - 1.0 / cos).abs() < 1e-4,
+        "{planar:?}"
+    );
+    assert_eq!(planar.flipped, 0);
+    assert!(
+        (expmap.area_ratio_min - 1.0).abs() < 0.03 && (expmap.area_ratio_max - 1.0).abs() < 0.03,
+        "{expmap:?}"
+    );
+    assert!(
+        expmap.angle_distortion_max < 1.03 && (expmap.area_ratio_mean - 1.0).abs() < 1e-3,
+        "{expmap:?}"
+    );
+    // CPU twin of the planar figures.
+    let mesh = Mesh::load(&dir.join("book.glb")).unwrap();
+    let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
+    let frame = decalbake::layer::Frame::new(&baked.report.layers[0].placement, &job.layers[0]);
+    let coords = decalbake::layer::planar_coords(&topo, &frame);
+    let sel = decalbake::layer::select_triangles(
+        &mesh,
+        &topo,
+        &mesh.uv_sets[0],
+        &coords,
+        &frame,
+        true,
+        [64, 64],
+    );
+    let cpu = decalbake::layer::distortion(&topo, &coords, &sel.triangles);
+    assert!(
+        (cpu.area_ratio_mean - planar.area_ratio_mean).abs() < 1e-5,
+        "CPU {cpu:?} GPU {planar:?}"
+    );
+    assert!(
+        (cpu.angle_distortion_mean - planar.angle_distortion_mean).abs() < 1e-5,
+        "CPU {cpu:?} GPU {planar:?}"
+    );
+    assert_eq!(cpu.flipped, planar.flipped);
+}
