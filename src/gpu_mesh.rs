@@ -3,7 +3,8 @@
 //!
 //! Uploaded: welded positions and normals (`vec4<f32>`), welded triangles with a flags word
 //! (`vec4<u32>`, bit 0 = degenerate), split triangles (`u32` × 3), split→welded map, every UV set
-//! (`vec2<f32>` per split vertex), CSR vertex adjacency, triangle adjacency and per-edge flags. The
+//! (`vec2<f32>` per split vertex), CSR vertex adjacency, triangle adjacency, boundary and
+//! non-manifold edges, and |Gaussian curvature| per vertex. The
 //! placement, layer and raster kernels read these; later solvers (geodesics, conformal maps) walk the
 //! adjacency.
 
@@ -42,6 +43,14 @@ pub struct GpuMesh {
     pub triangle_neighbors: wgpu::Buffer,
     /// |Gaussian curvature| per welded vertex, `f32` (partial decals).
     pub curvature: wgpu::Buffer,
+    /// Boundary edges (welded ids, smaller first), `vec2<u32>`.
+    pub boundary_edges: wgpu::Buffer,
+    /// Non-manifold edges, `vec2<u32>`.
+    pub non_manifold_edges: wgpu::Buffer,
+    /// Number of boundary edges.
+    pub boundary_edge_count: u32,
+    /// Number of non-manifold edges.
+    pub non_manifold_edge_count: u32,
 }
 
 fn storage(
@@ -156,6 +165,20 @@ impl GpuMesh {
                 bytemuck::cast_slice(&neighbors),
                 none,
             ),
+            boundary_edges: storage(
+                device,
+                "mesh.boundary_edges",
+                bytemuck::cast_slice(&topo.boundary_edges),
+                none,
+            ),
+            non_manifold_edges: storage(
+                device,
+                "mesh.non_manifold_edges",
+                bytemuck::cast_slice(&topo.non_manifold_edges),
+                none,
+            ),
+            boundary_edge_count: topo.boundary_edges.len() as u32,
+            non_manifold_edge_count: topo.non_manifold_edges.len() as u32,
             curvature: storage(
                 device,
                 "mesh.curvature",

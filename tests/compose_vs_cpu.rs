@@ -340,3 +340,51 @@ fn distortion_report_matches_analytic_values_on_the_folded_sheet() {
     );
     assert_eq!(cpu.flipped, planar.flipped);
 }
+
+/// A decal shrunk to a few texels must not alias: a one-pixel checkerboard (mean 0.5 in linear
+/// light) baked at about 8 texels across must come out as its mean, which needs mipmapping
+/// (point-sampling level 0 would give 0 or 1 per sample; a 2×2 supersampled average of those still
+/// swings by ±0.5).
+#[test]
+fn minified_decals_are_filtered_not_aliased() {
+    let dir = scratch("minify");
+    write_inputs(&dir);
+    let mut checker = LinearImage::solid(128, 128, [0.0; 4]);
+    for (i, p) in checker.pixels.iter_mut().enumerate() {
+        let v = ((i % 128) + (i / 128)) % 2;
+        *p = [v as f32, v as f32, v as f32, 1.0];
+    }
+    std::fs::write(dir.join("checker.png"), checker.encode_png(16)).unwrap();
+    let text = r#"{ "mesh": "book.glb", "texture": { "width": 64, "height": 64, "base": [0, 0, 1, 1] },
+        "layers": [ { "image": "checker.png", "at": [0.25, 0.5, 0.0], "size": [0.3, 0.3] } ],
+        "output": { "texture": null, "bit_depth": 16, "report": null } }"#;
+    let engine = engine();
+    let loaded = engine.load_mesh(&dir.join("book.glb")).unwrap();
+    let baked = engine
+        .bake(
+            &loaded,
+            &Job::parse(text, &dir.join("job.json"), &dir, &dir).unwrap(),
+        )
+        .unwrap();
+    // Texels well inside the decal: the base is pure blue, the decal grey; its red channel is the
+    // decal's value.
+    let (mut n, mut worst) = (0, 0.0f32);
+    for y in 0..64 {
+        for x in 0..64 {
+            let c = baked.linear(x, y);
+            if c[2] < 0.9 && c[0] > 0.05 {
+                // Inside or on the decal's edge; keep the texels whose blue was fully replaced.
+                if c[2] < 0.6 {
+                    n += 1;
+                    worst = worst.max((c[0] - 0.5).abs());
+                }
+            }
+        }
+    }
+    eprintln!("{n} texels inside the decal, worst |value - 0.5| = {worst:.3}");
+    assert!(n >= 20, "the decal should cover some texels: {n}");
+    assert!(
+        worst < 0.08,
+        "aliasing: a texel is {worst} away from the checker's mean"
+    );
+}
