@@ -376,3 +376,87 @@ fn large_discs_converge_over_several_rounds() {
         "{differ} vertices differ"
     );
 }
+
+/// An open cylinder of radius 1 and height 2, `n` segments around and `m` along.
+fn cylinder(n: u32, m: u32) -> Mesh {
+    let mut pos = Vec::new();
+    let mut tris = Vec::new();
+    for j in 0..=m {
+        for i in 0..n {
+            let a = i as f32 / n as f32 * std::f32::consts::TAU;
+            pos.push(Vec3::new(
+                a.cos(),
+                a.sin(),
+                -1.0 + 2.0 * j as f32 / m as f32,
+            ));
+        }
+    }
+    for j in 0..m {
+        for i in 0..n {
+            let (a, b) = (j * n + i, j * n + (i + 1) % n);
+            let (c, d) = (a + n, b + n);
+            tris.push([a, b, d]);
+            tris.push([a, d, c]);
+        }
+    }
+    let normals = pos
+        .iter()
+        .map(|p| Vec3::new(p.x, p.y, 0.0).normalize())
+        .collect();
+    let uv = vec![glam::Vec2::ZERO; pos.len()];
+    Mesh {
+        source: "cylinder".into(),
+        positions: pos,
+        normals,
+        uv_sets: vec![uv],
+        triangles: tris,
+        primitives: vec![],
+        material: None,
+    }
+}
+
+/// A cylinder is developable: the map must approach its unrolling (u = arc length around, v = height)
+/// as the mesh is refined. The remaining error comes from the polygonal cross-section (chords instead
+/// of arcs) and from the averaged vertex normals, both O(h^2) per edge.
+#[test]
+fn cylinder_maps_converge_to_the_unrolling() {
+    let engine = engine();
+    let mut errors = Vec::new();
+    for (n, m) in [(32u32, 16u32), (64, 32)] {
+        let mesh = engine.prepare(cylinder(n, m)).unwrap();
+        let topo = &mesh.topo;
+        let seed = seed_at(topo, Vec3::new(1.2, 0.05, 0.03), Vec3::Y);
+        assert!(
+            seed.e1.dot(Vec3::Y) > 0.99 && seed.e2.dot(Vec3::Z) > 0.99,
+            "frame follows the tangent and the axis"
+        );
+        let opts = Options {
+            radius: 1.2,
+            curvature_stop: f32::INFINITY,
+        };
+        let (coords, res) = &expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap()[0];
+        assert_eq!(res.converged, 1);
+        let ts = seed.point.y.atan2(seed.point.x);
+        let (mut max_e, mut n_in) = (0.0f32, 0);
+        for (v, c) in coords.iter().enumerate() {
+            if c[3] < 0.5 {
+                continue;
+            }
+            let p = topo.positions[v];
+            let exact = [p.y.atan2(p.x) - ts, p.z - seed.point.z];
+            if exact[0].hypot(exact[1]) > 1.0 {
+                continue;
+            }
+            max_e = max_e.max((c[0] - exact[0]).hypot(c[1] - exact[1]));
+            n_in += 1;
+        }
+        eprintln!("cylinder {n}x{m}: {n_in} vertices within 1 of the seed, max error {max_e:.5}");
+        assert!(n_in > 50);
+        errors.push(max_e);
+    }
+    assert!(
+        errors[1] < 0.6 * errors[0],
+        "refinement must shrink the error: {errors:?}"
+    );
+    assert!(errors[1] < 0.02, "{errors:?}");
+}

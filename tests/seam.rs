@@ -28,8 +28,17 @@ use std::path::Path;
 type Side = (Vec2, Vec2, usize);
 
 #[test]
-fn decal_across_uv_seams_is_continuous_on_spot() {
-    let dir = scratch("seam");
+fn planar_decal_across_uv_seams_is_continuous_on_spot() {
+    seam_check("planar");
+}
+
+#[test]
+fn expmap_decal_across_uv_seams_is_continuous_on_spot() {
+    seam_check("expmap");
+}
+
+fn seam_check(method: &str) {
+    let dir = scratch(&format!("seam-{method}"));
     let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
     let mesh = Mesh::load(&spot).unwrap();
     let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
@@ -105,7 +114,7 @@ fn decal_across_uv_seams_is_continuous_on_spot() {
     std::fs::write(dir.join("ramp.png"), decal.encode_png(16)).unwrap();
     let job_text = format!(
         r#"{{ "mesh": "{}", "texture": {{ "width": 512, "height": 512, "padding": 8, "samples": 4 }},
-            "layers": [ {{ "image": "ramp.png", "at": [{}, {}, {}], "size": [{size}, {size}], "depth": 0.3 }} ],
+            "layers": [ {{ "image": "ramp.png", "at": [{}, {}, {}], "size": [{size}, {size}], "depth": 0.3, "method": "{method}" }} ],
             "output": {{ "texture": null, "bit_depth": 16, "report": null }} }}"#,
         spot.display(),
         center.x,
