@@ -460,3 +460,103 @@ fn cylinder_maps_converge_to_the_unrolling() {
     );
     assert!(errors[1] < 0.02, "{errors:?}");
 }
+
+/// A cone (apex at the top) without its tip: developable away from the apex, where its unrolling is a
+/// circular sector. The map must approach the unrolled coordinates as the mesh is refined.
+#[test]
+fn cone_maps_converge_to_the_unrolling() {
+    let (rb, h) = (1.0f32, 1.5f32);
+    let l = (rb * rb + h * h).sqrt();
+    let sin_a = rb / l;
+    let engine = engine();
+    let mut errors = Vec::new();
+    for (n, m) in [(48u32, 16u32), (96, 32)] {
+        // Rings from slant 0.3 l to l.
+        let mut pos = Vec::new();
+        let mut tris = Vec::new();
+        for j in 0..=m {
+            let s = l * (0.3 + 0.7 * j as f32 / m as f32);
+            for i in 0..n {
+                let phi = i as f32 / n as f32 * std::f32::consts::TAU;
+                pos.push(Vec3::new(
+                    s * sin_a * phi.cos(),
+                    s * sin_a * phi.sin(),
+                    h - s * h / l,
+                ));
+            }
+        }
+        for j in 0..m {
+            for i in 0..n {
+                let (a, b) = (j * n + i, j * n + (i + 1) % n);
+                let (c, d) = (a + n, b + n);
+                // Counter-clockwise seen from outside (rings go down the cone).
+                tris.push([a, d, b]);
+                tris.push([a, c, d]);
+            }
+        }
+        let uv = vec![glam::Vec2::ZERO; pos.len()];
+        let mesh = Mesh {
+            source: "cone".into(),
+            normals: vec![Vec3::ZERO; pos.len()],
+            positions: pos,
+            uv_sets: vec![uv],
+            triangles: tris,
+            primitives: vec![],
+            material: None,
+        };
+        let mesh = engine.prepare(mesh).unwrap();
+        let topo = &mesh.topo;
+        // Seed at slant 0.7 l, phi = 0.
+        let (s0, phi0) = (0.7 * l, 0.0f32);
+        let target = Vec3::new(s0 * sin_a, 0.0, h - s0 * h / l) + Vec3::new(0.2, 0.0, 0.1);
+        let seed = seed_at(topo, target, Vec3::Y);
+        let outward = Vec3::new(h / l * phi0.cos(), h / l * phi0.sin(), sin_a);
+        assert!(
+            seed.normal.dot(outward) > 0.99,
+            "outward normals: {:?}",
+            seed.normal
+        );
+        let opts = Options {
+            radius: 0.3 * l,
+            curvature_stop: f32::INFINITY,
+        };
+        let (coords, res) = &expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap()[0];
+        assert_eq!(res.converged, 1);
+        // Unrolled plane: apex at the origin, generator phi at angle phi * sin_a.
+        let unroll = |p: Vec3| {
+            let s = (p - Vec3::new(0.0, 0.0, h)).length();
+            let psi = p.y.atan2(p.x) * sin_a;
+            glam::Vec2::new(s * psi.cos(), s * psi.sin())
+        };
+        let s_2d = unroll(seed.point);
+        let psi0 = seed.point.y.atan2(seed.point.x) * sin_a;
+        let (t_phi, r_hat) = (
+            glam::Vec2::new(-psi0.sin(), psi0.cos()),
+            glam::Vec2::new(psi0.cos(), psi0.sin()),
+        );
+        let phi_s = seed.point.y.atan2(seed.point.x);
+        let e_phi = Vec3::new(-phi_s.sin(), phi_s.cos(), 0.0);
+        let e_s = Vec3::new(sin_a * phi_s.cos(), sin_a * phi_s.sin(), -h / l);
+        let (mut max_e, mut n_in) = (0.0f32, 0);
+        for (v, c) in coords.iter().enumerate() {
+            if c[3] < 0.5 {
+                continue;
+            }
+            let d = unroll(topo.positions[v]) - s_2d;
+            if d.length() > 0.25 * l {
+                continue;
+            }
+            let tangent = e_phi * d.dot(t_phi) + e_s * d.dot(r_hat);
+            let exact = [tangent.dot(seed.e1), tangent.dot(seed.e2)];
+            max_e = max_e.max((c[0] - exact[0]).hypot(c[1] - exact[1]));
+            n_in += 1;
+        }
+        eprintln!("cone {n}x{m}: {n_in} vertices within 0.25 l, max error {max_e:.5}");
+        assert!(n_in > 30);
+        errors.push(max_e);
+    }
+    assert!(
+        errors[1] < 0.6 * errors[0],
+        "refinement must shrink the error: {errors:?}"
+    );
+}
