@@ -178,6 +178,20 @@ impl Engine {
         Self::with_context(GpuContext::from_device(device, queue, None))
     }
 
+    /// An engine on the host's device and queue, naming the adapter they came from: the report then
+    /// names it, and backend-specific workarounds (wgpu's GL backend) apply.
+    pub fn from_adapter(
+        adapter: &wgpu::Adapter,
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+    ) -> Result<Self> {
+        Self::with_context(GpuContext::from_device(
+            device,
+            queue,
+            Some(adapter.get_info()),
+        ))
+    }
+
     /// An engine on an existing context.
     pub fn with_context(ctx: GpuContext) -> Result<Self> {
         let pipes = ctx.scoped("pipeline creation", || Pipelines::new(&ctx.device))?;

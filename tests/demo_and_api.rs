@@ -91,7 +91,12 @@ fn host_device_api_returns_a_texture_equal_to_the_read_back() {
         ..Default::default()
     }))
     .unwrap();
-    let engine = Engine::from_device(device.clone(), queue.clone()).unwrap();
+    let engine = Engine::from_adapter(&adapter, device.clone(), queue.clone()).unwrap();
+    assert!(
+        engine.ctx.adapter.contains(&adapter.get_info().name),
+        "the report names the host's adapter"
+    );
+    assert!(Engine::from_device(device.clone(), queue.clone()).is_ok());
     let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
     let mesh = engine.load_mesh(&spot).unwrap();
     let dir = scratch("api");
