@@ -10,7 +10,7 @@ use crate::bake::{Engine, LoadedMesh};
 use crate::error::Result;
 use crate::image_io::LinearImage;
 use crate::job::Job;
-use crate::mesh::{Mesh, Topology};
+use crate::mesh::Mesh;
 use glam::Vec3;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -193,7 +193,7 @@ pub fn run(
             let gpu_total = median(totals.clone());
             let mut cpu_ms = None;
             if (n as u64) * (side as u64).pow(2) <= opts.cpu_budget {
-                let topo = Topology::build(&loaded.mesh, crate::mesh::DEFAULT_WELD_TOLERANCE);
+                let topo = &loaded.topo;
                 let images: Vec<(LinearImage, Option<LinearImage>)> = job
                     .layers
                     .iter()
@@ -209,7 +209,7 @@ pub fn run(
                 let t = Instant::now();
                 let _ = crate::compose_cpu::bake_cpu(
                     &loaded.mesh,
-                    &topo,
+                    topo,
                     &job,
                     &placements,
                     &base,

@@ -117,6 +117,7 @@ pub fn bake_cpu(
         }
     }
     let mut selected = Vec::new();
+    let curvature = crate::geodesic::gaussian_curvature(topo);
     for (li, layer) in job.layers.iter().enumerate() {
         let frame = Frame::new(&placements[li], layer);
         let coords = match layer.method {
@@ -126,8 +127,8 @@ pub fn bake_cpu(
                     radius: frame.expmap_radius(),
                     curvature_stop: layer.curvature_stop,
                 };
-                let k = crate::geodesic::gaussian_curvature(topo);
-                let map = crate::geodesic::dem_cpu(topo, &frame.seed(&placements[li]), opts, &k);
+                let map =
+                    crate::geodesic::dem_cpu(topo, &frame.seed(&placements[li]), opts, &curvature);
                 map.dist
                     .iter()
                     .zip(&map.uv)

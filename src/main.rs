@@ -99,14 +99,13 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Demo { out } => demo(&out, cli.backend.as_deref()),
         Cmd::Bake { job, out } => {
             let job = Job::load(&job, out.as_deref())?;
-            let engine = Engine::new(cli.backend.as_deref())?;
-            eprintln!("adapter: {}", engine.ctx.adapter);
+            let engine = engine(cli.backend.as_deref())?;
             bake(&engine, &job)
         }
         Cmd::Info { mesh } => info(&mesh),
         Cmd::Param { job, layer, out } => {
             let job = Job::load(&job, None)?;
-            let engine = Engine::new(cli.backend.as_deref())?;
+            let engine = engine(cli.backend.as_deref())?;
             let mesh = engine.load_mesh(&job.mesh)?;
             let rows = engine.layer_param(&mesh, &job, layer)?;
             let mut csv = String::from("x,y,z,distance,u,v\n");
@@ -131,8 +130,7 @@ fn run(cli: Cli) -> Result<()> {
             geodesic,
             batch,
         } => {
-            let engine = Engine::new(cli.backend.as_deref())?;
-            eprintln!("adapter: {}", engine.ctx.adapter);
+            let engine = engine(cli.backend.as_deref())?;
             let opts = decalbake::bench::BenchOptions {
                 mesh,
                 subdivide,
@@ -149,6 +147,13 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// A headless engine, its adapter named on stderr.
+fn engine(backend: Option<&str>) -> Result<Engine> {
+    let engine = Engine::new(backend)?;
+    eprintln!("adapter: {}", engine.ctx.adapter);
+    Ok(engine)
 }
 
 fn bake(engine: &Engine, job: &Job) -> Result<()> {
@@ -181,8 +186,7 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
     let job_path = out.join("job.json");
     decalbake::image_io::write_atomic(&job_path, decalbake::demo::job_json().as_bytes())?;
     let job = Job::load(&job_path, None)?;
-    let engine = Engine::new(backend)?;
-    eprintln!("adapter: {}", engine.ctx.adapter);
+    let engine = engine(backend)?;
     bake(&engine, &job)?;
     eprintln!(
         "demo written to {} (edit job.json and run `decalbake bake {}` to re-bake)",

@@ -69,6 +69,20 @@ fn layout(
     })
 }
 
+/// The pipeline layout (one bind group) and shader module of kernel or pipeline `name`.
+fn layout_and_module(
+    device: &wgpu::Device,
+    name: &str,
+    layout: &wgpu::BindGroupLayout,
+) -> (wgpu::PipelineLayout, wgpu::ShaderModule) {
+    let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(name),
+        bind_group_layouts: &[Some(layout)],
+        immediate_size: 0,
+    });
+    (pl, shaders::module(device, name))
+}
+
 /// A compute pipeline and its bind-group layout.
 pub struct Kernel {
     /// The pipeline.
@@ -80,12 +94,7 @@ pub struct Kernel {
 impl Kernel {
     fn new(device: &wgpu::Device, name: &str, binds: &[(u32, Bind)]) -> Self {
         let layout = layout(device, name, binds, wgpu::ShaderStages::COMPUTE);
-        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some(name),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let module = shaders::module(device, name);
+        let (pl, module) = layout_and_module(device, name, &layout);
         let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some(name),
             layout: Some(&pl),
@@ -429,12 +438,7 @@ fn raster(
     depth: Option<wgpu::DepthStencilState>,
     samples: u32,
 ) -> Raster {
-    let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some(name),
-        bind_group_layouts: &[Some(&layout)],
-        immediate_size: 0,
-    });
-    let module = shaders::module(device, name);
+    let (pl, module) = layout_and_module(device, name, &layout);
     let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(name),
         layout: Some(&pl),
