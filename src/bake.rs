@@ -215,6 +215,11 @@ impl Engine {
         })
     }
 
+    /// The engine's compiled pipelines (for the linear-algebra entry points).
+    pub fn pipelines(&self) -> &Pipelines {
+        &self.pipes
+    }
+
     /// Loads a mesh file, welds it and uploads it.
     pub fn load_mesh(&self, path: &Path) -> Result<LoadedMesh> {
         let t0 = Instant::now();

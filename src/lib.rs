@@ -24,5 +24,8 @@ pub mod demo;
 pub mod geodesic;
 pub mod geodesic_gpu;
 pub mod glb;
+pub mod linalg_gpu;
+pub mod lscm;
 pub mod output;
 pub mod preview;
+pub mod sparse;

@@ -176,6 +176,16 @@ pub struct Pipelines {
     pub expmap_relax: Kernel,
     /// Per-layer distortion partials.
     pub distortion: Kernel,
+    /// Batched Jacobi-preconditioned conjugate gradient.
+    pub cg_batched: Kernel,
+    /// CSR sparse matrix-vector product.
+    pub spmv: Kernel,
+    /// Batched dot products and norms.
+    pub dot_batched: Kernel,
+    /// Streaming copy (bandwidth reference).
+    pub copy: Kernel,
+    /// Chart coordinates into coords slots.
+    pub chart_scatter: Kernel,
     /// Preview.
     pub preview: Raster,
     /// Whether the layer target blends premultiplied source-over within a layer
@@ -402,6 +412,32 @@ impl Pipelines {
                     (6, Rw),
                 ],
             ),
+            cg_batched: Kernel::new(
+                device,
+                "cg_batched",
+                &[
+                    (0, Uniform),
+                    (1, Ro),
+                    (2, Ro),
+                    (3, Ro),
+                    (4, Ro),
+                    (5, Ro),
+                    (6, Ro),
+                    (7, Rw),
+                    (8, Rw),
+                    (9, Rw),
+                    (10, Rw),
+                    (11, Rw),
+                ],
+            ),
+            spmv: Kernel::new(
+                device,
+                "spmv",
+                &[(0, Uniform), (1, Ro), (2, Ro), (3, Ro), (4, Ro), (5, Rw)],
+            ),
+            dot_batched: Kernel::new(device, "dot_batched", &[(0, Ro), (1, Ro), (2, Ro), (3, Rw)]),
+            copy: Kernel::new(device, "copy", &[(0, Uniform), (1, Ro), (2, Rw)]),
+            chart_scatter: Kernel::new(device, "chart_scatter", &[(0, Uniform), (1, Ro), (2, Rw)]),
             expmap_relax: Kernel::new(
                 device,
                 "expmap_relax",

@@ -28,6 +28,11 @@ pub const KERNELS: &[(&str, &str)] = &[
     ("preview", include_str!("../wgsl/preview.wgsl")),
     ("expmap_relax", include_str!("../wgsl/expmap_relax.wgsl")),
     ("distortion", include_str!("../wgsl/distortion.wgsl")),
+    ("cg_batched", include_str!("../wgsl/cg_batched.wgsl")),
+    ("spmv", include_str!("../wgsl/spmv.wgsl")),
+    ("dot_batched", include_str!("../wgsl/dot_batched.wgsl")),
+    ("copy", include_str!("../wgsl/copy.wgsl")),
+    ("chart_scatter", include_str!("../wgsl/chart_scatter.wgsl")),
 ];
 
 /// Shared files that `#import` can name.
@@ -37,6 +42,7 @@ pub const SHARED: &[(&str, &str)] = &[
     ("blend", include_str!("../wgsl/shared/blend.wgsl")),
     ("acc", include_str!("../wgsl/shared/acc.wgsl")),
     ("expmap", include_str!("../wgsl/shared/expmap.wgsl")),
+    ("linalg", include_str!("../wgsl/shared/linalg.wgsl")),
 ];
 
 /// The complete WGSL text of kernel `name`, imports resolved. Panics on an unknown name or import:

@@ -1,0 +1,208 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+// Jacobi-preconditioned conjugate gradient, batched: one workgroup per system of a block-diagonal CSR
+// matrix, `round.iters` iterations per dispatch (sized by the host to stay under lavapipe's loop
+// cut-off), all state kept in buffers between dispatches so a solve spans as many dispatches as it
+// needs with no read-back in between. Each iteration is fused: SpMV + <p, Ap> in one pass, the
+// updates of x, r and z plus <r, z> and <r, r> in the next, then p; every REPLACE iterations, and
+// before declaring convergence, the residual is recomputed as b - A x so that f32 drift cannot fake
+// convergence. Status per system: 0 = not started, 1 = running, 2 = converged, 3 = iteration budget
+// spent (not converged), 4 = breakdown (NaN/Inf seen, or <p, Ap> <= 0: the matrix is not SPD).
+// Dispatch: (systems, 1, 1). CPU twin: `sparse::pcg` in src/sparse.rs (f64).
+#import linalg
+
+const REPLACE: u32 = 50u;
+const ST_INIT: u32 = 0u;
+const ST_RUN: u32 = 1u;
+const ST_DONE: u32 = 2u;
+const ST_BUDGET: u32 = 3u;
+const ST_BREAK: u32 = 4u;
+
+// Keep in sync with `CgRound` in src/linalg_gpu.rs.
+struct Round {
+    iters: u32,
+    // First system of this dispatch (dispatches cover at most 65535 systems each).
+    base: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+// Keep in sync with `CgState` in src/linalg_gpu.rs.
+struct State {
+    status: u32,
+    iters: u32,
+    pad0: u32,
+    pad1: u32,
+    rz: f32,
+    bnorm: f32,
+    rel_residual: f32,
+    pad2: f32,
+}
+
+@group(0) @binding(0) var<uniform> round: Round;
+@group(0) @binding(1) var<storage, read> systems: array<System>;
+@group(0) @binding(2) var<storage, read> row_ptr: array<u32>;
+@group(0) @binding(3) var<storage, read> cols: array<u32>;
+@group(0) @binding(4) var<storage, read> vals: array<f32>;
+@group(0) @binding(5) var<storage, read> b: array<f32>;
+@group(0) @binding(6) var<storage, read> dinv: array<f32>;
+@group(0) @binding(7) var<storage, read_write> x: array<f32>;
+@group(0) @binding(8) var<storage, read_write> r: array<f32>;
+@group(0) @binding(9) var<storage, read_write> p: array<f32>;
+@group(0) @binding(10) var<storage, read_write> ap: array<f32>;
+@group(0) @binding(11) var<storage, read_write> state: array<State>;
+
+var<workgroup> wg_status: u32;
+var<workgroup> wg_iters: u32;
+
+fn a_times_p(i: u32) -> f32 {
+    var s = 0.0;
+    for (var k = row_ptr[i]; k < row_ptr[i + 1u]; k++) {
+        s += vals[k] * p[cols[k]];
+    }
+    return s;
+}
+
+fn a_times_x(i: u32) -> f32 {
+    var s = 0.0;
+    for (var k = row_ptr[i]; k < row_ptr[i + 1u]; k++) {
+        s += vals[k] * x[cols[k]];
+    }
+    return s;
+}
+
+fn finite(v: f32) -> bool {
+    return abs(v) <= 3.0e38;
+}
+
+// r = b - A x and z = D^-1 r for this invocation's rows; returns (<r, z>, <r, r>, <b, b>, 0) partials.
+// With `set_p`, also p = z (the start of a solve).
+fn true_residual(row0: u32, n: u32, lid: u32, set_p: bool) -> vec4<f32> {
+    var part = vec4<f32>(0.0);
+    for (var i = row0 + lid; i < row0 + n; i += WG) {
+        let ri = b[i] - a_times_x(i);
+        r[i] = ri;
+        let zi = dinv[i] * ri;
+        if (set_p) {
+            p[i] = zi;
+        }
+        part += vec4<f32>(ri * zi, ri * ri, b[i] * b[i], 0.0);
+    }
+    return part;
+}
+
+@compute @workgroup_size(256)
+fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let s = round.base + wid.x;
+    let sys = systems[s];
+    let row0 = sys.row0;
+    let n = sys.n;
+    var st = state[s];
+    if (lid == 0u) {
+        wg_status = st.status;
+        wg_iters = st.iters;
+    }
+    var status = workgroupUniformLoad(&wg_status);
+    var iters = workgroupUniformLoad(&wg_iters);
+    if (status == ST_INIT) {
+        let t = reduce4(true_residual(row0, n, lid, true), lid);
+        st.rz = t.x;
+        st.bnorm = sqrt(t.z);
+        iters = 0u;
+        if (lid == 0u) {
+            var next = ST_RUN;
+            if (!finite(t.x) || !finite(t.y) || !finite(t.z)) {
+                next = ST_BREAK;
+                st.rel_residual = 3.0e38;
+            } else if (t.z == 0.0) {
+                // b = 0: the answer is x = 0.
+                next = ST_DONE;
+                st.rel_residual = 0.0;
+            } else {
+                st.rel_residual = sqrt(t.y) / st.bnorm;
+                if (st.rel_residual <= sys.rtol) {
+                    next = ST_DONE;
+                }
+            }
+            wg_status = next;
+        }
+        status = workgroupUniformLoad(&wg_status);
+        if (status == ST_DONE && st.bnorm == 0.0) {
+            for (var i = row0 + lid; i < row0 + n; i += WG) {
+                x[i] = 0.0;
+            }
+        }
+        storageBarrier();
+    }
+    for (var k = 0u; k < round.iters; k++) {
+        if (status != ST_RUN) {
+            break;
+        }
+        if (iters >= sys.max_iter) {
+            if (lid == 0u) {
+                wg_status = ST_BUDGET;
+            }
+            status = workgroupUniformLoad(&wg_status);
+            break;
+        }
+        // q = A p and <p, q>.
+        var part = vec4<f32>(0.0);
+        for (var i = row0 + lid; i < row0 + n; i += WG) {
+            let q = a_times_p(i);
+            ap[i] = q;
+            part.x += p[i] * q;
+        }
+        let pap = reduce4(part, lid).x;
+        let alpha = st.rz / pap;
+        iters += 1u;
+        let replace = (iters % REPLACE) == 0u;
+        part = vec4<f32>(0.0);
+        for (var i = row0 + lid; i < row0 + n; i += WG) {
+            x[i] += alpha * p[i];
+            let ri = r[i] - alpha * ap[i];
+            r[i] = ri;
+            part += vec4<f32>(dinv[i] * ri * ri, ri * ri, 0.0, 0.0);
+        }
+        if (replace) {
+            storageBarrier();
+            part = true_residual(row0, n, lid, false);
+        }
+        var t = reduce4(part, lid);
+        // Converged by the recursive residual: confirm with the true one before stopping.
+        if (lid == 0u) {
+            var next = ST_RUN;
+            if (!(pap > 0.0) || !finite(pap) || !finite(t.x) || !finite(t.y)) {
+                next = ST_BREAK;
+            } else if (sqrt(t.y) <= sys.rtol * st.bnorm) {
+                next = ST_DONE;
+            }
+            wg_status = next;
+        }
+        status = workgroupUniformLoad(&wg_status);
+        if (status == ST_DONE && !replace) {
+            storageBarrier();
+            t = reduce4(true_residual(row0, n, lid, false), lid);
+            if (lid == 0u) {
+                wg_status = select(ST_RUN, ST_DONE, sqrt(t.y) <= sys.rtol * st.bnorm);
+            }
+            status = workgroupUniformLoad(&wg_status);
+        }
+        st.rel_residual = sqrt(t.y) / st.bnorm;
+        if (status != ST_RUN) {
+            break;
+        }
+        let beta = t.x / st.rz;
+        st.rz = t.x;
+        for (var i = row0 + lid; i < row0 + n; i += WG) {
+            p[i] = dinv[i] * r[i] + beta * p[i];
+        }
+        storageBarrier();
+    }
+    if (status == ST_RUN && iters >= sys.max_iter) {
+        status = ST_BUDGET;
+    }
+    if (lid == 0u) {
+        st.status = status;
+        st.iters = iters;
+        state[s] = st;
+    }
+}
