@@ -935,7 +935,9 @@ impl Engine {
         let coords = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("bake.coords"),
             size: (chunk as u64 * g.vertex_count as u64 * 16).max(16),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_DST
+                | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
         let lists = dev.create_buffer(&wgpu::BufferDescriptor {
@@ -970,14 +972,14 @@ impl Engine {
                 p.opacity = l.opacity;
                 p.flags = match l.method {
                     Method::Planar => FLAG_FACING,
-                    Method::Expmap => 0,
+                    Method::Expmap | Method::Lscm | Method::Hybrid => 0,
                 } | if l.mask.is_some() { FLAG_MASK } else { 0 };
                 lp.push(p);
             }
             let layer_params = params_buffer(dev, "bake.layer_params", &lp);
             // Exponential maps of this chunk: one dispatch, one workgroup per decal.
             let geo_layers: Vec<usize> = (start..end)
-                .filter(|&i| job.layers[i].method == Method::Expmap)
+                .filter(|&i| matches!(job.layers[i].method, Method::Expmap | Method::Hybrid))
                 .collect();
             let geo_maps: Vec<_> = geo_layers
                 .iter()
@@ -993,6 +995,119 @@ impl Engine {
             let (geo_stats, geo_dispatches) =
                 crate::geodesic_gpu::run(&self.ctx, pipes, g, &geo_jobs, &geo_cands, &coords)?;
             commands += geo_dispatches;
+            // Conformal charts of this chunk (LSCM and hybrid), solved in batches on the GPU, then
+            // written into their coords slots.
+            let chart_layers: Vec<usize> = (start..end)
+                .filter(|&i| matches!(job.layers[i].method, Method::Lscm | Method::Hybrid))
+                .collect();
+            let mut chart_reports: HashMap<usize, crate::chart::ChartReport> = HashMap::new();
+            if !chart_layers.is_empty() {
+                let t = Instant::now();
+                let nv = g.vertex_count as u64;
+                let mut expmaps: HashMap<usize, Vec<[f32; 4]>> = HashMap::new();
+                for &i in &chart_layers {
+                    if job.layers[i].method == Method::Hybrid {
+                        let bytes = self.ctx.read_buffer_range(
+                            &coords,
+                            (i - start) as u64 * nv * 16,
+                            nv * 16,
+                            "hybrid exponential-map read-back",
+                        )?;
+                        expmaps.insert(i, bytemuck::cast_slice(&bytes).to_vec());
+                    }
+                }
+                let requests: Vec<crate::chart::ChartRequest> = chart_layers
+                    .iter()
+                    .map(|&i| crate::chart::ChartRequest {
+                        frame: frames[i],
+                        triangle: placements[i].triangle,
+                        kind: match expmaps.get(&i) {
+                            Some(m) => crate::chart::ChartKind::Hybrid {
+                                expmap: m,
+                                threshold: job.layers[i].hybrid_threshold,
+                            },
+                            None => crate::chart::ChartKind::Lscm,
+                        },
+                        max_iter: job.layers[i].cg_max_iterations,
+                    })
+                    .collect();
+                let mut solve_stats = crate::chart::SolveStats::default();
+                let charts = crate::chart::build(
+                    &mesh.topo,
+                    &requests,
+                    &crate::chart::Solver::Gpu(self),
+                    &mut solve_stats,
+                )?;
+                commands += solve_stats.dispatches;
+                let mut items: Vec<[u32; 8]> = Vec::new();
+                for (&i, chart) in chart_layers.iter().zip(&charts) {
+                    let r = chart.report;
+                    if r.status != crate::sparse::CgStatus::Converged {
+                        return Err(Error::Placement {
+                            path: job.source.clone(),
+                            layer: i,
+                            detail: format!(
+                                "the conformal chart ({} triangles) did not converge: {:?} after {} conjugate-gradient iterations, relative residual {:.2e} (target {:.0e}); raise `cg_max_iterations`, make the decal smaller, or use \"expmap\"",
+                                r.triangles, r.status, r.cg_iterations, r.residual, crate::chart::FINAL_RTOL
+                            ),
+                        });
+                    }
+                    chart_reports.insert(i, r);
+                    let base = (i - start) as u64 * nv;
+                    for &(v, c) in &chart.coords {
+                        let value = [c[0], c[1], 0.0, 1.0];
+                        let mut item = [0u32; 8];
+                        item[0] = (base + v as u64) as u32;
+                        item[4..].copy_from_slice(bytemuck::cast_slice(&value));
+                        items.push(item);
+                    }
+                }
+                self.ctx.scoped("chart coordinates", || {
+                    let items_buf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("bake.chart_items"),
+                        contents: bytemuck::cast_slice(if items.is_empty() {
+                            &[[0u32; 8]][..]
+                        } else {
+                            &items
+                        }),
+                        usage: wgpu::BufferUsages::STORAGE,
+                    });
+                    let dims = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("bake.chart_dims"),
+                        contents: bytemuck::cast_slice(&[items.len() as u32, 0, 0, 0]),
+                        usage: wgpu::BufferUsages::UNIFORM,
+                    });
+                    let bg = pipes.chart_scatter.bind(
+                        dev,
+                        "bake.chart_scatter",
+                        &[
+                            (0, dims.as_entire_binding()),
+                            (1, items_buf.as_entire_binding()),
+                            (2, coords.as_entire_binding()),
+                        ],
+                    );
+                    let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some("bake.charts"),
+                    });
+                    for &i in &chart_layers {
+                        if job.layers[i].method == Method::Lscm {
+                            enc.clear_buffer(&coords, (i - start) as u64 * nv * 16, Some(nv * 16));
+                        }
+                    }
+                    {
+                        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                            label: Some("bake.chart_scatter"),
+                            timestamp_writes: None,
+                        });
+                        pass.set_pipeline(&pipes.chart_scatter.pipeline);
+                        pass.set_bind_group(0, &bg, &[]);
+                        pass.dispatch_workgroups((items.len() as u32).div_ceil(64).max(1), 1, 1);
+                    }
+                    self.ctx.queue.submit([enc.finish()]);
+                })?;
+                commands += 1;
+                timings.charts_ms += ms(t);
+            }
             self.ctx.scoped("layer coordinates", || {
                 let bg_planar = pipes.planar_coords.bind(
                     dev,
@@ -1034,7 +1149,7 @@ impl Engine {
                                 pass.dispatch_workgroups(g.vertex_count.div_ceil(64), 1, 1);
                                 commands += 1;
                             }
-                            Method::Expmap => {}
+                            Method::Expmap | Method::Lscm | Method::Hybrid => {}
                         }
                         pass.set_pipeline(&pipes.select_triangles.pipeline);
                         pass.set_bind_group(0, &bg_select, &[off]);
@@ -1078,6 +1193,7 @@ impl Engine {
                         .iter()
                         .position(|&g| g == i)
                         .map(|k| geo_stats[k]),
+                    chart: chart_reports.get(&i).copied(),
                 });
                 if let Some(gs) = geo_layers
                     .iter()
@@ -1670,6 +1786,57 @@ impl Engine {
                         });
                     }
                 }
+            }
+            Method::Lscm | Method::Hybrid => {
+                let expmap = if layer.method == Method::Hybrid {
+                    let opts = crate::geodesic::Options {
+                        radius: frame.expmap_radius(),
+                        curvature_stop: layer.curvature_stop,
+                    };
+                    crate::geodesic_gpu::expmaps_gpu(self, mesh, &[(frame.seed(&placement), opts)])?
+                        .remove(0)
+                        .0
+                } else {
+                    Vec::new()
+                };
+                let req = crate::chart::ChartRequest {
+                    frame,
+                    triangle: placement.triangle,
+                    kind: if layer.method == Method::Hybrid {
+                        crate::chart::ChartKind::Hybrid {
+                            expmap: &expmap,
+                            threshold: layer.hybrid_threshold,
+                        }
+                    } else {
+                        crate::chart::ChartKind::Lscm
+                    },
+                    max_iter: layer.cg_max_iterations,
+                };
+                let chart = crate::chart::build(
+                    topo,
+                    &[req],
+                    &crate::chart::Solver::Gpu(self),
+                    &mut Default::default(),
+                )?
+                .remove(0);
+                let mut uv: HashMap<u32, [f32; 2]> = chart.coords.into_iter().collect();
+                for (v, c) in expmap.iter().enumerate() {
+                    if c[3] > 0.5 {
+                        uv.entry(v as u32).or_insert([c[0], c[1]]);
+                    }
+                }
+                for (v, c) in uv {
+                    let distance = expmap
+                        .get(v as usize)
+                        .map(|e| (e[0] * e[0] + e[1] * e[1]).sqrt());
+                    rows.push(ParamRow {
+                        vertex: v,
+                        position: topo.positions[v as usize].to_array(),
+                        distance,
+                        uv: c,
+                    });
+                }
+                rows.sort_by_key(|r| r.vertex);
             }
             Method::Planar => {
                 let coords = crate::layer::planar_coords(topo, &frame);

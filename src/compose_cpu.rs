@@ -120,20 +120,54 @@ pub fn bake_cpu(
     let curvature = crate::geodesic::gaussian_curvature(topo);
     for (li, layer) in job.layers.iter().enumerate() {
         let frame = Frame::new(&placements[li], layer);
+        let expmap = || -> Vec<[f32; 4]> {
+            let opts = crate::geodesic::Options {
+                radius: frame.expmap_radius(),
+                curvature_stop: layer.curvature_stop,
+            };
+            let map =
+                crate::geodesic::dem_cpu(topo, &frame.seed(&placements[li]), opts, &curvature);
+            map.dist
+                .iter()
+                .zip(&map.uv)
+                .map(|(d, uv)| [uv[0], uv[1], *d, if d.is_finite() { 1.0 } else { 0.0 }])
+                .collect()
+        };
         let coords = match layer.method {
             Method::Planar => planar_coords(topo, &frame),
-            Method::Expmap => {
-                let opts = crate::geodesic::Options {
-                    radius: frame.expmap_radius(),
-                    curvature_stop: layer.curvature_stop,
+            Method::Expmap => expmap(),
+            Method::Lscm | Method::Hybrid => {
+                let mut coords = if layer.method == Method::Hybrid {
+                    expmap()
+                } else {
+                    vec![[0.0; 4]; topo.positions.len()]
                 };
-                let map =
-                    crate::geodesic::dem_cpu(topo, &frame.seed(&placements[li]), opts, &curvature);
-                map.dist
-                    .iter()
-                    .zip(&map.uv)
-                    .map(|(d, uv)| [uv[0], uv[1], *d, if d.is_finite() { 1.0 } else { 0.0 }])
-                    .collect()
+                let kind = if layer.method == Method::Hybrid {
+                    crate::chart::ChartKind::Hybrid {
+                        expmap: &coords,
+                        threshold: layer.hybrid_threshold,
+                    }
+                } else {
+                    crate::chart::ChartKind::Lscm
+                };
+                let req = crate::chart::ChartRequest {
+                    frame,
+                    triangle: placements[li].triangle,
+                    kind,
+                    max_iter: layer.cg_max_iterations,
+                };
+                let chart = crate::chart::build(
+                    topo,
+                    &[req],
+                    &crate::chart::Solver::Cpu,
+                    &mut Default::default(),
+                )
+                .expect("the CPU solver does not fail")
+                .remove(0);
+                for (v, c) in chart.coords {
+                    coords[v as usize] = [c[0], c[1], 0.0, 1.0];
+                }
+                coords
             }
         };
         let facing = layer.method == Method::Planar;

@@ -184,6 +184,17 @@ impl GpuContext {
 
     /// Copies `size` bytes of `src` (which needs `COPY_SRC`) to the CPU. One submit and one wait.
     pub fn read_buffer(&self, src: &wgpu::Buffer, size: u64, stage: &str) -> Result<Vec<u8>> {
+        self.read_buffer_range(src, 0, size, stage)
+    }
+
+    /// Copies `size` bytes of `src` from `offset` (both multiples of 4) to the CPU.
+    pub fn read_buffer_range(
+        &self,
+        src: &wgpu::Buffer,
+        offset: u64,
+        size: u64,
+        stage: &str,
+    ) -> Result<Vec<u8>> {
         let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("decalbake.readback"),
             size,
@@ -191,7 +202,7 @@ impl GpuContext {
             mapped_at_creation: false,
         });
         let mut enc = self.device.create_command_encoder(&Default::default());
-        enc.copy_buffer_to_buffer(src, 0, &staging, 0, size);
+        enc.copy_buffer_to_buffer(src, offset, &staging, 0, size);
         self.queue.submit([enc.finish()]);
         self.map_and_read(&staging, stage)
     }

@@ -181,6 +181,14 @@ pub struct LayerSpec {
     /// Expmap: halt propagation at vertices whose |Gaussian curvature| exceeds this (partial decals).
     #[serde(default)]
     pub curvature_stop: Option<f32>,
+    /// Hybrid: triangles of the exponential map whose angle distortion (s1 / s2) exceeds this are
+    /// re-solved conformally (default 1.1).
+    #[serde(default)]
+    pub hybrid_threshold: Option<f32>,
+    /// LSCM / hybrid: conjugate-gradient iteration budget of the final solve (default grows with the
+    /// chart: 50 sqrt(unknowns) + 500).
+    #[serde(default)]
+    pub cg_max_iterations: Option<u32>,
 }
 
 fn default_kind() -> String {
@@ -253,6 +261,11 @@ pub enum Method {
     Planar,
     /// Discrete exponential map around the placed point (Schmidt et al. 2006): follows the surface.
     Expmap,
+    /// Local least-squares conformal chart (Maillot; Levy et al. 2002): keeps angles.
+    Lscm,
+    /// Exponential map with its most distorted triangles re-solved conformally (Schmidt et al.
+    /// 2006, section 5.1).
+    Hybrid,
 }
 
 impl Method {
@@ -260,11 +273,10 @@ impl Method {
         match s {
             "planar" => Ok(Method::Planar),
             "expmap" => Ok(Method::Expmap),
-            "lscm" | "hybrid" => Err(format!(
-                "method \"{s}\" is not available in this build yet; use \"expmap\" or \"planar\""
-            )),
+            "lscm" => Ok(Method::Lscm),
+            "hybrid" => Ok(Method::Hybrid),
             other => Err(format!(
-                "unknown method \"{other}\"; use \"expmap\" or \"planar\""
+                "unknown method \"{other}\"; use \"planar\", \"expmap\", \"lscm\" or \"hybrid\""
             )),
         }
     }
@@ -295,6 +307,10 @@ pub struct Layer {
     pub depth: f32,
     /// Expmap curvature stop (`f32::INFINITY` = off).
     pub curvature_stop: f32,
+    /// Hybrid re-solve threshold on s1 / s2.
+    pub hybrid_threshold: f32,
+    /// LSCM / hybrid final-solve iteration budget (`None` = automatic).
+    pub cg_max_iterations: Option<u32>,
 }
 
 /// Texture base after validation.
@@ -506,6 +522,22 @@ impl Job {
                 Some(d) => d,
                 None => 0.5 * l.size[0].max(l.size[1]),
             };
+            let hybrid_threshold = match l.hybrid_threshold {
+                Some(k) if !k.is_finite() || k < 1.0 => {
+                    return Err(err(
+                        &field("hybrid_threshold"),
+                        format!("{k} must be at least 1 (a ratio of singular values, s1 / s2)"),
+                    ))
+                }
+                Some(k) => k,
+                None => 1.1,
+            };
+            if l.cg_max_iterations == Some(0) {
+                return Err(err(
+                    &field("cg_max_iterations"),
+                    "must be at least 1 (leave it out for the automatic budget)".into(),
+                ));
+            }
             layers.push(Layer {
                 image: input_dir.join(&l.image),
                 mask: l.mask.as_ref().map(|m| input_dir.join(m)),
@@ -518,6 +550,8 @@ impl Job {
                 opacity: l.opacity,
                 depth,
                 curvature_stop,
+                hybrid_threshold,
+                cg_max_iterations: l.cg_max_iterations,
             });
         }
         let out = |p: &Option<PathBuf>| p.as_ref().map(|p| output_dir.join(p));

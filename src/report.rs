@@ -65,6 +65,8 @@ pub struct LayerReport {
     pub distortion: crate::layer::Distortion,
     /// Exponential-map layers: relaxation sweeps, vertices reached, convergence.
     pub expmap: Option<crate::geodesic_gpu::GeoResult>,
+    /// LSCM / hybrid: the conformal chart's solve (triangles, rounds, CG iterations, residual, status).
+    pub chart: Option<crate::chart::ChartReport>,
 }
 
 /// Time per stage, milliseconds.
@@ -80,6 +82,8 @@ pub struct Timings {
     pub images_ms: f64,
     /// Placement on the GPU.
     pub placement_ms: f64,
+    /// Conformal charts (selection, refinement, GPU solves), included in `compose_ms`.
+    pub charts_ms: f64,
     /// Base, island mask, layer coordinates, selection, raster and compose.
     pub compose_ms: f64,
     /// Padding (distance transform and fill).

@@ -1,0 +1,356 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Local conformal charts (Maillot; Levy et al. 2002) and hybrid decals (Schmidt et al. 2006 §5.1):
+//! a plane is reproduced exactly (up to f32), the GPU solve reaches the f64 twin's optimum on a real
+//! model, charts on disc-shaped patches have no flipped triangles, conformal decals keep angles better
+//! than exponential maps on a curved model, and a solve that cannot converge fails the bake with a
+//! message naming the layer.
+
+mod common;
+use common::*;
+use decalbake::chart::{self, ChartKind, ChartRequest, Solver};
+use decalbake::layer::Frame;
+use decalbake::linalg_gpu::{cg_batched, SystemDesc};
+use decalbake::lscm;
+use decalbake::mesh::{Mesh, Topology};
+use decalbake::place::{place_cpu, Query};
+use glam::Vec3;
+use std::path::Path;
+
+fn spot() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb")
+}
+
+/// The decal frame of a layer `size` at the surface point nearest `at`, image up along `up`.
+fn frame_at(topo: &Topology, at: Vec3, up: [f32; 3], size: [f32; 2]) -> (Frame, u32) {
+    let p = place_cpu(topo, Query::Point(at));
+    let job_layer: decalbake::job::Layer = decalbake::job::Layer {
+        image: "x.png".into(),
+        mask: None,
+        at: decalbake::job::AtSpec::Point(at.to_array()),
+        size,
+        angle: 0.0,
+        up,
+        method: decalbake::job::Method::Lscm,
+        blend: decalbake::blend::BlendMode::Normal,
+        opacity: 1.0,
+        depth: 1.0,
+        curvature_stop: f32::INFINITY,
+        hybrid_threshold: 1.1,
+        cg_max_iterations: None,
+    };
+    (Frame::new(&p, &job_layer), p.triangle)
+}
+
+/// A tilted, jittered planar grid: the chart must be the plane itself (the normalisation fixes
+/// position, rotation and scale), up to f32 rounding and the CG tolerance (1e-5 relative residual):
+/// bound 2e-4 of the decal size.
+#[test]
+fn planar_patch_is_reproduced() {
+    let n = 30u32;
+    let (ex, ey) = (Vec3::new(0.8, 0.0, 0.6), Vec3::new(0.0, 1.0, 0.0));
+    let mut pos = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            let jit = if i % n != 0 && j % n != 0 {
+                0.3 * (((i * 13 + j * 7) % 11) as f32 / 11.0 - 0.5) / n as f32
+            } else {
+                0.0
+            };
+            let (x, y) = (i as f32 / n as f32 + jit, j as f32 / n as f32 - 0.5 * jit);
+            pos.push(ex * x + ey * y + Vec3::new(1.0, -2.0, 3.0));
+        }
+    }
+    let mut tris = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            let a = j * (n + 1) + i;
+            tris.push([a, a + 1, a + n + 2]);
+            tris.push([a, a + n + 2, a + n + 1]);
+        }
+    }
+    let normals = vec![ex.cross(ey); pos.len()];
+    let mesh = Mesh {
+        source: "plane".into(),
+        uv_sets: vec![vec![glam::Vec2::ZERO; pos.len()]],
+        positions: pos,
+        normals,
+        triangles: tris,
+        primitives: vec![],
+        material: None,
+    };
+    let engine = engine();
+    let loaded = engine.prepare(mesh).unwrap();
+    let topo = &loaded.topo;
+    let at = ex * 0.47 + ey * 0.52 + Vec3::new(1.0, -2.0, 3.0);
+    let size = [0.4, 0.3];
+    let (frame, tri) = frame_at(topo, at, [0.3, 1.0, 0.0], size);
+    let req = ChartRequest {
+        frame,
+        triangle: tri,
+        kind: ChartKind::Lscm,
+        max_iter: None,
+    };
+    let mut stats = Default::default();
+    let c = &chart::build(topo, &[req], &Solver::Gpu(&engine), &mut stats).unwrap()[0];
+    eprintln!("plane chart: {:?}, {stats:?}", c.report);
+    assert_eq!(c.report.status, decalbake::sparse::CgStatus::Converged);
+    let mut worst = 0.0f32;
+    for &(v, uv) in &c.coords {
+        let d = topo.positions[v as usize] - frame.center;
+        let want = [d.dot(frame.axis_u), d.dot(frame.axis_v)];
+        worst = worst.max((uv[0] - want[0]).abs().max((uv[1] - want[1]).abs()));
+    }
+    eprintln!("max |chart - plane| = {worst:.2e} (decal 0.4 x 0.3)");
+    assert!(worst <= 2e-4 * 0.5, "plane not reproduced: {worst}");
+    // The chart covers the decal: every corner of the rectangle lies in some chart triangle.
+    assert!(c.report.triangles > 50);
+}
+
+/// Spot, curved region: the GPU (f32) solve of the final chart's system reaches the f64 twin's
+/// optimum. The energy excess E(x) - E(x*) equals (x - x*)ᵀ Q (x - x*), second order in the
+/// error, so a 1e-5 residual gives a relative excess far below 1e-3, the stated bound. The chart
+/// has no flipped triangles.
+#[test]
+fn spot_chart_matches_cpu_optimum_without_flips() {
+    let engine = engine();
+    let loaded = engine
+        .prepare(Mesh::load(&spot()).unwrap().subdivide())
+        .unwrap();
+    let topo = &loaded.topo;
+    for (at, size) in [
+        (Vec3::new(0.33, 0.0, 0.45), [0.3f32, 0.3f32]),
+        (Vec3::new(0.0, 0.6, 0.0), [0.35, 0.25]),
+    ] {
+        let (frame, tri) = frame_at(topo, at, [0.0, 1.0, 0.0], size);
+        let req = ChartRequest {
+            frame,
+            triangle: tri,
+            kind: ChartKind::Lscm,
+            max_iter: None,
+        };
+        let mut stats = Default::default();
+        let c = &chart::build(topo, &[req], &Solver::Gpu(&engine), &mut stats).unwrap()[0];
+        eprintln!("{at}: {:?}", c.report);
+        assert_eq!(c.report.status, decalbake::sparse::CgStatus::Converged);
+        let uv: std::collections::HashMap<u32, [f32; 2]> = c.coords.iter().copied().collect();
+        let mut flipped = 0;
+        for &t in &c.triangles {
+            let z = topo.triangles[t as usize].map(|v| glam::Vec2::from(uv[&v]));
+            if (z[1] - z[0]).perp_dot(z[2] - z[0]) <= 0.0 {
+                flipped += 1;
+            }
+        }
+        assert_eq!(flipped, 0, "flipped triangles in the chart at {at}");
+
+        // Same system, two pins, solved by both.
+        let verts: Vec<u32> = {
+            let mut v: Vec<u32> = c
+                .triangles
+                .iter()
+                .flat_map(|&t| topo.triangles[t as usize])
+                .collect();
+            v.sort_unstable();
+            v.dedup();
+            v
+        };
+        let lo = *verts
+            .iter()
+            .min_by(|a, b| uv[a][0].total_cmp(&uv[b][0]))
+            .unwrap();
+        let hi = *verts
+            .iter()
+            .max_by(|a, b| uv[a][0].total_cmp(&uv[b][0]))
+            .unwrap();
+        let pin = |v: u32| [uv[&v][0] as f64, uv[&v][1] as f64];
+        let sys = lscm::assemble(topo, &c.triangles, &[(lo, pin(lo)), (hi, pin(hi))], &|v| {
+            pin(v)
+        });
+        let x0: Vec<f64> = sys.vertices.iter().flat_map(|&v| pin(v)).collect();
+        let zero = vec![0.0; x0.len()];
+        let (xc, rep) = lscm::solve_cpu(&sys, &zero);
+        assert_eq!(rep.status, decalbake::sparse::CgStatus::Converged);
+        let g = cg_batched(
+            &engine.ctx,
+            engine.pipelines(),
+            &sys.matrix,
+            &sys.rhs,
+            &zero,
+            &[SystemDesc::new(
+                0,
+                sys.matrix.rows,
+                chart::FINAL_RTOL,
+                20_000,
+            )],
+        )
+        .unwrap();
+        let energy = |x: &[f64]| {
+            lscm::conformal_energy(topo, &sys.triangles, |v| {
+                let i = sys.local[&v] as usize;
+                [x[2 * i], x[2 * i + 1]]
+            })
+        };
+        let xg: Vec<f64> = g.x.iter().map(|&v| v as f64).collect();
+        let (eg, ec) = (energy(&xg), energy(&xc));
+        let (img, surf) = lscm::areas(topo, &sys.triangles, |v| {
+            let i = sys.local[&v] as usize;
+            [xc[2 * i], xc[2 * i + 1]]
+        });
+        eprintln!(
+            "{at}: {} unknowns, gpu {} its from zero (cpu f64 {}), energy gpu {eg:.6e} cpu {ec:.6e} (rel excess {:.2e}); chart area {img:.4} surface {surf:.4}",
+            sys.matrix.rows, g.reports[0].iterations, rep.iterations, (eg - ec) / ec
+        );
+        assert_eq!(g.reports[0].status, decalbake::sparse::CgStatus::Converged);
+        assert!((eg - ec) / ec <= 1e-3, "gpu energy {eg} vs optimum {ec}");
+        // Sanity: the optimum is no worse than the warm start (the chart the bake used).
+        assert!(ec <= energy(&x0) * (1.0 + 1e-6));
+    }
+}
+
+fn bake_report(dir: &Path, layers: serde_json::Value) -> Result<serde_json::Value, String> {
+    std::fs::copy(spot(), dir.join("spot.glb")).unwrap();
+    std::fs::write(
+        dir.join("d.png"),
+        test_image(32, 32, 3, false).encode_png(8),
+    )
+    .unwrap();
+    let job = serde_json::json!({
+        "mesh": "spot.glb",
+        "texture": { "width": 256, "height": 256 },
+        "layers": layers,
+        "output": { "texture": "out.png", "report": "report.json" }
+    });
+    std::fs::write(dir.join("job.json"), serde_json::to_vec(&job).unwrap()).unwrap();
+    let (code, _, err) = cli(&["bake", dir.join("job.json").to_str().unwrap()]);
+    if code != 0 {
+        return Err(err);
+    }
+    Ok(serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap())
+}
+
+/// On Spot's curved back the conformal decals (LSCM, hybrid) have lower mean angle distortion than
+/// the exponential map at the same placement, read from the bake report; LSCM reports its solve.
+#[test]
+fn conformal_decals_keep_angles_better_than_expmap() {
+    let dir = scratch("lscm-distortion");
+    let layer = |m: &str| serde_json::json!({ "image": "d.png", "at": [0.0, 0.6, 0.0], "size": [0.5, 0.4], "method": m, "up": [0, 0, 1] });
+    let rep = bake_report(
+        &dir,
+        serde_json::json!([layer("expmap"), layer("lscm"), layer("hybrid")]),
+    )
+    .unwrap();
+    let ls = rep["layers"].as_array().unwrap();
+    let angle = |i: usize| {
+        ls[i]["distortion"]["angle_distortion_mean"]
+            .as_f64()
+            .unwrap()
+    };
+    let flips = |i: usize| ls[i]["distortion"]["flipped"].as_u64().unwrap();
+    eprintln!(
+        "angle distortion mean: expmap {:.4}, lscm {:.4}, hybrid {:.4}; max: {} {} {}",
+        angle(0),
+        angle(1),
+        angle(2),
+        ls[0]["distortion"]["angle_distortion_max"],
+        ls[1]["distortion"]["angle_distortion_max"],
+        ls[2]["distortion"]["angle_distortion_max"]
+    );
+    eprintln!(
+        "lscm chart: {}\nhybrid chart: {}",
+        ls[1]["chart"], ls[2]["chart"]
+    );
+    assert!(
+        angle(1) < angle(0),
+        "lscm {} vs expmap {}",
+        angle(1),
+        angle(0)
+    );
+    assert!(
+        angle(2) < angle(0),
+        "hybrid {} vs expmap {}",
+        angle(2),
+        angle(0)
+    );
+    assert_eq!(flips(1), 0);
+    assert_eq!(ls[1]["chart"]["status"], "converged");
+    assert!(ls[1]["chart"]["cg_iterations"].as_u64().unwrap() > 0);
+    assert!(ls[1]["chart"]["triangles"].as_u64().unwrap() > 20);
+    assert!(
+        ls[2]["chart"]["triangles"].as_u64().unwrap() > 0,
+        "hybrid re-solved nothing"
+    );
+}
+
+/// A budget too small to converge fails the bake with the layer, the residual and what to do; no
+/// texture is written.
+#[test]
+fn unconverged_chart_fails_the_bake_clearly() {
+    let dir = scratch("lscm-budget");
+    let err = bake_report(
+        &dir,
+        serde_json::json!([
+            { "image": "d.png", "at": [0.0, 0.6, 0.0], "size": [0.5, 0.4], "method": "expmap" },
+            { "image": "d.png", "at": [0.0, 0.6, 0.0], "size": [0.5, 0.4], "method": "lscm", "cg_max_iterations": 2 }
+        ]),
+    )
+    .unwrap_err();
+    eprintln!("{err}");
+    assert!(err.contains("layer 1"), "{err}");
+    assert!(
+        err.contains("did not converge") && err.contains("cg_max_iterations"),
+        "{err}"
+    );
+    assert!(!dir.join("out.png").exists());
+}
+
+/// `decalbake param` exports LSCM charts (no distance) and hybrid maps (expmap distance).
+#[test]
+fn param_exports_conformal_layers() {
+    let dir = scratch("lscm-param");
+    std::fs::copy(spot(), dir.join("spot.glb")).unwrap();
+    std::fs::write(dir.join("d.png"), test_image(8, 8, 2, false).encode_png(8)).unwrap();
+    let job = serde_json::json!({
+        "mesh": "spot.glb",
+        "layers": [
+            { "image": "d.png", "at": [0.0, 0.6, 0.0], "size": [0.3, 0.3], "method": "lscm" },
+            { "image": "d.png", "at": [0.0, 0.6, 0.0], "size": [0.3, 0.3], "method": "hybrid" }
+        ]
+    });
+    std::fs::write(dir.join("job.json"), serde_json::to_vec(&job).unwrap()).unwrap();
+    for (layer, has_distance) in [("0", false), ("1", true)] {
+        let out = dir.join(format!("p{layer}.csv"));
+        let (code, _, err) = cli(&[
+            "param",
+            dir.join("job.json").to_str().unwrap(),
+            "--layer",
+            layer,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 0, "{err}");
+        let text = std::fs::read_to_string(&out).unwrap();
+        let rows: Vec<Vec<&str>> = text
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').collect())
+            .collect();
+        assert!(rows.len() > 20, "{} rows", rows.len());
+        // The row nearest the placed point has coordinates near (0, 0).
+        let best = rows
+            .iter()
+            .map(|f| {
+                let p = Vec3::new(
+                    f[0].parse().unwrap(),
+                    f[1].parse().unwrap(),
+                    f[2].parse().unwrap(),
+                );
+                let uv = glam::Vec2::new(f[4].parse().unwrap(), f[5].parse().unwrap());
+                (p, uv)
+            })
+            .min_by(|a, b| a.1.length().total_cmp(&b.1.length()))
+            .unwrap();
+        assert!(best.1.length() < 0.05, "closest chart point {:?}", best);
+        for f in &rows {
+            assert_eq!(!f[3].is_empty(), has_distance, "layer {layer}: {f:?}");
+        }
+    }
+}
