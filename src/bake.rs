@@ -1052,6 +1052,12 @@ impl Engine {
                             ),
                         });
                     }
+                    if !r.settled {
+                        warnings.push(format!(
+                            "layer {i}: the conformal chart was still growing after {} refinement rounds (the decal wraps around a rounded feature); it is conformal but its size varies: make the decal smaller, or use \"expmap\" or \"hybrid\"",
+                            crate::chart::MAX_ROUNDS
+                        ));
+                    }
                     chart_reports.insert(i, r);
                     let base = (i - start) as u64 * nv;
                     for &(v, c) in &chart.coords {

@@ -96,6 +96,8 @@ pub struct ChartReport {
     pub residual: f64,
     /// Final status.
     pub status: CgStatus,
+    /// Whether the triangle set stopped changing within [`MAX_ROUNDS`] (always true for hybrid).
+    pub settled: bool,
 }
 
 /// A chart: coordinates per welded vertex, model units in the decal frame (image centre at 0).
@@ -230,6 +232,9 @@ pub fn select(topo: &Topology, frame: &Frame, start: u32, radius: f64) -> Vec<u3
         if topo.degenerate[t as usize] {
             return false;
         }
+        if !within_reach(topo, frame, t) {
+            return false;
+        }
         let q = topo.triangles[t as usize].map(|v| project(frame, topo.positions[v as usize]));
         point_in_triangle(q, DVec2::ZERO)
             || (0..3).any(|k| segment_distance(q[k], q[(k + 1) % 3], DVec2::ZERO) <= radius)
@@ -246,6 +251,21 @@ pub fn select(topo: &Topology, frame: &Frame, start: u32, radius: f64) -> Vec<u3
         }
     }
     out
+}
+
+/// Charts never reach farther than this multiple of the decal's half-diagonal from the placed point
+/// (3D distance). Without it a decal larger than a rounded feature (a head, a knob) keeps adding
+/// triangles all around it, and the conformal chart of a nearly closed surface crushes its far side.
+pub const REACH: f64 = 1.5;
+
+fn within_reach(topo: &Topology, frame: &Frame, t: u32) -> bool {
+    let r = REACH * half_extent(frame).length();
+    topo.triangles[t as usize].iter().any(|&v| {
+        (topo.positions[v as usize] - frame.center)
+            .as_dvec3()
+            .length()
+            <= r
+    })
 }
 
 /// Does segment `a`-`b` meet the open rectangle |x| < h.x, |y| < h.y? (Liang-Barsky clipping.)
@@ -449,6 +469,7 @@ pub fn build(
                 cg_iterations_total: w.iterations,
                 residual: rep.residual,
                 status: rep.status,
+                settled: w.done,
             },
         });
     }
@@ -486,6 +507,7 @@ pub fn build(
                     cg_iterations_total: 0,
                     residual: 0.0,
                     status: CgStatus::Converged,
+                    settled: true,
                 },
             )
         } else {
@@ -509,6 +531,7 @@ pub fn build(
                 cg_iterations_total: rep.iterations,
                 residual: rep.residual,
                 status: rep.status,
+                settled: true,
             };
             (coords, report)
         };
@@ -600,7 +623,11 @@ fn refine(topo: &Topology, req: &ChartRequest, w: &mut Work, remove: bool) -> bo
         let tri = topo.triangles[t as usize];
         for k in 0..3 {
             let nb = topo.triangle_neighbors[t as usize][k];
-            if nb == NO_NEIGHBOR || set.contains(&nb) || topo.degenerate[nb as usize] {
+            if nb == NO_NEIGHBOR
+                || set.contains(&nb)
+                || topo.degenerate[nb as usize]
+                || !within_reach(topo, &req.frame, nb)
+            {
                 continue;
             }
             let (a, b) = (tri[k], tri[(k + 1) % 3]);
