@@ -19,6 +19,7 @@ pub mod report;
 pub use bake::{Baked, Engine, LoadedMesh};
 pub use job::Job;
 pub mod bench;
+pub mod bench_linalg;
 pub mod chart;
 pub mod compose_cpu;
 pub mod demo;

@@ -20,6 +20,9 @@ use wgpu::util::DeviceExt;
 
 /// Loop steps one invocation may run per dispatch (lavapipe abandons invocations past about 65535).
 const LOOP_BUDGET: usize = 20_000;
+/// Loop steps per invocation above which a single iteration is refused (lavapipe abandons an
+/// invocation past about 65535).
+const HARD_LOOP_LIMIT: usize = 50_000;
 /// Iterations per submission before the host looks at the status.
 pub const ITERS_PER_SUBMIT: u32 = 512;
 /// Workgroup size of the batched kernels (`WG` in wgsl/shared/linalg.wgsl).
@@ -35,7 +38,8 @@ pub struct SystemDesc {
     pub n: u32,
     /// Iteration budget.
     pub max_iter: u32,
-    pad0: u32,
+    /// Set by the solver: 1 = solved by the 256-wide kernel, 0 = by the 64-wide one.
+    wide: u32,
     /// Target relative residual |b - A x| / |b|.
     pub rtol: f32,
     pad1: [f32; 3],
@@ -73,7 +77,7 @@ struct CgState {
     rz: f32,
     bnorm: f32,
     rel_residual: f32,
-    pad1: f32,
+    scale: f32,
 }
 
 /// A CSR matrix in storage buffers (values f32).
@@ -413,12 +417,41 @@ pub fn cg_batched_on(
             }
         })
         .collect();
-    // Iterations per dispatch: each iteration an invocation walks its rows (ceil(n / WG)) a few times,
-    // each row's entries, plus the reductions' fixed steps.
-    let max_n = systems.iter().map(|s| s.n as usize).max().unwrap_or(1);
-    let rows_per_inv = max_n.div_ceil(WG).max(1);
-    let per_iter = rows_per_inv * (3 * gpu.max_row_len as usize + 8) + 40;
-    let iters = (LOOP_BUDGET / per_iter).clamp(1, 256) as u32;
+    // Each system gets the 64-wide kernel when one iteration of it stays well under the loop budget
+    // with 64 invocations, else the 256-wide one: a choice that depends on the system alone, so its
+    // arithmetic (and result) is the same in any batch. Iterations per dispatch per class: each
+    // iteration an invocation walks its rows (ceil(n / WG)) a few times, each row's entries, plus
+    // the reductions' fixed steps.
+    let row_len = 3 * gpu.max_row_len as usize + 8;
+    let cost = |n: u32, wg: u32| (n as usize).div_ceil(wg as usize).max(1) * row_len + 60;
+    let narrow_wg = crate::shaders::LINALG_WG_NARROW;
+    let systems: Vec<SystemDesc> = systems
+        .iter()
+        .map(|s| SystemDesc {
+            wide: u32::from(cost(s.n, narrow_wg) > LOOP_BUDGET / 8),
+            ..*s
+        })
+        .collect();
+    let mut classes = Vec::new();
+    for (wide, kernel, wg) in [
+        (0u32, &pipes.cg_batched_narrow, narrow_wg),
+        (1u32, &pipes.cg_batched, WG as u32),
+    ] {
+        let Some(max_n) = systems.iter().filter(|s| s.wide == wide).map(|s| s.n).max() else {
+            continue;
+        };
+        let per_iter = cost(max_n, wg);
+        if per_iter > HARD_LOOP_LIMIT {
+            return Err(Error::Gpu {
+                stage: "conjugate gradient".into(),
+                detail: format!(
+                    "a system of {max_n} unknowns (rows up to {} entries) is too large for one workgroup: one iteration would loop about {per_iter} times per invocation, past the {HARD_LOOP_LIMIT} a software driver runs reliably; split it (a smaller decal) or solve it on the CPU",
+                    gpu.max_row_len
+                ),
+            });
+        }
+        classes.push((wide, kernel, (LOOP_BUDGET / per_iter).clamp(1, 256) as u32));
+    }
     let max_iter = systems.iter().map(|s| s.max_iter).max().unwrap_or(1);
     let state_size = systems.len() as u64 * 32;
     let vec_buf = |label: &str, data: Option<&[f32]>| -> wgpu::Buffer {
@@ -441,7 +474,7 @@ pub fn cg_batched_on(
         let sys = storage_init(
             ctx,
             "cg.systems",
-            bytemuck::cast_slice(systems),
+            bytemuck::cast_slice(&systems),
             wgpu::BufferUsages::empty(),
         );
         let bb = vec_buf("cg.b", Some(&f32s(b)));
@@ -459,47 +492,54 @@ pub fn cg_batched_on(
             wgpu::BufferUsages::COPY_SRC,
         );
         let mut rounds = Vec::new();
+        // Per class: (kernel, iterations per dispatch, [(bind group, workgroups)]).
         let mut bgs = Vec::new();
-        for base in (0..systems.len()).step_by(65535) {
-            let count = (systems.len() - base).min(65535) as u32;
-            let round = uniform(
-                ctx,
-                "cg.round",
-                bytemuck::bytes_of(&CgRound {
-                    iters,
-                    base: base as u32,
-                    pad: [0; 2],
-                }),
-            );
-            bgs.push((
-                pipes.cg_batched.bind(
-                    dev,
-                    "cg",
-                    &[
-                        (0, round.as_entire_binding()),
-                        (1, sys.as_entire_binding()),
-                        (2, gpu.row_ptr.as_entire_binding()),
-                        (3, gpu.cols.as_entire_binding()),
-                        (4, gpu.vals.as_entire_binding()),
-                        (5, bb.as_entire_binding()),
-                        (6, db.as_entire_binding()),
-                        (7, xb.as_entire_binding()),
-                        (8, rb.as_entire_binding()),
-                        (9, pb.as_entire_binding()),
-                        (10, qb.as_entire_binding()),
-                        (11, state.as_entire_binding()),
-                    ],
-                ),
-                count,
-            ));
-            rounds.push(round);
+        for &(_, kernel, iters) in &classes {
+            let mut groups = Vec::new();
+            for base in (0..systems.len()).step_by(65535) {
+                let count = (systems.len() - base).min(65535) as u32;
+                let round = uniform(
+                    ctx,
+                    "cg.round",
+                    bytemuck::bytes_of(&CgRound {
+                        iters,
+                        base: base as u32,
+                        pad: [0; 2],
+                    }),
+                );
+                groups.push((
+                    kernel.bind(
+                        dev,
+                        "cg",
+                        &[
+                            (0, round.as_entire_binding()),
+                            (1, sys.as_entire_binding()),
+                            (2, gpu.row_ptr.as_entire_binding()),
+                            (3, gpu.cols.as_entire_binding()),
+                            (4, gpu.vals.as_entire_binding()),
+                            (5, bb.as_entire_binding()),
+                            (6, db.as_entire_binding()),
+                            (7, xb.as_entire_binding()),
+                            (8, rb.as_entire_binding()),
+                            (9, pb.as_entire_binding()),
+                            (10, qb.as_entire_binding()),
+                            (11, state.as_entire_binding()),
+                        ],
+                    ),
+                    count,
+                ));
+                rounds.push(round);
+            }
+            bgs.push((kernel, iters, groups));
         }
         (xb, state, bgs, (sys, bb, db, rb, pb, qb, rounds))
     })?;
-    let per_submit = ITERS_PER_SUBMIT
-        .min(max_iter.saturating_add(1))
-        .div_ceil(iters)
-        .max(1);
+    let per_submit = |iters: u32| {
+        ITERS_PER_SUBMIT
+            .min(max_iter.saturating_add(1))
+            .div_ceil(iters)
+            .max(1)
+    };
     let (mut dispatches, mut submits) = (0u32, 0u32);
     let states = loop {
         ctx.scoped("conjugate gradient", || {
@@ -510,17 +550,22 @@ pub fn cg_batched_on(
                     label: Some("cg.iterate"),
                     timestamp_writes: None,
                 });
-                pass.set_pipeline(&pipes.cg_batched.pipeline);
-                for _ in 0..per_submit {
-                    for (bg, count) in &bgs {
-                        pass.set_bind_group(0, bg, &[]);
-                        pass.dispatch_workgroups(*count, 1, 1);
+                for (kernel, iters, groups) in &bgs {
+                    pass.set_pipeline(&kernel.pipeline);
+                    for _ in 0..per_submit(*iters) {
+                        for (bg, count) in groups {
+                            pass.set_bind_group(0, bg, &[]);
+                            pass.dispatch_workgroups(*count, 1, 1);
+                        }
                     }
                 }
             }
             ctx.queue.submit([enc.finish()]);
         })?;
-        dispatches += per_submit * bgs.len() as u32;
+        dispatches += bgs
+            .iter()
+            .map(|(_, iters, groups)| per_submit(*iters) * groups.len() as u32)
+            .sum::<u32>();
         submits += 1;
         let bytes = ctx.read_buffer(&state, state_size, "conjugate-gradient status read-back")?;
         let st: Vec<CgState> = bytemuck::cast_slice(&bytes).to_vec();

@@ -76,9 +76,17 @@ enum Cmd {
         /// the mesh subdivided 2 and 3 times, or `--subdivide` times; then a batch of small maps).
         #[arg(long)]
         geodesic: bool,
-        /// Maps in the batched geodesic benchmark.
-        #[arg(long, default_value_t = 256)]
-        batch: usize,
+        /// Maps in the batched geodesic benchmark (charts in the batched `--linalg` one: 1024).
+        #[arg(long)]
+        batch: Option<usize>,
+        /// Benchmark the GPU linear algebra and LSCM charts instead of bakes (copy bandwidth, SpMV,
+        /// charts of about 1k, 10k and 100k vertices on the mesh subdivided `--subdivide` times
+        /// (default 3), and a batch of small charts).
+        #[arg(long)]
+        linalg: bool,
+        /// With `--linalg`: the `../shared/peers` directory, to run libigl's LSCM on the same patches.
+        #[arg(long)]
+        peers: Option<PathBuf>,
     },
 }
 
@@ -129,8 +137,21 @@ fn run(cli: Cli) -> Result<()> {
             cpu_budget,
             geodesic,
             batch,
+            linalg,
+            peers,
         } => {
             let engine = engine(cli.backend.as_deref())?;
+            if linalg {
+                let opts = decalbake::bench_linalg::LinalgOptions {
+                    mesh,
+                    subdivide: if subdivide == 0 { 3 } else { subdivide },
+                    batch: batch.unwrap_or(1024),
+                    reps,
+                    peers,
+                };
+                decalbake::bench_linalg::run(&engine, &opts, |v| println!("{v}"))?;
+                return Ok(());
+            }
             let opts = decalbake::bench::BenchOptions {
                 mesh,
                 subdivide,
@@ -140,7 +161,9 @@ fn run(cli: Cli) -> Result<()> {
                 cpu_budget,
             };
             if geodesic {
-                decalbake::bench::run_geodesic(&engine, &opts, batch, |v| println!("{v}"))?;
+                decalbake::bench::run_geodesic(&engine, &opts, batch.unwrap_or(256), |v| {
+                    println!("{v}")
+                })?;
             } else {
                 decalbake::bench::run(&engine, &opts, |v| println!("{v}"))?;
             }

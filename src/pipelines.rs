@@ -69,18 +69,24 @@ fn layout(
     })
 }
 
-/// The pipeline layout (one bind group) and shader module of kernel or pipeline `name`.
+/// The pipeline layout (one bind group) and shader module of kernel or pipeline `name` (or of
+/// `text`, a variant of it).
 fn layout_and_module(
     device: &wgpu::Device,
     name: &str,
     layout: &wgpu::BindGroupLayout,
+    text: Option<String>,
 ) -> (wgpu::PipelineLayout, wgpu::ShaderModule) {
     let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(name),
         bind_group_layouts: &[Some(layout)],
         immediate_size: 0,
     });
-    (pl, shaders::module(device, name))
+    let module = match text {
+        Some(t) => shaders::module_from(device, name, t),
+        None => shaders::module(device, name),
+    };
+    (pl, module)
 }
 
 /// A compute pipeline and its bind-group layout.
@@ -93,8 +99,17 @@ pub struct Kernel {
 
 impl Kernel {
     fn new(device: &wgpu::Device, name: &str, binds: &[(u32, Bind)]) -> Self {
+        Self::with_source(device, name, binds, None)
+    }
+
+    fn with_source(
+        device: &wgpu::Device,
+        name: &str,
+        binds: &[(u32, Bind)],
+        text: Option<String>,
+    ) -> Self {
         let layout = layout(device, name, binds, wgpu::ShaderStages::COMPUTE);
-        let (pl, module) = layout_and_module(device, name, &layout);
+        let (pl, module) = layout_and_module(device, name, &layout, text);
         let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some(name),
             layout: Some(&pl),
@@ -176,8 +191,10 @@ pub struct Pipelines {
     pub expmap_relax: Kernel,
     /// Per-layer distortion partials.
     pub distortion: Kernel,
-    /// Batched Jacobi-preconditioned conjugate gradient.
+    /// Batched Jacobi-preconditioned conjugate gradient, 256 invocations per system.
     pub cg_batched: Kernel,
+    /// The same with 64 invocations per system (small systems).
+    pub cg_batched_narrow: Kernel,
     /// CSR sparse matrix-vector product.
     pub spmv: Kernel,
     /// Batched dot products and norms.
@@ -267,6 +284,20 @@ impl Pipelines {
                 true,
             ),
         };
+        let cg_binds = &[
+            (0, Uniform),
+            (1, Ro),
+            (2, Ro),
+            (3, Ro),
+            (4, Ro),
+            (5, Ro),
+            (6, Ro),
+            (7, Rw),
+            (8, Rw),
+            (9, Rw),
+            (10, Rw),
+            (11, Rw),
+        ];
         let island_layout = layout(
             device,
             "island_raster",
@@ -412,23 +443,12 @@ impl Pipelines {
                     (6, Rw),
                 ],
             ),
-            cg_batched: Kernel::new(
+            cg_batched: Kernel::new(device, "cg_batched", cg_binds),
+            cg_batched_narrow: Kernel::with_source(
                 device,
                 "cg_batched",
-                &[
-                    (0, Uniform),
-                    (1, Ro),
-                    (2, Ro),
-                    (3, Ro),
-                    (4, Ro),
-                    (5, Ro),
-                    (6, Ro),
-                    (7, Rw),
-                    (8, Rw),
-                    (9, Rw),
-                    (10, Rw),
-                    (11, Rw),
-                ],
+                cg_binds,
+                Some(shaders::narrow_source("cg_batched")),
             ),
             spmv: Kernel::new(
                 device,
@@ -474,7 +494,7 @@ fn raster(
     depth: Option<wgpu::DepthStencilState>,
     samples: u32,
 ) -> Raster {
-    let (pl, module) = layout_and_module(device, name, &layout);
+    let (pl, module) = layout_and_module(device, name, &layout, None);
     let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(name),
         layout: Some(&pl),

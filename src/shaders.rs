@@ -81,10 +81,29 @@ pub fn resolve(text: &str) -> String {
     out
 }
 
+/// Workgroup size of the linear-algebra kernels as written (`WG` in wgsl/shared/linalg.wgsl).
+pub const LINALG_WG: u32 = 256;
+/// Workgroup size of their narrow variant, for systems small enough that 64 invocations per system
+/// stay under the loop budget (fewer idle lanes and cheaper barriers on small charts).
+pub const LINALG_WG_NARROW: u32 = 64;
+
+/// The source of linear-algebra kernel `name` with a workgroup of [`LINALG_WG_NARROW`].
+pub fn narrow_source(name: &str) -> String {
+    let full = source(name);
+    let from = format!("const WG: u32 = {LINALG_WG}u;");
+    assert!(full.contains(&from), "{name} has no `{from}`");
+    full.replace(&from, &format!("const WG: u32 = {LINALG_WG_NARROW}u;"))
+}
+
 /// Creates a shader module for kernel `name`.
 pub fn module(device: &wgpu::Device, name: &str) -> wgpu::ShaderModule {
+    module_from(device, name, source(name))
+}
+
+/// Creates a shader module from WGSL text.
+pub fn module_from(device: &wgpu::Device, label: &str, text: String) -> wgpu::ShaderModule {
     device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(name),
-        source: wgpu::ShaderSource::Wgsl(source(name).into()),
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(text.into()),
     })
 }

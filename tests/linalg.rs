@@ -269,8 +269,12 @@ fn cg_failures_are_reported() {
     assert_eq!(sol.reports[0].status, CgStatus::NotConverged);
     assert_eq!(sol.reports[0].iterations, 3);
     assert!(sol.reports[0].residual > 1e-6);
-    // The reported residual is the recursive one; it tracks the true one closely after 3 steps.
-    assert!((sol.reports[0].residual - res).abs() <= 1e-3 * res.max(1e-6));
+    // The reported residual is the true one of the returned x (recomputed when the budget ran out).
+    assert!(
+        (sol.reports[0].residual - res).abs() <= 1e-3 * res,
+        "reported {} true {res}",
+        sol.reports[0].residual
+    );
 
     let mut nan = a.clone();
     nan.vals[5] = f64::NAN;

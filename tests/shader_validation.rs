@@ -18,8 +18,17 @@ fn every_wgsl_file_validates() {
             ));
         }
     }
-    for (name, _) in decalbake::shaders::KERNELS {
-        let src = decalbake::shaders::source(name);
+    let mut sources: Vec<(String, String)> = decalbake::shaders::KERNELS
+        .iter()
+        .map(|(n, _)| (n.to_string(), decalbake::shaders::source(n)))
+        .collect();
+    // The narrow linear-algebra variant the engine builds by changing the workgroup size.
+    sources.push((
+        "cg_batched (narrow)".into(),
+        decalbake::shaders::narrow_source("cg_batched"),
+    ));
+    for (name, src) in &sources {
+        let src = src.clone();
         let module = match naga::front::wgsl::parse_str(&src) {
             Ok(m) => m,
             Err(e) => {

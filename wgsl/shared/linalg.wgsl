@@ -11,26 +11,39 @@ struct System {
     row0: u32,
     n: u32,
     max_iter: u32,
-    pad0: u32,
+    // 1: solved by the 256-wide variant, 0: by the 64-wide one (set by the host per system).
+    wide: u32,
     rtol: f32,
     pad1: f32,
     pad2: f32,
     pad3: f32,
 }
 
+// Partials are added in two fixed-order stages: RS groups of RL consecutive invocations, then the RS
+// group sums. Three barriers per reduction (a log-depth tree would need eight, and on a CPU driver
+// such as lavapipe each barrier switches through every SIMD group of the workgroup).
+const RL: u32 = 16u;
+const RS: u32 = WG / RL;
+
 var<workgroup> red: array<vec4<f32>, WG>;
+var<workgroup> red2: array<vec4<f32>, RS>;
 
 // Sum of `v` over the workgroup, identical in every invocation. Call in uniform control flow.
 fn reduce4(v: vec4<f32>, lid: u32) -> vec4<f32> {
     red[lid] = v;
     workgroupBarrier();
-    for (var s = WG / 2u; s > 0u; s = s >> 1u) {
-        if (lid < s) {
-            red[lid] = red[lid] + red[lid + s];
+    if (lid < RS) {
+        var s = vec4<f32>(0.0);
+        for (var k = 0u; k < RL; k++) {
+            s += red[lid * RL + k];
         }
-        workgroupBarrier();
+        red2[lid] = s;
     }
-    let out = red[0];
+    workgroupBarrier();
+    var out = vec4<f32>(0.0);
+    for (var k = 0u; k < RS; k++) {
+        out += red2[k];
+    }
     workgroupBarrier();
     return out;
 }

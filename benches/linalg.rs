@@ -1,0 +1,102 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Criterion benchmarks of the GPU linear algebra on the bundled Spot: SpMV on its Laplacian (one
+//! submission, 20 products), one LSCM chart of about 1k vertices solved by the GPU CG and by the f64
+//! CPU twin, and 64 small charts batched versus one solve each. `decalbake bench --linalg` gives the
+//! larger sizes, bandwidth ratios and the libigl comparison.
+//!
+//! Run: `cargo bench --bench linalg` (set `WGPU_BACKEND=vulkan` for lavapipe).
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use decalbake::chart::{self, FINAL_RTOL};
+use decalbake::layer::Frame;
+use decalbake::linalg_gpu::{cg_batched, spmv, GpuCsr, SystemDesc};
+use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
+use decalbake::sparse::Csr;
+use decalbake::Engine;
+
+fn frame(topo: &Topology, t: usize, side: f32) -> Frame {
+    let [a, b, c] = topo.triangles[t].map(|i| topo.positions[i as usize]);
+    let n = (b - a).cross(c - a).normalize();
+    let u = (b - a).normalize();
+    Frame {
+        center: (a + b + c) / 3.0,
+        axis_u: u,
+        axis_v: n.cross(u),
+        normal: n,
+        size: [side, side],
+        depth: side,
+        up_fallback: false,
+    }
+}
+
+fn linalg(c: &mut Criterion) {
+    let engine = Engine::new(None).expect("a GPU adapter (mesa-vulkan-drivers for lavapipe)");
+    let mesh = Mesh::from_bytes(
+        decalbake::demo::SPOT_GLB,
+        std::path::Path::new("spot.glb"),
+        None,
+    )
+    .expect("bundled mesh")
+    .subdivide();
+    let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
+    let (ctx, pipes) = (&engine.ctx, engine.pipelines());
+    let mut group = c.benchmark_group("linalg");
+    group.sample_size(10);
+
+    let lap = decalbake::lscm::shifted_laplacian(&topo, 1.0);
+    let g = GpuCsr::upload(ctx, &lap).unwrap();
+    let x: Vec<f32> = (0..lap.rows).map(|i| (i % 7) as f32).collect();
+    group.bench_function("spmv_x20_spot_laplacian", |b| {
+        b.iter(|| spmv(ctx, pipes, &g, &x, 20).unwrap())
+    });
+
+    let t = topo.triangles.len() / 3;
+    let (_, sys, x0) = chart::initial_system(&topo, &frame(&topo, t, 0.35), t as u32);
+    let desc = [SystemDesc::new(
+        0,
+        sys.matrix.rows,
+        FINAL_RTOL,
+        chart::default_budget(sys.matrix.rows),
+    )];
+    group.bench_function("lscm_chart_gpu", |b| {
+        b.iter(|| cg_batched(ctx, pipes, &sys.matrix, &sys.rhs, &x0, &desc).unwrap())
+    });
+    group.bench_function("lscm_chart_cpu_twin", |b| {
+        b.iter(|| {
+            let mut x = x0.clone();
+            decalbake::sparse::pcg(&sys.matrix, &sys.rhs, &mut x, FINAL_RTOL as f64, 100_000)
+        })
+    });
+
+    let systems: Vec<_> = (0..64)
+        .map(|i| {
+            let t = (i * 131 + 17) % topo.triangles.len();
+            let (_, s, x0) = chart::initial_system(&topo, &frame(&topo, t, 0.12), t as u32);
+            (s, x0)
+        })
+        .collect();
+    let blocks: Vec<&Csr> = systems.iter().map(|(s, _)| &s.matrix).collect();
+    let (a, starts) = Csr::block_diagonal(&blocks);
+    let rhs: Vec<f64> = systems.iter().flat_map(|(s, _)| s.rhs.clone()).collect();
+    let x0: Vec<f64> = systems.iter().flat_map(|(_, x)| x.clone()).collect();
+    let descs: Vec<SystemDesc> = systems
+        .iter()
+        .zip(&starts)
+        .map(|((s, _), &r0)| SystemDesc::new(r0, s.matrix.rows, FINAL_RTOL, 20_000))
+        .collect();
+    group.bench_function("64_charts_batched", |b| {
+        b.iter(|| cg_batched(ctx, pipes, &a, &rhs, &x0, &descs).unwrap())
+    });
+    group.bench_function("64_charts_one_by_one", |b| {
+        b.iter(|| {
+            for (s, x) in &systems {
+                let d = [SystemDesc::new(0, s.matrix.rows, FINAL_RTOL, 20_000)];
+                cg_batched(ctx, pipes, &s.matrix, &s.rhs, x, &d).unwrap();
+            }
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, linalg);
+criterion_main!(benches);

@@ -1,0 +1,361 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! `decalbake bench --linalg`: the GPU linear-algebra core and LSCM charts, with their baselines
+//! measured in the same run. One JSON object per line:
+//!
+//! - `copy`: streaming-copy bandwidth of the device (the reference for SpMV);
+//! - `spmv`: CSR product on a real mesh Laplacian, GB/s and non-zeros per second, against the copy
+//!   bandwidth and the f64 CPU twin;
+//! - `lscm_chart`: one chart of about 1k, 10k and 100k vertices: GPU CG iterations, time per
+//!   iteration, dispatches, against the CPU twin (f64 PCG, same tolerance) and, with `--peers`,
+//!   libigl's LSCM (direct solve) and scipy's CG on the same patch (written as OBJ and run through
+//!   `../shared/peers/peers.py lscm`);
+//! - `lscm_batch`: many small charts solved in one batched solve versus one solve per chart.
+
+use crate::chart::{self, FINAL_RTOL};
+use crate::error::Result;
+use crate::layer::Frame;
+use crate::linalg_gpu::{cg_batched, copy_bandwidth, spmv, GpuCsr, SystemDesc};
+use crate::mesh::{Mesh, Topology};
+use crate::sparse::Csr;
+use crate::Engine;
+use glam::Vec3;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// A decal frame of size `side` at the centroid of triangle `t`.
+fn frame_at(topo: &Topology, t: usize, side: f32) -> Frame {
+    let [a, b, c] = topo.triangles[t].map(|i| topo.positions[i as usize]);
+    let n = (b - a).cross(c - a).normalize();
+    let u = (b - a).normalize();
+    Frame {
+        center: (a + b + c) / 3.0,
+        axis_u: u,
+        axis_v: n.cross(u),
+        normal: n,
+        size: [side, side],
+        depth: side,
+        up_fallback: false,
+    }
+}
+
+/// A chart at triangle `t` with about `target` vertices (bisection on the decal size): its frame,
+/// triangles, LSCM system and warm start.
+pub fn chart_of_size(
+    topo: &Topology,
+    t: usize,
+    target: usize,
+) -> (Frame, Vec<u32>, crate::lscm::System, Vec<f64>) {
+    let (lo, hi) = topo
+        .positions
+        .iter()
+        .fold((Vec3::MAX, Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
+    let (mut a, mut b) = (1e-4 * (hi - lo).length(), (hi - lo).length());
+    let mut best = None;
+    for _ in 0..24 {
+        let side = 0.5 * (a + b);
+        let f = frame_at(topo, t, side);
+        let (tris, sys, x0) = chart::initial_system(topo, &f, t as u32);
+        let n = sys.vertices.len();
+        if n < target {
+            a = side;
+        } else {
+            b = side;
+        }
+        let better = best.as_ref().is_none_or(
+            |(_, _, s, _): &(Frame, Vec<u32>, crate::lscm::System, Vec<f64>)| {
+                (s.vertices.len() as f64 / target as f64).ln().abs()
+                    > (n as f64 / target as f64).ln().abs()
+            },
+        );
+        if better {
+            best = Some((f, tris, sys, x0));
+        }
+        if (n as f64 / target as f64 - 1.0).abs() < 0.05 {
+            break;
+        }
+    }
+    best.expect("at least one bisection step")
+}
+
+pub fn write_obj(path: &Path, topo: &Topology, tris: &[u32]) -> Result<()> {
+    let mut local = std::collections::HashMap::new();
+    let mut text = String::new();
+    let mut faces = String::new();
+    for &t in tris {
+        let mut f = Vec::new();
+        for v in topo.triangles[t as usize] {
+            let n = local.len() + 1;
+            let id = *local.entry(v).or_insert_with(|| {
+                let p = topo.positions[v as usize];
+                text.push_str(&format!("v {} {} {}\n", p.x, p.y, p.z));
+                n
+            });
+            f.push(id);
+        }
+        faces.push_str(&format!("f {} {} {}\n", f[0], f[1], f[2]));
+    }
+    text.push_str(&faces);
+    crate::image_io::write_atomic(path, text.as_bytes())
+}
+
+/// Runs `peers.py lscm` on an OBJ patch; returns its JSON line's `peers` object, or an error text.
+fn run_peer(peers_dir: &Path, obj: &Path) -> serde_json::Value {
+    let peers_dir = &std::fs::canonicalize(peers_dir).unwrap_or_else(|_| peers_dir.to_path_buf());
+    let py = peers_dir.join(".venv/bin/python");
+    let out = std::process::Command::new(&py)
+        .current_dir(peers_dir)
+        .arg("peers.py")
+        .arg("lscm")
+        .arg(obj)
+        .output();
+    match out {
+        Ok(o) if o.status.success() => {
+            let text = String::from_utf8_lossy(&o.stdout);
+            let line = text
+                .lines()
+                .rev()
+                .find(|l| l.trim_start().starts_with('{'))
+                .unwrap_or("{}");
+            let v: serde_json::Value = serde_json::from_str(line).unwrap_or_default();
+            serde_json::json!({
+                "igl_lscm_s": v["peers"]["igl_lscm"]["total_s"],
+                "scipy_cg_lscm_s": v["peers"]["scipy_cg_lscm"]["total_s"],
+                "scipy_cg_iterations": v["peers"]["scipy_cg_lscm"]["iterations"],
+                "patch_is_disk": v["patch"]["is_disk"],
+                // False when the chart is not a disc and the peer cut its own smaller patch: then
+                // the times are not comparable.
+                "peer_used_whole_chart": v["patch"]["whole_mesh"],
+                "peer_patch_vertices": v["patch"]["patch_nv"].as_u64().or(v["nv"].as_u64()),
+            })
+        }
+        Ok(o) => {
+            serde_json::json!({ "error": String::from_utf8_lossy(&o.stderr).lines().last().unwrap_or("failed").to_string() })
+        }
+        Err(e) => serde_json::json!({ "error": format!("{}: {e}", py.display()) }),
+    }
+}
+
+/// Options of the linear-algebra benchmark.
+pub struct LinalgOptions {
+    /// Mesh (default: bob from [`crate::bench::SHARED_MESHES`], else the bundled Spot).
+    pub mesh: Option<PathBuf>,
+    /// Midpoint subdivisions (default 3).
+    pub subdivide: u32,
+    /// Charts in the batched benchmark.
+    pub batch: usize,
+    /// Repetitions (median reported).
+    pub reps: usize,
+    /// `../shared/peers` directory, to run libigl on the same patches.
+    pub peers: Option<PathBuf>,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1000.0
+}
+
+/// Runs the benchmark, calling `emit` per figure.
+pub fn run(
+    engine: &Engine,
+    opts: &LinalgOptions,
+    mut emit: impl FnMut(serde_json::Value),
+) -> Result<()> {
+    let ctx = &engine.ctx;
+    let pipes = engine.pipelines();
+    let reps = opts.reps.max(1);
+    // Device bandwidth reference.
+    let copy_gbs = copy_bandwidth(ctx, pipes, 64 << 20, 20)?;
+    emit(
+        serde_json::json!({ "bench": "copy", "bytes": 64u64 << 20, "reps": 20, "gb_per_s": copy_gbs }),
+    );
+
+    let path = opts.mesh.clone().or_else(|| {
+        let p = Path::new(crate::bench::SHARED_MESHES).join("bob.glb");
+        p.exists().then_some(p)
+    });
+    let mut mesh = match &path {
+        Some(p) => Mesh::load(p)?,
+        None => Mesh::from_bytes(crate::demo::SPOT_GLB, Path::new("spot.glb (bundled)"), None)?,
+    };
+    for _ in 0..opts.subdivide {
+        mesh = mesh.subdivide();
+    }
+    let topo = Topology::build(&mesh, crate::mesh::DEFAULT_WELD_TOLERANCE);
+    let source = path
+        .map(|p| p.display().to_string())
+        .unwrap_or_else(|| "spot (bundled)".into());
+
+    // SpMV on the mesh Laplacian.
+    let lap = crate::lscm::shifted_laplacian(&topo, 1.0);
+    let g = GpuCsr::upload(ctx, &lap)?;
+    let x: Vec<f32> = (0..lap.rows)
+        .map(|i| ((i * 37) % 101) as f32 / 101.0)
+        .collect();
+    let xd: Vec<f64> = x.iter().map(|&v| v as f64).collect();
+    spmv(ctx, pipes, &g, &x, 1)?;
+    let spmv_reps = 20;
+    let mut gpu_s = Vec::new();
+    for _ in 0..reps {
+        gpu_s.push(spmv(ctx, pipes, &g, &x, spmv_reps)?.1 / spmv_reps as f64);
+    }
+    let gpu_s = median(gpu_s);
+    let t = Instant::now();
+    let _ = std::hint::black_box(lap.mul(&xd));
+    let cpu_s = t.elapsed().as_secs_f64();
+    let gbs = g.bytes_per_product() as f64 / gpu_s / 1e9;
+    emit(serde_json::json!({
+        "bench": "spmv", "mesh": source, "rows": lap.rows, "nnz": lap.nnz(),
+        "gpu_ms": gpu_s * 1e3, "gb_per_s": gbs, "fraction_of_copy_bandwidth": gbs / copy_gbs,
+        "nnz_per_s": lap.nnz() as f64 / gpu_s, "cpu_twin_ms": cpu_s * 1e3, "cpu_over_gpu": cpu_s / gpu_s,
+    }));
+
+    // One chart of each size.
+    let dir = std::env::temp_dir().join(format!("decalbake-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).map_err(|e| crate::Error::Io {
+        path: dir.clone(),
+        action: "creating",
+        source: e,
+    })?;
+    let seed_tri = topo.triangles.len() / 3;
+    for target in [1_000usize, 10_000, 100_000] {
+        if target * 2 > topo.positions.len() {
+            continue;
+        }
+        let (frame, tris, sys, x0) = chart_of_size(&topo, seed_tri, target);
+        // Set-up on the CPU: selection, pins and assembly of this chart.
+        let t = Instant::now();
+        let _ = std::hint::black_box(chart::initial_system(&topo, &frame, seed_tri as u32));
+        let setup_ms = ms(t);
+        let budget = 20 * chart::default_budget(sys.matrix.rows);
+        let desc = [SystemDesc::new(0, sys.matrix.rows, FINAL_RTOL, budget)];
+        let zero = vec![0.0; x0.len()];
+        let solve = || cg_batched(ctx, pipes, &sys.matrix, &sys.rhs, &zero, &desc);
+        // Large charts take minutes on a software driver: one cold run (pipelines are compiled at
+        // engine creation, so "cold" only adds buffer allocation).
+        let large = sys.matrix.rows > 50_000;
+        if !large {
+            solve()?;
+        }
+        let mut times = Vec::new();
+        let mut last = None;
+        for _ in 0..if large { 1 } else { reps } {
+            let t = Instant::now();
+            last = Some(solve()?);
+            times.push(ms(t));
+        }
+        let gpu_ms = median(times);
+        let out = last.expect("one repetition");
+        let its = out.reports[0].iterations;
+        let t = Instant::now();
+        let mut xc = zero.clone();
+        let cpu = crate::sparse::pcg(&sys.matrix, &sys.rhs, &mut xc, FINAL_RTOL as f64, budget);
+        let cpu_ms = ms(t);
+        let peer = match &opts.peers {
+            Some(p) => {
+                let obj = dir.join(format!("chart_{target}.obj"));
+                write_obj(&obj, &topo, &tris)?;
+                run_peer(p, &obj)
+            }
+            None => serde_json::Value::Null,
+        };
+        emit(serde_json::json!({
+            "bench": "lscm_chart", "mesh": source, "mesh_vertices": topo.positions.len(),
+            "chart_vertices": sys.vertices.len(), "chart_triangles": tris.len(), "unknowns": sys.matrix.rows, "nnz": sys.matrix.nnz(),
+            "gpu_status": out.reports[0].status, "gpu_iterations": its, "gpu_residual": out.reports[0].residual,
+            "gpu_ms": gpu_ms, "gpu_ms_per_iteration": gpu_ms / its.max(1) as f64,
+            "dispatches": out.dispatches, "submits": out.submits,
+            "cpu_twin_iterations": cpu.iterations, "cpu_twin_ms": cpu_ms, "cpu_over_gpu": cpu_ms / gpu_ms,
+            "cpu_setup_ms": setup_ms, "start": "zero", "rtol": FINAL_RTOL, "peers": peer,
+        }));
+    }
+
+    // Batched small charts versus one solve per chart.
+    let step = (topo.triangles.len() / opts.batch.max(1)).max(1);
+    // The decal size that gives one chart of about 300 vertices, used at every position.
+    let side = chart_of_size(&topo, seed_tri, 300).0.size[0];
+    let systems: Vec<(crate::lscm::System, Vec<f64>)> = (0..opts.batch)
+        .map(|i| {
+            let t = (i * step + step / 2) % topo.triangles.len();
+            let (_, s, x0) = chart::initial_system(&topo, &frame_at(&topo, t, side), t as u32);
+            (s, x0)
+        })
+        .collect();
+    let blocks: Vec<&Csr> = systems.iter().map(|(s, _)| &s.matrix).collect();
+    let (a, starts) = Csr::block_diagonal(&blocks);
+    let b: Vec<f64> = systems.iter().flat_map(|(s, _)| s.rhs.clone()).collect();
+    let x0: Vec<f64> = systems.iter().flat_map(|(_, x)| x.clone()).collect();
+    let descs: Vec<SystemDesc> = systems
+        .iter()
+        .zip(&starts)
+        .map(|((s, _), &r0)| {
+            SystemDesc::new(
+                r0,
+                s.matrix.rows,
+                FINAL_RTOL,
+                chart::default_budget(s.matrix.rows),
+            )
+        })
+        .collect();
+    cg_batched(ctx, pipes, &a, &b, &x0, &descs)?;
+    let mut times = Vec::new();
+    let mut last = None;
+    for _ in 0..reps {
+        let t = Instant::now();
+        last = Some(cg_batched(ctx, pipes, &a, &b, &x0, &descs)?);
+        times.push(ms(t));
+    }
+    let batched_ms = median(times);
+    let out = last.expect("one repetition");
+    let converged = out
+        .reports
+        .iter()
+        .filter(|r| r.status == crate::sparse::CgStatus::Converged)
+        .count();
+    let t = Instant::now();
+    let mut single_dispatches = 0;
+    for (s, x) in &systems {
+        let o = cg_batched(
+            ctx,
+            pipes,
+            &s.matrix,
+            &s.rhs,
+            x,
+            &[SystemDesc::new(
+                0,
+                s.matrix.rows,
+                FINAL_RTOL,
+                chart::default_budget(s.matrix.rows),
+            )],
+        )?;
+        single_dispatches += o.dispatches;
+    }
+    let single_ms = ms(t);
+    let t = Instant::now();
+    for (s, x) in &systems {
+        let mut xc = x.clone();
+        crate::sparse::pcg(
+            &s.matrix,
+            &s.rhs,
+            &mut xc,
+            FINAL_RTOL as f64,
+            chart::default_budget(s.matrix.rows),
+        );
+    }
+    let cpu_ms = ms(t);
+    let mean_v = systems.iter().map(|(s, _)| s.vertices.len()).sum::<usize>() as f64
+        / systems.len().max(1) as f64;
+    let n = systems.len() as f64;
+    emit(serde_json::json!({
+        "bench": "lscm_batch", "mesh": source, "charts": systems.len(), "mean_chart_vertices": mean_v, "converged": converged,
+        "batched_ms": batched_ms, "batched_charts_per_s": n / (batched_ms / 1e3), "batched_dispatches": out.dispatches, "batched_submits": out.submits,
+        "one_by_one_ms": single_ms, "one_by_one_charts_per_s": n / (single_ms / 1e3), "one_by_one_dispatches": single_dispatches,
+        "batched_over_one_by_one": single_ms / batched_ms,
+        "cpu_twin_ms": cpu_ms, "cpu_twin_charts_per_s": n / (cpu_ms / 1e3),
+    }));
+    let _ = std::fs::remove_dir_all(&dir);
+    Ok(())
+}
