@@ -107,6 +107,8 @@ fn run_peer(peers_dir: &Path, obj: &Path) -> serde_json::Value {
         .arg("peers.py")
         .arg("lscm")
         .arg(obj)
+        // The whole chart, disc or not (without this the script cuts its own patch from non-discs).
+        .args(["--patch-radius", "1e30"])
         .output();
     match out {
         Ok(o) if o.status.success() => {
@@ -147,6 +149,8 @@ pub struct LinalgOptions {
     pub reps: usize,
     /// `../shared/peers` directory, to run libigl on the same patches.
     pub peers: Option<PathBuf>,
+    /// Chart sizes (vertices) of the single-chart figures.
+    pub charts: Vec<usize>,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -221,7 +225,7 @@ pub fn run(
         source: e,
     })?;
     let seed_tri = topo.triangles.len() / 3;
-    for target in [1_000usize, 10_000, 100_000] {
+    for &target in &opts.charts {
         if target * 2 > topo.positions.len() {
             continue;
         }

@@ -111,7 +111,7 @@ pub fn job_json() -> String {
             { "kind": "decal", "image": "decals/stripes.png", "at": { "ray": { "origin": [0.0, 1.5, 0.55], "dir": [0, -1, 0] } },
               "size": [0.3, 0.3], "angle": 45.0, "up": [0, 0, 1], "method": "expmap", "blend": "normal", "opacity": 0.9 },
             { "kind": "decal", "image": "decals/rings.png", "at": { "ray": { "origin": [-1.5, 0.0, 0.45], "dir": [1, 0, 0] } },
-              "size": [0.35, 0.35], "up": [0, 1, 0], "method": "planar", "blend": "multiply" },
+              "size": [0.35, 0.35], "up": [0, 1, 0], "method": "lscm", "blend": "multiply" },
             { "kind": "decal", "image": "decals/glow.png", "at": { "ray": { "origin": [0.0, 0.55, -1.5], "dir": [0, 0, 1] } },
               "size": [0.3, 0.3], "method": "planar", "blend": "screen", "opacity": 0.8 }
         ],

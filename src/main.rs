@@ -87,6 +87,9 @@ enum Cmd {
         /// With `--linalg`: the `../shared/peers` directory, to run libigl's LSCM on the same patches.
         #[arg(long)]
         peers: Option<PathBuf>,
+        /// With `--linalg`: chart sizes (vertices) to solve one at a time.
+        #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000")]
+        charts: Vec<usize>,
     },
 }
 
@@ -139,6 +142,7 @@ fn run(cli: Cli) -> Result<()> {
             batch,
             linalg,
             peers,
+            charts,
         } => {
             let engine = engine(cli.backend.as_deref())?;
             if linalg {
@@ -148,6 +152,7 @@ fn run(cli: Cli) -> Result<()> {
                     batch: batch.unwrap_or(1024),
                     reps,
                     peers,
+                    charts,
                 };
                 decalbake::bench_linalg::run(&engine, &opts, |v| println!("{v}"))?;
                 return Ok(());

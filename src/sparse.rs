@@ -210,6 +210,10 @@ pub fn pcg(a: &Csr, b: &[f64], x: &mut [f64], rtol: f64, max_iter: u32) -> CgRep
             z[i] = dinv[i] * r[i];
         }
         let rz2 = dot(&r, &z);
+        if (it + 1) % 50 == 0 {
+            // The GPU kernel refreshes its reference with each residual replacement; so does the twin.
+            scale = residual_scale(a, b, x);
+        }
         res = dot(&r, &r).sqrt() / scale;
         if !res.is_finite() {
             return CgReport {
