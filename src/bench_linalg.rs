@@ -99,7 +99,7 @@ pub fn write_obj(path: &Path, topo: &Topology, tris: &[u32]) -> Result<()> {
 }
 
 /// Runs `peers.py lscm` on an OBJ patch; returns its JSON line's `peers` object, or an error text.
-fn run_peer(peers_dir: &Path, obj: &Path) -> serde_json::Value {
+fn run_peer(peers_dir: &Path, obj: &Path, chart_vertices: usize) -> serde_json::Value {
     let peers_dir = &std::fs::canonicalize(peers_dir).unwrap_or_else(|_| peers_dir.to_path_buf());
     let py = peers_dir.join(".venv/bin/python");
     let out = std::process::Command::new(&py)
@@ -124,9 +124,8 @@ fn run_peer(peers_dir: &Path, obj: &Path) -> serde_json::Value {
                 "scipy_cg_lscm_s": v["peers"]["scipy_cg_lscm"]["total_s"],
                 "scipy_cg_iterations": v["peers"]["scipy_cg_lscm"]["iterations"],
                 "patch_is_disk": v["patch"]["is_disk"],
-                // False when the chart is not a disc and the peer cut its own smaller patch: then
-                // the times are not comparable.
-                "peer_used_whole_chart": v["patch"]["whole_mesh"],
+                // False if the peer cut its own smaller patch: then the times are not comparable.
+                "peer_used_whole_chart": v["patch"]["patch_nv"].as_u64().or(v["nv"].as_u64()) == Some(chart_vertices as u64),
                 "peer_patch_vertices": v["patch"]["patch_nv"].as_u64().or(v["nv"].as_u64()),
             })
         }
@@ -262,7 +261,7 @@ pub fn run(
             Some(p) => {
                 let obj = dir.join(format!("chart_{target}.obj"));
                 write_obj(&obj, &topo, &tris)?;
-                run_peer(p, &obj)
+                run_peer(p, &obj, sys.vertices.len())
             }
             None => serde_json::Value::Null,
         };
