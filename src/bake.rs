@@ -979,7 +979,7 @@ impl Engine {
             let layer_params = params_buffer(dev, "bake.layer_params", &lp);
             // Exponential maps of this chunk: one dispatch, one workgroup per decal.
             let geo_layers: Vec<usize> = (start..end)
-                .filter(|&i| matches!(job.layers[i].method, Method::Expmap | Method::Hybrid))
+                .filter(|&i| job.layers[i].method != Method::Planar)
                 .collect();
             let geo_maps: Vec<_> = geo_layers
                 .iter()
@@ -1005,30 +1005,36 @@ impl Engine {
                 let t = Instant::now();
                 let nv = g.vertex_count as u64;
                 let mut expmaps: HashMap<usize, Vec<[f32; 4]>> = HashMap::new();
+                // Both kinds start from the layer's exponential map (computed above with the
+                // expmap layers): hybrid re-solves part of it, LSCM uses it as its warm start.
                 for &i in &chart_layers {
-                    if job.layers[i].method == Method::Hybrid {
-                        let bytes = self.ctx.read_buffer_range(
-                            &coords,
-                            (i - start) as u64 * nv * 16,
-                            nv * 16,
-                            "hybrid exponential-map read-back",
-                        )?;
-                        expmaps.insert(i, bytemuck::cast_slice(&bytes).to_vec());
-                    }
+                    let bytes = self.ctx.read_buffer_range(
+                        &coords,
+                        (i - start) as u64 * nv * 16,
+                        nv * 16,
+                        "chart exponential-map read-back",
+                    )?;
+                    expmaps.insert(i, bytemuck::cast_slice(&bytes).to_vec());
                 }
                 let requests: Vec<crate::chart::ChartRequest> = chart_layers
                     .iter()
-                    .map(|&i| crate::chart::ChartRequest {
-                        frame: frames[i],
-                        triangle: placements[i].triangle,
-                        kind: match expmaps.get(&i) {
-                            Some(m) => crate::chart::ChartKind::Hybrid {
-                                expmap: m,
-                                threshold: job.layers[i].hybrid_threshold,
+                    .map(|&i| {
+                        let m = &expmaps[&i];
+                        let hybrid = job.layers[i].method == Method::Hybrid;
+                        crate::chart::ChartRequest {
+                            frame: frames[i],
+                            triangle: placements[i].triangle,
+                            kind: if hybrid {
+                                crate::chart::ChartKind::Hybrid {
+                                    expmap: m,
+                                    threshold: job.layers[i].hybrid_threshold,
+                                }
+                            } else {
+                                crate::chart::ChartKind::Lscm
                             },
-                            None => crate::chart::ChartKind::Lscm,
-                        },
-                        max_iter: job.layers[i].cg_max_iterations,
+                            max_iter: job.layers[i].cg_max_iterations,
+                            warm: (!hybrid).then_some(m.as_slice()),
+                        }
                     })
                     .collect();
                 let mut solve_stats = crate::chart::SolveStats::default();
@@ -1817,6 +1823,7 @@ impl Engine {
                         crate::chart::ChartKind::Lscm
                     },
                     max_iter: layer.cg_max_iterations,
+                    warm: None,
                 };
                 let chart = crate::chart::build(
                     topo,

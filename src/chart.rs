@@ -76,6 +76,9 @@ pub struct ChartRequest<'a> {
     pub kind: ChartKind<'a>,
     /// Final-solve CG budget (`None` = 50 sqrt(unknowns) + 500).
     pub max_iter: Option<u32>,
+    /// LSCM: an exponential map at the same placement (per welded vertex `(u, v, _, valid)`), the
+    /// warm start where it reaches; elsewhere the planar projection is used.
+    pub warm: Option<&'a [[f32; 4]]>,
 }
 
 /// What a chart reports (bake report, per layer).
@@ -350,8 +353,12 @@ pub fn build(
             let mut warm = HashMap::new();
             for &t in &triangles {
                 for v in topo.triangles[t as usize] {
-                    warm.entry(v)
-                        .or_insert_with(|| project(&r.frame, topo.positions[v as usize]));
+                    warm.entry(v).or_insert_with(|| match r.warm {
+                        Some(m) if m[v as usize][3] > 0.5 => {
+                            DVec2::new(m[v as usize][0] as f64, m[v as usize][1] as f64)
+                        }
+                        _ => project(&r.frame, topo.positions[v as usize]),
+                    });
                 }
             }
             Work {
@@ -475,25 +482,25 @@ pub fn build(
         });
     }
     // Hybrid charts: one constrained solve each, all in one batch.
-    let hybrid: Vec<(usize, System, Vec<f64>, u32)> = (0..requests.len())
+    let hybrid: Vec<(usize, System, Vec<f64>, u32, bool)> = (0..requests.len())
         .filter_map(|i| match requests[i].kind {
             ChartKind::Hybrid { expmap, threshold } => {
-                let (sys, x0) = hybrid_system(topo, &requests[i], expmap, threshold);
+                let (sys, x0, whole) = hybrid_system(topo, &requests[i], expmap, threshold);
                 let budget = requests[i]
                     .max_iter
                     .unwrap_or_else(|| default_budget(sys.matrix.rows));
-                Some((i, sys, x0, budget))
+                Some((i, sys, x0, budget, whole))
             }
             ChartKind::Lscm => None,
         })
         .collect();
     let input: Vec<(&System, Vec<f64>, u32)> = hybrid
         .iter()
-        .filter(|(_, s, _, _)| s.matrix.rows > 0)
-        .map(|(_, s, x0, b)| (s, x0.clone(), *b))
+        .filter(|(_, s, _, _, _)| s.matrix.rows > 0)
+        .map(|(_, s, x0, b, _)| (s, x0.clone(), *b))
         .collect();
     let mut solved = solver.solve(&input, FINAL_RTOL, stats)?.into_iter();
-    for (i, sys, _, _) in hybrid {
+    for (i, sys, _, _, whole) in hybrid {
         let req = &requests[i];
         let scale = half_extent(&req.frame).length();
         let (coords, report) = if sys.matrix.rows == 0 {
@@ -513,14 +520,34 @@ pub fn build(
             )
         } else {
             let (x, rep) = solved.next().expect("one solution per hybrid system");
+            let coord = |v: u32| -> [f64; 2] {
+                let i = sys.local[&v] as usize;
+                [x[2 * i] * scale, x[2 * i + 1] * scale]
+            };
+            // Whole disc re-solved: normalise like an LSCM chart, every vertex moves.
+            let similarity = if whole {
+                lscm::normalising_similarity(
+                    topo,
+                    &sys.triangles,
+                    &coord,
+                    req.triangle,
+                    req.frame.center.as_dvec3(),
+                    req.frame.axis_u.as_dvec3(),
+                    req.frame.axis_v.as_dvec3(),
+                )
+            } else {
+                None
+            };
             let fixed: HashSet<u32> = sys.fixed.iter().map(|f| f.0).collect();
             let coords = (0..sys.vertices.len())
-                .filter(|i| !fixed.contains(&(*i as u32)))
+                .filter(|i| whole || !fixed.contains(&(*i as u32)))
                 .map(|i| {
-                    (
-                        sys.vertices[i],
-                        [(x[2 * i] * scale) as f32, (x[2 * i + 1] * scale) as f32],
-                    )
+                    let v = sys.vertices[i];
+                    let mut z = DVec2::from(coord(v));
+                    if let Some((alpha, beta)) = similarity {
+                        z = lscm::cmul(alpha, z) + beta;
+                    }
+                    (v, [z.x as f32, z.y as f32])
                 })
                 .collect::<Vec<_>>();
             let report = ChartReport {
@@ -578,6 +605,7 @@ pub fn initial_system(
         triangle,
         kind: ChartKind::Lscm,
         max_iter: None,
+        warm: None,
     };
     let (sys, x0) = pinned_system(topo, &req, &w);
     (triangles, sys, x0)
@@ -710,13 +738,14 @@ pub fn angle_distortion(topo: &Topology, tri: [u32; 3], z: [DVec2; 3]) -> f64 {
 
 /// The hybrid system of one request: free vertices are those of triangles whose angle distortion
 /// exceeds the threshold; the energy covers every map triangle touching a free vertex; their other
-/// vertices are held at the exponential map. Unknowns in units of the decal's half-diagonal.
+/// vertices are held at the exponential map. Unknowns in units of the decal's half-diagonal. The flag
+/// says the whole disc was freed (then the result needs normalising).
 fn hybrid_system(
     topo: &Topology,
     req: &ChartRequest,
     expmap: &[[f32; 4]],
     threshold: f32,
-) -> (System, Vec<f64>) {
+) -> (System, Vec<f64>, bool) {
     let scale = half_extent(&req.frame).length();
     let h = half_extent(&req.frame);
     let valid = |v: u32| expmap[v as usize][3] > 0.5;
@@ -763,7 +792,8 @@ fn hybrid_system(
         free.extend(ring);
     }
     let energy: Vec<u32> = map_tris
-        .into_iter()
+        .iter()
+        .copied()
         .filter(|&t| topo.triangles[t as usize].iter().any(|v| free.contains(v)))
         .collect();
     let warm = |v: u32| -> [f64; 2] {
@@ -779,15 +809,35 @@ fn hybrid_system(
             }
         }
     }
-    if fixed.len() < 2 && !energy.is_empty() {
-        // Everything is free: hold the placed triangle's vertices (they fix the frame).
-        for v in topo.triangles[req.triangle as usize] {
-            if fixed_seen.insert(v) {
-                fixed.push((v, warm(v)));
-            }
-        }
+    // When the distorted part dominates the decal there is nothing good to keep, and the few held
+    // vertices (themselves in distorted surroundings) would dictate the result: solve the whole
+    // geodesic disc conformally instead, with two pins, and normalise it like an LSCM chart.
+    let under: HashSet<u32> = map_tris
+        .iter()
+        .filter(|&&t| box_meets_rect(topo.triangles[t as usize].map(z), h))
+        .flat_map(|&t| topo.triangles[t as usize])
+        .collect();
+    let free_under = under.iter().filter(|v| free.contains(v)).count();
+    if !energy.is_empty() && (fixed.len() < 2 || 2 * free_under > under.len()) {
+        let key = |v: &u32| z(*v).x;
+        let verts: Vec<u32> = map_tris
+            .iter()
+            .flat_map(|&t| topo.triangles[t as usize])
+            .collect();
+        let lo = *verts
+            .iter()
+            .min_by(|a, b| key(a).total_cmp(&key(b)))
+            .expect("a map");
+        let hi = *verts
+            .iter()
+            .max_by(|a, b| key(a).total_cmp(&key(b)))
+            .expect("a map");
+        let pins = vec![(lo, warm(lo)), (hi, warm(hi))];
+        let sys = lscm::assemble(topo, &map_tris, &pins, &warm);
+        let x0 = sys.vertices.iter().flat_map(|&v| warm(v)).collect();
+        return (sys, x0, true);
     }
     let sys = lscm::assemble(topo, &energy, &fixed, &warm);
     let x0 = sys.vertices.iter().flat_map(|&v| warm(v)).collect();
-    (sys, x0)
+    (sys, x0, false)
 }

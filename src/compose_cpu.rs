@@ -137,24 +137,23 @@ pub fn bake_cpu(
             Method::Planar => planar_coords(topo, &frame),
             Method::Expmap => expmap(),
             Method::Lscm | Method::Hybrid => {
-                let mut coords = if layer.method == Method::Hybrid {
-                    expmap()
-                } else {
-                    vec![[0.0; 4]; topo.positions.len()]
-                };
-                let kind = if layer.method == Method::Hybrid {
-                    crate::chart::ChartKind::Hybrid {
-                        expmap: &coords,
-                        threshold: layer.hybrid_threshold,
-                    }
-                } else {
-                    crate::chart::ChartKind::Lscm
-                };
+                // As in the bake: both start from the exponential map (hybrid re-solves part of
+                // it; LSCM warm-starts from it).
+                let map = expmap();
+                let hybrid = layer.method == Method::Hybrid;
                 let req = crate::chart::ChartRequest {
                     frame,
                     triangle: placements[li].triangle,
-                    kind,
+                    kind: if hybrid {
+                        crate::chart::ChartKind::Hybrid {
+                            expmap: &map,
+                            threshold: layer.hybrid_threshold,
+                        }
+                    } else {
+                        crate::chart::ChartKind::Lscm
+                    },
                     max_iter: layer.cg_max_iterations,
+                    warm: (!hybrid).then_some(map.as_slice()),
                 };
                 let chart = crate::chart::build(
                     topo,
@@ -164,6 +163,11 @@ pub fn bake_cpu(
                 )
                 .expect("the CPU solver does not fail")
                 .remove(0);
+                let mut coords = if hybrid {
+                    map
+                } else {
+                    vec![[0.0; 4]; topo.positions.len()]
+                };
                 for (v, c) in chart.coords {
                     coords[v as usize] = [c[0], c[1], 0.0, 1.0];
                 }

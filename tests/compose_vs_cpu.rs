@@ -94,6 +94,8 @@ fn gpu_compose_matches_cpu_twin_for_every_blend_mode() {
         .chain([
             (BlendMode::Normal, "expmap"),
             (BlendMode::Overlay, "expmap"),
+            (BlendMode::Normal, "lscm"),
+            (BlendMode::Multiply, "hybrid"),
         ])
         .collect();
     for (k, (mode, method)) in cases.iter().enumerate() {
@@ -291,7 +293,8 @@ fn distortion_report_matches_analytic_values_on_the_folded_sheet() {
     let text = r#"{ "mesh": "book.glb", "texture": { "width": 64, "height": 64 },
         "layers": [
           { "image": "decal_a.png", "at": [0.25, 0.5, 0.0], "size": [0.65, 0.5], "method": "planar", "depth": 1.0 },
-          { "image": "decal_a.png", "at": [0.45, 0.5, 0.0], "size": [0.5, 0.5], "method": "expmap" } ],
+          { "image": "decal_a.png", "at": [0.45, 0.5, 0.0], "size": [0.5, 0.5], "method": "expmap" },
+          { "image": "decal_a.png", "at": [0.45, 0.5, 0.0], "size": [0.5, 0.5], "method": "lscm" } ],
         "output": { "texture": null, "report": null } }"#;
     let job = Job::parse(text, &dir.join("job.json"), &dir, &dir).unwrap();
     let baked = engine.bake(&loaded, &job).unwrap();
@@ -315,6 +318,17 @@ fn distortion_report_matches_analytic_values_on_the_folded_sheet() {
         expmap.angle_distortion_max < 1.03 && (expmap.area_ratio_mean - 1.0).abs() < 1e-3,
         "{expmap:?}"
     );
+    // The folded sheet is developable: the conformal chart is its unfolding, an isometry after the
+    // normalisation (f32 solve to 1e-6: bounds 1e-3).
+    let lscm = baked.report.layers[2].distortion;
+    eprintln!("lscm {lscm:?}");
+    assert!(
+        lscm.angle_distortion_max < 1.001
+            && (lscm.area_ratio_min - 1.0).abs() < 1e-3
+            && (lscm.area_ratio_max - 1.0).abs() < 1e-3,
+        "{lscm:?}"
+    );
+    assert_eq!(lscm.flipped, 0);
     // CPU twin of the planar figures.
     let mesh = Mesh::load(&dir.join("book.glb")).unwrap();
     let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);

@@ -89,6 +89,7 @@ fn planar_patch_is_reproduced() {
         triangle: tri,
         kind: ChartKind::Lscm,
         max_iter: None,
+        warm: None,
     };
     let mut stats = Default::default();
     let c = &chart::build(topo, &[req], &Solver::Gpu(&engine), &mut stats).unwrap()[0];
@@ -127,6 +128,7 @@ fn spot_chart_matches_cpu_optimum_without_flips() {
             triangle: tri,
             kind: ChartKind::Lscm,
             max_iter: None,
+            warm: None,
         };
         let mut stats = Default::default();
         let c = &chart::build(topo, &[req], &Solver::Gpu(&engine), &mut stats).unwrap()[0];
