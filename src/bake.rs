@@ -949,6 +949,18 @@ impl Engine {
         let mut layer_reports = Vec::new();
         for start in (0..job.layers.len()).step_by(chunk) {
             let end = (start + chunk).min(job.layers.len());
+            if start > 0 {
+                // The exponential maps only write the vertices of their disc (and mark its halo);
+                // a slot's other vertices must not keep the previous chunk's layer as valid.
+                self.ctx.scoped("coords clear", || {
+                    let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some("bake.coords_clear"),
+                    });
+                    enc.clear_buffer(&coords, 0, None);
+                    self.ctx.queue.submit([enc.finish()]);
+                })?;
+                commands += 1;
+            }
             let mut lp = Vec::new();
             for (i, (l, frame)) in job
                 .layers
