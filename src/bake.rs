@@ -999,6 +999,7 @@ impl Engine {
                     let opts = crate::geodesic::Options {
                         radius: frames[i].expmap_radius(),
                         curvature_stop: job.layers[i].curvature_stop,
+                        accuracy: job.layers[i].accuracy,
                     };
                     (frames[i].seed(&placements[i]), opts, (i - start) as u32)
                 })
@@ -1794,6 +1795,7 @@ impl Engine {
                 let opts = crate::geodesic::Options {
                     radius: frame.expmap_radius(),
                     curvature_stop: layer.curvature_stop,
+                    accuracy: layer.accuracy,
                 };
                 let maps = crate::geodesic_gpu::expmaps_gpu(
                     self,
@@ -1812,21 +1814,24 @@ impl Engine {
                 }
             }
             Method::Lscm | Method::Hybrid => {
-                let expmap = if layer.method == Method::Hybrid {
-                    let opts = crate::geodesic::Options {
-                        radius: frame.expmap_radius(),
-                        curvature_stop: layer.curvature_stop,
-                    };
-                    crate::geodesic_gpu::expmaps_gpu(self, mesh, &[(frame.seed(&placement), opts)])?
-                        .remove(0)
-                        .0
-                } else {
-                    Vec::new()
+                // As in the bake: both start from the layer's exponential map.
+                let hybrid = layer.method == Method::Hybrid;
+                let opts = crate::geodesic::Options {
+                    radius: frame.expmap_radius(),
+                    curvature_stop: layer.curvature_stop,
+                    accuracy: layer.accuracy,
                 };
+                let expmap = crate::geodesic_gpu::expmaps_gpu(
+                    self,
+                    mesh,
+                    &[(frame.seed(&placement), opts)],
+                )?
+                .remove(0)
+                .0;
                 let req = crate::chart::ChartRequest {
                     frame,
                     triangle: placement.triangle,
-                    kind: if layer.method == Method::Hybrid {
+                    kind: if hybrid {
                         crate::chart::ChartKind::Hybrid {
                             expmap: &expmap,
                             threshold: layer.hybrid_threshold,
@@ -1835,7 +1840,7 @@ impl Engine {
                         crate::chart::ChartKind::Lscm
                     },
                     max_iter: layer.cg_max_iterations,
-                    warm: None,
+                    warm: (!hybrid).then_some(expmap.as_slice()),
                 };
                 let chart = crate::chart::build(
                     topo,
@@ -1845,15 +1850,19 @@ impl Engine {
                 )?
                 .remove(0);
                 let mut uv: HashMap<u32, [f32; 2]> = chart.coords.into_iter().collect();
-                for (v, c) in expmap.iter().enumerate() {
-                    if c[3] > 0.5 {
-                        uv.entry(v as u32).or_insert([c[0], c[1]]);
+                if hybrid {
+                    // Vertices the hybrid solve did not move keep their exponential-map position.
+                    for (v, c) in expmap.iter().enumerate() {
+                        if c[3] > 0.5 {
+                            uv.entry(v as u32).or_insert([c[0], c[1]]);
+                        }
                     }
                 }
                 for (v, c) in uv {
-                    let distance = expmap
-                        .get(v as usize)
-                        .map(|e| (e[0] * e[0] + e[1] * e[1]).sqrt());
+                    let distance = hybrid.then(|| {
+                        let e = expmap[v as usize];
+                        (e[0] * e[0] + e[1] * e[1]).sqrt()
+                    });
                     rows.push(ParamRow {
                         vertex: v,
                         position: topo.positions[v as usize].to_array(),

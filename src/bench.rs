@@ -127,6 +127,8 @@ pub struct BenchOptions {
     pub reps: usize,
     /// Largest `decals × side²` for which the CPU twin is timed too.
     pub cpu_budget: u64,
+    /// Exponential-map update rule (geodesic benchmark).
+    pub accuracy: crate::geodesic::Accuracy,
 }
 
 /// Runs the benchmark, calling `emit` with one JSON object per configuration.
@@ -308,6 +310,7 @@ pub fn run_geodesic(
             let o = Options {
                 radius,
                 curvature_stop: f32::INFINITY,
+                accuracy: opts.accuracy,
             };
             expmaps_warm(engine, &loaded, &[(seed, o)])?;
             let mut g = Vec::new();
@@ -340,6 +343,7 @@ pub fn run_geodesic(
                     Options {
                         radius,
                         curvature_stop: f32::INFINITY,
+                        accuracy: opts.accuracy,
                     },
                 )
             })

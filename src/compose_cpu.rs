@@ -124,6 +124,7 @@ pub fn bake_cpu(
             let opts = crate::geodesic::Options {
                 radius: frame.expmap_radius(),
                 curvature_stop: layer.curvature_stop,
+                accuracy: layer.accuracy,
             };
             let map =
                 crate::geodesic::dem_cpu(topo, &frame.seed(&placements[li]), opts, &curvature);

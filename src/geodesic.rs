@@ -97,10 +97,63 @@ pub struct Options {
     /// Vertices whose |Gaussian curvature| exceeds this are reached but not expanded (partial
     /// decals, section 5.2). `f32::INFINITY` turns it off.
     pub curvature_stop: f32,
+    /// The update rule.
+    pub accuracy: Accuracy,
+}
+
+/// How a vertex's normal coordinates follow from its upwind neighbour's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Accuracy {
+    /// The paper's update (Schmidt et al. eq. 2-3): the edge, laid into the neighbour's tangent
+    /// plane, turned into the seed's plane by the minimal rotation between the normals.
+    Fast,
+    /// The same, with the edge's angular component (perpendicular to the neighbour's radial
+    /// direction) scaled by r / G(r), where G is the Jacobi field of the geodesic polar coordinates
+    /// (G'' = -K G, G(0) = 0, G'(0) = 1) integrated along the upwind path with each vertex's Gaussian
+    /// curvature. Geodesic polar coordinates have metric dr² + G(r)² dθ², so an angular step of
+    /// length s turns θ by s / G, which the plain update takes as s / r: on a sphere it under-turns
+    /// by sin r / r, and the error does not shrink under refinement. With the correction it does.
+    #[default]
+    Smooth,
+}
+
+/// Jacobi field (G, G') advanced by `dr` along a geodesic through curvature `k` (exact for
+/// constant curvature). Twin of `jacobi_step` in `wgsl/shared/expmap.wgsl`: same operations.
+pub fn jacobi_step(g: [f32; 2], k: f32, dr: f32) -> [f32; 2] {
+    if k > 1.0e-12 {
+        let w = k.sqrt();
+        let (sn, cs) = ((w * dr).sin(), (w * dr).cos());
+        [g[0] * cs + g[1] * sn / w, g[1] * cs - g[0] * w * sn]
+    } else if k < -1.0e-12 {
+        let w = (-k).sqrt();
+        let (e, ei) = ((w * dr).exp(), (-w * dr).exp());
+        let (sn, cs) = (0.5 * (e - ei), 0.5 * (e + ei));
+        [g[0] * cs + g[1] * sn / w, g[1] * cs + g[0] * w * sn]
+    } else {
+        [g[0] + g[1] * dr, g[1]]
+    }
+}
+
+/// The smooth mode's increment: `t` (the plain update) with its component perpendicular to the
+/// neighbour's coordinates `c` scaled by |c| / G. Twin of `smooth_increment` in
+/// `wgsl/shared/expmap.wgsl`.
+pub fn smooth_increment(c: [f32; 2], g: f32, t: [f32; 2]) -> [f32; 2] {
+    let r = (c[0] * c[0] + c[1] * c[1]).sqrt();
+    if r <= 1.0e-12 || g <= 1.0e-12 {
+        return t;
+    }
+    let u = [c[0] / r, c[1] / r];
+    let w = [-u[1], u[0]];
+    let k = r / g;
+    let a = t[0] * u[0] + t[1] * u[1];
+    let b = k * (t[0] * w[0] + t[1] * w[1]);
+    [u[0] * a + w[0] * b, u[1] * a + w[1] * b]
 }
 
 /// The paper's Dijkstra-based discrete exponential map (f32, the CPU twin of the GPU relaxation).
-/// `curvature` is |K| per welded vertex (see [`gaussian_curvature`]); unused when the stop is off.
+/// `curvature` is the signed Gaussian curvature per welded vertex (see [`gaussian_curvature`]):
+/// the stop compares |K|, the smooth mode integrates K.
 pub fn dem_cpu(topo: &Topology, seed: &Seed, opts: Options, curvature: &[f32]) -> ExpMap {
     let n = topo.positions.len();
     let mut map = ExpMap {
@@ -109,6 +162,8 @@ pub fn dem_cpu(topo: &Topology, seed: &Seed, opts: Options, curvature: &[f32]) -
         parent: vec![u32::MAX; n],
     };
     let mut done = vec![false; n];
+    // Jacobi field (G, G') per vertex, for the smooth mode.
+    let mut jac = vec![[0.0f32, 1.0f32]; n];
     let mut heap = BinaryHeap::new();
     let flat = Seed {
         normal: seed.normal,
@@ -118,11 +173,15 @@ pub fn dem_cpu(topo: &Topology, seed: &Seed, opts: Options, curvature: &[f32]) -
         let p = topo.positions[v as usize];
         map.dist[v as usize] = (p - seed.point).length();
         map.uv[v as usize] = transfer(seed.point, seed.normal, p, &flat);
+        jac[v as usize] = [map.dist[v as usize], 1.0];
         done[v as usize] = true;
     }
     // Seed vertices are final; expand them first.
     let expandable = |v: usize, d: f32| {
-        d <= opts.radius && curvature.get(v).is_none_or(|k| *k <= opts.curvature_stop)
+        d <= opts.radius
+            && curvature
+                .get(v)
+                .is_none_or(|k| k.abs() <= opts.curvature_stop)
     };
     for &v in &topo.triangles[seed.triangle as usize] {
         let v = v as usize;
@@ -148,7 +207,17 @@ pub fn dem_cpu(topo: &Topology, seed: &Seed, opts: Options, curvature: &[f32]) -
             seed,
         );
         map.dist[q] = d;
-        map.uv[q] = [map.uv[rr][0] + t[0], map.uv[rr][1] + t[1]];
+        let c = map.uv[rr];
+        let t = match opts.accuracy {
+            Accuracy::Fast => t,
+            Accuracy::Smooth => smooth_increment(c, jac[rr][0], t),
+        };
+        map.uv[q] = [c[0] + t[0], c[1] + t[1]];
+        if opts.accuracy == Accuracy::Smooth {
+            let rc = (c[0] * c[0] + c[1] * c[1]).sqrt();
+            let rq = (map.uv[q][0] * map.uv[q][0] + map.uv[q][1] * map.uv[q][1]).sqrt();
+            jac[q] = jacobi_step(jac[rr], curvature.get(rr).copied().unwrap_or(0.0), rq - rc);
+        }
         map.parent[q] = r;
         done[q] = true;
         if expandable(q, d) {
@@ -203,7 +272,7 @@ fn push_neighbors(
     }
 }
 
-/// |Gaussian curvature| per welded vertex: angle defect over a third of the incident area
+/// Gaussian curvature per welded vertex (signed): angle defect over a third of the incident area
 /// (boundary vertices: defect against π). Degenerate triangles are skipped.
 pub fn gaussian_curvature(topo: &Topology) -> Vec<f32> {
     let n = topo.positions.len();
@@ -234,7 +303,7 @@ pub fn gaussian_curvature(topo: &Topology) -> Vec<f32> {
                 2.0 * std::f64::consts::PI
             };
             if area[v] > 0.0 {
-                ((full - angle[v]).abs() / area[v]) as f32
+                ((full - angle[v]) / area[v]) as f32
             } else {
                 0.0
             }

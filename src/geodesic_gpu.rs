@@ -27,7 +27,8 @@ pub struct GeoJob {
     /// Vertices next to the candidates but outside them, listed right after the candidates: the
     /// first round marks them as not reachable, so no slot ever needs clearing in full.
     halo_count: u32,
-    pad: u32,
+    /// 1 for [`crate::geodesic::Accuracy::Smooth`].
+    smooth: u32,
 }
 
 /// What the relaxation reports per decal. Keep in sync with `GeoResult` in wgsl/expmap_relax.wgsl.
@@ -113,7 +114,7 @@ pub fn build_jobs(topo: &Topology, maps: &[(Seed, Options, u32)]) -> (Vec<GeoJob
             // Each sweep settles at least one more ring; four times the candidates is a generous cap.
             max_sweeps: 4 * c.len() as u32 + 16,
             halo_count: halo.len() as u32,
-            pad: 0,
+            smooth: u32::from(opts.accuracy == crate::geodesic::Accuracy::Smooth),
         });
         cands.extend(c);
         cands.extend(halo);
@@ -175,6 +176,7 @@ pub fn run(
             let fstate = plain("expmap.front_state", jobs.len() as u64 * 16);
             let fronts = plain("expmap.fronts", 2 * cands.len() as u64 * 4);
             let marks = plain("expmap.marks", slots * mesh.vertex_count as u64 * 4);
+            let jac = plain("expmap.jacobi", slots * mesh.vertex_count as u64 * 8);
             let jobs_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("expmap.jobs"),
                 contents: bytemuck::cast_slice(jobs),
@@ -209,9 +211,10 @@ pub fn run(
                 [mk(1), mk(0)],
                 fstate,
                 fronts,
-                marks,
+                (marks, jac),
             )
         })?;
+    let (marks, jac) = marks;
     let bind = |round: &wgpu::Buffer| {
         pipes.expmap_relax.bind(
             device,
@@ -230,6 +233,7 @@ pub fn run(
                 (10, fstate.as_entire_binding()),
                 (11, fronts.as_entire_binding()),
                 (12, marks.as_entire_binding()),
+                (13, jac.as_entire_binding()),
             ],
         )
     };

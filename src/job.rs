@@ -181,6 +181,9 @@ pub struct LayerSpec {
     /// Expmap: halt propagation at vertices whose |Gaussian curvature| exceeds this (partial decals).
     #[serde(default)]
     pub curvature_stop: Option<f32>,
+    /// Expmap: `"smooth"` (default) or `"fast"` (the paper's update).
+    #[serde(default)]
+    pub accuracy: Option<String>,
     /// Hybrid: triangles of the exponential map whose angle distortion (s1 / s2) exceeds this are
     /// re-solved conformally (default 1.1).
     #[serde(default)]
@@ -307,6 +310,8 @@ pub struct Layer {
     pub depth: f32,
     /// Expmap curvature stop (`f32::INFINITY` = off).
     pub curvature_stop: f32,
+    /// Expmap update rule (also the start of lscm and hybrid layers).
+    pub accuracy: crate::geodesic::Accuracy,
     /// Hybrid re-solve threshold on s1 / s2.
     pub hybrid_threshold: f32,
     /// LSCM / hybrid final-solve iteration budget (`None` = automatic).
@@ -532,6 +537,16 @@ impl Job {
                 Some(k) => k,
                 None => 1.1,
             };
+            let accuracy = match l.accuracy.as_deref() {
+                None | Some("smooth") => crate::geodesic::Accuracy::Smooth,
+                Some("fast") => crate::geodesic::Accuracy::Fast,
+                Some(other) => {
+                    return Err(err(
+                        &field("accuracy"),
+                        format!("unknown accuracy \"{other}\"; use \"smooth\" or \"fast\""),
+                    ))
+                }
+            };
             if l.cg_max_iterations == Some(0) {
                 return Err(err(
                     &field("cg_max_iterations"),
@@ -550,6 +565,7 @@ impl Job {
                 opacity: l.opacity,
                 depth,
                 curvature_stop,
+                accuracy,
                 hybrid_threshold,
                 cg_max_iterations: l.cg_max_iterations,
             });

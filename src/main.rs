@@ -76,6 +76,9 @@ enum Cmd {
         /// the mesh subdivided 2 and 3 times, or `--subdivide` times; then a batch of small maps).
         #[arg(long)]
         geodesic: bool,
+        /// With `--geodesic`: the paper's plain update instead of the smooth mode.
+        #[arg(long)]
+        fast: bool,
         /// Maps in the batched geodesic benchmark (charts in the batched `--linalg` one: 1024).
         #[arg(long)]
         batch: Option<usize>,
@@ -139,6 +142,7 @@ fn run(cli: Cli) -> Result<()> {
             reps,
             cpu_budget,
             geodesic,
+            fast,
             batch,
             linalg,
             peers,
@@ -164,6 +168,11 @@ fn run(cli: Cli) -> Result<()> {
                 decals,
                 reps,
                 cpu_budget,
+                accuracy: if fast {
+                    decalbake::geodesic::Accuracy::Fast
+                } else {
+                    decalbake::geodesic::Accuracy::Smooth
+                },
             };
             if geodesic {
                 decalbake::bench::run_geodesic(&engine, &opts, batch.unwrap_or(256), |v| {

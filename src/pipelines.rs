@@ -475,6 +475,7 @@ impl Pipelines {
                     (10, Rw),
                     (11, Rw),
                     (12, Rw),
+                    (13, Rw),
                 ],
             ),
             preview,

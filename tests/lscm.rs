@@ -35,6 +35,7 @@ fn frame_at(topo: &Topology, at: Vec3, up: [f32; 3], size: [f32; 2]) -> (Frame, 
         opacity: 1.0,
         depth: 1.0,
         curvature_stop: f32::INFINITY,
+        accuracy: decalbake::geodesic::Accuracy::Smooth,
         hybrid_threshold: 1.1,
         cg_max_iterations: None,
     };

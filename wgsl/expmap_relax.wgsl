@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-// Discrete exponential maps by parallel relaxation over an active front, one workgroup per decal:
+// Discrete exponential maps by parallel relaxation over an active front, one workgroup per decal
+// (smooth mode: the update also carries a Jacobi field, see `Accuracy` in src/geodesic.rs):
 // every sweep, each vertex of the front takes the neighbour that minimises (graph distance +
 // edge length) among reached, expandable neighbours (graph distance <= radius, |K| <= curvature
 // stop) and sets its normal coordinates from it (shared/expmap.wgsl); sweeps repeat until one changes
@@ -37,7 +38,8 @@ struct GeoJob {
     max_sweeps: u32,
     // Vertices around the candidates, listed right after them: reset to "not a candidate".
     halo_count: u32,
-    _pad0: u32,
+    // 1: smooth mode (Jacobi-field correction of the angular component), 0: the paper's update.
+    smooth_mode: u32,
 }
 
 // Keep in sync with `Round` in src/geodesic_gpu.rs.
@@ -72,6 +74,8 @@ struct GeoResult {
 @group(0) @binding(11) var<storage, read_write> fronts: array<u32>;
 // Per slot and vertex: the stamp of the sweep that last queued it (dedupes the next front).
 @group(0) @binding(12) var<storage, read_write> marks: array<atomic<u32>>;
+// Per slot and vertex: the Jacobi field (G, G') of the smooth mode (see shared/expmap.wgsl).
+@group(0) @binding(13) var<storage, read_write> jac: array<vec2<f32>>;
 
 var<workgroup> reached: atomic<u32>;
 var<workgroup> done_before: u32;
@@ -93,6 +97,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         for (var i = lid; i < job.cand_count; i += WG) {
             let v = candidates[job.cand_offset + i];
             coords[base + v] = vec4<f32>(0.0, 0.0, INF, 0.0);
+            jac[base + v] = vec2<f32>(0.0, 1.0);
             atomicStore(&marks[base + v], 0u);
         }
         for (var i = lid; i < job.halo_count; i += WG) {
@@ -105,6 +110,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
             let p = positions[v].xyz;
             let d = p - job.seed.xyz;
             coords[base + v] = vec4<f32>(transfer(job.seed.xyz, seed_n, p, seed_n, job.e1.xyz, job.e2.xyz), length(d), 2.0);
+            jac[base + v] = vec2<f32>(length(d), 1.0);
         }
         for (var i = lid; i < job.cand_count; i += WG) {
             fronts[2u * job.cand_offset + i] = candidates[job.cand_offset + i];
@@ -140,7 +146,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
             for (var k = adj_offsets[v]; k < adj_offsets[v + 1u]; k++) {
                 let r = adjacency[k];
                 let cr = coords[base + r];
-                if (cr.w > 0.5 && cr.z <= job.radius && curvature[r] <= job.curvature_stop) {
+                if (cr.w > 0.5 && cr.z <= job.radius && abs(curvature[r]) <= job.curvature_stop) {
                     let key = cr.z + length(pv - positions[r].xyz);
                     if (key < best || (key == best && r < best_r)) {
                         best = key;
@@ -150,10 +156,20 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
             }
             if (best_r != NONE) {
                 let cr = coords[base + best_r];
-                let t = transfer(positions[best_r].xyz, normals[best_r].xyz, pv, seed_n, job.e1.xyz, job.e2.xyz);
+                var t = transfer(positions[best_r].xyz, normals[best_r].xyz, pv, seed_n, job.e1.xyz, job.e2.xyz);
+                var jv = vec2<f32>(0.0, 1.0);
+                if (job.smooth_mode != 0u) {
+                    let jr = jac[base + best_r];
+                    t = smooth_increment(cr.xy, jr.x, t);
+                    let nuv = cr.xy + t;
+                    let rc = sqrt(cr.x * cr.x + cr.y * cr.y);
+                    let rq = sqrt(nuv.x * nuv.x + nuv.y * nuv.y);
+                    jv = jacobi_step(jr, curvature[best_r], rq - rc);
+                }
                 let nc = vec4<f32>(cr.xy + t, best, 1.0);
-                if (any(nc != c)) {
+                if (any(nc != c) || any(jv != jac[base + v])) {
                     coords[base + v] = nc;
+                    jac[base + v] = jv;
                     // Queue the neighbours that are candidates (cleared non-candidates have z = 0,
                     // candidates start at INF) and not seed vertices.
                     for (var k = adj_offsets[v]; k < adj_offsets[v + 1u]; k++) {
