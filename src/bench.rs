@@ -98,7 +98,8 @@ pub fn random_job(mesh: &LoadedMesh, n: usize, side: u32, dir: &Path, seed: u32)
         let p: Vec3 = a + u * (b - a) + v * (c - a);
         layers.push(serde_json::json!({
             "image": images[i % images.len()], "at": p.to_array(), "size": [size, size],
-            "angle": rnd() * 360.0, "blend": modes[i % modes.len()].name(), "opacity": 0.9
+            "angle": rnd() * 360.0, "blend": modes[i % modes.len()].name(), "opacity": 0.9,
+            "method": "planar"
         }));
     }
     let job = serde_json::json!({

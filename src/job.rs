@@ -201,7 +201,7 @@ fn default_up() -> [f32; 3] {
     [0.0, 1.0, 0.0]
 }
 fn default_method() -> String {
-    "planar".into()
+    "expmap".into()
 }
 fn default_blend() -> String {
     "normal".into()
