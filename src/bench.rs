@@ -130,6 +130,9 @@ pub struct BenchOptions {
     pub cpu_budget: u64,
     /// Exponential-map update rule (geodesic benchmark).
     pub accuracy: crate::geodesic::Accuracy,
+    /// Geodesic benchmark: `../shared/peers`, to time potpourri3d's log maps on the same meshes and
+    /// seed vertices in the same run.
+    pub peers: Option<PathBuf>,
 }
 
 /// Runs the benchmark, calling `emit` with one JSON object per configuration.
@@ -279,6 +282,19 @@ pub fn run_geodesic(
         let loaded = engine.prepare(mesh)?;
         let topo = &loaded.topo;
         let k = gaussian_curvature(topo);
+        // The peers read the welded mesh as OBJ.
+        let peer_mesh = match &opts.peers {
+            Some(_) => {
+                let p = std::env::temp_dir()
+                    .join(format!("decalbake-geo-{}-{level}.obj", std::process::id()));
+                let tris: Vec<u32> = (0..topo.triangles.len() as u32)
+                    .filter(|&t| !topo.degenerate[t as usize])
+                    .collect();
+                crate::bench_linalg::write_obj(&p, topo, &tris)?;
+                Some(p)
+            }
+            None => None,
+        };
         let area: f32 = topo
             .triangles
             .iter()
@@ -328,11 +344,19 @@ pub fn run_geodesic(
             let cpu_ms = t.elapsed().as_secs_f64() * 1000.0;
             let (res, dispatches) = last.expect("one repetition");
             let gpu_ms = median(g);
+            let peers = match (&opts.peers, &peer_mesh) {
+                (Some(dir), Some(obj)) => {
+                    let source = topo.triangles[seed.triangle as usize][0];
+                    peer_logmap(dir, obj, source, radius)
+                }
+                _ => serde_json::Value::Null,
+            };
             emit(serde_json::json!({
                 "bench": "expmap", "mesh_triangles": topo.triangles.len(), "mesh_vertices": topo.positions.len(),
                 "disc_vertices": res.reached, "cpu_reached": cpu.dist.iter().filter(|d| d.is_finite()).count(),
                 "sweeps": res.sweeps, "converged": res.converged == 1, "dispatches": dispatches,
                 "gpu_ms": gpu_ms, "cpu_twin_ms": cpu_ms, "cpu_over_gpu": cpu_ms / gpu_ms,
+                "accuracy": opts.accuracy, "peers": peers,
             }));
         }
         // Many small maps in one dispatch.
@@ -364,8 +388,52 @@ pub fn run_geodesic(
             "dispatches": dispatches, "gpu_ms": gpu_ms, "gpu_maps_per_s": batch as f64 / (gpu_ms / 1000.0),
             "cpu_twin_ms": cpu_ms, "cpu_maps_per_s": batch as f64 / (cpu_ms / 1000.0),
         }));
+        if let Some(p) = &peer_mesh {
+            let _ = std::fs::remove_file(p);
+        }
     }
     Ok(())
+}
+
+/// Times potpourri3d's log maps (`peers.py logmap`, VectorHeat and AffineLocal; they compute the map
+/// over the whole mesh, their cost model) from vertex `source` of `obj`.
+fn peer_logmap(dir: &Path, obj: &Path, source: u32, radius: f32) -> serde_json::Value {
+    let dir = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
+    let out = std::process::Command::new(dir.join(".venv/bin/python"))
+        .current_dir(&dir)
+        .args(["peers.py", "logmap"])
+        .arg(obj)
+        .args([
+            "--source",
+            &source.to_string(),
+            "--radius",
+            &radius.to_string(),
+        ])
+        .args(["--no-exact", "--no-dem", "--repeats", "3", "--budget", "10"])
+        .output();
+    match out {
+        Ok(o) if o.status.success() => {
+            let text = String::from_utf8_lossy(&o.stdout);
+            let line = text
+                .lines()
+                .rev()
+                .find(|l| l.trim_start().starts_with('{'))
+                .unwrap_or("{}");
+            let v: serde_json::Value = serde_json::from_str(line).unwrap_or_default();
+            let p = &v["peers"];
+            serde_json::json!({
+                "vhm_setup_s": p["pp3d_vhm_setup"]["setup"]["median_s"],
+                "vector_heat_s": p["pp3d_VectorHeat"]["total_s"],
+                "vector_heat_cold_s": p["pp3d_VectorHeat"]["cold_total_s"],
+                "affine_local_s": p["pp3d_AffineLocal"]["total_s"],
+                "affine_local_cold_s": p["pp3d_AffineLocal"]["cold_total_s"],
+            })
+        }
+        Ok(o) => {
+            serde_json::json!({ "error": String::from_utf8_lossy(&o.stderr).lines().last().unwrap_or("failed").to_string() })
+        }
+        Err(e) => serde_json::json!({ "error": e.to_string() }),
+    }
 }
 
 fn expmaps_warm(

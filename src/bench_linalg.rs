@@ -77,6 +77,7 @@ pub fn chart_of_size(
     best.expect("at least one bisection step")
 }
 
+/// Writes `tris` of `topo` as an OBJ file (for the peers).
 pub fn write_obj(path: &Path, topo: &Topology, tris: &[u32]) -> Result<()> {
     let mut local = std::collections::HashMap::new();
     let mut text = String::new();

@@ -87,7 +87,8 @@ enum Cmd {
         /// (default 3), and a batch of small charts).
         #[arg(long)]
         linalg: bool,
-        /// With `--linalg`: the `../shared/peers` directory, to run libigl's LSCM on the same patches.
+        /// With `--linalg` or `--geodesic`: the `../shared/peers` directory, to run libigl's LSCM or
+        /// potpourri3d's log maps on the same patches / meshes and seeds.
         #[arg(long)]
         peers: Option<PathBuf>,
         /// With `--linalg`: chart sizes (vertices) to solve one at a time.
@@ -173,6 +174,7 @@ fn run(cli: Cli) -> Result<()> {
                 } else {
                     decalbake::geodesic::Accuracy::Smooth
                 },
+                peers: peers.clone(),
             };
             if geodesic {
                 decalbake::bench::run_geodesic(&engine, &opts, batch.unwrap_or(256), |v| {
