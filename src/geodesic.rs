@@ -272,8 +272,9 @@ fn push_neighbors(
     }
 }
 
-/// Gaussian curvature per welded vertex (signed): angle defect over a third of the incident area
-/// (boundary vertices: defect against π). Degenerate triangles are skipped.
+/// Gaussian curvature per welded vertex (signed): angle defect over a third of the incident area;
+/// 0 at boundary vertices, whose defect (against π) is the boundary's turning, not the surface's.
+/// Degenerate triangles are skipped.
 pub fn gaussian_curvature(topo: &Topology) -> Vec<f32> {
     let n = topo.positions.len();
     let mut angle = vec![0f64; n];
@@ -302,7 +303,10 @@ pub fn gaussian_curvature(topo: &Topology) -> Vec<f32> {
             } else {
                 2.0 * std::f64::consts::PI
             };
-            if area[v] > 0.0 {
+            // At a boundary vertex the defect against π measures the boundary's turning (geodesic
+            // curvature), not the surface's: report 0 there (the smooth mode integrates K, and a
+            // boundary is a stop for propagation anyway).
+            if area[v] > 0.0 && !boundary[v] {
                 ((full - angle[v]) / area[v]) as f32
             } else {
                 0.0
