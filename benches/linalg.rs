@@ -7,27 +7,12 @@
 //! Run: `cargo bench --bench linalg` (set `WGPU_BACKEND=vulkan` for lavapipe).
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use decalbake::bench_linalg::frame_at;
 use decalbake::chart::{self, FINAL_RTOL};
-use decalbake::layer::Frame;
 use decalbake::linalg_gpu::{cg_batched, spmv, GpuCsr, SystemDesc};
 use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
 use decalbake::sparse::Csr;
 use decalbake::Engine;
-
-fn frame(topo: &Topology, t: usize, side: f32) -> Frame {
-    let [a, b, c] = topo.triangles[t].map(|i| topo.positions[i as usize]);
-    let n = (b - a).cross(c - a).normalize();
-    let u = (b - a).normalize();
-    Frame {
-        center: (a + b + c) / 3.0,
-        axis_u: u,
-        axis_v: n.cross(u),
-        normal: n,
-        size: [side, side],
-        depth: side,
-        up_fallback: false,
-    }
-}
 
 fn linalg(c: &mut Criterion) {
     let engine = Engine::new(None).expect("a GPU adapter (mesa-vulkan-drivers for lavapipe)");
@@ -51,7 +36,7 @@ fn linalg(c: &mut Criterion) {
     });
 
     let t = topo.triangles.len() / 3;
-    let (_, sys, x0) = chart::initial_system(&topo, &frame(&topo, t, 0.35), t as u32);
+    let (_, sys, x0) = chart::initial_system(&topo, &frame_at(&topo, t, 0.35), t as u32);
     let desc = [SystemDesc::new(
         0,
         sys.matrix.rows,
@@ -71,7 +56,7 @@ fn linalg(c: &mut Criterion) {
     let systems: Vec<_> = (0..64)
         .map(|i| {
             let t = (i * 131 + 17) % topo.triangles.len();
-            let (_, s, x0) = chart::initial_system(&topo, &frame(&topo, t, 0.12), t as u32);
+            let (_, s, x0) = chart::initial_system(&topo, &frame_at(&topo, t, 0.12), t as u32);
             (s, x0)
         })
         .collect();

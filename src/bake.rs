@@ -1020,34 +1020,30 @@ impl Engine {
                 let mut expmaps: HashMap<usize, Vec<[f32; 4]>> = HashMap::new();
                 // Both kinds start from the layer's exponential map (computed above with the
                 // expmap layers): hybrid re-solves part of it, LSCM uses it as its warm start.
+                // One read-back from the first to the last chart layer's slot (the slots of other
+                // layers in between come along).
+                let (first, last) = (chart_layers[0], chart_layers[chart_layers.len() - 1]);
+                let bytes = self.ctx.read_buffer_range(
+                    &coords,
+                    (first - start) as u64 * nv * 16,
+                    (last - first + 1) as u64 * nv * 16,
+                    "chart exponential-map read-back",
+                )?;
+                let all: &[[f32; 4]] = bytemuck::cast_slice(&bytes);
+                let n = nv as usize;
                 for &i in &chart_layers {
-                    let bytes = self.ctx.read_buffer_range(
-                        &coords,
-                        (i - start) as u64 * nv * 16,
-                        nv * 16,
-                        "chart exponential-map read-back",
-                    )?;
-                    expmaps.insert(i, bytemuck::cast_slice(&bytes).to_vec());
+                    let k = i - first;
+                    expmaps.insert(i, all[k * n..(k + 1) * n].to_vec());
                 }
                 let requests: Vec<crate::chart::ChartRequest> = chart_layers
                     .iter()
                     .map(|&i| {
-                        let m = &expmaps[&i];
-                        let hybrid = job.layers[i].method == Method::Hybrid;
-                        crate::chart::ChartRequest {
-                            frame: frames[i],
-                            triangle: placements[i].triangle,
-                            kind: if hybrid {
-                                crate::chart::ChartKind::Hybrid {
-                                    expmap: m,
-                                    threshold: job.layers[i].hybrid_threshold,
-                                }
-                            } else {
-                                crate::chart::ChartKind::Lscm
-                            },
-                            max_iter: job.layers[i].cg_max_iterations,
-                            warm: (!hybrid).then_some(m.as_slice()),
-                        }
+                        crate::chart::ChartRequest::for_layer(
+                            frames[i],
+                            placements[i].triangle,
+                            &job.layers[i],
+                            &expmaps[&i],
+                        )
                     })
                     .collect();
                 let mut solve_stats = crate::chart::SolveStats::default();
@@ -1828,20 +1824,12 @@ impl Engine {
                 )?
                 .remove(0)
                 .0;
-                let req = crate::chart::ChartRequest {
+                let req = crate::chart::ChartRequest::for_layer(
                     frame,
-                    triangle: placement.triangle,
-                    kind: if hybrid {
-                        crate::chart::ChartKind::Hybrid {
-                            expmap: &expmap,
-                            threshold: layer.hybrid_threshold,
-                        }
-                    } else {
-                        crate::chart::ChartKind::Lscm
-                    },
-                    max_iter: layer.cg_max_iterations,
-                    warm: (!hybrid).then_some(expmap.as_slice()),
-                };
+                    placement.triangle,
+                    layer,
+                    &expmap,
+                );
                 let chart = crate::chart::build(
                     topo,
                     &[req],

@@ -109,7 +109,8 @@ pub fn random_job(mesh: &LoadedMesh, n: usize, side: u32, dir: &Path, seed: u32)
     Job::parse(&job.to_string(), &dir.join("bench-job.json"), dir, dir)
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
+/// Median (upper middle for even counts).
+pub fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(|a, b| a.total_cmp(b));
     v[v.len() / 2]
 }
@@ -395,31 +396,52 @@ pub fn run_geodesic(
     Ok(())
 }
 
-/// Times potpourri3d's log maps (`peers.py logmap`, VectorHeat and AffineLocal; they compute the map
-/// over the whole mesh, their cost model) from vertex `source` of `obj`.
-fn peer_logmap(dir: &Path, obj: &Path, source: u32, radius: f32) -> serde_json::Value {
+/// Runs `../shared/peers/peers.py ARGS` (its own venv, from its folder) and returns the JSON object
+/// it prints last, or a one-line error text.
+pub fn run_peers_py(
+    dir: &Path,
+    args: &[&std::ffi::OsStr],
+) -> std::result::Result<serde_json::Value, String> {
     let dir = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
     let out = std::process::Command::new(dir.join(".venv/bin/python"))
         .current_dir(&dir)
-        .args(["peers.py", "logmap"])
-        .arg(obj)
-        .args([
-            "--source",
-            &source.to_string(),
-            "--radius",
-            &radius.to_string(),
-        ])
-        .args(["--no-exact", "--no-dem", "--repeats", "3", "--budget", "10"])
-        .output();
-    match out {
-        Ok(o) if o.status.success() => {
-            let text = String::from_utf8_lossy(&o.stdout);
-            let line = text
-                .lines()
-                .rev()
-                .find(|l| l.trim_start().starts_with('{'))
-                .unwrap_or("{}");
-            let v: serde_json::Value = serde_json::from_str(line).unwrap_or_default();
+        .arg("peers.py")
+        .args(args)
+        .output()
+        .map_err(|e| e.to_string())?;
+    if !out.status.success() {
+        return Err(String::from_utf8_lossy(&out.stderr)
+            .lines()
+            .last()
+            .unwrap_or("failed")
+            .to_string());
+    }
+    let text = String::from_utf8_lossy(&out.stdout);
+    let line = text
+        .lines()
+        .rev()
+        .find(|l| l.trim_start().starts_with('{'))
+        .unwrap_or("{}");
+    serde_json::from_str(line).map_err(|e| e.to_string())
+}
+
+/// Times potpourri3d's log maps (`peers.py logmap`, VectorHeat and AffineLocal; they compute the map
+/// over the whole mesh, their cost model) from vertex `source` of `obj`.
+fn peer_logmap(dir: &Path, obj: &Path, source: u32, radius: f32) -> serde_json::Value {
+    let (source, radius) = (source.to_string(), radius.to_string());
+    let args: Vec<&std::ffi::OsStr> = [
+        "logmap".as_ref(),
+        obj.as_os_str(),
+        "--source".as_ref(),
+        source.as_ref(),
+        "--radius".as_ref(),
+        radius.as_ref(),
+    ]
+    .into_iter()
+    .chain(["--no-exact", "--no-dem", "--repeats", "3", "--budget", "10"].map(|s| s.as_ref()))
+    .collect();
+    match run_peers_py(dir, &args) {
+        Ok(v) => {
             let p = &v["peers"];
             serde_json::json!({
                 "vhm_setup_s": p["pp3d_vhm_setup"]["setup"]["median_s"],
@@ -429,10 +451,7 @@ fn peer_logmap(dir: &Path, obj: &Path, source: u32, radius: f32) -> serde_json::
                 "affine_local_cold_s": p["pp3d_AffineLocal"]["cold_total_s"],
             })
         }
-        Ok(o) => {
-            serde_json::json!({ "error": String::from_utf8_lossy(&o.stderr).lines().last().unwrap_or("failed").to_string() })
-        }
-        Err(e) => serde_json::json!({ "error": e.to_string() }),
+        Err(e) => serde_json::json!({ "error": e }),
     }
 }
 

@@ -22,8 +22,8 @@ use glam::Vec3;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// A decal frame of size `side` at the centroid of triangle `t`.
-fn frame_at(topo: &Topology, t: usize, side: f32) -> Frame {
+/// A decal frame of size `side` at the centroid of triangle `t` (image x along its first edge).
+pub fn frame_at(topo: &Topology, t: usize, side: f32) -> Frame {
     let [a, b, c] = topo.triangles[t].map(|i| topo.positions[i as usize]);
     let n = (b - a).cross(c - a).normalize();
     let u = (b - a).normalize();
@@ -99,41 +99,29 @@ pub fn write_obj(path: &Path, topo: &Topology, tris: &[u32]) -> Result<()> {
     crate::image_io::write_atomic(path, text.as_bytes())
 }
 
-/// Runs `peers.py lscm` on an OBJ patch; returns its JSON line's `peers` object, or an error text.
+/// Runs `peers.py lscm` on an OBJ patch (the whole chart, disc or not: without `--patch-radius`
+/// the script cuts its own patch from non-discs); returns the peers' figures or an error text.
 fn run_peer(peers_dir: &Path, obj: &Path, chart_vertices: usize) -> serde_json::Value {
-    let peers_dir = &std::fs::canonicalize(peers_dir).unwrap_or_else(|_| peers_dir.to_path_buf());
-    let py = peers_dir.join(".venv/bin/python");
-    let out = std::process::Command::new(&py)
-        .current_dir(peers_dir)
-        .arg("peers.py")
-        .arg("lscm")
-        .arg(obj)
-        // The whole chart, disc or not (without this the script cuts its own patch from non-discs).
-        .args(["--patch-radius", "1e30"])
-        .output();
-    match out {
-        Ok(o) if o.status.success() => {
-            let text = String::from_utf8_lossy(&o.stdout);
-            let line = text
-                .lines()
-                .rev()
-                .find(|l| l.trim_start().starts_with('{'))
-                .unwrap_or("{}");
-            let v: serde_json::Value = serde_json::from_str(line).unwrap_or_default();
+    let args: [&std::ffi::OsStr; 4] = [
+        "lscm".as_ref(),
+        obj.as_os_str(),
+        "--patch-radius".as_ref(),
+        "1e30".as_ref(),
+    ];
+    match crate::bench::run_peers_py(peers_dir, &args) {
+        Ok(v) => {
+            let patch_nv = v["patch"]["patch_nv"].as_u64().or(v["nv"].as_u64());
             serde_json::json!({
                 "igl_lscm_s": v["peers"]["igl_lscm"]["total_s"],
                 "scipy_cg_lscm_s": v["peers"]["scipy_cg_lscm"]["total_s"],
                 "scipy_cg_iterations": v["peers"]["scipy_cg_lscm"]["iterations"],
                 "patch_is_disk": v["patch"]["is_disk"],
                 // False if the peer cut its own smaller patch: then the times are not comparable.
-                "peer_used_whole_chart": v["patch"]["patch_nv"].as_u64().or(v["nv"].as_u64()) == Some(chart_vertices as u64),
-                "peer_patch_vertices": v["patch"]["patch_nv"].as_u64().or(v["nv"].as_u64()),
+                "peer_used_whole_chart": patch_nv == Some(chart_vertices as u64),
+                "peer_patch_vertices": patch_nv,
             })
         }
-        Ok(o) => {
-            serde_json::json!({ "error": String::from_utf8_lossy(&o.stderr).lines().last().unwrap_or("failed").to_string() })
-        }
-        Err(e) => serde_json::json!({ "error": format!("{}: {e}", py.display()) }),
+        Err(e) => serde_json::json!({ "error": e }),
     }
 }
 
@@ -151,11 +139,6 @@ pub struct LinalgOptions {
     pub peers: Option<PathBuf>,
     /// Chart sizes (vertices) of the single-chart figures.
     pub charts: Vec<usize>,
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(|a, b| a.total_cmp(b));
-    v[v.len() / 2]
 }
 
 fn ms(t: Instant) -> f64 {
@@ -206,7 +189,7 @@ pub fn run(
     for _ in 0..reps {
         gpu_s.push(spmv(ctx, pipes, &g, &x, spmv_reps)?.1 / spmv_reps as f64);
     }
-    let gpu_s = median(gpu_s);
+    let gpu_s = crate::bench::median(gpu_s);
     let t = Instant::now();
     let _ = std::hint::black_box(lap.mul(&xd));
     let cpu_s = t.elapsed().as_secs_f64();
@@ -251,7 +234,7 @@ pub fn run(
             last = Some(solve()?);
             times.push(ms(t));
         }
-        let gpu_ms = median(times);
+        let gpu_ms = crate::bench::median(times);
         let out = last.expect("one repetition");
         let its = out.reports[0].iterations;
         let t = Instant::now();
@@ -312,7 +295,7 @@ pub fn run(
         last = Some(cg_batched(ctx, pipes, &a, &b, &x0, &descs)?);
         times.push(ms(t));
     }
-    let batched_ms = median(times);
+    let batched_ms = crate::bench::median(times);
     let out = last.expect("one repetition");
     let converged = out
         .reports

@@ -81,6 +81,33 @@ pub struct ChartRequest<'a> {
     pub warm: Option<&'a [[f32; 4]]>,
 }
 
+impl<'a> ChartRequest<'a> {
+    /// The request of an `lscm` or `hybrid` layer placed at `frame` / `triangle`, starting from the
+    /// layer's exponential map `expmap` (hybrid: re-solved in part; LSCM: the warm start).
+    pub fn for_layer(
+        frame: Frame,
+        triangle: u32,
+        layer: &crate::job::Layer,
+        expmap: &'a [[f32; 4]],
+    ) -> Self {
+        let hybrid = layer.method == crate::job::Method::Hybrid;
+        Self {
+            frame,
+            triangle,
+            kind: if hybrid {
+                ChartKind::Hybrid {
+                    expmap,
+                    threshold: layer.hybrid_threshold,
+                }
+            } else {
+                ChartKind::Lscm
+            },
+            max_iter: layer.cg_max_iterations,
+            warm: (!hybrid).then_some(expmap),
+        }
+    }
+}
+
 /// What a chart reports (bake report, per layer).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct ChartReport {

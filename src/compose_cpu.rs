@@ -142,20 +142,12 @@ pub fn bake_cpu(
                 // it; LSCM warm-starts from it).
                 let map = expmap();
                 let hybrid = layer.method == Method::Hybrid;
-                let req = crate::chart::ChartRequest {
+                let req = crate::chart::ChartRequest::for_layer(
                     frame,
-                    triangle: placements[li].triangle,
-                    kind: if hybrid {
-                        crate::chart::ChartKind::Hybrid {
-                            expmap: &map,
-                            threshold: layer.hybrid_threshold,
-                        }
-                    } else {
-                        crate::chart::ChartKind::Lscm
-                    },
-                    max_iter: layer.cg_max_iterations,
-                    warm: (!hybrid).then_some(map.as_slice()),
-                };
+                    placements[li].triangle,
+                    layer,
+                    &map,
+                );
                 let chart = crate::chart::build(
                     topo,
                     &[req],

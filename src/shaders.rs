@@ -43,6 +43,7 @@ pub const SHARED: &[(&str, &str)] = &[
     ("acc", include_str!("../wgsl/shared/acc.wgsl")),
     ("expmap", include_str!("../wgsl/shared/expmap.wgsl")),
     ("linalg", include_str!("../wgsl/shared/linalg.wgsl")),
+    ("dims", include_str!("../wgsl/shared/dims.wgsl")),
 ];
 
 /// The complete WGSL text of kernel `name`, imports resolved. Panics on an unknown name or import:

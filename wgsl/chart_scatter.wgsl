@@ -2,6 +2,7 @@
 // Writes solved chart coordinates into the layers' coords slots: item k sets coords[index] = value
 // ((x, y, distance or 0, valid) in model units in the decal frame). The slots are cleared first with
 // a buffer clear. Dispatch: (ceil(items / 64), 1, 1). No CPU twin: a pure copy.
+#import dims
 
 struct Item {
     index: u32,
@@ -9,13 +10,6 @@ struct Item {
     pad1: u32,
     pad2: u32,
     value: vec4<f32>,
-}
-
-struct Dims {
-    len: u32,
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> dims: Dims;

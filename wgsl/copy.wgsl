@@ -2,13 +2,7 @@
 // Plain streaming copy, dst = src, 16 bytes per invocation: the memory-bandwidth reference the SpMV
 // benchmark is measured against. Dispatch: (min(groups, 65535), ceil(groups / 65535), 1) with
 // groups = ceil(len / 256).
-
-struct Dims {
-    len: u32,
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
-}
+#import dims
 
 @group(0) @binding(0) var<uniform> dims: Dims;
 @group(0) @binding(1) var<storage, read> src: array<vec4<f32>>;

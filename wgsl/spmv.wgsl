@@ -2,13 +2,7 @@
 // Sparse matrix-vector product y = A x for a CSR matrix, one invocation per row (rows in index order
 // within the row, so the result is reproducible). Dispatch: (min(groups, 65535), ceil(groups / 65535), 1)
 // with groups = ceil(rows / 64). CPU twin: `Csr::mul` in src/sparse.rs.
-
-struct Dims {
-    rows: u32,
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
-}
+#import dims
 
 @group(0) @binding(0) var<uniform> dims: Dims;
 @group(0) @binding(1) var<storage, read> row_ptr: array<u32>;
@@ -24,7 +18,7 @@ fn main(
     @builtin(local_invocation_index) lid: u32,
 ) {
     let i = (wid.y * groups.x + wid.x) * 64u + lid;
-    if (i >= dims.rows) {
+    if (i >= dims.len) {
         return;
     }
     var s = 0.0;
