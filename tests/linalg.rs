@@ -255,15 +255,19 @@ fn cg_failures_are_reported() {
     let mut rng = Lcg(9);
     let a = round_matrix(&random_spd(2000, 8, 0.001, &mut rng));
     let b = round32(&random_vec(a.rows, &mut rng));
-    let sol = cg_batched(
-        &e.ctx,
-        e.pipelines(),
-        &a,
-        &b,
-        &vec![0.0; a.rows],
-        &[SystemDesc::new(0, a.rows, 1e-6, 3)],
-    )
-    .unwrap();
+    // One system from zero to 1e-6 within `budget` iterations.
+    let solve = |m: &Csr, budget: u32| {
+        cg_batched(
+            &e.ctx,
+            e.pipelines(),
+            m,
+            &b,
+            &vec![0.0; m.rows],
+            &[SystemDesc::new(0, m.rows, 1e-6, budget)],
+        )
+        .unwrap()
+    };
+    let sol = solve(&a, 3);
     let x: Vec<f64> = sol.x.iter().map(|&v| v as f64).collect();
     let res = relative_residual(&a, &b, &x);
     assert_eq!(sol.reports[0].status, CgStatus::NotConverged);
@@ -278,29 +282,13 @@ fn cg_failures_are_reported() {
 
     let mut nan = a.clone();
     nan.vals[5] = f64::NAN;
-    let sol = cg_batched(
-        &e.ctx,
-        e.pipelines(),
-        &nan,
-        &b,
-        &vec![0.0; a.rows],
-        &[SystemDesc::new(0, a.rows, 1e-6, 100)],
-    )
-    .unwrap();
+    let sol = solve(&nan, 100);
     assert_eq!(sol.reports[0].status, CgStatus::Breakdown);
 
     let mut neg = a.clone();
     for v in neg.vals.iter_mut() {
         *v = -*v;
     }
-    let sol = cg_batched(
-        &e.ctx,
-        e.pipelines(),
-        &neg,
-        &b,
-        &vec![0.0; a.rows],
-        &[SystemDesc::new(0, a.rows, 1e-6, 100)],
-    )
-    .unwrap();
+    let sol = solve(&neg, 100);
     assert_eq!(sol.reports[0].status, CgStatus::Breakdown);
 }

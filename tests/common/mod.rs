@@ -161,3 +161,15 @@ pub fn cli(args: &[&str]) -> (i32, String, String) {
         String::from_utf8_lossy(&out.stderr).into_owned(),
     )
 }
+
+/// Runs `decalbake param JOB --layer LAYER --out OUT`: (exit code, stdout, stderr).
+pub fn param(job: &Path, layer: &str, out: &Path) -> (i32, String, String) {
+    cli(&[
+        "param",
+        job.to_str().unwrap(),
+        "--layer",
+        layer,
+        "--out",
+        out.to_str().unwrap(),
+    ])
+}
