@@ -652,28 +652,37 @@ fn pinned_system(topo: &Topology, req: &ChartRequest, w: &Work) -> (System, Vec<
         let z = w.warm[&v] / scale;
         [z.x, z.y]
     };
-    let mut verts: Vec<u32> = w
-        .triangles
+    pinned_lscm(topo, &w.triangles, &|v| w.warm[&v].x, &warm)
+}
+
+/// The LSCM system of `triangles` with two pins, the vertices of least and greatest `x`, held at
+/// `warm`, and the warm start.
+fn pinned_lscm(
+    topo: &Topology,
+    triangles: &[u32],
+    x: &dyn Fn(u32) -> f64,
+    warm: &dyn Fn(u32) -> [f64; 2],
+) -> (System, Vec<f64>) {
+    let mut verts: Vec<u32> = triangles
         .iter()
         .flat_map(|&t| topo.triangles[t as usize])
         .collect();
     verts.sort_unstable();
     verts.dedup();
-    let key = |v: &u32| w.warm[v].x;
     let lo = *verts
         .iter()
-        .min_by(|a, b| key(a).total_cmp(&key(b)))
+        .min_by(|a, b| x(**a).total_cmp(&x(**b)))
         .expect("a chart has vertices");
     let hi = *verts
         .iter()
-        .max_by(|a, b| key(a).total_cmp(&key(b)))
+        .max_by(|a, b| x(**a).total_cmp(&x(**b)))
         .expect("a chart has vertices");
     let fixed = if lo == hi {
         vec![(lo, warm(lo))]
     } else {
         vec![(lo, warm(lo)), (hi, warm(hi))]
     };
-    let sys = lscm::assemble(topo, &w.triangles, &fixed, &warm);
+    let sys = lscm::assemble(topo, triangles, &fixed, warm);
     let x0 = sys.vertices.iter().flat_map(|&v| warm(v)).collect();
     (sys, x0)
 }
@@ -846,22 +855,7 @@ fn hybrid_system(
         .collect();
     let free_under = under.iter().filter(|v| free.contains(v)).count();
     if !energy.is_empty() && (fixed.len() < 2 || 2 * free_under > under.len()) {
-        let key = |v: &u32| z(*v).x;
-        let verts: Vec<u32> = map_tris
-            .iter()
-            .flat_map(|&t| topo.triangles[t as usize])
-            .collect();
-        let lo = *verts
-            .iter()
-            .min_by(|a, b| key(a).total_cmp(&key(b)))
-            .expect("a map");
-        let hi = *verts
-            .iter()
-            .max_by(|a, b| key(a).total_cmp(&key(b)))
-            .expect("a map");
-        let pins = vec![(lo, warm(lo)), (hi, warm(hi))];
-        let sys = lscm::assemble(topo, &map_tris, &pins, &warm);
-        let x0 = sys.vertices.iter().flat_map(|&v| warm(v)).collect();
+        let (sys, x0) = pinned_lscm(topo, &map_tris, &|v| z(v).x, &warm);
         return (sys, x0, true);
     }
     let sys = lscm::assemble(topo, &energy, &fixed, &warm);
