@@ -176,7 +176,7 @@ pub fn run(
             let fstate = plain("expmap.front_state", jobs.len() as u64 * 16);
             let fronts = plain("expmap.fronts", 2 * cands.len() as u64 * 4);
             let marks = plain("expmap.marks", slots * mesh.vertex_count as u64 * 4);
-            let jac = plain("expmap.jacobi", slots * mesh.vertex_count as u64 * 8);
+            let state = plain("expmap.state", slots * mesh.vertex_count as u64 * 16);
             let jobs_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("expmap.jobs"),
                 contents: bytemuck::cast_slice(jobs),
@@ -211,10 +211,10 @@ pub fn run(
                 [mk(1), mk(0)],
                 fstate,
                 fronts,
-                (marks, jac),
+                (marks, state),
             )
         })?;
-    let (marks, jac) = marks;
+    let (marks, state) = marks;
     let bind = |round: &wgpu::Buffer| {
         pipes.expmap_relax.bind(
             device,
@@ -233,7 +233,7 @@ pub fn run(
                 (10, fstate.as_entire_binding()),
                 (11, fronts.as_entire_binding()),
                 (12, marks.as_entire_binding()),
-                (13, jac.as_entire_binding()),
+                (13, state.as_entire_binding()),
             ],
         )
     };

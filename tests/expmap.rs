@@ -116,15 +116,17 @@ fn gpu_relaxation_reaches_the_dijkstra_fixed_point_on_spot() {
         Vec3::new(0.0, 0.55, -0.55),
         Vec3::new(-0.2, -0.4, 0.2),
     ];
-    let maps: Vec<(Seed, Options)> = points
+    // Both update rules, every seed: eight maps in one batch.
+    let maps: Vec<(Seed, Options)> = [Accuracy::Fast, Accuracy::Smooth]
         .iter()
-        .map(|p| {
+        .flat_map(|&accuracy| points.iter().map(move |p| (p, accuracy)))
+        .map(|(p, accuracy)| {
             (
                 seed_at(&topo, *p, Vec3::Y),
                 Options {
                     radius: 0.45,
                     curvature_stop: f32::INFINITY,
-                    accuracy: Accuracy::Fast,
+                    accuracy,
                 },
             )
         })
@@ -150,7 +152,7 @@ fn gpu_relaxation_reaches_the_dijkstra_fixed_point_on_spot() {
                 differ += 1;
             }
         }
-        eprintln!("seed {:?}: {n} vertices, {} sweeps, max |GPU - CPU| = {worst:.2e}, {differ} above 1e-5", seed.point, res.sweeps);
+        eprintln!("seed {:?} ({:?}): {n} vertices, {} sweeps, max |GPU - CPU| = {worst:.2e}, {differ} above 1e-5", seed.point, opts.accuracy, res.sweeps);
         // Same arithmetic in the same order: equal up to f32 rounding, except where rounding flips
         // a near-tie between two upwind neighbours (then the two paths differ by the map's own error).
         assert!(n > 250, "the disc should hold hundreds of vertices: {n}");
@@ -269,9 +271,9 @@ fn sphere_errors(topo: &Topology, seed: &Seed, uv: impl Fn(usize) -> Option<[f32
 
 /// Both update rules against the analytic exponential map of a unit sphere at two resolutions,
 /// GPU and CPU twin. The paper's update ("fast") does not converge: its angular error comes from
-/// treating an angular step s as s / r instead of s / sin r, independent of h. The smooth mode's
-/// Jacobi-field correction removes that, and its error must shrink with the edge length (first
-/// order: by about half from f = 22 to f = 44; asserted: by at least 30 %).
+/// treating an angular step s as s / r instead of s / sin r, independent of h. The smooth mode
+/// (Jacobi-field stretch, carried frame with holonomy, trapezoidal steps) converges at second order:
+/// its error must fall by more than 2.5× when the edge length halves (f = 22 to f = 44).
 #[test]
 fn sphere_error_against_the_analytic_exponential_map() {
     let dir = scratch("expmap-sphere");
@@ -306,7 +308,7 @@ fn sphere_error_against_the_analytic_exponential_map() {
                 }
             }
             eprintln!(
-                "icosphere f={f} ({} vertices), {accuracy:?}: 2D error max {:.4} RMS {:.4}; distance error max {:.4} RMS {:.4} (CPU twin: 2D max {:.4}); |GPU - twin| {twin:.1e}; {} sweeps",
+                "icosphere f={f} ({} vertices), {accuracy:?}: 2D error max {:.2e} RMS {:.2e}; distance error max {:.2e} RMS {:.2e} (CPU twin: 2D max {:.2e}); |GPU - twin| {twin:.1e}; {} sweeps",
                 topo.positions.len(),
                 gpu[0], gpu[1], gpu[2], gpu[3], cpu[0], res.sweeps
             );
@@ -319,24 +321,29 @@ fn sphere_error_against_the_analytic_exponential_map() {
         }
     }
     assert!(
-        smooth_max[0] < 0.008,
+        smooth_max[0] < 2.0e-3,
         "smooth mode at f = 22: {}",
         smooth_max[0]
     );
+    // Second order would divide the error by 4; asserted: by more than 2.5.
     assert!(
-        smooth_max[1] < 0.7 * smooth_max[0],
+        smooth_max[1] < 0.4 * smooth_max[0],
         "smooth mode does not converge: {smooth_max:?}"
     );
 }
 
 /// The CPU twin of the smooth mode on the icosphere family of `../shared/peers/accuracy.py`
 /// (frequencies 8, 16, 32, 64: 642 to 40,962 vertices), for the README's comparison with
-/// potpourri3d: the 2D error must fall by at least 25 % at each halving of the edge length (first
-/// order would halve it; measured 44-50 %).
+/// potpourri3d: the RMS error must fall by at least half at each halving of the edge length (second
+/// order would quarter it; measured 0.15, 0.30, 0.35), the max error must fall, and at f = 32
+/// (10,242 vertices) the max must be below potpourri3d's default log map (AffineLocal) on the same
+/// sphere, 2.7e-3 (`../shared/peers/README.md`). The max falls less regularly than the RMS (by
+/// 0.17, 0.24, 0.46): it sits next to the icosahedron's valence-5 vertices, where the mesh is least
+/// regular.
 #[test]
 fn smooth_twin_converges_on_the_icosphere_family() {
     let dir = scratch("expmap-ico-family");
-    let mut max = Vec::new();
+    let (mut max, mut rms) = (Vec::new(), Vec::new());
     for f in [8u32, 16, 32, 64] {
         let path = icosphere(&dir, f);
         let topo = Topology::build(&Mesh::load(&path).unwrap(), DEFAULT_WELD_TOLERANCE);
@@ -351,16 +358,19 @@ fn smooth_twin_converges_on_the_icosphere_family() {
             map.dist[v].is_finite().then_some(map.uv[v])
         });
         eprintln!(
-            "icosphere f{f} ({} vertices), smooth CPU twin: 2D error max {:.4} RMS {:.4}",
+            "icosphere f{f} ({} vertices), smooth CPU twin: 2D error max {:.2e} RMS {:.2e}",
             topo.positions.len(),
             e[0],
             e[1]
         );
         max.push(e[0]);
+        rms.push(e[1]);
     }
-    for w in max.windows(2) {
-        assert!(w[1] < 0.75 * w[0], "no convergence: {max:?}");
+    for (w, r) in max.windows(2).zip(rms.windows(2)) {
+        assert!(w[1] < w[0], "max error grows: {max:?}");
+        assert!(r[1] < 0.5 * r[0], "no convergence: RMS {rms:?}");
     }
+    assert!(max[2] < 2.7e-3, "f = 32: {} (AffineLocal: 2.7e-3)", max[2]);
 }
 
 /// The smooth mode is exact on a plane too (zero curvature: the correction factor is 1).
@@ -525,7 +535,10 @@ fn cylinder(n: u32, m: u32) -> Mesh {
 fn cylinder_maps_converge_to_the_unrolling() {
     let engine = engine();
     let mut errors = Vec::new();
-    for (n, m) in [(32u32, 16u32), (64, 32)] {
+    for ((n, m), accuracy) in [(32u32, 16u32), (64, 32)]
+        .into_iter()
+        .flat_map(|nm| [(nm, Accuracy::Fast), (nm, Accuracy::Smooth)])
+    {
         let mesh = engine.prepare(cylinder(n, m)).unwrap();
         let topo = &mesh.topo;
         let seed = seed_at(topo, Vec3::new(1.2, 0.05, 0.03), Vec3::Y);
@@ -536,7 +549,7 @@ fn cylinder_maps_converge_to_the_unrolling() {
         let opts = Options {
             radius: 1.2,
             curvature_stop: f32::INFINITY,
-            accuracy: Accuracy::Fast,
+            accuracy,
         };
         let (coords, res) = &expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap()[0];
         assert_eq!(res.converged, 1);
@@ -554,27 +567,31 @@ fn cylinder_maps_converge_to_the_unrolling() {
             max_e = max_e.max((c[0] - exact[0]).hypot(c[1] - exact[1]));
             n_in += 1;
         }
-        eprintln!("cylinder {n}x{m}: {n_in} vertices within 1 of the seed, max error {max_e:.5}");
+        eprintln!("cylinder {n}x{m} ({accuracy:?}): {n_in} vertices within 1 of the seed, max error {max_e:.2e}");
         assert!(n_in > 50);
         errors.push(max_e);
     }
-    assert!(
-        errors[1] < 0.6 * errors[0],
-        "refinement must shrink the error: {errors:?}"
-    );
-    assert!(errors[1] < 0.02, "{errors:?}");
+    // errors: [fast coarse, smooth coarse, fast fine, smooth fine]. Both update rules transport
+    // exactly on a cylinder; what remains is O(h^2) per unit length.
+    for mode in 0..2 {
+        assert!(
+            errors[2 + mode] < 0.6 * errors[mode],
+            "refinement must shrink the error: {errors:?}"
+        );
+        assert!(errors[2 + mode] < 0.02, "{errors:?}");
+    }
 }
 
 /// A cone (apex at the top) without its tip: developable away from the apex, where its unrolling is a
-/// circular sector. The map is compared with the unrolled coordinates at two resolutions.
+/// circular sector. The map is compared with the unrolled coordinates at three resolutions.
 #[test]
 fn cone_maps_converge_to_the_unrolling() {
     let (rb, h) = (1.0f32, 1.5f32);
     let l = (rb * rb + h * h).sqrt();
     let sin_a = rb / l;
     let engine = engine();
-    let mut errors = Vec::new();
-    for (n, m) in [(48u32, 16u32), (96, 32)] {
+    let (mut fast, mut smooth) = (Vec::new(), Vec::new());
+    for (n, m) in [(48u32, 16u32), (96, 32), (192, 64)] {
         // Rings from slant 0.3 l to l.
         let mut pos = Vec::new();
         let mut tris = Vec::new();
@@ -620,13 +637,17 @@ fn cone_maps_converge_to_the_unrolling() {
             "outward normals: {:?}",
             seed.normal
         );
-        let opts = Options {
+        let opts = |accuracy| Options {
             radius: 0.3 * l,
             curvature_stop: f32::INFINITY,
-            accuracy: Accuracy::Fast,
+            accuracy,
         };
-        let (coords, res) = &expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap()[0];
-        assert_eq!(res.converged, 1);
+        let maps = expmaps_gpu(
+            &engine,
+            &mesh,
+            &[(seed, opts(Accuracy::Fast)), (seed, opts(Accuracy::Smooth))],
+        )
+        .unwrap();
         // Unrolled plane: apex at the origin, generator phi at angle phi * sin_a.
         let unroll = |p: Vec3| {
             let s = (p - Vec3::new(0.0, 0.0, h)).length();
@@ -642,32 +663,47 @@ fn cone_maps_converge_to_the_unrolling() {
         let phi_s = seed.point.y.atan2(seed.point.x);
         let e_phi = Vec3::new(-phi_s.sin(), phi_s.cos(), 0.0);
         let e_s = Vec3::new(sin_a * phi_s.cos(), sin_a * phi_s.sin(), -h / l);
-        let (mut max_e, mut n_in) = (0.0f32, 0);
-        for (v, c) in coords.iter().enumerate() {
-            if c[3] < 0.5 {
-                continue;
+        for ((coords, res), errors) in maps.iter().zip([&mut fast, &mut smooth]) {
+            assert_eq!(res.converged, 1);
+            let (mut max_e, mut n_in) = (0.0f32, 0);
+            for (v, c) in coords.iter().enumerate() {
+                if c[3] < 0.5 {
+                    continue;
+                }
+                let d = unroll(topo.positions[v]) - s_2d;
+                if d.length() > 0.25 * l {
+                    continue;
+                }
+                let tangent = e_phi * d.dot(t_phi) + e_s * d.dot(r_hat);
+                let exact = [tangent.dot(seed.e1), tangent.dot(seed.e2)];
+                max_e = max_e.max((c[0] - exact[0]).hypot(c[1] - exact[1]));
+                n_in += 1;
             }
-            let d = unroll(topo.positions[v]) - s_2d;
-            if d.length() > 0.25 * l {
-                continue;
-            }
-            let tangent = e_phi * d.dot(t_phi) + e_s * d.dot(r_hat);
-            let exact = [tangent.dot(seed.e1), tangent.dot(seed.e2)];
-            max_e = max_e.max((c[0] - exact[0]).hypot(c[1] - exact[1]));
-            n_in += 1;
+            assert!(n_in > 30);
+            errors.push(max_e);
         }
-        eprintln!("cone {n}x{m}: {n_in} vertices within 0.25 l, max error {max_e:.5}");
-        assert!(n_in > 30);
-        errors.push(max_e);
+        eprintln!(
+            "cone {n}x{m}: max error fast {:.2e}, smooth {:.2e}",
+            fast.last().unwrap(),
+            smooth.last().unwrap()
+        );
     }
     // The fast mode's transfer turns each edge by the minimal rotation between vertex normals, which
-    // on a cone is not the surface's parallel transport (it is on a cylinder): the error stays small
-    // but does not shrink under refinement (0.00064 then 0.00096 here). The geodesic issue asks for
-    // convergence; this bound only guards the current behaviour until the smooth mode exists.
+    // on a cone is not the surface's parallel transport (it is on a cylinder): its error stays small
+    // but does not shrink (6.4e-4, 9.6e-4, 1.0e-3 here): regression guard only. The smooth mode
+    // carries its frame edge by edge (exact parallel transport on a developable mesh) and integrates
+    // the edges with the trapezoidal rule: second order, the error must fall by more than half at
+    // each refinement (measured: by 3.5-3.8×).
     assert!(
-        errors.iter().all(|e| *e < 2e-3),
-        "cone error regressed: {errors:?}"
+        fast.iter().all(|e| *e < 2e-3),
+        "fast mode regressed: {fast:?}"
     );
+    for w in smooth.windows(2) {
+        assert!(
+            w[1] < 0.5 * w[0],
+            "smooth mode does not converge: {smooth:?}"
+        );
+    }
 }
 
 /// Area of triangle `t` (2D) clipped to the square [-h, h]².

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // Discrete exponential maps by parallel relaxation over an active front, one workgroup per decal
-// (smooth mode: the update also carries a Jacobi field, see `Accuracy` in src/geodesic.rs):
+// (smooth mode: the update also carries a Jacobi field and a frame angle, see `Accuracy` in
+// src/geodesic.rs):
 // every sweep, each vertex of the front takes the neighbour that minimises (graph distance +
 // edge length) among reached, expandable neighbours (graph distance <= radius, |K| <= curvature
 // stop) and sets its normal coordinates from it (shared/expmap.wgsl); sweeps repeat until one changes
@@ -74,8 +75,8 @@ struct GeoResult {
 @group(0) @binding(11) var<storage, read_write> fronts: array<u32>;
 // Per slot and vertex: the stamp of the sweep that last queued it (dedupes the next front).
 @group(0) @binding(12) var<storage, read_write> marks: array<atomic<u32>>;
-// Per slot and vertex: the Jacobi field (G, G') of the smooth mode (see shared/expmap.wgsl).
-@group(0) @binding(13) var<storage, read_write> jac: array<vec2<f32>>;
+// Per slot and vertex: the smooth mode's state (G, G', frame angle, 0) (see shared/expmap.wgsl).
+@group(0) @binding(13) var<storage, read_write> state: array<vec4<f32>>;
 
 var<workgroup> reached: atomic<u32>;
 var<workgroup> done_before: u32;
@@ -97,7 +98,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         for (var i = lid; i < job.cand_count; i += WG) {
             let v = candidates[job.cand_offset + i];
             coords[base + v] = vec4<f32>(0.0, 0.0, INF, 0.0);
-            jac[base + v] = vec2<f32>(0.0, 1.0);
+            state[base + v] = vec4<f32>(0.0, 1.0, 0.0, 0.0);
             atomicStore(&marks[base + v], 0u);
         }
         for (var i = lid; i < job.halo_count; i += WG) {
@@ -110,7 +111,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
             let p = positions[v].xyz;
             let d = p - job.seed.xyz;
             coords[base + v] = vec4<f32>(transfer(job.seed.xyz, seed_n, p, seed_n, job.e1.xyz, job.e2.xyz), length(d), 2.0);
-            jac[base + v] = vec2<f32>(length(d), 1.0);
+            state[base + v] = vec4<f32>(length(d), 1.0, 0.0, 0.0);
         }
         for (var i = lid; i < job.cand_count; i += WG) {
             fronts[2u * job.cand_offset + i] = candidates[job.cand_offset + i];
@@ -156,20 +157,22 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
             }
             if (best_r != NONE) {
                 let cr = coords[base + best_r];
-                var t = transfer(positions[best_r].xyz, normals[best_r].xyz, pv, seed_n, job.e1.xyz, job.e2.xyz);
-                var jv = vec2<f32>(0.0, 1.0);
+                let pr = positions[best_r].xyz;
+                let t = transfer(pr, normals[best_r].xyz, pv, seed_n, job.e1.xyz, job.e2.xyz);
+                var uv = cr.xy + t;
+                var sv = vec4<f32>(0.0, 1.0, 0.0, 0.0);
                 if (job.smooth_mode != 0u) {
-                    let jr = jac[base + best_r];
-                    t = smooth_increment(cr.xy, jr.x, t);
-                    let nuv = cr.xy + t;
-                    let rc = sqrt(cr.x * cr.x + cr.y * cr.y);
-                    let rq = sqrt(nuv.x * nuv.x + nuv.y * nuv.y);
-                    jv = jacobi_step(jr, curvature[best_r], rq - rc);
+                    let nv = normals[v].xyz;
+                    let tx = transfer(pr, nv, pv, seed_n, job.e1.xyz, job.e2.xyz);
+                    let la = normal_loop_angle(seed_n, normals[best_r].xyz, nv);
+                    let out = smooth_step(cr.xy, state[base + best_r], curvature[best_r], curvature[v], t, tx, la);
+                    uv = out.uv;
+                    sv = out.state;
                 }
-                let nc = vec4<f32>(cr.xy + t, best, 1.0);
-                if (any(nc != c) || any(jv != jac[base + v])) {
+                let nc = vec4<f32>(uv, best, 1.0);
+                if (any(nc != c) || any(sv != state[base + v])) {
                     coords[base + v] = nc;
-                    jac[base + v] = jv;
+                    state[base + v] = sv;
                     // Queue the neighbours that are candidates (cleared non-candidates have z = 0,
                     // candidates start at INF) and not seed vertices.
                     for (var k = adj_offsets[v]; k < adj_offsets[v + 1u]; k++) {
