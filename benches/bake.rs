@@ -29,7 +29,7 @@ fn bake(c: &mut Criterion) {
     let mut group = c.benchmark_group("bake_1024");
     group.sample_size(10);
     for n in [1usize, 16, 256] {
-        let job = decalbake::bench::random_job(&mesh, n, 1024, &dir, 11).unwrap();
+        let job = decalbake::bench::random_job(&mesh, n, 1024, &dir, 11, "planar").unwrap();
         engine.bake(&mesh, &job).unwrap(); // warm-up: shaders, island cache
         group.throughput(Throughput::Elements(n as u64));
         group.bench_with_input(BenchmarkId::new("decals", n), &job, |b, job| {

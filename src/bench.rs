@@ -48,7 +48,14 @@ pub fn largest_uv_mesh(dir: &Path) -> Option<PathBuf> {
 }
 
 /// A job with `n` random planar decals on `mesh`, images in `dir`.
-pub fn random_job(mesh: &LoadedMesh, n: usize, side: u32, dir: &Path, seed: u32) -> Result<Job> {
+pub fn random_job(
+    mesh: &LoadedMesh,
+    n: usize,
+    side: u32,
+    dir: &Path,
+    seed: u32,
+    method: &str,
+) -> Result<Job> {
     let topo = &mesh.topo;
     let mut s = seed.max(1);
     let mut rnd = move || {
@@ -99,7 +106,7 @@ pub fn random_job(mesh: &LoadedMesh, n: usize, side: u32, dir: &Path, seed: u32)
         layers.push(serde_json::json!({
             "image": images[i % images.len()], "at": p.to_array(), "size": [size, size],
             "angle": rnd() * 360.0, "blend": modes[i % modes.len()].name(), "opacity": 0.9,
-            "method": "planar"
+            "method": method
         }));
     }
     let job = serde_json::json!({
@@ -129,7 +136,10 @@ pub struct BenchOptions {
     pub reps: usize,
     /// Largest `decals × side²` for which the CPU twin is timed too.
     pub cpu_budget: u64,
-    /// Exponential-map update rule (geodesic benchmark).
+    /// Decal method of the bake benchmark's layers (`"planar"` by default; `"expmap"` measures the
+    /// maps inside a bake).
+    pub method: String,
+    /// Exponential-map update rule (geodesic benchmark, and expmap layers of the bake benchmark).
     pub accuracy: crate::geodesic::Accuracy,
     /// Geodesic benchmark: `../shared/peers`, to time potpourri3d's log maps on the same meshes and
     /// seed vertices in the same run.
@@ -164,7 +174,7 @@ pub fn run(
     })?;
     for &side in &opts.sizes {
         for &n in &opts.decals {
-            let job = random_job(&loaded, n, side, &dir, 7 + n as u32)?;
+            let job = random_job(&loaded, n, side, &dir, 7 + n as u32, &opts.method)?;
             // Cold run: the first bake at a size rasterizes the islands and their distance transform
             // (then cached on the mesh) and compiles pipelines in the driver.
             let t_cold = Instant::now();
@@ -230,6 +240,7 @@ pub fn run(
                 "welded_vertices": loaded.stats.welded_vertices,
                 "texture": side,
                 "decals": n,
+                "method": opts.method,
                 "reps": opts.reps,
                 "adapter": engine.ctx.adapter,
                 "median_ms": {

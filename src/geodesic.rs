@@ -128,9 +128,9 @@ pub enum Accuracy {
     /// - **Trapezoidal rule**: the edge is mapped with the differential at both ends (x's end from
     ///   a predictor step) and the two images are averaged.
     ///
-    /// Second order: on the unit sphere (within radius 1) the 2D error falls from 5.8e-3 to 2.3e-4
-    /// to 1.1e-4 at 642 / 10k / 41k vertices (potpourri3d's AffineLocal: 2.7e-3 at 10k); on a cone
-    /// (developable) by 3.5-3.8× per halving of the edge length. The fixed point is still set by
+    /// Second order: on the unit sphere (within radius 1) the max 2D error is 4.7e-3, 1.3e-3,
+    /// 4.7e-4, 1.2e-4 at 642, 2.6k, 10k, 41k vertices (potpourri3d's AffineLocal: 1.0e-2 to 1.7e-3;
+    /// 2.8e-3 at 10k); on a cone (developable) it falls by 3.5-3.8× per halving of the edge length. The fixed point is still set by
     /// the upwind tree, so the GPU relaxation reaches the twin's values (up to f32 rounding).
     #[default]
     Smooth,
@@ -176,6 +176,10 @@ pub fn smooth_increment(c: [f32; 2], g: f32, t: [f32; 2]) -> [f32; 2] {
 pub fn normal_loop_angle(a: Vec3, b: Vec3, c: Vec3) -> f32 {
     let det = a.dot(b.cross(c));
     let den = 1.0 + a.dot(b) + b.dot(c) + c.dot(a);
+    if det == 0.0 && den <= 0.0 {
+        // Two opposite normals: no minimal rotation, no loop (`rotate_min` flips instead).
+        return 0.0;
+    }
     2.0 * det.atan2(den)
 }
 

@@ -181,7 +181,8 @@ pub struct LayerSpec {
     /// Expmap: halt propagation at vertices whose |Gaussian curvature| exceeds this (partial decals).
     #[serde(default)]
     pub curvature_stop: Option<f32>,
-    /// Expmap: `"smooth"` (default) or `"fast"` (the paper's update).
+    /// Expmap: `"smooth"` (default; second order, see `geodesic::Accuracy::Smooth`) or `"fast"`
+    /// (the paper's update).
     #[serde(default)]
     pub accuracy: Option<String>,
     /// Hybrid: triangles of the exponential map whose angle distortion (s1 / s2) exceeds this are

@@ -76,6 +76,10 @@ enum Cmd {
         /// the mesh subdivided 2 and 3 times, or `--subdivide` times; then a batch of small maps).
         #[arg(long)]
         geodesic: bool,
+        /// Decal method of the bake benchmark's layers: `planar` (default) or `expmap` (then the
+        /// bake includes every decal's exponential map).
+        #[arg(long, default_value = "planar")]
+        method: String,
         /// With `--geodesic`: the paper's plain update instead of the smooth mode.
         #[arg(long)]
         fast: bool,
@@ -142,6 +146,7 @@ fn run(cli: Cli) -> Result<()> {
             decals,
             reps,
             cpu_budget,
+            method,
             geodesic,
             fast,
             batch,
@@ -169,6 +174,7 @@ fn run(cli: Cli) -> Result<()> {
                 decals,
                 reps,
                 cpu_budget,
+                method,
                 accuracy: if fast {
                     decalbake::geodesic::Accuracy::Fast
                 } else {

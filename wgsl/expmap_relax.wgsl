@@ -39,7 +39,7 @@ struct GeoJob {
     max_sweeps: u32,
     // Vertices around the candidates, listed right after them: reset to "not a candidate".
     halo_count: u32,
-    // 1: smooth mode (Jacobi-field correction of the angular component), 0: the paper's update.
+    // 1: smooth mode (second-order step with Jacobi field and carried frame), 0: the paper's update.
     smooth_mode: u32,
 }
 

@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-// Discrete exponential map update (Schmidt, Grimm & Wyvill 2006, eq. 2-3). Twins of `rotate_min` and
-// `transfer` in src/geodesic.rs: keep the arithmetic in the same order.
+// Discrete exponential map updates: the paper's (Schmidt, Grimm & Wyvill 2006, eq. 2-3: `transfer`)
+// and the smooth mode's second-order step (`smooth_step`; see `Accuracy::Smooth` in
+// src/geodesic.rs). Twins of the functions of the same names in src/geodesic.rs: keep the arithmetic
+// in the same order.
 
 // v rotated by the minimal rotation taking unit `n_from` onto unit `n_to`.
 fn rotate_min(n_from: vec3<f32>, n_to: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
@@ -59,6 +61,7 @@ fn transfer(r: vec3<f32>, nr: vec3<f32>, q: vec3<f32>, seed_n: vec3<f32>, e1: ve
 fn normal_loop_angle(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> f32 {
     let det = dot(a, cross(b, c));
     let den = 1.0 + dot(a, b) + dot(b, c) + dot(c, a);
+    if (det == 0.0 && den <= 0.0) { return 0.0; }
     return 2.0 * atan2(det, den);
 }
 
