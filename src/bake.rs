@@ -1004,9 +1004,8 @@ impl Engine {
                     (frames[i].seed(&placements[i]), opts, (i - start) as u32)
                 })
                 .collect();
-            let (geo_jobs, geo_cands) = crate::geodesic_gpu::build_jobs(&mesh.topo, &geo_maps);
             let (geo_stats, geo_dispatches) =
-                crate::geodesic_gpu::run(&self.ctx, pipes, g, &geo_jobs, &geo_cands, &coords)?;
+                crate::geodesic_gpu::run(&self.ctx, pipes, g, &mesh.topo, &geo_maps, &coords)?;
             commands += geo_dispatches;
             // Conformal charts of this chunk (LSCM and hybrid), solved in batches on the GPU, then
             // written into their coords slots.

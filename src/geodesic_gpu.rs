@@ -140,21 +140,28 @@ const LOOP_BUDGET: u32 = 20_000;
 /// Rounds recorded per submission before the host checks convergence.
 const ROUNDS_PER_SUBMIT: u32 = 4;
 
-/// Runs the relaxation of `jobs` to convergence: seeds the maps (clearing their coords slots), then
-/// dispatches rounds of sweeps, `ROUNDS_PER_SUBMIT` per submission, reading back only the per-map
-/// status between submissions. Returns the per-map results and the dispatches issued.
-#[allow(clippy::too_many_arguments, reason = "the kernel's resources")]
+/// Computes `maps` (seed, options, coords slot) into their slots of `coords`: builds the jobs and
+/// candidate lists, then runs the relaxation to convergence: seeds the maps (clearing their coords
+/// slots), then dispatches rounds of sweeps, `ROUNDS_PER_SUBMIT` per submission, reading back only
+/// the per-map status between submissions. Returns the per-map results and the dispatches issued.
+///
+/// On wgpu's GL backend the maps come from the CPU twin instead (see [`run_cpu_twin`]).
 pub fn run(
     ctx: &crate::gpu::GpuContext,
     pipes: &Pipelines,
     mesh: &GpuMesh,
-    jobs: &[GeoJob],
-    cands: &[u32],
+    topo: &Topology,
+    maps: &[(Seed, Options, u32)],
     coords: &wgpu::Buffer,
 ) -> Result<(Vec<GeoResult>, u32)> {
-    if jobs.is_empty() {
+    if maps.is_empty() {
         return Ok((Vec::new(), 0));
     }
+    if ctx.backend == Some(wgpu::Backend::Gl) {
+        return run_cpu_twin(ctx, topo, maps, coords);
+    }
+    let (jobs, cands) = build_jobs(topo, maps);
+    let (jobs, cands) = (&jobs[..], &cands[..]);
     let device = &ctx.device;
     let max_count = jobs.iter().map(|j| j.cand_count).max().unwrap_or(1);
     // Per sweep an invocation visits at most ceil(count / 256) front vertices, with about twenty
@@ -272,6 +279,53 @@ pub fn run(
     }
 }
 
+/// The GL path of [`run`]. On wgpu's GL backend (Mesa llvmpipe) the relaxation settles on longer
+/// paths than the shortest for some vertices (seen on Spot even with one invocation per workgroup,
+/// so not a race; not yet understood; on Vulkan it matches the twin, `tests/expmap.rs`). There each
+/// map comes from its CPU twin ([`crate::geodesic::dem_cpu`], same fixed point) and its whole slot
+/// is uploaded: (u, v, distance, 1) reached, 2 for seed-triangle vertices, zeros elsewhere.
+fn run_cpu_twin(
+    ctx: &crate::gpu::GpuContext,
+    topo: &Topology,
+    maps: &[(Seed, Options, u32)],
+    coords: &wgpu::Buffer,
+) -> Result<(Vec<GeoResult>, u32)> {
+    let k = crate::geodesic::gaussian_curvature(topo);
+    let n = topo.positions.len();
+    let mut results = Vec::with_capacity(maps.len());
+    for (seed, opts, slot) in maps {
+        let map = crate::geodesic::dem_cpu(topo, seed, *opts, &k);
+        let seed_tri = topo.triangles[seed.triangle as usize];
+        let mut data = vec![[0f32; 4]; n];
+        let mut reached = 0;
+        for (v, d) in data.iter_mut().enumerate() {
+            if map.dist[v].is_finite() {
+                let flag = if seed_tri.contains(&(v as u32)) {
+                    2.0
+                } else {
+                    1.0
+                };
+                *d = [map.uv[v][0], map.uv[v][1], map.dist[v], flag];
+                reached += 1;
+            }
+        }
+        ctx.scoped("exponential maps (CPU twin upload)", || {
+            ctx.queue.write_buffer(
+                coords,
+                *slot as u64 * n as u64 * 16,
+                bytemuck::cast_slice(&data),
+            )
+        })?;
+        results.push(GeoResult {
+            sweeps: 0,
+            reached,
+            converged: 1,
+            pad: 0,
+        });
+    }
+    Ok((results, 0))
+}
+
 /// Per-vertex result of a GPU map read back: (u, v, distance, state) with state 0 = unreached,
 /// 1 = reached, 2 = seed-triangle vertex.
 pub type MapCoords = Vec<[f32; 4]>;
@@ -291,7 +345,10 @@ fn in_chunks(
         ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("expmap.coords"),
             size: per_chunk.min(maps.len().max(1)) as u64 * nv * 16,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            // COPY_DST: the GL path uploads its CPU-twin maps.
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         })
     })?;
@@ -301,8 +358,7 @@ fn in_chunks(
             .enumerate()
             .map(|(i, (s, o))| (*s, *o, i as u32))
             .collect();
-        let (jobs, cands) = build_jobs(&mesh.topo, &slots);
-        let (results, d) = run(ctx, &engine.pipes, &mesh.gpu, &jobs, &cands, &coords)?;
+        let (results, d) = run(ctx, &engine.pipes, &mesh.gpu, &mesh.topo, &slots, &coords)?;
         each(results, &coords, d)?;
     }
     Ok(())
