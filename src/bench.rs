@@ -407,6 +407,73 @@ pub fn run_geodesic(
     Ok(())
 }
 
+/// `decalbake bench --geodesic --peers DIR`, first part: accuracy on the unit sphere, side by side in
+/// the same run. Runs `accuracy.py --quick` from DIR (potpourri3d's log maps on the class-I
+/// icospheres f8, f16, f32 from their seed vertex, error after fitting a rotation) and our GPU maps
+/// (both modes) on the same icospheres from the same vertex, error in the seed's own frame (no
+/// fit), within geodesic radius 1. One JSON line per sphere.
+pub fn run_sphere_accuracy(
+    engine: &Engine,
+    peers: &Path,
+    mut emit: impl FnMut(serde_json::Value),
+) -> Result<()> {
+    use crate::geodesic::{Accuracy, Options, Seed};
+    let dir = std::fs::canonicalize(peers).unwrap_or_else(|_| peers.to_path_buf());
+    let json = std::env::temp_dir().join(format!("decalbake-accuracy-{}.json", std::process::id()));
+    let status = std::process::Command::new(dir.join(".venv/bin/python"))
+        .current_dir(&dir)
+        .args(["accuracy.py", "--quick", "--json"])
+        .arg(&json)
+        .output();
+    let rows: Vec<serde_json::Value> = match status {
+        Ok(out) if out.status.success() => std::fs::read_to_string(&json)
+            .ok()
+            .and_then(|t| serde_json::from_str(&t).ok())
+            .unwrap_or_default(),
+        _ => Vec::new(),
+    };
+    let _ = std::fs::remove_file(&json);
+    let peer = |case: &str, method: &str| {
+        rows.iter()
+            .find(|r| r["case"] == case && r["method"] == method)
+            .map(|r| serde_json::json!({ "max": r["pos_max"], "rms": r["pos_rms"] }))
+            .unwrap_or(serde_json::Value::Null)
+    };
+    for f in [8u32, 16, 32] {
+        let mesh = engine.prepare(crate::shapes::icosphere(f))?;
+        let topo = &mesh.topo;
+        let seed = Seed::nearest(topo, crate::shapes::peers_seed_vertex(topo), glam::Vec3::X);
+        let mut ours = serde_json::Map::new();
+        for accuracy in [Accuracy::Smooth, Accuracy::Fast] {
+            let opts = Options {
+                radius: 1.3,
+                curvature_stop: f32::INFINITY,
+                accuracy,
+            };
+            let (coords, _) = &crate::geodesic_gpu::expmaps_gpu(engine, &mesh, &[(seed, opts)])?[0];
+            let e = crate::shapes::unit_sphere_log_errors(topo, &seed, 1.0, |v| {
+                (coords[v][3] > 0.5).then_some([coords[v][0], coords[v][1]])
+            });
+            let key = match accuracy {
+                Accuracy::Smooth => "decalbake_smooth",
+                Accuracy::Fast => "decalbake_fast",
+            };
+            ours.insert(
+                key.into(),
+                serde_json::json!({ "max": e.max, "rms": e.rms }),
+            );
+        }
+        let case = format!("icosphere f{f}");
+        emit(serde_json::json!({
+            "bench": "sphere_accuracy", "icosphere": f, "vertices": topo.positions.len(), "radius": 1.0,
+            "decalbake_smooth": ours["decalbake_smooth"], "decalbake_fast": ours["decalbake_fast"],
+            "pp3d_affine_local": peer(&case, "affine"), "pp3d_vector_heat": peer(&case, "vhm"),
+            "dem_py": peer(&case, "dem_py"),
+        }));
+    }
+    Ok(())
+}
+
 /// Runs `../shared/peers/peers.py ARGS` (its own venv, from its folder) and returns the JSON object
 /// it prints last, or a one-line error text.
 pub fn run_peers_py(

@@ -37,6 +37,24 @@ pub struct Seed {
     pub e2: Vec3,
 }
 
+impl Seed {
+    /// The seed at the surface point closest to `point` (CPU placement, [`crate::place::place_cpu`]),
+    /// with `e1` projected into the tangent plane as the first axis and e2 = normal × e1. For tests
+    /// and tools; bakes place on the GPU.
+    pub fn nearest(topo: &Topology, point: Vec3, e1: Vec3) -> Seed {
+        let q = crate::place::place_cpu(topo, crate::place::Query::Point(point));
+        let n = Vec3::from(q.normal);
+        let e1 = (e1 - n * e1.dot(n)).normalize();
+        Seed {
+            triangle: q.triangle,
+            point: Vec3::from(q.point),
+            normal: n,
+            e1,
+            e2: n.cross(e1),
+        }
+    }
+}
+
 /// A discrete exponential map over the vertices it reached.
 #[derive(Debug, Clone)]
 pub struct ExpMap {

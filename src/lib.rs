@@ -30,4 +30,5 @@ pub mod linalg_gpu;
 pub mod lscm;
 pub mod output;
 pub mod preview;
+pub mod shapes;
 pub mod sparse;

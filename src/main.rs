@@ -183,6 +183,9 @@ fn run(cli: Cli) -> Result<()> {
                 peers: peers.clone(),
             };
             if geodesic {
+                if let Some(dir) = &opts.peers {
+                    decalbake::bench::run_sphere_accuracy(&engine, dir, |v| println!("{v}"))?;
+                }
                 decalbake::bench::run_geodesic(&engine, &opts, batch.unwrap_or(256), |v| {
                     println!("{v}")
                 })?;

@@ -8,6 +8,7 @@ use common::*;
 use decalbake::geodesic::{dem_cpu, gaussian_curvature, Accuracy, Options, Seed};
 use decalbake::geodesic_gpu::expmaps_gpu;
 use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
+use decalbake::shapes::{icosphere, peers_seed_vertex, unit_sphere_log_errors};
 use glam::Vec3;
 use std::path::Path;
 
@@ -41,16 +42,7 @@ fn plane(dir: &Path, n: u32) -> std::path::PathBuf {
 }
 
 fn seed_at(topo: &Topology, point: Vec3, e1: Vec3) -> Seed {
-    let q = decalbake::place::place_cpu(topo, decalbake::place::Query::Point(point));
-    let n = Vec3::from(q.normal);
-    let e1 = (e1 - n * e1.dot(n)).normalize();
-    Seed {
-        triangle: q.triangle,
-        point: Vec3::from(q.point),
-        normal: n,
-        e1,
-        e2: n.cross(e1),
-    }
+    Seed::nearest(topo, point, e1)
 }
 
 #[test]
@@ -191,111 +183,6 @@ fn twin_gap(coords: &[[f32; 4]], cpu: &decalbake::geodesic::ExpMap) -> f32 {
     gap
 }
 
-/// A unit icosphere with `f` subdivisions per edge (written as glTF so the engine loads it).
-fn icosphere(dir: &Path, f: u32) -> std::path::PathBuf {
-    let t = (1.0 + 5f32.sqrt()) / 2.0;
-    let v = [
-        Vec3::new(-1.0, t, 0.0),
-        Vec3::new(1.0, t, 0.0),
-        Vec3::new(-1.0, -t, 0.0),
-        Vec3::new(1.0, -t, 0.0),
-        Vec3::new(0.0, -1.0, t),
-        Vec3::new(0.0, 1.0, t),
-        Vec3::new(0.0, -1.0, -t),
-        Vec3::new(0.0, 1.0, -t),
-        Vec3::new(t, 0.0, -1.0),
-        Vec3::new(t, 0.0, 1.0),
-        Vec3::new(-t, 0.0, -1.0),
-        Vec3::new(-t, 0.0, 1.0),
-    ];
-    let faces = [
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    let mut pos: Vec<[f32; 3]> = Vec::new();
-    let mut idx = Vec::new();
-    for face in faces {
-        let [a, b, c] = face.map(|i| v[i]);
-        let base = pos.len() as u32;
-        let row = |i: u32| base + i * (i + 1) / 2;
-        for i in 0..=f {
-            for j in 0..=i {
-                let p = a + (b - a) * (i as f32 / f as f32) + (c - b) * (j as f32 / f as f32);
-                pos.push(p.normalize().to_array());
-            }
-        }
-        for i in 0..f {
-            for j in 0..=i {
-                idx.extend_from_slice(&[row(i) + j, row(i + 1) + j, row(i + 1) + j + 1]);
-                if j < i {
-                    idx.extend_from_slice(&[row(i) + j, row(i + 1) + j + 1, row(i) + j + 1]);
-                }
-            }
-        }
-    }
-    let uv: Vec<[f32; 2]> = pos
-        .iter()
-        .map(|p| [0.5 + 0.5 * p[0], 0.5 + 0.5 * p[1]])
-        .collect();
-    let path = dir.join(format!("ico{f}.glb"));
-    write_glb(&path, &pos, Some(&uv), &idx);
-    path
-}
-
-/// Errors of a map against the analytic exponential map of the unit sphere at the seed, over the
-/// vertices within geodesic radius 1: (2D max, 2D RMS, distance max, distance RMS).
-fn sphere_errors(topo: &Topology, seed: &Seed, uv: impl Fn(usize) -> Option<[f32; 2]>) -> [f32; 4] {
-    // Analytic: log map of the unit sphere at p: angle * (q - (q.p) p) normalised, read in (e1, e2).
-    let p = seed.point.normalize();
-    let (mut max_e, mut sum2, mut n, mut max_d, mut sum_d2) = (0.0f32, 0.0f64, 0, 0.0f32, 0.0f64);
-    for (v, q) in topo.positions.iter().enumerate() {
-        let Some(c) = uv(v) else { continue };
-        let q = q.normalize();
-        let ang = p.dot(q).clamp(-1.0, 1.0).acos();
-        if ang > 1.0 {
-            continue;
-        }
-        let t = q - p * p.dot(q);
-        let dir = if t.length() > 1e-9 {
-            t.normalize()
-        } else {
-            Vec3::ZERO
-        };
-        let exact = [ang * dir.dot(seed.e1), ang * dir.dot(seed.e2)];
-        let e = ((c[0] - exact[0]).powi(2) + (c[1] - exact[1]).powi(2)).sqrt();
-        max_e = max_e.max(e);
-        sum2 += (e as f64).powi(2);
-        let de = (c[0].hypot(c[1]) - ang).abs();
-        max_d = max_d.max(de);
-        sum_d2 += (de as f64).powi(2);
-        n += 1;
-    }
-    [
-        max_e,
-        (sum2 / n as f64).sqrt() as f32,
-        max_d,
-        (sum_d2 / n as f64).sqrt() as f32,
-    ]
-}
-
 /// Both update rules against the analytic exponential map of a unit sphere at two resolutions,
 /// GPU and CPU twin. The paper's update ("fast") does not converge: its angular error comes from
 /// treating an angular step s as s / r instead of s / sin r, independent of h. The smooth mode
@@ -303,12 +190,10 @@ fn sphere_errors(topo: &Topology, seed: &Seed, uv: impl Fn(usize) -> Option<[f32
 /// its error must fall by more than 2.5× when the edge length halves (f = 22 to f = 44).
 #[test]
 fn sphere_error_against_the_analytic_exponential_map() {
-    let dir = scratch("expmap-sphere");
     let engine = engine();
     let mut smooth_max = Vec::new();
     for f in [22u32, 44] {
-        let path = icosphere(&dir, f);
-        let mesh = engine.load_mesh(&path).unwrap();
+        let mesh = engine.prepare(icosphere(f)).unwrap();
         let topo = &mesh.topo;
         let curvature = gaussian_curvature(topo);
         let seed = seed_at(topo, Vec3::new(0.3, 0.2, 1.0).normalize() * 1.01, Vec3::X);
@@ -320,11 +205,11 @@ fn sphere_error_against_the_analytic_exponential_map() {
             };
             let (coords, res) = &expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap()[0];
             assert_eq!(res.converged, 1);
-            let gpu = sphere_errors(topo, &seed, |v| {
+            let gpu = unit_sphere_log_errors(topo, &seed, 1.0, |v| {
                 (coords[v][3] > 0.5).then_some([coords[v][0], coords[v][1]])
             });
             let cpu_map = dem_cpu(topo, &seed, opts, &curvature);
-            let cpu = sphere_errors(topo, &seed, |v| {
+            let cpu = unit_sphere_log_errors(topo, &seed, 1.0, |v| {
                 cpu_map.dist[v].is_finite().then_some(cpu_map.uv[v])
             });
             // GPU and twin follow the same upwind tree; only f32 sin/cos/exp rounding differs.
@@ -332,13 +217,13 @@ fn sphere_error_against_the_analytic_exponential_map() {
             eprintln!(
                 "icosphere f={f} ({} vertices), {accuracy:?}: 2D error max {:.2e} RMS {:.2e}; distance error max {:.2e} RMS {:.2e} (CPU twin: 2D max {:.2e}); |GPU - twin| {twin:.1e}; {} sweeps",
                 topo.positions.len(),
-                gpu[0], gpu[1], gpu[2], gpu[3], cpu[0], res.sweeps
+                gpu.max, gpu.rms, gpu.dist_max, gpu.dist_rms, cpu.max, res.sweeps
             );
             assert!(twin < 1e-4, "GPU and CPU twin differ by {twin}");
             match accuracy {
                 // Regression guard only: this error does not shrink.
-                Accuracy::Fast => assert!(gpu[0] < 0.15 && gpu[1] < 0.06, "{gpu:?}"),
-                Accuracy::Smooth => smooth_max.push(gpu[0]),
+                Accuracy::Fast => assert!(gpu.max < 0.15 && gpu.rms < 0.06, "{gpu:?}"),
+                Accuracy::Smooth => smooth_max.push(gpu.max),
             }
         }
     }
@@ -364,21 +249,15 @@ fn sphere_error_against_the_analytic_exponential_map() {
 /// seed): it sits next to the icosahedron's valence-5 vertices, where the mesh is least regular.
 #[test]
 fn smooth_twin_converges_on_the_icosphere_family() {
-    let dir = scratch("expmap-ico-family");
     // Two seeds: the vertex `accuracy.py` seeds from (the one furthest along (0.31, 0.47, 0.83)),
     // and a surface point inside a triangle (exercises the seed-triangle start).
     let mut errors = vec![(Vec::new(), Vec::new()); 2];
     for f in [8u32, 16, 32, 64] {
-        let path = icosphere(&dir, f);
-        let topo = Topology::build(&Mesh::load(&path).unwrap(), DEFAULT_WELD_TOLERANCE);
-        let d = Vec3::new(0.31, 0.47, 0.83).normalize();
-        let vertex = topo
-            .positions
-            .iter()
-            .copied()
-            .max_by(|a, b| a.dot(d).total_cmp(&b.dot(d)))
-            .unwrap();
-        let points = [vertex, Vec3::new(0.3, 0.2, 1.0).normalize() * 1.01];
+        let topo = Topology::build(&icosphere(f), DEFAULT_WELD_TOLERANCE);
+        let points = [
+            peers_seed_vertex(&topo),
+            Vec3::new(0.3, 0.2, 1.0).normalize() * 1.01,
+        ];
         for (point, (max, rms)) in points.into_iter().zip(&mut errors) {
             let seed = seed_at(&topo, point, Vec3::X);
             let opts = Options {
@@ -387,17 +266,17 @@ fn smooth_twin_converges_on_the_icosphere_family() {
                 accuracy: Accuracy::Smooth,
             };
             let map = dem_cpu(&topo, &seed, opts, &gaussian_curvature(&topo));
-            let e = sphere_errors(&topo, &seed, |v| {
+            let e = unit_sphere_log_errors(&topo, &seed, 1.0, |v| {
                 map.dist[v].is_finite().then_some(map.uv[v])
             });
             eprintln!(
                 "icosphere f{f} ({} vertices), seed {point:.3}, smooth CPU twin: 2D error max {:.2e} RMS {:.2e}",
                 topo.positions.len(),
-                e[0],
-                e[1]
+                e.max,
+                e.rms
             );
-            max.push(e[0]);
-            rms.push(e[1]);
+            max.push(e.max);
+            rms.push(e.rms);
         }
     }
     for (max, rms) in &errors {
