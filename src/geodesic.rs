@@ -33,7 +33,8 @@ pub struct Seed {
     pub normal: Vec3,
     /// First tangent axis (the decal's image +x).
     pub e1: Vec3,
-    /// Second tangent axis (the decal's image +y).
+    /// Second tangent axis (the decal's image +y): normal × e1 (right-handed; the smooth mode turns
+    /// its frame by angles measured about the normal, and a mirrored frame would turn it backwards).
     pub e2: Vec3,
 }
 
