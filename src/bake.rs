@@ -867,7 +867,8 @@ impl Engine {
         };
         let acc_rg = plane("bake.acc_rg");
         let acc_ba = plane("bake.acc_ba");
-        // One stats row per layer: 8 counters and the layer's cell mask.
+        // One stats row per layer: 8 counters (see wgsl/select_triangles.wgsl) and the layer's
+        // cell mask.
         let nl = job.layers.len().max(1) as u64;
         let grid = [w.div_ceil(CELL), h.div_ceil(CELL)];
         let mask_words = (grid[0] * grid[1]).div_ceil(32);
@@ -1209,10 +1210,12 @@ impl Engine {
                     texels_covered: 0,
                     texel_box: bx,
                     distortion: Default::default(),
-                    expmap: geo_layers
-                        .iter()
-                        .position(|&g| g == i)
-                        .map(|k| geo_stats[k]),
+                    expmap: geo_layers.iter().position(|&g| g == i).map(|k| {
+                        crate::geodesic_gpu::GeoResult {
+                            triangles_reached: row[6].max(0) as u32,
+                            ..geo_stats[k]
+                        }
+                    }),
                     chart: chart_reports.get(&i).copied(),
                 });
                 if let Some(gs) = geo_layers

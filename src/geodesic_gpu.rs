@@ -43,8 +43,10 @@ pub struct GeoResult {
     pub reached: u32,
     /// 1 when a sweep changed nothing before the sweep limit.
     pub converged: u32,
-    #[serde(skip)]
-    pad: u32,
+    /// Triangles whose three vertices the map reached. Not computed by the relaxation (the kernel
+    /// writes 0 in its padding word); a bake fills it in from its triangle selection
+    /// (`wgsl/select_triangles.wgsl`).
+    pub triangles_reached: u32,
 }
 
 /// The vertices a map can reach: connected to the seed triangle through vertices within Euclidean
@@ -320,7 +322,7 @@ fn run_cpu_twin(
             sweeps: 0,
             reached,
             converged: 1,
-            pad: 0,
+            triangles_reached: 0,
         });
     }
     Ok((results, 0))

@@ -63,7 +63,8 @@ pub struct LayerReport {
     pub texel_box: [i32; 4],
     /// Distortion of the layer's map over the triangles it covers.
     pub distortion: crate::layer::Distortion,
-    /// Exponential-map layers: relaxation sweeps, vertices reached, convergence.
+    /// Exponential-map layers (and lscm / hybrid, which start from one): relaxation sweeps,
+    /// vertices and triangles reached, convergence.
     pub expmap: Option<crate::geodesic_gpu::GeoResult>,
     /// LSCM / hybrid: the conformal chart's solve (triangles, rounds, CG iterations, residual, status).
     pub chart: Option<crate::chart::ChartReport>,

@@ -363,6 +363,43 @@ fn param_command_writes_the_layer_map_as_csv() {
         }
         assert!(n > 20, "layer {layer}: {n} rows");
     }
+    // The bake report counts the same vertices, and the triangles whose three vertices they are.
+    let rows: Vec<[usize; 2]> = std::fs::read_to_string(dir.join("p0.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<f32> = l.split(',').map(|x| x.parse().unwrap()).collect();
+            // Grid index: the jitter is below 0.2 of a cell.
+            [
+                (f[0] * 16.0).round() as usize,
+                (f[1] * 16.0).round() as usize,
+            ]
+        })
+        .collect();
+    let reached: std::collections::HashSet<usize> = rows.iter().map(|[i, j]| j * 17 + i).collect();
+    let mut triangles = 0;
+    for j in 0..16 {
+        for i in 0..16 {
+            let a = j * 17 + i;
+            for t in [[a, a + 1, a + 18], [a, a + 18, a + 17]] {
+                triangles += usize::from(t.iter().all(|v| reached.contains(v)));
+            }
+        }
+    }
+    let engine = engine();
+    let job = decalbake::job::Job::load(&dir.join("job.json"), None).unwrap();
+    let mesh = engine.load_mesh(&path).unwrap();
+    let report = engine.bake(&mesh, &job).unwrap().report;
+    let ex = report.layers[0].expmap.expect("expmap stats");
+    eprintln!(
+        "report: {ex:?}; CSV: {} vertices, {triangles} triangles",
+        reached.len()
+    );
+    assert_eq!(ex.reached as usize, reached.len());
+    assert_eq!(ex.triangles_reached as usize, triangles);
+    assert!(ex.triangles_reached >= report.layers[0].triangles_covered);
+
     let (code, _, err) = param(&dir.join("job.json"), "5", &dir.join("x.csv"));
     assert_eq!(code, 2);
     assert!(err.contains("--layer 5 does not exist"), "{err}");

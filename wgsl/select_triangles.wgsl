@@ -14,7 +14,8 @@
 @group(0) @binding(5) var<storage, read> coords: array<vec4<f32>>;
 @group(0) @binding(6) var<storage, read_write> lists: array<u32>;
 // Per layer (params.aux), `stats_stride` words: count, min x, min y, max x, max y (texels), texels
-// composed, 2 unused, then the cell mask: the texel blocks this layer's triangles touch, wrapped into
+// composed, triangles with all three coordinates valid (reached by the layer's map), 1 unused, then
+// the cell mask: the texel blocks this layer's triangles touch, wrapped into
 // the texture (UV repeat), so rasterization only visits blocks that can change.
 @group(0) @binding(7) var<storage, read_write> stats: array<atomic<i32>>;
 
@@ -29,6 +30,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let c1 = coords[base + tri.y];
     let c2 = coords[base + tri.z];
     if (c0.w < 0.5 || c1.w < 0.5 || c2.w < 0.5) { return; }
+    let s = params.aux * params.stats_stride;
+    atomicAdd(&stats[s + 6u], 1);
     let hx = 0.5 * params.axis_u.w;
     let hy = 0.5 * params.axis_v.w;
     let lo = min(min(c0.xy, c1.xy), c2.xy);
@@ -39,7 +42,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let n = cross(positions[tri.y].xyz - a, positions[tri.z].xyz - a);
         if (dot(n, params.normal.xyz) <= 0.0) { return; }
     }
-    let s = params.aux * params.stats_stride;
     let i = atomicAdd(&stats[s], 1);
     lists[params.slot * params.triangle_count + u32(i)] = t;
     let size = vec2<f32>(params.tex_size);
