@@ -273,7 +273,7 @@ pub fn run_geodesic(
     batch: usize,
     mut emit: impl FnMut(serde_json::Value),
 ) -> Result<()> {
-    use crate::geodesic::{dem_cpu, gaussian_curvature, Options, Seed};
+    use crate::geodesic::{dem_cpu, Options, Seed, SurfaceData};
     let path = opts
         .mesh
         .clone()
@@ -293,7 +293,7 @@ pub fn run_geodesic(
         }
         let loaded = engine.prepare(mesh)?;
         let topo = &loaded.topo;
-        let k = gaussian_curvature(topo);
+        let k = SurfaceData::new(topo);
         // The peers read the welded mesh as OBJ.
         let peer_mesh = match &opts.peers {
             Some(_) => {

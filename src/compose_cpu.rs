@@ -117,7 +117,7 @@ pub fn bake_cpu(
         }
     }
     let mut selected = Vec::new();
-    let curvature = crate::geodesic::gaussian_curvature(topo);
+    let curvature = crate::geodesic::SurfaceData::new(topo);
     for (li, layer) in job.layers.iter().enumerate() {
         let frame = Frame::new(&placements[li], layer);
         let expmap = || -> Vec<[f32; 4]> {

@@ -33,8 +33,8 @@ pub struct Seed {
     pub normal: Vec3,
     /// First tangent axis (the decal's image +x).
     pub e1: Vec3,
-    /// Second tangent axis (the decal's image +y): normal × e1 (right-handed; the smooth mode turns
-    /// its frame by angles measured about the normal, and a mirrored frame would turn it backwards).
+    /// Second tangent axis (the decal's image +y); normally normal × e1. The smooth mode only uses
+    /// its side (which way the frame turns against the seed triangle's winding).
     pub e2: Vec3,
 }
 
@@ -137,20 +137,21 @@ pub enum Accuracy {
     /// G'' = -K G, G(0) = 0, G'(0) = 1). Three discrete pieces make that exact in the limit:
     /// - **Stretch**: G is integrated along the upwind path with the Gaussian curvature averaged over
     ///   each step (exact for constant curvature); the edge's angular component is scaled by r / G.
-    /// - **Frame**: each vertex carries the angle α between the parallel-transported seed frame and
-    ///   the minimal-rotation frame `transfer` reads edges in. A step y→x adds the area of the
-    ///   spherical triangle of normals (seed, y, x) (the minimal rotations seed→y→x→seed compose to
-    ///   a rotation by it: edge-by-edge transport, exact on developable meshes) and subtracts the
-    ///   holonomy of the wedge (seed, y, x), ∫K dA = dθ (1 - G') (Gauss-Bonnet; dθ the step's turn
-    ///   around the seed in the chart), which turns transport along the path back into transport
-    ///   along the radial geodesic.
+    /// - **Frame**: each vertex carries the angle α of the seed frame in its intrinsic tangent
+    ///   coordinates ([`edge_angles`]: corner angles only, no normals). Crossing an edge adds
+    ///   tx + π - ty (parallel transport, exact on any flat mesh, sharp creases included) and
+    ///   subtracts the holonomy of the wedge (seed, y, x), ∫K dA = dθ (1 - G') (Gauss-Bonnet; dθ the
+    ///   step's turn around the seed in the chart), which turns transport along the zigzag path
+    ///   into transport along the radial geodesic.
     /// - **Trapezoidal rule**: the edge is mapped with the differential at both ends (x's end from
     ///   a predictor step) and the two images are averaged.
     ///
-    /// Second order: on the unit sphere (within radius 1) the max 2D error is 4.7e-3, 1.3e-3,
-    /// 4.7e-4, 1.2e-4 at 642, 2.6k, 10k, 41k vertices (potpourri3d's AffineLocal: 1.0e-2 to 1.7e-3;
-    /// 2.8e-3 at 10k); on a cone (developable) it falls by 3.5-3.8× per halving of the edge length. The fixed point is still set by
-    /// the upwind tree, so the GPU relaxation reaches the twin's values (up to f32 rounding).
+    /// Second order: on the unit sphere (within radius 1) the max 2D error is 8.3e-3, 2.1e-3,
+    /// 6.8e-4, 2.3e-4 at 642, 2.6k, 10k, 41k vertices (potpourri3d's AffineLocal: 1.0e-2 to 1.7e-3;
+    /// 2.8e-3 at 10k); on a cone (developable) it falls by about 4× per halving of the edge length;
+    /// a crumpled developable sheet is unfolded to 1e-5 of the disc radius.
+    /// The fixed point is still set by the upwind tree, so the GPU relaxation reaches the twin's
+    /// values (up to f32 rounding).
     #[default]
     Smooth,
 }
@@ -188,26 +189,6 @@ pub fn smooth_increment(c: [f32; 2], g: f32, t: [f32; 2]) -> [f32; 2] {
     [u[0] * a + w[0] * b, u[1] * a + w[1] * b]
 }
 
-/// Signed area of the spherical triangle of unit normals (a, b, c) (Van Oosterom & Strackee's
-/// formula, accurate for tiny triangles in f32). The minimal rotations a → b → c → a compose to a
-/// rotation about a by this angle: how far the minimal-rotation frames of `transfer` turn against
-/// a frame carried edge by edge. Twin of `normal_loop_angle` in `wgsl/shared/expmap.wgsl`.
-pub fn normal_loop_angle(a: Vec3, b: Vec3, c: Vec3) -> f32 {
-    let det = a.dot(b.cross(c));
-    let den = 1.0 + a.dot(b) + b.dot(c) + c.dot(a);
-    if det == 0.0 && den <= 0.0 {
-        // Two opposite normals: no minimal rotation, no loop (`rotate_min` flips instead).
-        return 0.0;
-    }
-    2.0 * det.atan2(den)
-}
-
-/// `v` turned by `angle` (counter-clockwise in the seed frame).
-fn turn(v: [f32; 2], angle: f32) -> [f32; 2] {
-    let (s, c) = angle.sin_cos();
-    [v[0] * c - v[1] * s, v[0] * s + v[1] * c]
-}
-
 /// Per-vertex state of the smooth mode: the Jacobi field (G, G') of geodesic polar coordinates and
 /// the frame angle α (see [`Accuracy::Smooth`]); the fourth float is padding (a `vec4` on the GPU).
 pub type SmoothState = [f32; 4];
@@ -218,22 +199,31 @@ pub fn smooth_seed_state(d: f32) -> SmoothState {
 }
 
 /// One step of the smooth mode from upwind vertex y (coordinates `cy`, state `sy`, curvature `ky`) to
-/// x (curvature `kx`): `ty` and `tx` are the edge y→x laid into y's and x's tangent planes and read
-/// through the minimal-rotation frames (`transfer` with y's and x's normal), `loop_angle` is
-/// [`normal_loop_angle`]`(seed normal, n_y, n_x)`. Trapezoidal rule: the edge is mapped by the
-/// differential of the log map at both ends and the two images are averaged (a predictor gives x's
-/// end). Returns x's coordinates and state. Twin of `smooth_step` in `wgsl/shared/expmap.wgsl`.
+/// x (curvature `kx`) along an edge of length `len`, whose intrinsic angle is `ty` at y and `tx` at x
+/// ([`edge_angles`]); `orient` is +1 when the seed frame turns the same way as the mesh's winding, -1
+/// when mirrored. A tangent vector of intrinsic angle t at a vertex with frame angle α has the chart
+/// direction orient·(t - α); carrying the frame across the edge adds tx + π - ty (exact parallel
+/// transport on a flat mesh, creases included), and the wedge's holonomy turns it back to the
+/// radial geodesic's transport. Trapezoidal rule: the edge is mapped by the differential of the log
+/// map at both ends and the two images are averaged (a predictor gives x's end). Returns x's
+/// coordinates and state. Twin of `smooth_step` in `wgsl/shared/expmap.wgsl`.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "the step's inputs, as in the WGSL twin"
+)]
 pub fn smooth_step(
     cy: [f32; 2],
     sy: SmoothState,
     ky: f32,
     kx: f32,
-    ty: [f32; 2],
-    tx: [f32; 2],
-    loop_angle: f32,
+    len: f32,
+    ty: f32,
+    tx: f32,
+    orient: f32,
 ) -> ([f32; 2], SmoothState) {
     let ry = (cy[0] * cy[0] + cy[1] * cy[1]).sqrt();
     let km = 0.5 * (ky + kx);
+    let carried = sy[2] + tx + std::f32::consts::PI - ty;
     let state = |c: [f32; 2]| -> SmoothState {
         let r = (c[0] * c[0] + c[1] * c[1]).sqrt();
         let g = jacobi_step([sy[0], sy[1]], km, r - ry);
@@ -243,21 +233,173 @@ pub fn smooth_step(
             0.0
         };
         // Holonomy of the wedge (seed, y, x): ∫K dA = dθ (1 - G'), G' averaged over the step.
-        let alpha = sy[2] + loop_angle - dtheta * (1.0 - 0.5 * (sy[1] + g[1]));
+        let alpha = carried - orient * dtheta * (1.0 - 0.5 * (sy[1] + g[1]));
         [g[0], g[1], alpha, 0.0]
     };
-    let iy = smooth_increment(cy, sy[0], turn(ty, -sy[2]));
+    let dir = |t: f32, alpha: f32| {
+        let (sn, cs) = (orient * (t - alpha)).sin_cos();
+        [len * cs, len * sn]
+    };
+    let iy = smooth_increment(cy, sy[0], dir(ty, sy[2]));
     let pred = [cy[0] + iy[0], cy[1] + iy[1]];
     let sp = state(pred);
-    let ix = smooth_increment(pred, sp[0], turn(tx, -sp[2]));
+    let ix = smooth_increment(pred, sp[0], dir(tx + std::f32::consts::PI, sp[2]));
     let c = [cy[0] + 0.5 * (iy[0] + ix[0]), cy[1] + 0.5 * (iy[1] + ix[1])];
     (c, state(c))
+}
+
+/// Per-vertex surface data the maps need, computed once per mesh: signed Gaussian curvature
+/// ([`gaussian_curvature`]) and intrinsic edge angles ([`edge_angles`]).
+#[derive(Debug, Clone)]
+pub struct SurfaceData {
+    /// Per welded vertex.
+    pub curvature: Vec<f32>,
+    /// Per CSR adjacency entry.
+    pub edge_angles: Vec<f32>,
+}
+
+impl SurfaceData {
+    /// Computes both.
+    pub fn new(topo: &Topology) -> Self {
+        Self {
+            curvature: gaussian_curvature(topo),
+            edge_angles: edge_angles(topo),
+        }
+    }
+}
+
+/// The intrinsic angle of each edge at its source vertex, per CSR adjacency entry: going around the
+/// vertex in the winding direction, the sum of the corner angles passed, scaled by 2π / (angle sum)
+/// at interior vertices (the usual discrete tangent-space coordinates, e.g. Sharp, Soliman & Crane
+/// 2019) and unscaled at boundary vertices. Only corner angles enter: vertex normals play no part,
+/// so a vector carried across an edge by these angles is parallel-transported exactly on a flat
+/// (developable) mesh, sharp creases included.
+pub fn edge_angles(topo: &Topology) -> Vec<f32> {
+    let mut out = vec![0f32; topo.adjacency.len()];
+    let mut theta: std::collections::HashMap<u32, f64> = std::collections::HashMap::new();
+    for v in 0..topo.positions.len() {
+        let (a, b) = (
+            topo.vertex_triangle_offsets[v] as usize,
+            topo.vertex_triangle_offsets[v + 1] as usize,
+        );
+        let p = topo.positions[v].as_dvec3();
+        // Corners (next, previous, angle) in winding order.
+        let corners: Vec<(u32, u32, f64)> = topo.vertex_triangles[a..b]
+            .iter()
+            .filter(|&&t| !topo.degenerate[t as usize])
+            .filter_map(|&t| {
+                let tri = topo.triangles[t as usize];
+                let i = tri.iter().position(|&x| x as usize == v)?;
+                let (n, m) = (tri[(i + 1) % 3], tri[(i + 2) % 3]);
+                let (e, f) = (
+                    topo.positions[n as usize].as_dvec3() - p,
+                    topo.positions[m as usize].as_dvec3() - p,
+                );
+                Some((n, m, e.cross(f).length().atan2(e.dot(f))))
+            })
+            .collect();
+        let opens = |i: usize| !corners.iter().any(|c| c.1 == corners[i].0);
+        let boundary = (0..corners.len()).any(opens);
+        let total: f64 = corners.iter().map(|c| c.2).sum();
+        let scale = if boundary || total <= 0.0 {
+            1.0
+        } else {
+            std::f64::consts::TAU / total
+        };
+        // Walk the fan(s) from an open corner (or any), continuing across further fans of a
+        // non-manifold vertex.
+        theta.clear();
+        let mut used = vec![false; corners.len()];
+        let mut angle = 0.0f64;
+        while let Some(start) = (0..corners.len())
+            .find(|&i| !used[i] && opens(i))
+            .or_else(|| (0..corners.len()).find(|&i| !used[i]))
+        {
+            let mut i = start;
+            loop {
+                used[i] = true;
+                theta.entry(corners[i].0).or_insert(angle * scale);
+                angle += corners[i].2;
+                theta.entry(corners[i].1).or_insert(angle * scale);
+                match (0..corners.len()).find(|&j| !used[j] && corners[j].0 == corners[i].1) {
+                    Some(j) => i = j,
+                    None => break,
+                }
+            }
+        }
+        let (a, b) = (
+            topo.adjacency_offsets[v] as usize,
+            topo.adjacency_offsets[v + 1] as usize,
+        );
+        for (o, q) in out[a..b].iter_mut().zip(&topo.adjacency[a..b]) {
+            *o = theta.get(q).copied().unwrap_or(0.0) as f32;
+        }
+    }
+    out
+}
+
+/// The intrinsic angle of edge v→q at v (0 when q is not a neighbour). Twin of `edge_angle` in
+/// `wgsl/expmap_relax.wgsl`.
+pub fn edge_angle(topo: &Topology, angles: &[f32], v: u32, q: u32) -> f32 {
+    let (a, b) = (
+        topo.adjacency_offsets[v as usize] as usize,
+        topo.adjacency_offsets[v as usize + 1] as usize,
+    );
+    (a..b)
+        .find(|&k| topo.adjacency[k] == q)
+        .map_or(0.0, |k| angles[k])
+}
+
+/// The smooth mode's start at the seed triangle's vertices: their coordinates in the triangle's own
+/// plane (exact: the seed point lies in it) and their frame angle, the intrinsic angle of the seed
+/// frame's first axis at each vertex. Also returns `orient` for [`smooth_step`]. Twin of the seed
+/// start in `wgsl/expmap_relax.wgsl`.
+pub fn smooth_seed(
+    topo: &Topology,
+    angles: &[f32],
+    seed: &Seed,
+) -> ([[f32; 2]; 3], [SmoothState; 3], f32) {
+    let tri = topo.triangles[seed.triangle as usize];
+    let p = tri.map(|v| topo.positions[v as usize]);
+    let nt = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+    let e1 = (seed.e1 - nt * seed.e1.dot(nt)).normalize_or_zero();
+    // +1 when (e1, e2) turns like the triangle's winding, -1 when the frame is mirrored against it.
+    let orient = if nt.cross(e1).dot(seed.e2) < 0.0 {
+        -1.0
+    } else {
+        1.0
+    };
+    let e2 = nt.cross(e1) * orient;
+    let mut uv = [[0.0; 2]; 3];
+    let mut st = [smooth_seed_state(0.0); 3];
+    for i in 0..3 {
+        let d = p[i] - seed.point;
+        uv[i] = [d.dot(e1), d.dot(e2)];
+        let (next, prev) = (tri[(i + 1) % 3], tri[(i + 2) % 3]);
+        let (en, ep) = (p[(i + 1) % 3] - p[i], p[(i + 2) % 3] - p[i]);
+        // Angle from the edge to `next` to e1 within the triangle, and the vertex's angle scale
+        // (the corner's intrinsic width over its true angle).
+        let beta = nt.dot(en.cross(e1)).atan2(en.dot(e1));
+        let corner = en.cross(ep).length().atan2(en.dot(ep));
+        let (tn, tp) = (
+            edge_angle(topo, angles, tri[i], next),
+            edge_angle(topo, angles, tri[i], prev),
+        );
+        let mut width = tp - tn;
+        if width < 0.0 {
+            width += std::f32::consts::TAU;
+        }
+        let scale = if corner > 0.0 { width / corner } else { 1.0 };
+        st[i] = [d.length(), 1.0, tn + beta * scale, 0.0];
+    }
+    (uv, st, orient)
 }
 
 /// The paper's Dijkstra-based discrete exponential map (f32, the CPU twin of the GPU relaxation).
 /// `curvature` is the signed Gaussian curvature per welded vertex (see [`gaussian_curvature`]):
 /// the stop compares |K|, the smooth mode integrates K.
-pub fn dem_cpu(topo: &Topology, seed: &Seed, opts: Options, curvature: &[f32]) -> ExpMap {
+pub fn dem_cpu(topo: &Topology, seed: &Seed, opts: Options, surface: &SurfaceData) -> ExpMap {
+    let curvature = &surface.curvature[..];
     let n = topo.positions.len();
     let mut map = ExpMap {
         dist: vec![f32::INFINITY; n],
@@ -272,11 +414,16 @@ pub fn dem_cpu(topo: &Topology, seed: &Seed, opts: Options, curvature: &[f32]) -
         normal: seed.normal,
         ..*seed
     };
-    for &v in &topo.triangles[seed.triangle as usize] {
+    let (seed_uv, seed_state, orient) = smooth_seed(topo, &surface.edge_angles, seed);
+    for (i, &v) in topo.triangles[seed.triangle as usize].iter().enumerate() {
         let p = topo.positions[v as usize];
         map.dist[v as usize] = (p - seed.point).length();
-        map.uv[v as usize] = transfer(seed.point, seed.normal, p, &flat);
-        state[v as usize] = smooth_seed_state(map.dist[v as usize]);
+        match opts.accuracy {
+            Accuracy::Fast => map.uv[v as usize] = transfer(seed.point, seed.normal, p, &flat),
+            Accuracy::Smooth => {
+                (map.uv[v as usize], state[v as usize]) = (seed_uv[i], seed_state[i])
+            }
+        }
         done[v as usize] = true;
     }
     // Seed vertices are final; expand them first.
@@ -311,9 +458,13 @@ pub fn dem_cpu(topo: &Topology, seed: &Seed, opts: Options, curvature: &[f32]) -
             Accuracy::Fast => map.uv[q] = [c[0] + t[0], c[1] + t[1]],
             Accuracy::Smooth => {
                 let k = |v: usize| curvature.get(v).copied().unwrap_or(0.0);
-                let tx = transfer(pr, topo.normals[q], pq, seed);
-                let loop_angle = normal_loop_angle(seed.normal, topo.normals[rr], topo.normals[q]);
-                (map.uv[q], state[q]) = smooth_step(c, state[rr], k(rr), k(q), t, tx, loop_angle);
+                let angles = &surface.edge_angles;
+                let (ty, tx) = (
+                    edge_angle(topo, angles, r, q as u32),
+                    edge_angle(topo, angles, q as u32, r),
+                );
+                let len = (pq - pr).length();
+                (map.uv[q], state[q]) = smooth_step(c, state[rr], k(rr), k(q), len, ty, tx, orient);
             }
         }
         map.parent[q] = r;

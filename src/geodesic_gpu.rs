@@ -243,6 +243,7 @@ pub fn run(
                 (11, fronts.as_entire_binding()),
                 (12, marks.as_entire_binding()),
                 (13, state.as_entire_binding()),
+                (14, mesh.edge_angles.as_entire_binding()),
             ],
         )
     };
@@ -292,7 +293,7 @@ fn run_cpu_twin(
     maps: &[(Seed, Options, u32)],
     coords: &wgpu::Buffer,
 ) -> Result<(Vec<GeoResult>, u32)> {
-    let k = crate::geodesic::gaussian_curvature(topo);
+    let k = crate::geodesic::SurfaceData::new(topo);
     let n = topo.positions.len();
     let mut results = Vec::with_capacity(maps.len());
     for (seed, opts, slot) in maps {

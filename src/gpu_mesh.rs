@@ -43,6 +43,9 @@ pub struct GpuMesh {
     pub triangle_neighbors: wgpu::Buffer,
     /// |Gaussian curvature| per welded vertex, `f32` (partial decals).
     pub curvature: wgpu::Buffer,
+    /// Intrinsic angle of every edge at its source vertex, per CSR adjacency entry, `f32`
+    /// (the smooth exponential map's frame transport).
+    pub edge_angles: wgpu::Buffer,
     /// Boundary edges (welded ids, smaller first), `vec2<u32>`.
     pub boundary_edges: wgpu::Buffer,
     /// Non-manifold edges, `vec2<u32>`.
@@ -183,6 +186,12 @@ impl GpuMesh {
                 device,
                 "mesh.curvature",
                 bytemuck::cast_slice(&crate::geodesic::gaussian_curvature(topo)),
+                none,
+            ),
+            edge_angles: storage(
+                device,
+                "mesh.edge_angles",
+                bytemuck::cast_slice(&crate::geodesic::edge_angles(topo)),
                 none,
             ),
         }

@@ -476,6 +476,7 @@ impl Pipelines {
                     (11, Rw),
                     (12, Rw),
                     (13, Rw),
+                    (14, Ro),
                 ],
             ),
             preview,

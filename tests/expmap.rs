@@ -5,7 +5,7 @@
 
 mod common;
 use common::*;
-use decalbake::geodesic::{dem_cpu, gaussian_curvature, Accuracy, Options, Seed};
+use decalbake::geodesic::{dem_cpu, Accuracy, Options, Seed, SurfaceData};
 use decalbake::geodesic_gpu::expmaps_gpu;
 use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
 use decalbake::shapes::{icosphere, peers_seed_vertex, unit_sphere_log_errors};
@@ -58,7 +58,7 @@ fn plane_maps_are_exact_on_gpu_and_cpu() {
         curvature_stop: f32::INFINITY,
         accuracy: Accuracy::Fast,
     };
-    let cpu = dem_cpu(&topo, &seed, opts, &gaussian_curvature(&topo));
+    let cpu = dem_cpu(&topo, &seed, opts, &SurfaceData::new(&topo));
     let gpu = expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap();
     let (coords, res) = &gpu[0];
     assert_eq!(res.converged, 1, "relaxation converged: {res:?}");
@@ -101,7 +101,7 @@ fn gpu_relaxation_reaches_the_dijkstra_fixed_point_on_spot() {
     let engine = engine();
     let mesh = engine.load_mesh(&spot).unwrap();
     let topo = Topology::build(&Mesh::load(&spot).unwrap(), DEFAULT_WELD_TOLERANCE);
-    let k = gaussian_curvature(&topo);
+    let k = SurfaceData::new(&topo);
     let points = [
         Vec3::new(0.33, 0.0, 0.45),
         Vec3::new(0.0, 0.3, 0.55),
@@ -195,7 +195,7 @@ fn sphere_error_against_the_analytic_exponential_map() {
     for f in [22u32, 44] {
         let mesh = engine.prepare(icosphere(f)).unwrap();
         let topo = &mesh.topo;
-        let curvature = gaussian_curvature(topo);
+        let curvature = SurfaceData::new(topo);
         let seed = seed_at(topo, Vec3::new(0.3, 0.2, 1.0).normalize() * 1.01, Vec3::X);
         for accuracy in [Accuracy::Fast, Accuracy::Smooth] {
             let opts = Options {
@@ -228,7 +228,7 @@ fn sphere_error_against_the_analytic_exponential_map() {
         }
     }
     assert!(
-        smooth_max[0] < 2.0e-3,
+        smooth_max[0] < 2.5e-3,
         "smooth mode at f = 22: {}",
         smooth_max[0]
     );
@@ -242,11 +242,10 @@ fn sphere_error_against_the_analytic_exponential_map() {
 /// The CPU twin of the smooth mode on the icosphere family of `../shared/peers/accuracy.py`
 /// (frequencies 8, 16, 32, 64: 642 to 40,962 vertices), for the README's comparison with
 /// potpourri3d: the RMS error must fall by at least half at each halving of the edge length (second
-/// order would quarter it; measured 0.27, 0.27, 0.26 and 0.15, 0.30, 0.35 for the two seeds), the
-/// max error must fall, and at f = 32 (10,242 vertices) the max must be below potpourri3d's default
-/// log map (AffineLocal) on the same sphere, 2.7e-3 (`../shared/peers/README.md`; measured 4.7e-4
-/// and 2.3e-4). The max falls less regularly than the RMS (0.17, 0.24, 0.46 for the surface-point
-/// seed): it sits next to the icosahedron's valence-5 vertices, where the mesh is least regular.
+/// order would quarter it; measured 0.25, 0.26, 0.27 and 0.23, 0.30, 0.22 for the two seeds), the
+/// max error must fall (measured by 0.26-0.34), and at f = 32 (10,242 vertices) the max must be
+/// below potpourri3d's default log map (AffineLocal) on the same sphere, 2.7e-3
+/// (`../shared/peers/README.md`; measured 6.8e-4 and 8.8e-4).
 #[test]
 fn smooth_twin_converges_on_the_icosphere_family() {
     // Two seeds: the vertex `accuracy.py` seeds from (the one furthest along (0.31, 0.47, 0.83)),
@@ -265,7 +264,7 @@ fn smooth_twin_converges_on_the_icosphere_family() {
                 curvature_stop: f32::INFINITY,
                 accuracy: Accuracy::Smooth,
             };
-            let map = dem_cpu(&topo, &seed, opts, &gaussian_curvature(&topo));
+            let map = dem_cpu(&topo, &seed, opts, &SurfaceData::new(&topo));
             let e = unit_sphere_log_errors(&topo, &seed, 1.0, |v| {
                 map.dist[v].is_finite().then_some(map.uv[v])
             });
@@ -297,32 +296,39 @@ fn smooth_mode_is_exact_on_a_plane() {
     let mesh = engine.load_mesh(&path).unwrap();
     let topo = &mesh.topo;
     let seed = seed_at(topo, Vec3::new(0.43, 0.51, 0.0), Vec3::new(1.0, 0.3, 0.0));
+    // Also a mirrored frame (e2 = e1 × normal): the map must follow the frame it is given.
+    let mirrored = Seed {
+        e2: -seed.e2,
+        ..seed
+    };
     let opts = Options {
         radius: 0.35,
         curvature_stop: f32::INFINITY,
         accuracy: Accuracy::Smooth,
     };
-    let (coords, res) = &expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap()[0];
-    assert_eq!(res.converged, 1);
-    let mut n = 0;
-    for (v, p) in topo.positions.iter().enumerate() {
-        if coords[v][3] < 0.5 {
-            continue;
+    let maps = expmaps_gpu(&engine, &mesh, &[(seed, opts), (mirrored, opts)]).unwrap();
+    for (seed, (coords, res)) in [seed, mirrored].iter().zip(&maps) {
+        assert_eq!(res.converged, 1);
+        let mut n = 0;
+        for (v, p) in topo.positions.iter().enumerate() {
+            if coords[v][3] < 0.5 {
+                continue;
+            }
+            n += 1;
+            let exact = [
+                (*p - seed.point).dot(seed.e1),
+                (*p - seed.point).dot(seed.e2),
+            ];
+            for k in 0..2 {
+                assert!(
+                    (coords[v][k] - exact[k]).abs() < 4e-6,
+                    "vertex {v}: {:?} vs {exact:?}",
+                    coords[v]
+                );
+            }
         }
-        n += 1;
-        let exact = [
-            (*p - seed.point).dot(seed.e1),
-            (*p - seed.point).dot(seed.e2),
-        ];
-        for k in 0..2 {
-            assert!(
-                (coords[v][k] - exact[k]).abs() < 4e-6,
-                "vertex {v}: {:?} vs {exact:?}",
-                coords[v]
-            );
-        }
+        assert!(n > 200);
     }
-    assert!(n > 200);
 }
 
 #[test]
@@ -423,7 +429,7 @@ fn large_discs_converge_over_several_rounds() {
         accuracy: Accuracy::Fast,
     };
     let (coords, res) = &expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap()[0];
-    let cpu = dem_cpu(topo, &seed, opts, &gaussian_curvature(topo));
+    let cpu = dem_cpu(topo, &seed, opts, &SurfaceData::new(topo));
     eprintln!("{} vertices, {} sweeps", res.reached, res.sweeps);
     assert_eq!(res.converged, 1);
     assert!(res.reached > 8000, "reached {}", res.reached);
@@ -506,10 +512,7 @@ fn cylinder_maps_converge_to_the_unrolling() {
         let (coords, res) = &expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap()[0];
         assert_eq!(res.converged, 1);
         // Same upwind tree, same arithmetic: equal up to the f32 rounding of sin/cos/atan2.
-        let twin = twin_gap(
-            coords,
-            &dem_cpu(topo, &seed, opts, &gaussian_curvature(topo)),
-        );
+        let twin = twin_gap(coords, &dem_cpu(topo, &seed, opts, &SurfaceData::new(topo)));
         assert!(twin < 1e-5, "|GPU - twin| = {twin}");
         let ts = seed.point.y.atan2(seed.point.x);
         let (mut max_e, mut n_in) = (0.0f32, 0);
@@ -621,7 +624,7 @@ fn cone_maps_converge_to_the_unrolling() {
         let phi_s = seed.point.y.atan2(seed.point.x);
         let e_phi = Vec3::new(-phi_s.sin(), phi_s.cos(), 0.0);
         let e_s = Vec3::new(sin_a * phi_s.cos(), sin_a * phi_s.sin(), -h / l);
-        let k = gaussian_curvature(topo);
+        let k = SurfaceData::new(topo);
         for (((coords, res), errors), accuracy) in maps
             .iter()
             .zip([&mut fast, &mut smooth])
@@ -656,9 +659,9 @@ fn cone_maps_converge_to_the_unrolling() {
     // The fast mode's transfer turns each edge by the minimal rotation between vertex normals, which
     // on a cone is not the surface's parallel transport (it is on a cylinder): its error stays small
     // but does not shrink (6.4e-4, 9.6e-4, 1.0e-3 here): regression guard only. The smooth mode
-    // carries its frame edge by edge (exact parallel transport on a developable mesh) and integrates
-    // the edges with the trapezoidal rule: second order, the error must fall by more than half at
-    // each refinement (measured: by 3.5-3.8×).
+    // carries its frame edge by edge with intrinsic angles (exact parallel transport on a
+    // developable mesh) and integrates the edges with the trapezoidal rule: second order, the error
+    // must fall by more than half at each refinement (measured 2.1e-4, 5.5e-5, 1.5e-5: by 3.7-3.9×).
     assert!(
         fast.iter().all(|e| *e < 2e-3),
         "fast mode regressed: {fast:?}"
@@ -806,7 +809,7 @@ fn maps_go_around_holes_and_stay_on_their_component() {
         .position(|p| (*p - Vec3::new(0.7, 0.5, 0.0)).length() < 1e-4)
         .unwrap();
     let upper = |v: usize| topo.positions[v].z > 0.01;
-    let k = gaussian_curvature(topo);
+    let k = SurfaceData::new(topo);
     for accuracy in [Accuracy::Fast, Accuracy::Smooth] {
         let opts = Options {
             radius: 0.8,
@@ -834,5 +837,89 @@ fn maps_go_around_holes_and_stay_on_their_component() {
         assert!(c[2] > 0.55, "graph distance {} goes through the slot", c[2]);
         // Flat: exact up to f32 rounding along the ~25-edge path.
         assert!((c[0] - 0.4).abs() < 1e-5 && c[1].abs() < 1e-5, "{c:?}");
+    }
+}
+
+/// A real developable model with sharp creases (Keenan Crane's crumpled sheet, whose UVs are its
+/// exact isometric flattening): the exponential map of a flat surface is its unfolding, so the
+/// smooth mode must reproduce the UV layout up to a rigid motion. Its frame transport uses only
+/// intrinsic edge angles, which are exact across creases; the paper's update turns edges by the
+/// minimal rotation between averaged vertex normals, which is not, and is only guarded (measured
+/// about 20 % of the disc radius). GPU and CPU twin.
+#[test]
+fn smooth_maps_unfold_a_crumpled_developable_sheet() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/crumpled_developable.glb");
+    let engine = engine();
+    let mesh = engine.load_mesh(&path).unwrap();
+    let topo = &mesh.topo;
+    let mut flat = vec![glam::Vec2::ZERO; topo.positions.len()];
+    for (i, w) in topo.welded_of.iter().enumerate() {
+        flat[*w as usize] = mesh.mesh.uv_sets[0][i];
+    }
+    let centre = flat.iter().copied().sum::<glam::Vec2>() / flat.len() as f32;
+    let v0 = (0..flat.len())
+        .min_by(|&a, &b| {
+            (flat[a] - centre)
+                .length()
+                .total_cmp(&(flat[b] - centre).length())
+        })
+        .unwrap();
+    let seed = seed_at(
+        topo,
+        topo.positions[v0] + Vec3::new(1e-3, 0.0, 0.0),
+        Vec3::X,
+    );
+    let surface = SurfaceData::new(topo);
+    for accuracy in [Accuracy::Fast, Accuracy::Smooth] {
+        let opts = Options {
+            radius: 0.8,
+            curvature_stop: f32::INFINITY,
+            accuracy,
+        };
+        let (coords, res) = &expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap()[0];
+        assert_eq!(res.converged, 1);
+        let twin = twin_gap(coords, &dem_cpu(topo, &seed, opts, &surface));
+        assert!(twin < 1e-5, "{accuracy:?}: |GPU - twin| = {twin}");
+        // The seed point in the flattening, then the best rigid motion (with reflection, as the
+        // flattening's orientation is its own) from the flattening to the map.
+        let t = topo.triangles[seed.triangle as usize];
+        let [a, b, c] = t.map(|v| topo.positions[v as usize]);
+        let n = (b - a).cross(c - a);
+        let w =
+            |p: Vec3, q: Vec3| (p - seed.point).cross(q - seed.point).dot(n) / n.length_squared();
+        let (wa, wb) = (w(b, c), w(c, a));
+        let s2 = flat[t[0] as usize] * wa
+            + flat[t[1] as usize] * wb
+            + flat[t[2] as usize] * (1.0 - wa - wb);
+        let pairs: Vec<(glam::Vec2, glam::Vec2)> = coords
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c[3] > 0.5)
+            .map(|(v, c)| (flat[v] - s2, glam::Vec2::new(c[0], c[1])))
+            .collect();
+        let fit = |mirror: f32| {
+            let m = |p: glam::Vec2| glam::Vec2::new(p.x, mirror * p.y);
+            let (sx, sy) = pairs.iter().fold((0.0, 0.0), |(x, y), (p, q)| {
+                (x + m(*p).dot(*q), y + m(*p).perp_dot(*q))
+            });
+            let r = glam::Vec2::from_angle(f32::atan2(sy, sx));
+            pairs
+                .iter()
+                .map(|(p, q)| (r.rotate(m(*p)) - *q).length())
+                .fold(0.0f32, f32::max)
+        };
+        let err = fit(1.0).min(fit(-1.0));
+        let radius = pairs.iter().map(|(_, q)| q.length()).fold(0.0f32, f32::max);
+        eprintln!(
+            "crumpled sheet, {accuracy:?}: {} vertices, disc radius {radius:.3}, max error against the flattening {err:.2e} ({:.4} % of the radius)",
+            pairs.len(),
+            100.0 * err / radius
+        );
+        assert!(pairs.len() > 100 && radius > 0.5);
+        match accuracy {
+            Accuracy::Fast => assert!(err < 0.3 * radius, "fast mode regressed: {err}"),
+            // Flat up to f32 rounding along ~15-edge paths.
+            Accuracy::Smooth => assert!(err < 1e-4 * radius, "smooth mode: {err}"),
+        }
     }
 }

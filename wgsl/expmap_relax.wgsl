@@ -77,6 +77,52 @@ struct GeoResult {
 @group(0) @binding(12) var<storage, read_write> marks: array<atomic<u32>>;
 // Per slot and vertex: the smooth mode's state (G, G', frame angle, 0) (see shared/expmap.wgsl).
 @group(0) @binding(13) var<storage, read_write> state: array<vec4<f32>>;
+// Per CSR adjacency entry: the edge's intrinsic angle at its source vertex (`edge_angles` in
+// src/geodesic.rs).
+@group(0) @binding(14) var<storage, read> edge_angles: array<f32>;
+
+// The intrinsic angle of edge v -> q at v (0 when q is not a neighbour). Twin of `edge_angle` in
+// src/geodesic.rs.
+fn edge_angle(v: u32, q: u32) -> f32 {
+    for (var k = adj_offsets[v]; k < adj_offsets[v + 1u]; k++) {
+        if (adjacency[k] == q) { return edge_angles[k]; }
+    }
+    return 0.0;
+}
+
+// +1 when the seed frame (e1, e2) turns like the seed triangle's winding, -1 when mirrored.
+// Twin of `orient` in `smooth_seed`, src/geodesic.rs.
+fn seed_orient(job: GeoJob) -> f32 {
+    let p0 = positions[job.tri.x].xyz;
+    let nt = normalize(cross(positions[job.tri.y].xyz - p0, positions[job.tri.z].xyz - p0));
+    let e1 = normalize(job.e1.xyz - nt * dot(job.e1.xyz, nt));
+    return select(1.0, -1.0, dot(cross(nt, e1), job.e2.xyz) < 0.0);
+}
+
+// The smooth mode's start at seed-triangle vertex i: coordinates in the triangle's plane and the
+// state (distance, 1, frame angle, 0). Twin of `smooth_seed` in src/geodesic.rs.
+fn smooth_seed(job: GeoJob, i: u32, orient: f32) -> SmoothOut {
+    let tri = array<u32, 3>(job.tri.x, job.tri.y, job.tri.z);
+    let p = array<vec3<f32>, 3>(positions[tri[0]].xyz, positions[tri[1]].xyz, positions[tri[2]].xyz);
+    let nt = normalize(cross(p[1] - p[0], p[2] - p[0]));
+    let e1 = normalize(job.e1.xyz - nt * dot(job.e1.xyz, nt));
+    let e2 = cross(nt, e1) * orient;
+    let d = p[i] - job.seed.xyz;
+    let en = p[(i + 1u) % 3u] - p[i];
+    let ep = p[(i + 2u) % 3u] - p[i];
+    let beta = atan2(dot(nt, cross(en, e1)), dot(en, e1));
+    let corner = atan2(length(cross(en, ep)), dot(en, ep));
+    let tn = edge_angle(tri[i], tri[(i + 1u) % 3u]);
+    let tp = edge_angle(tri[i], tri[(i + 2u) % 3u]);
+    var width = tp - tn;
+    if (width < 0.0) { width += 2.0 * PI; }
+    var scale = 1.0;
+    if (corner > 0.0) { scale = width / corner; }
+    var out: SmoothOut;
+    out.uv = vec2<f32>(dot(d, e1), dot(d, e2));
+    out.state = vec4<f32>(length(d), 1.0, tn + beta * scale, 0.0);
+    return out;
+}
 
 var<workgroup> reached: atomic<u32>;
 var<workgroup> done_before: u32;
@@ -88,6 +134,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
     let job = jobs[wid.x];
     let base = job.tri.w * job.vertex_count;
     let seed_n = job.normal.xyz;
+    let orient = seed_orient(job);
     if (lid == 0u) {
         atomicStore(&reached, 0u);
         done_before = 0u;
@@ -110,8 +157,14 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
             let v = job.tri[lid];
             let p = positions[v].xyz;
             let d = p - job.seed.xyz;
-            coords[base + v] = vec4<f32>(transfer(job.seed.xyz, seed_n, p, seed_n, job.e1.xyz, job.e2.xyz), length(d), 2.0);
-            state[base + v] = vec4<f32>(length(d), 1.0, 0.0, 0.0);
+            if (job.smooth_mode != 0u) {
+                let s = smooth_seed(job, lid, seed_orient(job));
+                coords[base + v] = vec4<f32>(s.uv, length(d), 2.0);
+                state[base + v] = s.state;
+            } else {
+                coords[base + v] = vec4<f32>(transfer(job.seed.xyz, seed_n, p, seed_n, job.e1.xyz, job.e2.xyz), length(d), 2.0);
+                state[base + v] = vec4<f32>(length(d), 1.0, 0.0, 0.0);
+            }
         }
         for (var i = lid; i < job.cand_count; i += WG) {
             fronts[2u * job.cand_offset + i] = candidates[job.cand_offset + i];
@@ -162,10 +215,9 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
                 var uv = cr.xy + t;
                 var sv = vec4<f32>(0.0, 1.0, 0.0, 0.0);
                 if (job.smooth_mode != 0u) {
-                    let nv = normals[v].xyz;
-                    let tx = transfer(pr, nv, pv, seed_n, job.e1.xyz, job.e2.xyz);
-                    let la = normal_loop_angle(seed_n, normals[best_r].xyz, nv);
-                    let out = smooth_step(cr.xy, state[base + best_r], curvature[best_r], curvature[v], t, tx, la);
+                    let ty = edge_angle(best_r, v);
+                    let tx = edge_angle(v, best_r);
+                    let out = smooth_step(cr.xy, state[base + best_r], curvature[best_r], curvature[v], length(pv - pr), ty, tx, orient);
                     uv = out.uv;
                     sv = out.state;
                 }

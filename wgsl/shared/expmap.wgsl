@@ -56,25 +56,9 @@ fn transfer(r: vec3<f32>, nr: vec3<f32>, q: vec3<f32>, seed_n: vec3<f32>, e1: ve
     return vec2<f32>(dot(v, e1), dot(v, e2));
 }
 
-// Signed area of the spherical triangle of unit normals (a, b, c) (Van Oosterom & Strackee). Twin
-// of `normal_loop_angle` in src/geodesic.rs.
-fn normal_loop_angle(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> f32 {
-    let det = dot(a, cross(b, c));
-    let den = 1.0 + dot(a, b) + dot(b, c) + dot(c, a);
-    if (det == 0.0 && den <= 0.0) { return 0.0; }
-    return 2.0 * atan2(det, den);
-}
-
-// `v` turned by `angle` (counter-clockwise in the seed frame).
-fn turn(v: vec2<f32>, angle: f32) -> vec2<f32> {
-    let s = sin(angle);
-    let c = cos(angle);
-    return vec2<f32>(v.x * c - v.y * s, v.x * s + v.y * c);
-}
-
-// x's smooth-mode state (G, G', frame angle, 0) once its coordinates `c` are known. See
-// `smooth_step` in src/geodesic.rs.
-fn smooth_state(cy: vec2<f32>, sy: vec4<f32>, km: f32, loop_angle: f32, c: vec2<f32>) -> vec4<f32> {
+// x's smooth-mode state (G, G', frame angle, 0) once its coordinates `c` are known; `carried` is
+// y's frame angle carried across the edge. See `smooth_step` in src/geodesic.rs.
+fn smooth_state(cy: vec2<f32>, sy: vec4<f32>, km: f32, carried: f32, orient: f32, c: vec2<f32>) -> vec4<f32> {
     let ry = sqrt(cy.x * cy.x + cy.y * cy.y);
     let r = sqrt(c.x * c.x + c.y * c.y);
     let g = jacobi_step(sy.xy, km, r - ry);
@@ -82,8 +66,15 @@ fn smooth_state(cy: vec2<f32>, sy: vec4<f32>, km: f32, loop_angle: f32, c: vec2<
     if (ry > 1.0e-12 && r > 1.0e-12) {
         dtheta = atan2(cy.x * c.y - cy.y * c.x, cy.x * c.x + cy.y * c.y);
     }
-    let alpha = sy.z + loop_angle - dtheta * (1.0 - 0.5 * (sy.y + g.y));
+    let alpha = carried - orient * dtheta * (1.0 - 0.5 * (sy.y + g.y));
     return vec4<f32>(g.x, g.y, alpha, 0.0);
+}
+
+// Chart vector of an edge of length `len` whose intrinsic angle is `t` at a vertex with frame angle
+// `alpha`.
+fn edge_dir(len: f32, t: f32, alpha: f32, orient: f32) -> vec2<f32> {
+    let a = orient * (t - alpha);
+    return vec2<f32>(len * cos(a), len * sin(a));
 }
 
 struct SmoothOut {
@@ -91,17 +82,21 @@ struct SmoothOut {
     state: vec4<f32>,
 }
 
-// One step of the smooth mode from upwind y to x (trapezoidal rule with a predictor, frame turned
-// by the carried angle). Twin of `smooth_step` in src/geodesic.rs: same operations in the same order.
-fn smooth_step(cy: vec2<f32>, sy: vec4<f32>, ky: f32, kx: f32, ty: vec2<f32>, tx: vec2<f32>, loop_angle: f32) -> SmoothOut {
+const PI: f32 = 3.14159265358979;
+
+// One step of the smooth mode from upwind y to x (intrinsic frame carried across the edge,
+// trapezoidal rule with a predictor). Twin of `smooth_step` in src/geodesic.rs: same operations in
+// the same order.
+fn smooth_step(cy: vec2<f32>, sy: vec4<f32>, ky: f32, kx: f32, len: f32, ty: f32, tx: f32, orient: f32) -> SmoothOut {
     let km = 0.5 * (ky + kx);
-    let iy = smooth_increment(cy, sy.x, turn(ty, -sy.z));
+    let carried = sy.z + tx + PI - ty;
+    let iy = smooth_increment(cy, sy.x, edge_dir(len, ty, sy.z, orient));
     let pred = vec2<f32>(cy.x + iy.x, cy.y + iy.y);
-    let sp = smooth_state(cy, sy, km, loop_angle, pred);
-    let ix = smooth_increment(pred, sp.x, turn(tx, -sp.z));
+    let sp = smooth_state(cy, sy, km, carried, orient, pred);
+    let ix = smooth_increment(pred, sp.x, edge_dir(len, tx + PI, sp.z, orient));
     let c = vec2<f32>(cy.x + 0.5 * (iy.x + ix.x), cy.y + 0.5 * (iy.y + ix.y));
     var out: SmoothOut;
     out.uv = c;
-    out.state = smooth_state(cy, sy, km, loop_angle, c);
+    out.state = smooth_state(cy, sy, km, carried, orient, c);
     return out;
 }
