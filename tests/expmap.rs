@@ -161,6 +161,24 @@ fn gpu_relaxation_reaches_the_dijkstra_fixed_point_on_spot() {
     }
 }
 
+/// One map on the GPU, checked: converged, and within 1e-5 of its CPU twin (same upwind tree, same
+/// arithmetic; only f32 sin/cos/atan2 rounding differs). Returns the coordinates.
+fn gpu_map_checked(
+    engine: &decalbake::Engine,
+    mesh: &decalbake::LoadedMesh,
+    seed: Seed,
+    opts: Options,
+    surface: &SurfaceData,
+) -> Vec<[f32; 4]> {
+    let (coords, res) = expmaps_gpu(engine, mesh, &[(seed, opts)])
+        .unwrap()
+        .remove(0);
+    assert_eq!(res.converged, 1, "{res:?}");
+    let twin = twin_gap(&coords, &dem_cpu(&mesh.topo, &seed, opts, surface));
+    assert!(twin < 1e-5, "{:?}: |GPU - twin| = {twin}", opts.accuracy);
+    coords
+}
+
 /// Largest |GPU - CPU twin| coordinate difference over the vertices the GPU reached; the two must
 /// reach the same vertices. NaN counts as infinitely far.
 fn twin_gap(coords: &[[f32; 4]], cpu: &decalbake::geodesic::ExpMap) -> f32 {
@@ -509,11 +527,7 @@ fn cylinder_maps_converge_to_the_unrolling() {
             curvature_stop: f32::INFINITY,
             accuracy,
         };
-        let (coords, res) = &expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap()[0];
-        assert_eq!(res.converged, 1);
-        // Same upwind tree, same arithmetic: equal up to the f32 rounding of sin/cos/atan2.
-        let twin = twin_gap(coords, &dem_cpu(topo, &seed, opts, &SurfaceData::new(topo)));
-        assert!(twin < 1e-5, "|GPU - twin| = {twin}");
+        let coords = gpu_map_checked(&engine, &mesh, seed, opts, &SurfaceData::new(topo));
         let ts = seed.point.y.atan2(seed.point.x);
         let (mut max_e, mut n_in) = (0.0f32, 0);
         for (v, c) in coords.iter().enumerate() {
@@ -816,10 +830,7 @@ fn maps_go_around_holes_and_stay_on_their_component() {
             curvature_stop: f32::INFINITY,
             accuracy,
         };
-        let (coords, res) = &expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap()[0];
-        assert_eq!(res.converged, 1);
-        let twin = twin_gap(coords, &dem_cpu(topo, &seed, opts, &k));
-        assert!(twin < 1e-5, "|GPU - twin| = {twin}");
+        let coords = gpu_map_checked(&engine, &mesh, seed, opts, &k);
         for (v, c) in coords.iter().enumerate() {
             assert!(
                 !(c[3] > 0.5 && upper(v)),
@@ -876,10 +887,7 @@ fn smooth_maps_unfold_a_crumpled_developable_sheet() {
             curvature_stop: f32::INFINITY,
             accuracy,
         };
-        let (coords, res) = &expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap()[0];
-        assert_eq!(res.converged, 1);
-        let twin = twin_gap(coords, &dem_cpu(topo, &seed, opts, &surface));
-        assert!(twin < 1e-5, "{accuracy:?}: |GPU - twin| = {twin}");
+        let coords = gpu_map_checked(&engine, &mesh, seed, opts, &surface);
         // The seed point in the flattening, then the best rigid motion (with reflection, as the
         // flattening's orientation is its own) from the flattening to the map.
         let t = topo.triangles[seed.triangle as usize];
