@@ -48,6 +48,9 @@ pub struct LoadedMesh {
     pub mesh: Mesh,
     /// Its welded surface.
     pub topo: Topology,
+    /// Curvature and intrinsic edge angles of the welded surface (exponential maps), computed
+    /// once; the GPU copies are in `gpu`.
+    pub surface: crate::geodesic::SurfaceData,
     /// Its GPU buffers.
     pub gpu: GpuMesh,
     /// Statistics.
@@ -243,6 +246,7 @@ impl Engine {
         let load = ms(t0);
         let t1 = Instant::now();
         let topo = Topology::build(&mesh, crate::mesh::DEFAULT_WELD_TOLERANCE);
+        let surface = crate::geodesic::SurfaceData::new(&topo);
         for (i, n) in mesh.normals.iter_mut().enumerate() {
             if *n == Vec3::ZERO {
                 *n = topo.normals[topo.welded_of[i] as usize];
@@ -251,13 +255,14 @@ impl Engine {
         let weld = ms(t1);
         let t2 = Instant::now();
         let gpu = self.ctx.scoped("mesh upload", || {
-            GpuMesh::upload(&self.ctx.device, &mesh, &topo)
+            GpuMesh::upload(&self.ctx.device, &mesh, &topo, &surface)
         })?;
         let upload = ms(t2);
         let stats = LoadedMesh::stats_of(&mesh, &topo);
         Ok(LoadedMesh {
             mesh,
             topo,
+            surface,
             gpu,
             stats,
             timings: (load, weld, upload),
@@ -997,16 +1002,12 @@ impl Engine {
             let geo_maps: Vec<_> = geo_layers
                 .iter()
                 .map(|&i| {
-                    let opts = crate::geodesic::Options {
-                        radius: frames[i].expmap_radius(),
-                        curvature_stop: job.layers[i].curvature_stop,
-                        accuracy: job.layers[i].accuracy,
-                    };
+                    let opts = frames[i].expmap_options(&job.layers[i]);
                     (frames[i].seed(&placements[i]), opts, (i - start) as u32)
                 })
                 .collect();
             let (geo_stats, geo_dispatches) =
-                crate::geodesic_gpu::run(&self.ctx, pipes, g, &mesh.topo, &geo_maps, &coords)?;
+                crate::geodesic_gpu::run(&self.ctx, pipes, mesh, &geo_maps, &coords)?;
             commands += geo_dispatches;
             // Conformal charts of this chunk (LSCM and hybrid), solved in batches on the GPU, then
             // written into their coords slots.
@@ -1788,19 +1789,23 @@ impl Engine {
         let frame = Frame::new(&placement, layer);
         let topo = &mesh.topo;
         let mut rows = Vec::new();
-        match layer.method {
-            Method::Expmap => {
-                let opts = crate::geodesic::Options {
-                    radius: frame.expmap_radius(),
-                    curvature_stop: layer.curvature_stop,
-                    accuracy: layer.accuracy,
-                };
-                let maps = crate::geodesic_gpu::expmaps_gpu(
+        // Every method but planar starts from the layer's exponential map, as in the bake.
+        let expmap = match layer.method {
+            Method::Planar => Vec::new(),
+            _ => {
+                let seed = frame.seed(&placement);
+                crate::geodesic_gpu::expmaps_gpu(
                     self,
                     mesh,
-                    &[(frame.seed(&placement), opts)],
-                )?;
-                for (v, c) in maps[0].0.iter().enumerate() {
+                    &[(seed, frame.expmap_options(layer))],
+                )?
+                .remove(0)
+                .0
+            }
+        };
+        match layer.method {
+            Method::Expmap => {
+                for (v, c) in expmap.iter().enumerate() {
                     if c[3] > 0.5 {
                         rows.push(ParamRow {
                             vertex: v as u32,
@@ -1812,20 +1817,7 @@ impl Engine {
                 }
             }
             Method::Lscm | Method::Hybrid => {
-                // As in the bake: both start from the layer's exponential map.
                 let hybrid = layer.method == Method::Hybrid;
-                let opts = crate::geodesic::Options {
-                    radius: frame.expmap_radius(),
-                    curvature_stop: layer.curvature_stop,
-                    accuracy: layer.accuracy,
-                };
-                let expmap = crate::geodesic_gpu::expmaps_gpu(
-                    self,
-                    mesh,
-                    &[(frame.seed(&placement), opts)],
-                )?
-                .remove(0)
-                .0;
                 let req = crate::chart::ChartRequest::for_layer(
                     frame,
                     placement.triangle,

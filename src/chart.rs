@@ -359,6 +359,36 @@ struct Work {
     done: bool,
 }
 
+/// A solved system's unknowns (scaled back by `scale`) as a per-vertex chart coordinate.
+fn solved_coord<'a>(
+    sys: &'a lscm::System,
+    x: &'a [f64],
+    scale: f64,
+) -> impl Fn(u32) -> [f64; 2] + 'a {
+    move |v| {
+        let i = sys.local[&v] as usize;
+        [x[2 * i] * scale, x[2 * i + 1] * scale]
+    }
+}
+
+/// [`lscm::normalising_similarity`] for the request's frame.
+fn frame_similarity(
+    topo: &Topology,
+    triangles: &[u32],
+    coord: &dyn Fn(u32) -> [f64; 2],
+    req: &ChartRequest,
+) -> Option<(DVec2, DVec2)> {
+    lscm::normalising_similarity(
+        topo,
+        triangles,
+        coord,
+        req.triangle,
+        req.frame.center.as_dvec3(),
+        req.frame.axis_u.as_dvec3(),
+        req.frame.axis_v.as_dvec3(),
+    )
+}
+
 /// Builds the charts of `requests` (LSCM and hybrid), solving all charts of a round in one batch.
 pub fn build(
     topo: &Topology,
@@ -443,20 +473,9 @@ pub fn build(
             w.rounds += 1;
             w.iterations += rep.iterations;
             let scale = half_extent(&req.frame).length();
-            let coord = |v: u32| -> [f64; 2] {
-                let i = sys.local[&v] as usize;
-                [x[2 * i] * scale, x[2 * i + 1] * scale]
-            };
             if rep.status != CgStatus::Breakdown {
-                if let Some((alpha, beta)) = lscm::normalising_similarity(
-                    topo,
-                    &w.triangles,
-                    &coord,
-                    req.triangle,
-                    req.frame.center.as_dvec3(),
-                    req.frame.axis_u.as_dvec3(),
-                    req.frame.axis_v.as_dvec3(),
-                ) {
+                let coord = solved_coord(&sys, &x, scale);
+                if let Some((alpha, beta)) = frame_similarity(topo, &w.triangles, &coord, req) {
                     for &v in &sys.vertices {
                         let z = DVec2::from(coord(v));
                         w.warm.insert(v, lscm::cmul(alpha, z) + beta);
@@ -547,21 +566,10 @@ pub fn build(
             )
         } else {
             let (x, rep) = solved.next().expect("one solution per hybrid system");
-            let coord = |v: u32| -> [f64; 2] {
-                let i = sys.local[&v] as usize;
-                [x[2 * i] * scale, x[2 * i + 1] * scale]
-            };
+            let coord = solved_coord(&sys, &x, scale);
             // Whole disc re-solved: normalise like an LSCM chart, every vertex moves.
             let similarity = if whole {
-                lscm::normalising_similarity(
-                    topo,
-                    &sys.triangles,
-                    &coord,
-                    req.triangle,
-                    req.frame.center.as_dvec3(),
-                    req.frame.axis_u.as_dvec3(),
-                    req.frame.axis_v.as_dvec3(),
-                )
+                frame_similarity(topo, &sys.triangles, &coord, req)
             } else {
                 None
             };

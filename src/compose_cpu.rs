@@ -117,17 +117,12 @@ pub fn bake_cpu(
         }
     }
     let mut selected = Vec::new();
-    let curvature = crate::geodesic::SurfaceData::new(topo);
+    let surface = crate::geodesic::SurfaceData::new(topo);
     for (li, layer) in job.layers.iter().enumerate() {
         let frame = Frame::new(&placements[li], layer);
         let expmap = || -> Vec<[f32; 4]> {
-            let opts = crate::geodesic::Options {
-                radius: frame.expmap_radius(),
-                curvature_stop: layer.curvature_stop,
-                accuracy: layer.accuracy,
-            };
-            let map =
-                crate::geodesic::dem_cpu(topo, &frame.seed(&placements[li]), opts, &curvature);
+            let opts = frame.expmap_options(layer);
+            let map = crate::geodesic::dem_cpu(topo, &frame.seed(&placements[li]), opts, &surface);
             map.dist
                 .iter()
                 .zip(&map.uv)

@@ -4,7 +4,6 @@
 
 use crate::error::Result;
 use crate::geodesic::{Options, Seed};
-use crate::gpu_mesh::GpuMesh;
 use crate::mesh::Topology;
 use crate::pipelines::Pipelines;
 use wgpu::util::DeviceExt;
@@ -151,8 +150,7 @@ const ROUNDS_PER_SUBMIT: u32 = 4;
 pub fn run(
     ctx: &crate::gpu::GpuContext,
     pipes: &Pipelines,
-    mesh: &GpuMesh,
-    topo: &Topology,
+    loaded: &crate::LoadedMesh,
     maps: &[(Seed, Options, u32)],
     coords: &wgpu::Buffer,
 ) -> Result<(Vec<GeoResult>, u32)> {
@@ -160,8 +158,9 @@ pub fn run(
         return Ok((Vec::new(), 0));
     }
     if ctx.backend == Some(wgpu::Backend::Gl) {
-        return run_cpu_twin(ctx, topo, maps, coords);
+        return run_cpu_twin(ctx, loaded, maps, coords);
     }
+    let (mesh, topo) = (&loaded.gpu, &loaded.topo);
     let (jobs, cands) = build_jobs(topo, maps);
     let (jobs, cands) = (&jobs[..], &cands[..]);
     let device = &ctx.device;
@@ -289,15 +288,15 @@ pub fn run(
 /// is uploaded: (u, v, distance, 1) reached, 2 for seed-triangle vertices, zeros elsewhere.
 fn run_cpu_twin(
     ctx: &crate::gpu::GpuContext,
-    topo: &Topology,
+    loaded: &crate::LoadedMesh,
     maps: &[(Seed, Options, u32)],
     coords: &wgpu::Buffer,
 ) -> Result<(Vec<GeoResult>, u32)> {
-    let k = crate::geodesic::SurfaceData::new(topo);
+    let (topo, k) = (&loaded.topo, &loaded.surface);
     let n = topo.positions.len();
     let mut results = Vec::with_capacity(maps.len());
     for (seed, opts, slot) in maps {
-        let map = crate::geodesic::dem_cpu(topo, seed, *opts, &k);
+        let map = crate::geodesic::dem_cpu(topo, seed, *opts, k);
         let seed_tri = topo.triangles[seed.triangle as usize];
         let mut data = vec![[0f32; 4]; n];
         let mut reached = 0;
@@ -361,7 +360,7 @@ fn in_chunks(
             .enumerate()
             .map(|(i, (s, o))| (*s, *o, i as u32))
             .collect();
-        let (results, d) = run(ctx, &engine.pipes, &mesh.gpu, &mesh.topo, &slots, &coords)?;
+        let (results, d) = run(ctx, &engine.pipes, mesh, &slots, &coords)?;
         each(results, &coords, d)?;
     }
     Ok(())

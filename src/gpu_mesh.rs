@@ -76,7 +76,12 @@ fn storage(
 
 impl GpuMesh {
     /// Uploads a loaded mesh and its topology.
-    pub fn upload(device: &wgpu::Device, mesh: &Mesh, topo: &Topology) -> Self {
+    pub fn upload(
+        device: &wgpu::Device,
+        mesh: &Mesh,
+        topo: &Topology,
+        surface: &crate::geodesic::SurfaceData,
+    ) -> Self {
         let v4 = |v: &[glam::Vec3]| -> Vec<[f32; 4]> {
             v.iter().map(|p| [p.x, p.y, p.z, 0.0]).collect()
         };
@@ -185,13 +190,13 @@ impl GpuMesh {
             curvature: storage(
                 device,
                 "mesh.curvature",
-                bytemuck::cast_slice(&crate::geodesic::gaussian_curvature(topo)),
+                bytemuck::cast_slice(&surface.curvature),
                 none,
             ),
             edge_angles: storage(
                 device,
                 "mesh.edge_angles",
-                bytemuck::cast_slice(&crate::geodesic::edge_angles(topo)),
+                bytemuck::cast_slice(&surface.edge_angles),
                 none,
             ),
         }

@@ -142,6 +142,15 @@ impl Frame {
         1.2 * 0.5 * (self.size[0] * self.size[0] + self.size[1] * self.size[1]).sqrt()
     }
 
+    /// The options of this layer's exponential map (expmap, and the start of lscm / hybrid).
+    pub fn expmap_options(&self, layer: &crate::job::Layer) -> crate::geodesic::Options {
+        crate::geodesic::Options {
+            radius: self.expmap_radius(),
+            curvature_stop: layer.curvature_stop,
+            accuracy: layer.accuracy,
+        }
+    }
+
     /// Fills the frame fields of a `Params` block.
     pub fn params(&self) -> Params {
         Params {
