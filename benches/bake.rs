@@ -7,16 +7,24 @@
 //! Run: `cargo bench --bench bake` (set `WGPU_BACKEND=vulkan` for lavapipe).
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use decalbake::place::{place_gpu_for_tests, Query};
+use decalbake::place::Query;
 use decalbake::{Engine, LoadedMesh};
 use std::path::PathBuf;
+
+// The workloads are the `decalbake bench` ones (the binary's `src/cli/bench/common.rs`, which uses the
+// demo's images), compiled into this bench so that the library exports no benchmark code.
+#[path = "../src/cli/bench/common.rs"]
+mod common;
+#[path = "../src/cli/demo.rs"]
+#[allow(dead_code)]
+mod demo;
 
 fn setup() -> (Engine, LoadedMesh) {
     let engine = Engine::new(None).expect("a GPU adapter (mesa-vulkan-drivers for lavapipe)");
     let mesh = match std::env::var("DECALBAKE_BENCH_MESH") {
         Ok(p) => engine.load_mesh(&PathBuf::from(p)).expect("mesh loads"),
         Err(_) => engine
-            .load_mesh_bytes(decalbake::demo::SPOT_GLB, std::path::Path::new("spot.glb"))
+            .load_mesh_bytes(demo::SPOT_GLB, std::path::Path::new("spot.glb"))
             .expect("bundled mesh loads"),
     };
     (engine, mesh)
@@ -29,7 +37,7 @@ fn bake(c: &mut Criterion) {
     let mut group = c.benchmark_group("bake_1024");
     group.sample_size(10);
     for n in [1usize, 16, 256] {
-        let job = decalbake::bench::random_job(&mesh, n, 1024, &dir, 11, "planar").unwrap();
+        let job = common::random_job(&mesh, n, 1024, &dir, 11, "planar").unwrap();
         engine.bake(&mesh, &job).unwrap(); // warm-up: shaders, island cache
         group.throughput(Throughput::Elements(n as u64));
         group.bench_with_input(BenchmarkId::new("decals", n), &job, |b, job| {
@@ -56,7 +64,7 @@ fn placement(c: &mut Criterion) {
     group.sample_size(20);
     group.throughput(Throughput::Elements(queries.len() as u64));
     group.bench_function("256_points", |b| {
-        b.iter(|| place_gpu_for_tests(&engine, &mesh, &queries))
+        b.iter(|| engine.place(&mesh, &queries).expect("placement on the GPU"))
     });
     group.finish();
 }

@@ -7,28 +7,32 @@
 //! Run: `cargo bench --bench linalg` (set `WGPU_BACKEND=vulkan` for lavapipe).
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use decalbake::bench_linalg::frame_at;
-use decalbake::chart::{self, FINAL_RTOL};
-use decalbake::linalg_gpu::{cg_batched, spmv, GpuCsr, SystemDesc};
+use decalbake::maps::chart::{self, FINAL_RTOL};
 use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
-use decalbake::sparse::Csr;
+use decalbake::solve::gpu::{cg_batched, spmv, GpuCsr, SystemDesc};
+use decalbake::solve::sparse::Csr;
 use decalbake::Engine;
+
+// The workloads are the `decalbake bench` ones (the binary's `src/cli/bench/common.rs`, which uses the
+// demo's images), compiled into this bench so that the library exports no benchmark code.
+#[path = "../src/cli/bench/common.rs"]
+mod common;
+#[path = "../src/cli/demo.rs"]
+#[allow(dead_code)]
+mod demo;
+use common::frame_at;
 
 fn linalg(c: &mut Criterion) {
     let engine = Engine::new(None).expect("a GPU adapter (mesa-vulkan-drivers for lavapipe)");
-    let mesh = Mesh::from_bytes(
-        decalbake::demo::SPOT_GLB,
-        std::path::Path::new("spot.glb"),
-        None,
-    )
-    .expect("bundled mesh")
-    .subdivide();
+    let mesh = Mesh::from_bytes(demo::SPOT_GLB, std::path::Path::new("spot.glb"), None)
+        .expect("bundled mesh")
+        .subdivide();
     let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
     let (ctx, pipes) = (&engine.ctx, engine.pipelines());
     let mut group = c.benchmark_group("linalg");
     group.sample_size(10);
 
-    let lap = decalbake::lscm::shifted_laplacian(&topo, 1.0);
+    let lap = decalbake::maps::chart::lscm::shifted_laplacian(&topo, 1.0);
     let g = GpuCsr::upload(ctx, &lap).unwrap();
     let x: Vec<f32> = (0..lap.rows).map(|i| (i % 7) as f32).collect();
     group.bench_function("spmv_x20_spot_laplacian", |b| {
@@ -49,7 +53,7 @@ fn linalg(c: &mut Criterion) {
     group.bench_function("lscm_chart_cpu_twin", |b| {
         b.iter(|| {
             let mut x = x0.clone();
-            decalbake::sparse::pcg(&sys.matrix, &sys.rhs, &mut x, FINAL_RTOL as f64, 100_000)
+            decalbake::solve::sparse::pcg(&sys.matrix, &sys.rhs, &mut x, FINAL_RTOL as f64, 100_000)
         })
     });
 

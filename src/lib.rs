@@ -1,34 +1,26 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! decalbake: bakes decals onto 3D meshes, straight into the mesh's texture, on the GPU.
+//!
+//! The modules read as the pipeline (see `ARCHITECTURE.md`); each folder imports only from the
+//! ones listed before it:
+//! - [`error`], [`gpu`]: typed errors; the device, the WGSL sources and every pipeline;
+//! - [`io`]: the job file (the schema every other module reads) and image decoding/encoding;
+//! - [`mesh`]: glTF loading, welding and topology, intrinsic surface data, the GPU upload;
+//! - [`solve`]: sparse matrices and the conjugate gradient (CPU twin and GPU);
+//! - [`place`]: where a layer lands on the surface (GPU and CPU twin);
+//! - [`maps`]: a layer's local coordinates, one module per method (planar, expmap, lscm, hybrid);
+//! - [`bake`]: the engine and the bake's stages, from images to the encoded texture;
+//! - [`output`]: the files a bake writes (PNG, GLB, preview, report).
+pub mod bake;
 pub mod error;
 pub mod gpu;
-pub mod image_io;
+pub mod io;
+pub mod maps;
 pub mod mesh;
-pub mod shaders;
-
-pub use error::{Error, Result};
-pub mod bake;
-pub mod blend;
-pub mod gpu_mesh;
-pub mod job;
-pub mod layer;
-pub mod pipelines;
+pub mod output;
 pub mod place;
-pub mod report;
+pub mod solve;
 
 pub use bake::{Baked, Engine, LoadedMesh};
-pub use job::Job;
-pub mod bench;
-pub mod bench_linalg;
-pub mod chart;
-pub mod compose_cpu;
-pub mod demo;
-pub mod geodesic;
-pub mod geodesic_gpu;
-pub mod glb;
-pub mod linalg_gpu;
-pub mod lscm;
-pub mod output;
-pub mod preview;
-pub mod shapes;
-pub mod sparse;
+pub use error::{Error, Result};
+pub use io::job::Job;

@@ -8,10 +8,10 @@
 //! CPU twin the tests compare against.
 
 use crate::error::Result;
+use crate::gpu::pipelines::Pipelines;
 use crate::gpu::GpuContext;
-use crate::gpu_mesh::GpuMesh;
+use crate::mesh::upload::GpuMesh;
 use crate::mesh::Topology;
-use crate::pipelines::Pipelines;
 use glam::Vec3;
 use wgpu::util::DeviceExt;
 
@@ -35,7 +35,7 @@ struct GpuQuery {
     dir: [f32; 4],
 }
 
-/// Where a layer landed. Keep in sync with `PlaceResult` in wgsl/place_reduce.wgsl.
+/// Where a layer landed. Keep in sync with `PlaceResult` in wgsl/place/place_reduce.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable, serde::Serialize)]
 pub struct Placement {
@@ -278,13 +278,4 @@ pub fn place_cpu(topo: &Topology, query: Query) -> Placement {
         normal: normal.to_array(),
         found: 1,
     }
-}
-
-/// [`place_gpu`] on an engine's own device and pipelines (for tests and benchmarks).
-pub fn place_gpu_for_tests(
-    engine: &crate::Engine,
-    mesh: &crate::LoadedMesh,
-    queries: &[Query],
-) -> Vec<Placement> {
-    place_gpu(&engine.ctx, &engine.pipes, &mesh.gpu, queries).expect("placement on the GPU")
 }

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-//! The GPU bake equals the plain CPU twin (`decalbake::compose_cpu`) texel by texel, for every blend
+//! The GPU bake equals the plain CPU twin (`decalbake::bake::cpu`) texel by texel, for every blend
 //! mode, on a small two-island mesh with a UV seam; and the padding follows its rule exactly.
 //!
 //! Tolerance: 1e-4 in linear light per channel on island texels. The bake is read back at 16 bits
@@ -10,9 +10,9 @@
 
 mod common;
 use common::*;
-use decalbake::blend::BlendMode;
-use decalbake::compose_cpu::{bake_cpu, nearest_island};
-use decalbake::image_io::LinearImage;
+use decalbake::bake::cpu::{bake_cpu, nearest_island};
+use decalbake::io::image::LinearImage;
+use decalbake::io::job::BlendMode;
 use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
 use decalbake::Job;
 
@@ -59,7 +59,7 @@ fn gpu_compose_matches_cpu_twin_for_every_blend_mode() {
     for y in 0..16 {
         for x in 0..16 {
             let d = (((x as f32 - 7.5).powi(2) + (y as f32 - 7.5).powi(2)).sqrt() / 8.0).min(1.0);
-            let v = decalbake::image_io::srgb_to_linear(1.0 - d);
+            let v = decalbake::io::image::srgb_to_linear(1.0 - d);
             mask.pixels[y * 16 + x] = [v, v, v, 1.0];
         }
     }
@@ -81,7 +81,7 @@ fn gpu_compose_matches_cpu_twin_for_every_blend_mode() {
         pixels: img
             .pixels
             .iter()
-            .map(|p| [decalbake::image_io::linear_to_srgb(p[0]), 0.0, 0.0, p[3]])
+            .map(|p| [decalbake::io::image::linear_to_srgb(p[0]), 0.0, 0.0, p[3]])
             .collect(),
         ..img
     };
@@ -332,9 +332,9 @@ fn distortion_report_matches_analytic_values_on_the_folded_sheet() {
     // CPU twin of the planar figures.
     let mesh = Mesh::load(&dir.join("book.glb")).unwrap();
     let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
-    let frame = decalbake::layer::Frame::new(&baked.report.layers[0].placement, &job.layers[0]);
-    let coords = decalbake::layer::planar_coords(&topo, &frame);
-    let sel = decalbake::layer::select_triangles(
+    let frame = decalbake::maps::Frame::new(&baked.report.layers[0].placement, &job.layers[0]);
+    let coords = decalbake::maps::planar::planar_coords(&topo, &frame);
+    let sel = decalbake::bake::select::select_triangles(
         &mesh,
         &topo,
         &mesh.uv_sets[0],
@@ -343,7 +343,7 @@ fn distortion_report_matches_analytic_values_on_the_folded_sheet() {
         true,
         [64, 64],
     );
-    let cpu = decalbake::layer::distortion(&topo, &coords, &sel.triangles);
+    let cpu = decalbake::maps::distortion::distortion(&topo, &coords, &sel.triangles);
     assert!(
         (cpu.area_ratio_mean - planar.area_ratio_mean).abs() < 1e-5,
         "CPU {cpu:?} GPU {planar:?}"

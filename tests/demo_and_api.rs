@@ -5,7 +5,7 @@
 
 mod common;
 use common::*;
-use decalbake::image_io::LinearImage;
+use decalbake::io::image::LinearImage;
 use decalbake::mesh::Mesh;
 use decalbake::{Engine, Job};
 use std::path::Path;

@@ -5,10 +5,10 @@
 
 mod common;
 use common::*;
-use decalbake::geodesic::{dem_cpu, Accuracy, Options, Seed, SurfaceData};
-use decalbake::geodesic_gpu::expmaps_gpu;
+use decalbake::maps::expmap::sphere::{icosphere, peers_seed_vertex, unit_sphere_log_errors};
+use decalbake::maps::expmap::{dem_cpu, Accuracy, Options, Seed};
+use decalbake::mesh::SurfaceData;
 use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
-use decalbake::shapes::{icosphere, peers_seed_vertex, unit_sphere_log_errors};
 use glam::Vec3;
 use std::path::Path;
 
@@ -59,7 +59,7 @@ fn plane_maps_are_exact_on_gpu_and_cpu() {
         accuracy: Accuracy::Fast,
     };
     let cpu = dem_cpu(&topo, &seed, opts, &SurfaceData::new(&topo));
-    let gpu = expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap();
+    let gpu = engine.expmaps(&mesh, &[(seed, opts)]).unwrap();
     let (coords, res) = &gpu[0];
     assert_eq!(res.converged, 1, "relaxation converged: {res:?}");
     let mut reached = 0;
@@ -123,7 +123,7 @@ fn gpu_relaxation_reaches_the_dijkstra_fixed_point_on_spot() {
             )
         })
         .collect();
-    let gpu = expmaps_gpu(&engine, &mesh, &maps).unwrap();
+    let gpu = engine.expmaps(&mesh, &maps).unwrap();
     for ((seed, opts), (coords, res)) in maps.iter().zip(&gpu) {
         let cpu = dem_cpu(&topo, seed, *opts, &k);
         assert_eq!(res.converged, 1, "{res:?}");
@@ -170,9 +170,7 @@ fn gpu_map_checked(
     opts: Options,
     surface: &SurfaceData,
 ) -> Vec<[f32; 4]> {
-    let (coords, res) = expmaps_gpu(engine, mesh, &[(seed, opts)])
-        .unwrap()
-        .remove(0);
+    let (coords, res) = engine.expmaps(mesh, &[(seed, opts)]).unwrap().remove(0);
     assert_eq!(res.converged, 1, "{res:?}");
     let twin = twin_gap(&coords, &dem_cpu(&mesh.topo, &seed, opts, surface));
     assert!(twin < 1e-5, "{:?}: |GPU - twin| = {twin}", opts.accuracy);
@@ -181,7 +179,7 @@ fn gpu_map_checked(
 
 /// Largest |GPU - CPU twin| coordinate difference over the vertices the GPU reached; the two must
 /// reach the same vertices. NaN counts as infinitely far.
-fn twin_gap(coords: &[[f32; 4]], cpu: &decalbake::geodesic::ExpMap) -> f32 {
+fn twin_gap(coords: &[[f32; 4]], cpu: &decalbake::maps::expmap::cpu::ExpMap) -> f32 {
     let mut gap = 0.0f32;
     for (v, (c, u)) in coords.iter().zip(&cpu.uv).enumerate() {
         assert_eq!(
@@ -221,7 +219,7 @@ fn sphere_error_against_the_analytic_exponential_map() {
                 curvature_stop: f32::INFINITY,
                 accuracy,
             };
-            let (coords, res) = &expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap()[0];
+            let (coords, res) = &engine.expmaps(&mesh, &[(seed, opts)]).unwrap()[0];
             assert_eq!(res.converged, 1);
             let gpu = unit_sphere_log_errors(topo, &seed, 1.0, |v| {
                 (coords[v][3] > 0.5).then_some([coords[v][0], coords[v][1]])
@@ -324,7 +322,9 @@ fn smooth_mode_is_exact_on_a_plane() {
         curvature_stop: f32::INFINITY,
         accuracy: Accuracy::Smooth,
     };
-    let maps = expmaps_gpu(&engine, &mesh, &[(seed, opts), (mirrored, opts)]).unwrap();
+    let maps = engine
+        .expmaps(&mesh, &[(seed, opts), (mirrored, opts)])
+        .unwrap();
     for (seed, (coords, res)) in [seed, mirrored].iter().zip(&maps) {
         assert_eq!(res.converged, 1);
         let mut n = 0;
@@ -412,7 +412,7 @@ fn param_command_writes_the_layer_map_as_csv() {
         }
     }
     let engine = engine();
-    let job = decalbake::job::Job::load(&dir.join("job.json"), None).unwrap();
+    let job = decalbake::io::job::Job::load(&dir.join("job.json"), None).unwrap();
     let mesh = engine.load_mesh(&path).unwrap();
     let report = engine.bake(&mesh, &job).unwrap().report;
     let ex = report.layers[0].expmap.expect("expmap stats");
@@ -446,7 +446,7 @@ fn large_discs_converge_over_several_rounds() {
         curvature_stop: f32::INFINITY,
         accuracy: Accuracy::Fast,
     };
-    let (coords, res) = &expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap()[0];
+    let (coords, res) = &engine.expmaps(&mesh, &[(seed, opts)]).unwrap()[0];
     let cpu = dem_cpu(topo, &seed, opts, &SurfaceData::new(topo));
     eprintln!("{} vertices, {} sweeps", res.reached, res.sweeps);
     assert_eq!(res.converged, 1);
@@ -617,12 +617,12 @@ fn cone_maps_converge_to_the_unrolling() {
             curvature_stop: f32::INFINITY,
             accuracy,
         };
-        let maps = expmaps_gpu(
-            &engine,
-            &mesh,
-            &[(seed, opts(Accuracy::Fast)), (seed, opts(Accuracy::Smooth))],
-        )
-        .unwrap();
+        let maps = engine
+            .expmaps(
+                &mesh,
+                &[(seed, opts(Accuracy::Fast)), (seed, opts(Accuracy::Smooth))],
+            )
+            .unwrap();
         // Unrolled plane: apex at the origin, generator phi at angle phi * sin_a.
         let unroll = |p: Vec3| {
             let s = (p - Vec3::new(0.0, 0.0, h)).length();
@@ -737,7 +737,7 @@ fn expmap_decal_covers_its_area_on_a_nearly_flat_region() {
         curvature_stop: f32::INFINITY,
         accuracy: Accuracy::Fast,
     };
-    let (coords, res) = &expmaps_gpu(&engine, &mesh, &[(seed, opts)]).unwrap()[0];
+    let (coords, res) = &engine.expmaps(&mesh, &[(seed, opts)]).unwrap()[0];
     assert_eq!(res.converged, 1);
     let mut covered = 0.0f32;
     for tri in &topo.triangles {

@@ -1,13 +1,13 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-//! GPU sparse linear algebra against its f64 CPU twins (`decalbake::sparse`): SpMV, batched dot
+//! GPU sparse linear algebra against its f64 CPU twins (`decalbake::solve::sparse`): SpMV, batched dot
 //! products, and the batched Jacobi-preconditioned CG on random SPD systems and on a real mesh's
 //! Laplacian. Tolerances follow f32 rounding: a sum of m terms is off by at most about m·eps·Σ|terms|
 //! (eps = 2^-24); CG is judged by its true residual, recomputed here in f64.
 
 mod common;
-use decalbake::linalg_gpu::{cg_batched, dots, spmv, GpuCsr, SystemDesc};
 use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
-use decalbake::sparse::{pcg, relative_residual, CgStatus, Csr};
+use decalbake::solve::gpu::{cg_batched, dots, spmv, GpuCsr, SystemDesc};
+use decalbake::solve::sparse::{pcg, relative_residual, CgStatus, Csr};
 
 const EPS: f64 = 5.96e-8;
 
@@ -212,7 +212,9 @@ fn cg_solves_a_mesh_laplacian() {
         Mesh::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb"))
             .unwrap();
     let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
-    let a = round_matrix(&decalbake::lscm::shifted_laplacian(&topo, 10.0));
+    let a = round_matrix(&decalbake::maps::chart::lscm::shifted_laplacian(
+        &topo, 10.0,
+    ));
     let mut rng = Lcg(5);
     let b = round32(&random_vec(a.rows, &mut rng));
     let rtol = 1e-5;

@@ -7,12 +7,12 @@
 
 mod common;
 use common::*;
-use decalbake::chart::{self, ChartKind, ChartRequest, Solver};
-use decalbake::layer::Frame;
-use decalbake::linalg_gpu::{cg_batched, SystemDesc};
-use decalbake::lscm;
+use decalbake::maps::chart::lscm;
+use decalbake::maps::chart::{self, ChartKind, ChartRequest};
+use decalbake::maps::Frame;
 use decalbake::mesh::{Mesh, Topology};
 use decalbake::place::{place_cpu, Query};
+use decalbake::solve::gpu::{cg_batched, SystemDesc};
 use glam::Vec3;
 use std::path::Path;
 
@@ -23,19 +23,19 @@ fn spot() -> std::path::PathBuf {
 /// The decal frame of a layer `size` at the surface point nearest `at`, image up along `up`.
 fn frame_at(topo: &Topology, at: Vec3, up: [f32; 3], size: [f32; 2]) -> (Frame, u32) {
     let p = place_cpu(topo, Query::Point(at));
-    let job_layer: decalbake::job::Layer = decalbake::job::Layer {
+    let job_layer: decalbake::io::job::Layer = decalbake::io::job::Layer {
         image: "x.png".into(),
         mask: None,
-        at: decalbake::job::AtSpec::Point(at.to_array()),
+        at: decalbake::io::job::AtSpec::Point(at.to_array()),
         size,
         angle: 0.0,
         up,
-        method: decalbake::job::Method::Lscm,
-        blend: decalbake::blend::BlendMode::Normal,
+        method: decalbake::io::job::Method::Lscm,
+        blend: decalbake::io::job::BlendMode::Normal,
         opacity: 1.0,
         depth: 1.0,
         curvature_stop: f32::INFINITY,
-        accuracy: decalbake::geodesic::Accuracy::Smooth,
+        accuracy: decalbake::maps::expmap::Accuracy::Smooth,
         hybrid_threshold: 1.1,
         cg_max_iterations: None,
     };
@@ -57,7 +57,7 @@ fn lscm_chart(
         warm: None,
     };
     let mut stats = Default::default();
-    let c = chart::build(topo, &[req], &Solver::Gpu(engine), &mut stats)
+    let c = chart::build(topo, &[req], &engine.solver(), &mut stats)
         .unwrap()
         .remove(0);
     (c, stats)
@@ -108,7 +108,10 @@ fn planar_patch_is_reproduced() {
     let (frame, tri) = frame_at(topo, at, [0.3, 1.0, 0.0], size);
     let (c, stats) = &lscm_chart(&engine, topo, frame, tri);
     eprintln!("plane chart: {:?}, {stats:?}", c.report);
-    assert_eq!(c.report.status, decalbake::sparse::CgStatus::Converged);
+    assert_eq!(
+        c.report.status,
+        decalbake::solve::sparse::CgStatus::Converged
+    );
     let mut worst = 0.0f32;
     for &(v, uv) in &c.coords {
         let d = topo.positions[v as usize] - frame.center;
@@ -139,7 +142,10 @@ fn spot_chart_matches_cpu_optimum_without_flips() {
         let (frame, tri) = frame_at(topo, at, [0.0, 1.0, 0.0], size);
         let (c, _) = &lscm_chart(&engine, topo, frame, tri);
         eprintln!("{at}: {:?}", c.report);
-        assert_eq!(c.report.status, decalbake::sparse::CgStatus::Converged);
+        assert_eq!(
+            c.report.status,
+            decalbake::solve::sparse::CgStatus::Converged
+        );
         let uv: std::collections::HashMap<u32, [f32; 2]> = c.coords.iter().copied().collect();
         let mut flipped = 0;
         for &t in &c.triangles {
@@ -176,7 +182,7 @@ fn spot_chart_matches_cpu_optimum_without_flips() {
         let x0: Vec<f64> = sys.vertices.iter().flat_map(|&v| pin(v)).collect();
         let zero = vec![0.0; x0.len()];
         let (xc, rep) = lscm::solve_cpu(&sys, &zero);
-        assert_eq!(rep.status, decalbake::sparse::CgStatus::Converged);
+        assert_eq!(rep.status, decalbake::solve::sparse::CgStatus::Converged);
         let g = cg_batched(
             &engine.ctx,
             engine.pipelines(),
@@ -207,7 +213,10 @@ fn spot_chart_matches_cpu_optimum_without_flips() {
             "{at}: {} unknowns, gpu {} its from zero (cpu f64 {}), energy gpu {eg:.6e} cpu {ec:.6e} (rel excess {:.2e}); chart area {img:.4} surface {surf:.4}",
             sys.matrix.rows, g.reports[0].iterations, rep.iterations, (eg - ec) / ec
         );
-        assert_eq!(g.reports[0].status, decalbake::sparse::CgStatus::Converged);
+        assert_eq!(
+            g.reports[0].status,
+            decalbake::solve::sparse::CgStatus::Converged
+        );
         assert!((eg - ec) / ec <= 1e-3, "gpu energy {eg} vs optimum {ec}");
         // Sanity: the optimum is no worse than the warm start (the chart the bake used).
         assert!(ec <= energy(&x0) * (1.0 + 1e-6));

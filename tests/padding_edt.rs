@@ -7,7 +7,7 @@
 
 mod common;
 use common::*;
-use decalbake::compose_cpu::{nearest_island, nearest_island_map};
+use decalbake::bake::cpu::{nearest_island, nearest_island_map};
 use std::path::Path;
 
 #[test]

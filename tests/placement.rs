@@ -38,7 +38,9 @@ fn gpu_placement_matches_cpu_twin_on_spot() {
         queries.push(Query::Ray(o, target - o));
     }
     queries.push(Query::Ray(Vec3::new(5.0, 5.0, 5.0), Vec3::X));
-    let gpu = decalbake::place::place_gpu_for_tests(&engine, &loaded, &queries);
+    let gpu = engine
+        .place(&loaded, &queries)
+        .expect("placement on the GPU");
     let mut rays_hit = 0;
     for (q, g) in queries.iter().zip(&gpu) {
         let c = place_cpu(&topo, *q);
@@ -84,7 +86,7 @@ fn placement_on_a_plane_is_exact() {
         Query::Point(Vec3::new(0.3, 0.4, 0.25)),
         Query::Ray(Vec3::new(0.2, 0.7, 2.0), Vec3::new(0.0, 0.0, -1.0)),
     ];
-    let r = decalbake::place::place_gpu_for_tests(&engine, &loaded, &q);
+    let r = engine.place(&loaded, &q).expect("placement on the GPU");
     assert!(Vec3::from(r[0].point).distance(Vec3::new(0.3, 0.4, 0.0)) < 1e-6);
     assert!((r[0].distance - 0.25).abs() < 1e-6);
     assert!(

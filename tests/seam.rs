@@ -16,8 +16,8 @@
 
 mod common;
 use common::*;
-use decalbake::compose_cpu::sample_bilinear;
-use decalbake::image_io::LinearImage;
+use decalbake::bake::cpu::sample_bilinear;
+use decalbake::io::image::LinearImage;
 use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
 use decalbake::Job;
 use glam::Vec2;
@@ -172,7 +172,7 @@ fn seam_check(method: &str) {
         coords[r.vertex as usize] = [r.uv[0], r.uv[1], 0.0, 1.0];
     }
     let stretch = |t: usize| {
-        let d = decalbake::layer::distortion(&topo, &coords, &[t as u32]);
+        let d = decalbake::maps::distortion::distortion(&topo, &coords, &[t as u32]);
         (d.area_ratio_max.abs() * d.angle_distortion_max)
             .sqrt()
             .max(1.0)

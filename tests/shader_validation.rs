@@ -4,28 +4,41 @@
 
 #[test]
 fn every_wgsl_file_validates() {
-    let on_disk: Vec<String> = std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/wgsl"))
-        .unwrap()
-        .filter_map(|e| e.ok())
-        .filter(|e| e.path().extension().is_some_and(|x| x == "wgsl"))
-        .map(|e| e.path().file_stem().unwrap().to_string_lossy().into_owned())
-        .collect();
+    // Kernels live in one folder per module group (wgsl/bake, wgsl/maps, ...); wgsl/shared holds
+    // the imports.
+    let root = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/wgsl"));
+    let mut on_disk: Vec<String> = Vec::new();
+    for dir in std::fs::read_dir(root).unwrap().filter_map(|e| e.ok()) {
+        if !dir.path().is_dir() || dir.file_name() == "shared" {
+            continue;
+        }
+        on_disk.extend(
+            std::fs::read_dir(dir.path())
+                .unwrap()
+                .filter_map(|e| e.ok())
+                .filter(|e| e.path().extension().is_some_and(|x| x == "wgsl"))
+                .map(|e| e.path().file_stem().unwrap().to_string_lossy().into_owned()),
+        );
+    }
     let mut failures = Vec::new();
     for name in &on_disk {
-        if !decalbake::shaders::KERNELS.iter().any(|(n, _)| n == name) {
+        if !decalbake::gpu::shaders::KERNELS
+            .iter()
+            .any(|(n, _)| n == name)
+        {
             failures.push(format!(
                 "wgsl/{name}.wgsl is not registered in shaders::KERNELS"
             ));
         }
     }
-    let mut sources: Vec<(String, String)> = decalbake::shaders::KERNELS
+    let mut sources: Vec<(String, String)> = decalbake::gpu::shaders::KERNELS
         .iter()
-        .map(|(n, _)| (n.to_string(), decalbake::shaders::source(n)))
+        .map(|(n, _)| (n.to_string(), decalbake::gpu::shaders::source(n)))
         .collect();
     // The narrow linear-algebra variant the engine builds by changing the workgroup size.
     sources.push((
         "cg_batched (narrow)".into(),
-        decalbake::shaders::narrow_source("cg_batched"),
+        decalbake::gpu::shaders::narrow_source("cg_batched"),
     ));
     for (name, src) in &sources {
         let src = src.clone();

@@ -8,7 +8,7 @@
 //! rasterization needs; [`crate::mesh::Topology`] welds them for the surface.
 
 use crate::error::{Error, Result};
-use crate::image_io::LinearImage;
+use crate::io::image::LinearImage;
 use glam::{Mat3, Mat4, Vec2, Vec3};
 use std::path::{Path, PathBuf};
 

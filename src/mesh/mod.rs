@@ -1,7 +1,24 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-//! Meshes: loading ([`Mesh`]) and welded surface topology ([`Topology`]).
+//! Meshes: loading ([`Mesh`]), welded surface topology ([`Topology`]), intrinsic surface data
+//! ([`surface::SurfaceData`]) and the GPU upload ([`upload::GpuMesh`]).
 mod load;
+pub mod surface;
 mod topology;
+pub mod upload;
 
 pub use load::{MaterialInfo, Mesh, PrimitiveInfo};
+pub use surface::SurfaceData;
 pub use topology::{Topology, DEFAULT_WELD_TOLERANCE, NO_NEIGHBOR};
+pub use upload::GpuMesh;
+
+/// The welded surface as the map kernels read it: topology, intrinsic data and the GPU buffers
+/// (borrowed from the engine's loaded mesh).
+#[derive(Clone, Copy)]
+pub struct SurfaceRef<'a> {
+    /// Welded topology.
+    pub topo: &'a Topology,
+    /// Curvature and edge angles.
+    pub surface: &'a SurfaceData,
+    /// GPU buffers.
+    pub gpu: &'a GpuMesh,
+}

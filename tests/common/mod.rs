@@ -3,7 +3,7 @@
 //! written from code.
 #![allow(dead_code, reason = "each test binary uses a different subset")]
 
-use decalbake::image_io::LinearImage;
+use decalbake::io::image::LinearImage;
 use decalbake::Engine;
 use std::path::{Path, PathBuf};
 

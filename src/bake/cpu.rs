@@ -1,0 +1,364 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! CPU twin of the raster and compose stages (`layer_raster`, `island_raster`, `island_mask`,
+//! `compose`, `base_init`) and of the padding rule, written plainly as the tests' oracle.
+//!
+//! It follows the GPU's sampling pattern exactly: sample (i, j) of texel (x, y) sits at
+//! `(x + (i + 0.5) / ss, y + (j + 0.5) / ss)` in texel units. Decal images are sampled bilinearly on
+//! mip level 0 with clamp-to-edge; the GPU picks a coarser level when a decal is minified, so
+//! comparisons against this twin use magnified decals (see `tests/compose_vs_cpu.rs`).
+
+use crate::bake::select::select_triangles;
+use crate::io::image::LinearImage;
+use crate::io::job::{Job, Method};
+use crate::maps::planar::planar_coords;
+use crate::maps::Frame;
+use crate::mesh::{Mesh, Topology};
+use crate::place::Placement;
+use glam::Vec2;
+
+/// Bilinear sample with clamp-to-edge, texel centres at half-integers (straight or premultiplied
+/// values, whatever `img` holds).
+pub fn sample_bilinear(img: &LinearImage, uv: Vec2) -> [f32; 4] {
+    let x = uv.x * img.width as f32 - 0.5;
+    let y = uv.y * img.height as f32 - 0.5;
+    let x0 = x.floor();
+    let y0 = y.floor();
+    let (fx, fy) = (x - x0, y - y0);
+    let at = |xi: f32, yi: f32| {
+        let xi = (xi as i64).clamp(0, img.width as i64 - 1) as u32;
+        let yi = (yi as i64).clamp(0, img.height as i64 - 1) as u32;
+        img.pixels[(yi * img.width + xi) as usize]
+    };
+    let (a, b, c, d) = (
+        at(x0, y0),
+        at(x0 + 1.0, y0),
+        at(x0, y0 + 1.0),
+        at(x0 + 1.0, y0 + 1.0),
+    );
+    let mut out = [0.0; 4];
+    for k in 0..4 {
+        out[k] =
+            (a[k] * (1.0 - fx) + b[k] * fx) * (1.0 - fy) + (c[k] * (1.0 - fx) + d[k] * fx) * fy;
+    }
+    out
+}
+
+/// Barycentric coordinates of `p` in triangle (a, b, c), or `None` outside (edges count as inside).
+fn barycentric(p: Vec2, a: Vec2, b: Vec2, c: Vec2) -> Option<[f32; 3]> {
+    let area = (b - a).perp_dot(c - a);
+    if area.abs() < 1e-20 {
+        return None;
+    }
+    let w0 = (b - p).perp_dot(c - p) / area;
+    let w1 = (c - p).perp_dot(a - p) / area;
+    let w2 = 1.0 - w0 - w1;
+    (w0 >= 0.0 && w1 >= 0.0 && w2 >= 0.0).then_some([w0, w1, w2])
+}
+
+/// Result of the CPU bake before padding.
+pub struct CpuBake {
+    /// Linear straight-alpha texels after all layers (before padding).
+    pub composed: LinearImage,
+    /// Island mask (a texel with any covered sample).
+    pub island: Vec<bool>,
+    /// Triangles selected per layer.
+    pub selected: Vec<Vec<u32>>,
+}
+
+/// Bakes `job` on the CPU. `images[i]` is layer i's (decal, mask) as loaded (straight alpha, mask
+/// already raw), `base` the base image, `placements` the layers' placements.
+pub fn bake_cpu(
+    mesh: &Mesh,
+    topo: &Topology,
+    job: &Job,
+    placements: &[Placement],
+    base: &LinearImage,
+    images: &[(LinearImage, Option<LinearImage>)],
+) -> CpuBake {
+    let (w, h, ss) = (job.width, job.height, job.ss);
+    let uvs = &mesh.uv_sets[job.uv_set as usize];
+    let size = Vec2::new(w as f32, h as f32);
+    let mut composed = LinearImage::solid(w, h, [0.0; 4]);
+    for y in 0..h {
+        for x in 0..w {
+            let uv = (Vec2::new(x as f32, y as f32) + 0.5) / size;
+            composed.pixels[(y * w + x) as usize] = sample_bilinear(base, uv);
+        }
+    }
+    let sample_pos = |x: u32, y: u32, i: u32, j: u32| {
+        Vec2::new(
+            x as f32 + (i as f32 + 0.5) / ss as f32,
+            y as f32 + (j as f32 + 0.5) / ss as f32,
+        ) / size
+    };
+    let tri_uv = |t: usize| mesh.triangles[t].map(|s| uvs[s as usize]);
+    // Islands (UVs assumed inside the [0,1] tile here; the GPU also handles other tiles).
+    let mut island = vec![false; (w * h) as usize];
+    for (t, _) in mesh.triangles.iter().enumerate() {
+        if topo.degenerate[t] {
+            continue;
+        }
+        let [a, b, c] = tri_uv(t);
+        let lo = a.min(b).min(c) * size;
+        let hi = a.max(b).max(c) * size;
+        for y in (lo.y.floor().max(0.0) as u32)..(hi.y.ceil().min(h as f32) as u32) {
+            for x in (lo.x.floor().max(0.0) as u32)..(hi.x.ceil().min(w as f32) as u32) {
+                let idx = (y * w + x) as usize;
+                if island[idx] {
+                    continue;
+                }
+                'samples: for j in 0..ss {
+                    for i in 0..ss {
+                        if barycentric(sample_pos(x, y, i, j), a, b, c).is_some() {
+                            island[idx] = true;
+                            break 'samples;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let mut selected = Vec::new();
+    let surface = crate::mesh::SurfaceData::new(topo);
+    for (li, layer) in job.layers.iter().enumerate() {
+        let frame = Frame::new(&placements[li], layer);
+        let expmap = || -> Vec<[f32; 4]> {
+            let opts = frame.expmap_options(layer);
+            let map = crate::maps::expmap::cpu::dem_cpu(
+                topo,
+                &frame.seed(&placements[li]),
+                opts,
+                &surface,
+            );
+            map.dist
+                .iter()
+                .zip(&map.uv)
+                .map(|(d, uv)| [uv[0], uv[1], *d, if d.is_finite() { 1.0 } else { 0.0 }])
+                .collect()
+        };
+        let coords = match layer.method {
+            Method::Planar => planar_coords(topo, &frame),
+            Method::Expmap => expmap(),
+            Method::Lscm | Method::Hybrid => {
+                // As in the bake: both start from the exponential map (hybrid re-solves part of
+                // it; LSCM warm-starts from it).
+                let map = expmap();
+                let hybrid = layer.method == Method::Hybrid;
+                let req = crate::maps::chart::ChartRequest::for_layer(
+                    frame,
+                    placements[li].triangle,
+                    layer,
+                    &map,
+                );
+                let chart = crate::maps::chart::build(
+                    topo,
+                    &[req],
+                    &crate::maps::chart::Solver::Cpu,
+                    &mut Default::default(),
+                )
+                .expect("the CPU solver does not fail")
+                .remove(0);
+                let mut coords = if hybrid {
+                    map
+                } else {
+                    vec![[0.0; 4]; topo.positions.len()]
+                };
+                for (v, c) in chart.coords {
+                    coords[v as usize] = [c[0], c[1], 0.0, 1.0];
+                }
+                coords
+            }
+        };
+        let facing = layer.method == Method::Planar;
+        let sel = select_triangles(mesh, topo, uvs, &coords, &frame, facing, [w, h]);
+        let (img, mask) = &images[li];
+        let premult = LinearImage {
+            pixels: img
+                .pixels
+                .iter()
+                .map(|p| [p[0] * p[3], p[1] * p[3], p[2] * p[3], p[3]])
+                .collect(),
+            ..img.clone()
+        };
+        let b = sel.texel_box;
+        for y in b[1].max(0)..b[3].min(h as i32) {
+            for x in b[0].max(0)..b[2].min(w as i32) {
+                let (x, y) = (x as u32, y as u32);
+                let mut sum = [0.0f32; 4];
+                let mut n = 0u32;
+                for j in 0..ss {
+                    for i in 0..ss {
+                        let p = sample_pos(x, y, i, j);
+                        let mut covered = false;
+                        let mut acc = [0.0f32; 4];
+                        for &t in &sel.triangles {
+                            let [a, bb, c] = tri_uv(t as usize);
+                            let Some(bc) = barycentric(p, a, bb, c) else {
+                                continue;
+                            };
+                            covered = true;
+                            let tri = topo.triangles[t as usize];
+                            let lc = tri.map(|v| coords[v as usize]);
+                            let lx = bc[0] * lc[0][0] + bc[1] * lc[1][0] + bc[2] * lc[2][0];
+                            let ly = bc[0] * lc[0][1] + bc[1] * lc[1][1] + bc[2] * lc[2][1];
+                            let im = Vec2::new(lx / layer.size[0] + 0.5, 0.5 - ly / layer.size[1]);
+                            let mut s = [0.0; 4];
+                            if im.x >= 0.0 && im.y >= 0.0 && im.x <= 1.0 && im.y <= 1.0 {
+                                s = sample_bilinear(&premult, im);
+                                if let Some(m) = mask {
+                                    let mv = sample_bilinear(m, im);
+                                    let f = mv[0] * mv[3];
+                                    s = s.map(|v| v * f);
+                                }
+                                s = s.map(|v| v * layer.opacity);
+                            }
+                            // Premultiplied source-over within the layer, in list order.
+                            for k in 0..4 {
+                                acc[k] = s[k] + acc[k] * (1.0 - s[3]);
+                            }
+                        }
+                        if covered {
+                            n += 1;
+                            for k in 0..4 {
+                                sum[k] += acc[k];
+                            }
+                        }
+                    }
+                }
+                if n == 0 {
+                    continue;
+                }
+                let src = sum.map(|v| v / n as f32);
+                if src[3] <= 0.0 {
+                    continue;
+                }
+                let idx = (y * w + x) as usize;
+                composed.pixels[idx] = layer.blend.blend(composed.pixels[idx], src);
+            }
+        }
+        selected.push(sel.triangles);
+    }
+    CpuBake {
+        composed,
+        island,
+        selected,
+    }
+}
+
+/// For every non-island texel, the squared distance to the nearest island texel and the island texels
+/// at that distance (ties kept). Brute force: for small test textures only.
+pub fn nearest_island(island: &[bool], w: u32, h: u32) -> Vec<Option<(u64, Vec<u32>)>> {
+    let isl: Vec<(i64, i64)> = (0..w * h)
+        .filter(|&i| island[i as usize])
+        .map(|i| ((i % w) as i64, (i / w) as i64))
+        .collect();
+    (0..w * h)
+        .map(|i| {
+            if island[i as usize] || isl.is_empty() {
+                return None;
+            }
+            let (x, y) = ((i % w) as i64, (i / w) as i64);
+            let mut best = u64::MAX;
+            let mut who = Vec::new();
+            for &(ix, iy) in &isl {
+                let d = ((ix - x).pow(2) + (iy - y).pow(2)) as u64;
+                if d < best {
+                    best = d;
+                    who.clear();
+                }
+                if d == best {
+                    who.push((iy * w as i64 + ix) as u32);
+                }
+            }
+            Some((best, who))
+        })
+        .collect()
+}
+
+/// CPU twin of `edt_columns.wgsl` + `edt_rows.wgsl`: for every texel, the index of its nearest island
+/// texel (exact Euclidean distance, Felzenszwalb & Huttenlocher 2012, separable), island texels
+/// pointing at themselves, `u32::MAX` when there is no island. O(texels).
+pub fn nearest_island_map(island: &[bool], w: u32, h: u32) -> Vec<u32> {
+    let (wi, hi) = (w as usize, h as usize);
+    // Pass 1: nearest island row in each column.
+    let mut col_near = vec![-1i64; wi * hi];
+    for x in 0..wi {
+        let mut last = -1i64;
+        for y in 0..hi {
+            if island[y * wi + x] {
+                last = y as i64;
+            }
+            col_near[y * wi + x] = last;
+        }
+        let mut next = -1i64;
+        for y in (0..hi).rev() {
+            if island[y * wi + x] {
+                next = y as i64;
+            }
+            let prev = col_near[y * wi + x];
+            if next >= 0 && (prev < 0 || next - (y as i64) < (y as i64) - prev) {
+                col_near[y * wi + x] = next;
+            }
+        }
+    }
+    // Pass 2: lower envelope of parabolas per row.
+    let mut out = vec![u32::MAX; wi * hi];
+    let mut v = vec![0i64; wi];
+    let mut z = vec![0f64; wi + 1];
+    for y in 0..hi {
+        let f = |q: i64| -> Option<i64> {
+            let ny = col_near[y * wi + q as usize];
+            (ny >= 0).then(|| (ny - y as i64).pow(2))
+        };
+        let mut k: i64 = -1;
+        for q in 0..wi as i64 {
+            let Some(fq) = f(q) else { continue };
+            if k < 0 {
+                k = 0;
+                v[0] = q;
+                z[0] = f64::NEG_INFINITY;
+                z[1] = f64::INFINITY;
+                continue;
+            }
+            let mut s;
+            loop {
+                let vk = v[k as usize];
+                let fv = f(vk).expect("envelope holds island columns only");
+                s = ((fq + q * q) - (fv + vk * vk)) as f64 / (2 * (q - vk)) as f64;
+                if s <= z[k as usize] && k > 0 {
+                    k -= 1;
+                } else {
+                    break;
+                }
+            }
+            if s <= z[k as usize] {
+                v[0] = q;
+                z[0] = f64::NEG_INFINITY;
+                z[1] = f64::INFINITY;
+                k = 0;
+                continue;
+            }
+            k += 1;
+            v[k as usize] = q;
+            z[k as usize] = s;
+            z[k as usize + 1] = f64::INFINITY;
+        }
+        if k < 0 {
+            continue;
+        }
+        let mut j = 0usize;
+        for x in 0..wi {
+            while z[j + 1] < x as f64 {
+                j += 1;
+            }
+            let idx = y * wi + x;
+            if island[idx] {
+                out[idx] = idx as u32;
+            } else {
+                let vx = v[j] as usize;
+                out[idx] = (col_near[y * wi + vx] as usize * wi + vx) as u32;
+            }
+        }
+    }
+    out
+}

@@ -1,0 +1,103 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The per-dispatch `Params` block every bake kernel reads (one 256-byte slot per layer or raster job
+//! in a uniform buffer, bound at a dynamic offset), its flags, and the helpers that build it.
+
+use crate::maps::Frame;
+use wgpu::util::DeviceExt;
+
+/// Per-dispatch parameters. Keep in sync with `Params` in wgsl/shared/params.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Params {
+    /// Decal centre.
+    pub center: [f32; 4],
+    /// Image +x direction; w = width.
+    pub axis_u: [f32; 4],
+    /// Image +y direction; w = height.
+    pub axis_v: [f32; 4],
+    /// Projection normal; w = planar depth limit.
+    pub normal: [f32; 4],
+    /// Output texture size.
+    pub tex_size: [u32; 2],
+    /// Raster rectangle origin (texels).
+    pub rect_origin: [i32; 2],
+    /// Raster rectangle size (texels); the encode kernel reads `rect_size[0]` as its row stride.
+    pub rect_size: [u32; 2],
+    /// UV tile.
+    pub tile: [i32; 2],
+    /// Supersampling per axis.
+    pub ss: u32,
+    /// Blend mode id.
+    pub blend: u32,
+    /// Slot in the chunk.
+    pub slot: u32,
+    /// Flags (`FLAG_*`).
+    pub flags: u32,
+    /// Opacity.
+    pub opacity: f32,
+    /// Welded vertex count.
+    pub vertex_count: u32,
+    /// Triangle count.
+    pub triangle_count: u32,
+    /// Layer kernels: the layer's index in the job (stats row); `edt_rows_fill`: padding radius
+    /// (`u32::MAX` = full).
+    pub aux: u32,
+    /// Words per row of the stats buffer (8 counters + the cell mask).
+    pub stats_stride: u32,
+    /// Side of a mask cell in texels.
+    pub cell: u32,
+    /// Cells per row and column.
+    pub grid: [u32; 2],
+    /// Raster job: origin of its samples in the batch's atlas target.
+    pub atlas_origin: [u32; 2],
+    /// Unused.
+    pub pad: [u32; 2],
+}
+
+const _: () = assert!(std::mem::size_of::<Params>() == 160);
+
+/// Require front-facing triangles.
+pub const FLAG_FACING: u32 = 1;
+/// A mask image is bound.
+pub const FLAG_MASK: u32 = 2;
+/// Encode at 16 bits.
+pub const FLAG_16BIT: u32 = 4;
+
+/// Stride of `Params` entries in the uniform buffers (dynamic offsets need 256-byte alignment).
+pub const PARAMS_STRIDE: u64 = 256;
+
+impl Params {
+    /// Fills the frame fields of a `Params` block.
+    pub fn of_frame(f: &Frame) -> Params {
+        Params {
+            center: f.center.extend(0.0).to_array(),
+            axis_u: f.axis_u.extend(f.size[0]).to_array(),
+            axis_v: f.axis_v.extend(f.size[1]).to_array(),
+            normal: f.normal.extend(f.depth).to_array(),
+            ..Default::default()
+        }
+    }
+}
+
+/// A `Params` binding (one entry at a dynamic offset).
+pub fn pbind(buf: &wgpu::Buffer) -> wgpu::BindingResource<'_> {
+    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+        buffer: buf,
+        offset: 0,
+        size: wgpu::BufferSize::new(std::mem::size_of::<Params>() as u64),
+    })
+}
+
+/// A uniform buffer with one `Params` entry per [`PARAMS_STRIDE`] bytes.
+pub fn params_buffer(dev: &wgpu::Device, label: &str, entries: &[Params]) -> wgpu::Buffer {
+    let mut bytes = vec![0u8; (entries.len().max(1) as u64 * PARAMS_STRIDE) as usize];
+    for (i, p) in entries.iter().enumerate() {
+        let o = i * PARAMS_STRIDE as usize;
+        bytes[o..o + std::mem::size_of::<Params>()].copy_from_slice(bytemuck::bytes_of(p));
+    }
+    dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: &bytes,
+        usage: wgpu::BufferUsages::UNIFORM,
+    })
+}

@@ -1,0 +1,127 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The JSON report written next to a bake.
+
+use crate::maps::Frame;
+use crate::place::Placement;
+use serde::Serialize;
+
+/// Mesh statistics, as `decalbake info` prints them.
+#[derive(Debug, Clone, Serialize)]
+pub struct MeshStats {
+    /// Source file.
+    pub source: String,
+    /// Primitives in the scene.
+    pub primitives: Vec<crate::mesh::PrimitiveInfo>,
+    /// glTF (split) vertices.
+    pub vertices: usize,
+    /// Welded vertices.
+    pub welded_vertices: usize,
+    /// Triangles.
+    pub triangles: usize,
+    /// Degenerate triangles (skipped).
+    pub degenerate_triangles: usize,
+    /// UV sets present on every primitive.
+    pub uv_sets: usize,
+    /// Boundary edges.
+    pub boundary_edges: usize,
+    /// Non-manifold edges.
+    pub non_manifold_edges: usize,
+    /// Connected components.
+    pub components: u32,
+    /// Bounding box min.
+    pub bbox_min: [f32; 3],
+    /// Bounding box max.
+    pub bbox_max: [f32; 3],
+    /// Welding distance used (model units).
+    pub weld_distance: f32,
+    /// Whether the material has a base-colour texture.
+    pub has_base_color_texture: bool,
+}
+
+/// Per-layer results.
+#[derive(Debug, Clone, Serialize)]
+pub struct LayerReport {
+    /// Index in the job.
+    pub index: usize,
+    /// Image path.
+    pub image: String,
+    /// Method.
+    pub method: crate::io::job::Method,
+    /// Blend mode.
+    pub blend: crate::io::job::BlendMode,
+    /// Where it landed.
+    pub placement: Placement,
+    /// How far the requested point moved to reach the surface (for a ray: distance along it).
+    pub distance_moved: f32,
+    /// The decal frame.
+    pub frame: Frame,
+    /// Triangles the layer covers.
+    pub triangles_covered: u32,
+    /// Texels the layer changed.
+    pub texels_covered: u32,
+    /// Texel bounding box (min x, min y, max x, max y) before UV wrapping.
+    pub texel_box: [i32; 4],
+    /// Distortion of the layer's map over the triangles it covers.
+    pub distortion: crate::maps::distortion::Distortion,
+    /// Exponential-map layers (and lscm / hybrid, which start from one): relaxation sweeps,
+    /// vertices and triangles reached, convergence.
+    pub expmap: Option<crate::maps::expmap::gpu::GeoResult>,
+    /// LSCM / hybrid: the conformal chart's solve (triangles, rounds, CG iterations, residual, status).
+    pub chart: Option<crate::maps::chart::ChartReport>,
+}
+
+/// Time per stage, milliseconds.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct Timings {
+    /// Reading and parsing the mesh.
+    pub load_ms: f64,
+    /// Welding and adjacency.
+    pub weld_ms: f64,
+    /// Uploading the mesh.
+    pub upload_ms: f64,
+    /// Decoding images and uploading them.
+    pub images_ms: f64,
+    /// Placement on the GPU.
+    pub placement_ms: f64,
+    /// Conformal charts (selection, refinement, GPU solves), included in `compose_ms`.
+    pub charts_ms: f64,
+    /// Base, island mask, layer coordinates, selection, raster and compose.
+    pub compose_ms: f64,
+    /// Padding (distance transform and fill).
+    pub padding_ms: f64,
+    /// sRGB encode on the GPU and read-back.
+    pub encode_ms: f64,
+    /// PNG/GLB/preview writing.
+    pub write_ms: f64,
+}
+
+/// The whole report.
+#[derive(Debug, Clone, Serialize)]
+pub struct Report {
+    /// decalbake version.
+    pub version: &'static str,
+    /// The adapter used.
+    pub adapter: String,
+    /// Job file.
+    pub job: String,
+    /// Mesh statistics.
+    pub mesh: MeshStats,
+    /// UV set baked into.
+    pub uv_set: u32,
+    /// Texture size.
+    pub texture: [u32; 2],
+    /// Samples per texel.
+    pub samples: u32,
+    /// Padding in texels (`null` = full).
+    pub padding: Option<u32>,
+    /// Per-layer results.
+    pub layers: Vec<LayerReport>,
+    /// Island texels (covered by some triangle).
+    pub island_texels: u64,
+    /// Warnings (e.g. overlapping UVs under a decal, fallback up direction).
+    pub warnings: Vec<String>,
+    /// Time per stage.
+    pub timings: Timings,
+    /// GPU dispatches and draws issued.
+    pub gpu_commands: u32,
+}

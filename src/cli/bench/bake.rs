@@ -1,0 +1,157 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! `decalbake bench`: bake time per stage for N planar decals at several texture sizes, printed as one
+//! JSON object per configuration, with the CPU twin (`compose_cpu`) timed in the same run as the
+//! baseline where it finishes in reasonable time.
+//!
+//! Decals are placed at deterministic pseudo-random surface points (area-weighted), each 8 % of the
+//! bounding-box diagonal wide, with random angles and the blend modes in turn.
+
+use super::common::{largest_uv_mesh, median, random_job, SHARED_MESHES};
+use decalbake::bake::Engine;
+use decalbake::error::Result;
+use decalbake::io::image::LinearImage;
+use decalbake::mesh::Mesh;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Options of `decalbake bench`.
+pub struct BenchOptions {
+    /// Mesh file (default: the largest mesh with UVs in [`SHARED_MESHES`], else the bundled Spot).
+    pub mesh: Option<PathBuf>,
+    /// Midpoint subdivisions applied to the mesh first.
+    pub subdivide: u32,
+    /// Texture sides.
+    pub sizes: Vec<u32>,
+    /// Decal counts.
+    pub decals: Vec<usize>,
+    /// Repetitions (median reported).
+    pub reps: usize,
+    /// Largest `decals × side²` for which the CPU twin is timed too.
+    pub cpu_budget: u64,
+    /// Decal method of the bake benchmark's layers (`"planar"` by default; `"expmap"` measures the
+    /// maps inside a bake).
+    pub method: String,
+    /// Exponential-map update rule (geodesic benchmark, and expmap layers of the bake benchmark).
+    pub accuracy: decalbake::maps::expmap::Accuracy,
+    /// Geodesic benchmark: `../shared/peers`, to time potpourri3d's log maps on the same meshes and
+    /// seed vertices in the same run.
+    pub peers: Option<PathBuf>,
+}
+
+/// Runs the benchmark, calling `emit` with one JSON object per configuration.
+pub fn run(
+    engine: &Engine,
+    opts: &BenchOptions,
+    mut emit: impl FnMut(serde_json::Value),
+) -> Result<()> {
+    let t = Instant::now();
+    let path = opts
+        .mesh
+        .clone()
+        .or_else(|| largest_uv_mesh(Path::new(SHARED_MESHES)));
+    let mut mesh = match &path {
+        Some(p) => Mesh::load(p)?,
+        None => Mesh::from_bytes(crate::demo::SPOT_GLB, Path::new("spot.glb (bundled)"), None)?,
+    };
+    for _ in 0..opts.subdivide {
+        mesh = mesh.subdivide();
+    }
+    let load_ms = t.elapsed().as_secs_f64() * 1000.0;
+    let loaded = engine.prepare(mesh)?;
+    let dir = std::env::temp_dir().join(format!("decalbake-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).map_err(|source| decalbake::Error::Io {
+        path: dir.clone(),
+        action: "creating",
+        source,
+    })?;
+    for &side in &opts.sizes {
+        for &n in &opts.decals {
+            let job = random_job(&loaded, n, side, &dir, 7 + n as u32, &opts.method)?;
+            // Cold run: the first bake at a size rasterizes the islands and their distance transform
+            // (then cached on the mesh) and compiles pipelines in the driver.
+            let t_cold = Instant::now();
+            engine.bake(&loaded, &job)?;
+            let cold_ms = t_cold.elapsed().as_secs_f64() * 1000.0;
+            let mut totals = Vec::new();
+            let mut stages: Vec<decalbake::bake::report::Timings> = Vec::new();
+            let mut last = None;
+            for _ in 0..opts.reps.max(1) {
+                let t = Instant::now();
+                let baked = engine.bake(&loaded, &job)?;
+                let te = Instant::now();
+                let png = baked.to_png();
+                let encode_png_ms = te.elapsed().as_secs_f64() * 1000.0;
+                let total = t.elapsed().as_secs_f64() * 1000.0;
+                totals.push(total);
+                let mut tm = baked.report.timings.clone();
+                tm.write_ms = encode_png_ms;
+                stages.push(tm);
+                let _ = png;
+                last = Some(baked);
+            }
+            let baked = last.expect("at least one repetition");
+            let texels: u64 = baked
+                .report
+                .layers
+                .iter()
+                .map(|l| l.texels_covered as u64)
+                .sum();
+            let med = |f: fn(&decalbake::bake::report::Timings) -> f64| {
+                median(stages.iter().map(f).collect())
+            };
+            let compose = med(|t| t.compose_ms);
+            let gpu_total = median(totals.clone());
+            let mut cpu_ms = None;
+            if (n as u64) * (side as u64).pow(2) <= opts.cpu_budget {
+                let topo = &loaded.topo;
+                let images: Vec<(LinearImage, Option<LinearImage>)> = job
+                    .layers
+                    .iter()
+                    .map(|l| LinearImage::load(&l.image).map(|i| (i, None)))
+                    .collect::<Result<_>>()?;
+                let placements: Vec<_> = baked.report.layers.iter().map(|l| l.placement).collect();
+                let base = loaded
+                    .mesh
+                    .material
+                    .as_ref()
+                    .and_then(|m| m.base_color_texture.clone())
+                    .unwrap_or_else(|| LinearImage::solid(1, 1, [0.5, 0.5, 0.5, 1.0]));
+                let t = Instant::now();
+                let _ = decalbake::bake::cpu::bake_cpu(
+                    &loaded.mesh,
+                    topo,
+                    &job,
+                    &placements,
+                    &base,
+                    &images,
+                );
+                cpu_ms = Some(t.elapsed().as_secs_f64() * 1000.0);
+            }
+            emit(serde_json::json!({
+                "mesh": loaded.stats.source,
+                "triangles": loaded.stats.triangles,
+                "welded_vertices": loaded.stats.welded_vertices,
+                "texture": side,
+                "decals": n,
+                "method": opts.method,
+                "reps": opts.reps,
+                "adapter": engine.ctx.adapter,
+                "median_ms": {
+                    "total": gpu_total,
+                    "load": load_ms, "weld": loaded.timings.1, "upload": loaded.timings.2,
+                    "images": med(|t| t.images_ms), "placement": med(|t| t.placement_ms),
+                    "compose": compose, "padding": med(|t| t.padding_ms), "encode_readback": med(|t| t.encode_ms),
+                    "png_encode": med(|t| t.write_ms),
+                },
+                "cold_total_ms": cold_ms,
+                "texels_composed": texels,
+                "composed_texels_per_s": texels as f64 / (compose / 1000.0),
+                "gpu_commands": baked.report.gpu_commands,
+                "cpu_twin_compose_ms": cpu_ms,
+                "cpu_twin_over_gpu_compose": cpu_ms.map(|c| c / compose),
+            }));
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    Ok(())
+}

@@ -1,0 +1,328 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! `decalbake bench --linalg`: the GPU linear-algebra core and LSCM charts, with their baselines
+//! measured in the same run. One JSON object per line:
+//!
+//! - `copy`: streaming-copy bandwidth of the device (the reference for SpMV);
+//! - `spmv`: CSR product on a real mesh Laplacian, GB/s and non-zeros per second, against the copy
+//!   bandwidth and the f64 CPU twin;
+//! - `lscm_chart`: one chart of about 1k, 10k and 100k vertices: GPU CG iterations, time per
+//!   iteration, dispatches, against the CPU twin (f64 PCG, same tolerance) and, with `--peers`,
+//!   libigl's LSCM (direct solve) and scipy's CG on the same patch (written as OBJ and run through
+//!   `../shared/peers/peers.py lscm`);
+//! - `lscm_batch`: many small charts solved in one batched solve versus one solve per chart.
+
+use decalbake::error::Result;
+use decalbake::maps::chart::{self, FINAL_RTOL};
+use decalbake::maps::Frame;
+use decalbake::mesh::{Mesh, Topology};
+use decalbake::solve::gpu::{cg_batched, copy_bandwidth, spmv, GpuCsr, SystemDesc};
+use decalbake::solve::sparse::Csr;
+use decalbake::Engine;
+use glam::Vec3;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use super::common::{frame_at, median, run_peers_py, write_obj, SHARED_MESHES};
+
+/// A chart at triangle `t` with about `target` vertices (bisection on the decal size): its frame,
+/// triangles, LSCM system and warm start.
+pub fn chart_of_size(
+    topo: &Topology,
+    t: usize,
+    target: usize,
+) -> (
+    Frame,
+    Vec<u32>,
+    decalbake::maps::chart::lscm::System,
+    Vec<f64>,
+) {
+    let (lo, hi) = topo
+        .positions
+        .iter()
+        .fold((Vec3::MAX, Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
+    let (mut a, mut b) = (1e-4 * (hi - lo).length(), (hi - lo).length());
+    let mut best = None;
+    for _ in 0..24 {
+        let side = 0.5 * (a + b);
+        let f = frame_at(topo, t, side);
+        let (tris, sys, x0) = chart::initial_system(topo, &f, t as u32);
+        let n = sys.vertices.len();
+        if n < target {
+            a = side;
+        } else {
+            b = side;
+        }
+        let better = best.as_ref().is_none_or(
+            |(_, _, s, _): &(
+                Frame,
+                Vec<u32>,
+                decalbake::maps::chart::lscm::System,
+                Vec<f64>,
+            )| {
+                (s.vertices.len() as f64 / target as f64).ln().abs()
+                    > (n as f64 / target as f64).ln().abs()
+            },
+        );
+        if better {
+            best = Some((f, tris, sys, x0));
+        }
+        if (n as f64 / target as f64 - 1.0).abs() < 0.05 {
+            break;
+        }
+    }
+    best.expect("at least one bisection step")
+}
+
+/// Runs `peers.py lscm` on an OBJ patch (the whole chart, disc or not: without `--patch-radius`
+/// the script cuts its own patch from non-discs); returns the peers' figures or an error text.
+fn run_peer(peers_dir: &Path, obj: &Path, chart_vertices: usize) -> serde_json::Value {
+    let args: [&std::ffi::OsStr; 4] = [
+        "lscm".as_ref(),
+        obj.as_os_str(),
+        "--patch-radius".as_ref(),
+        "1e30".as_ref(),
+    ];
+    match run_peers_py(peers_dir, &args) {
+        Ok(v) => {
+            let patch_nv = v["patch"]["patch_nv"].as_u64().or(v["nv"].as_u64());
+            serde_json::json!({
+                "igl_lscm_s": v["peers"]["igl_lscm"]["total_s"],
+                "scipy_cg_lscm_s": v["peers"]["scipy_cg_lscm"]["total_s"],
+                "scipy_cg_iterations": v["peers"]["scipy_cg_lscm"]["iterations"],
+                "patch_is_disk": v["patch"]["is_disk"],
+                // False if the peer cut its own smaller patch: then the times are not comparable.
+                "peer_used_whole_chart": patch_nv == Some(chart_vertices as u64),
+                "peer_patch_vertices": patch_nv,
+            })
+        }
+        Err(e) => serde_json::json!({ "error": e }),
+    }
+}
+
+/// Options of the linear-algebra benchmark.
+pub struct LinalgOptions {
+    /// Mesh (default: bob from [`SHARED_MESHES`], else the bundled Spot).
+    pub mesh: Option<PathBuf>,
+    /// Midpoint subdivisions (default 3).
+    pub subdivide: u32,
+    /// Charts in the batched benchmark.
+    pub batch: usize,
+    /// Repetitions (median reported).
+    pub reps: usize,
+    /// `../shared/peers` directory, to run libigl on the same patches.
+    pub peers: Option<PathBuf>,
+    /// Chart sizes (vertices) of the single-chart figures.
+    pub charts: Vec<usize>,
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1000.0
+}
+
+/// Runs the benchmark, calling `emit` per figure.
+pub fn run(
+    engine: &Engine,
+    opts: &LinalgOptions,
+    mut emit: impl FnMut(serde_json::Value),
+) -> Result<()> {
+    let ctx = &engine.ctx;
+    let pipes = engine.pipelines();
+    let reps = opts.reps.max(1);
+    // Device bandwidth reference.
+    let copy_gbs = copy_bandwidth(ctx, pipes, 64 << 20, 20)?;
+    emit(
+        serde_json::json!({ "bench": "copy", "bytes": 64u64 << 20, "reps": 20, "gb_per_s": copy_gbs }),
+    );
+
+    let path = opts.mesh.clone().or_else(|| {
+        let p = Path::new(SHARED_MESHES).join("bob.glb");
+        p.exists().then_some(p)
+    });
+    let mut mesh = match &path {
+        Some(p) => Mesh::load(p)?,
+        None => Mesh::from_bytes(crate::demo::SPOT_GLB, Path::new("spot.glb (bundled)"), None)?,
+    };
+    for _ in 0..opts.subdivide {
+        mesh = mesh.subdivide();
+    }
+    let topo = Topology::build(&mesh, decalbake::mesh::DEFAULT_WELD_TOLERANCE);
+    let source = path
+        .map(|p| p.display().to_string())
+        .unwrap_or_else(|| "spot (bundled)".into());
+
+    // SpMV on the mesh Laplacian.
+    let lap = decalbake::maps::chart::lscm::shifted_laplacian(&topo, 1.0);
+    let g = GpuCsr::upload(ctx, &lap)?;
+    let x: Vec<f32> = (0..lap.rows)
+        .map(|i| ((i * 37) % 101) as f32 / 101.0)
+        .collect();
+    let xd: Vec<f64> = x.iter().map(|&v| v as f64).collect();
+    spmv(ctx, pipes, &g, &x, 1)?;
+    let spmv_reps = 20;
+    let mut gpu_s = Vec::new();
+    for _ in 0..reps {
+        gpu_s.push(spmv(ctx, pipes, &g, &x, spmv_reps)?.1 / spmv_reps as f64);
+    }
+    let gpu_s = median(gpu_s);
+    let t = Instant::now();
+    let _ = std::hint::black_box(lap.mul(&xd));
+    let cpu_s = t.elapsed().as_secs_f64();
+    let gbs = g.bytes_per_product() as f64 / gpu_s / 1e9;
+    emit(serde_json::json!({
+        "bench": "spmv", "mesh": source, "rows": lap.rows, "nnz": lap.nnz(),
+        "gpu_ms": gpu_s * 1e3, "gb_per_s": gbs, "fraction_of_copy_bandwidth": gbs / copy_gbs,
+        "nnz_per_s": lap.nnz() as f64 / gpu_s, "cpu_twin_ms": cpu_s * 1e3, "cpu_over_gpu": cpu_s / gpu_s,
+    }));
+
+    // One chart of each size.
+    let dir = std::env::temp_dir().join(format!("decalbake-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).map_err(|e| decalbake::Error::Io {
+        path: dir.clone(),
+        action: "creating",
+        source: e,
+    })?;
+    let seed_tri = topo.triangles.len() / 3;
+    for &target in &opts.charts {
+        if target * 2 > topo.positions.len() {
+            continue;
+        }
+        let (frame, tris, sys, x0) = chart_of_size(&topo, seed_tri, target);
+        // Set-up on the CPU: selection, pins and assembly of this chart.
+        let t = Instant::now();
+        let _ = std::hint::black_box(chart::initial_system(&topo, &frame, seed_tri as u32));
+        let setup_ms = ms(t);
+        let budget = 20 * chart::default_budget(sys.matrix.rows);
+        let desc = [SystemDesc::new(0, sys.matrix.rows, FINAL_RTOL, budget)];
+        let zero = vec![0.0; x0.len()];
+        let solve = || cg_batched(ctx, pipes, &sys.matrix, &sys.rhs, &zero, &desc);
+        // Large charts take minutes on a software driver: one cold run (pipelines are compiled at
+        // engine creation, so "cold" only adds buffer allocation).
+        let large = sys.matrix.rows > 50_000;
+        if !large {
+            solve()?;
+        }
+        let mut times = Vec::new();
+        let mut last = None;
+        for _ in 0..if large { 1 } else { reps } {
+            let t = Instant::now();
+            last = Some(solve()?);
+            times.push(ms(t));
+        }
+        let gpu_ms = median(times);
+        let out = last.expect("one repetition");
+        let its = out.reports[0].iterations;
+        let t = Instant::now();
+        let mut xc = zero.clone();
+        let cpu = decalbake::solve::sparse::pcg(
+            &sys.matrix,
+            &sys.rhs,
+            &mut xc,
+            FINAL_RTOL as f64,
+            budget,
+        );
+        let cpu_ms = ms(t);
+        let peer = match &opts.peers {
+            Some(p) => {
+                let obj = dir.join(format!("chart_{target}.obj"));
+                write_obj(&obj, &topo, &tris)?;
+                run_peer(p, &obj, sys.vertices.len())
+            }
+            None => serde_json::Value::Null,
+        };
+        emit(serde_json::json!({
+            "bench": "lscm_chart", "mesh": source, "mesh_vertices": topo.positions.len(),
+            "chart_vertices": sys.vertices.len(), "chart_triangles": tris.len(), "unknowns": sys.matrix.rows, "nnz": sys.matrix.nnz(),
+            "gpu_status": out.reports[0].status, "gpu_iterations": its, "gpu_residual": out.reports[0].residual,
+            "gpu_ms": gpu_ms, "gpu_ms_per_iteration": gpu_ms / its.max(1) as f64,
+            "dispatches": out.dispatches, "submits": out.submits,
+            "cpu_twin_iterations": cpu.iterations, "cpu_twin_ms": cpu_ms, "cpu_over_gpu": cpu_ms / gpu_ms,
+            "cpu_setup_ms": setup_ms, "start": "zero", "rtol": FINAL_RTOL, "peers": peer,
+        }));
+    }
+
+    // Batched small charts versus one solve per chart.
+    let step = (topo.triangles.len() / opts.batch.max(1)).max(1);
+    // The decal size that gives one chart of about 300 vertices, used at every position.
+    let side = chart_of_size(&topo, seed_tri, 300).0.size[0];
+    let systems: Vec<(decalbake::maps::chart::lscm::System, Vec<f64>)> = (0..opts.batch)
+        .map(|i| {
+            let t = (i * step + step / 2) % topo.triangles.len();
+            let (_, s, x0) = chart::initial_system(&topo, &frame_at(&topo, t, side), t as u32);
+            (s, x0)
+        })
+        .collect();
+    let blocks: Vec<&Csr> = systems.iter().map(|(s, _)| &s.matrix).collect();
+    let (a, starts) = Csr::block_diagonal(&blocks);
+    let b: Vec<f64> = systems.iter().flat_map(|(s, _)| s.rhs.clone()).collect();
+    let x0: Vec<f64> = systems.iter().flat_map(|(_, x)| x.clone()).collect();
+    let descs: Vec<SystemDesc> = systems
+        .iter()
+        .zip(&starts)
+        .map(|((s, _), &r0)| {
+            SystemDesc::new(
+                r0,
+                s.matrix.rows,
+                FINAL_RTOL,
+                chart::default_budget(s.matrix.rows),
+            )
+        })
+        .collect();
+    cg_batched(ctx, pipes, &a, &b, &x0, &descs)?;
+    let mut times = Vec::new();
+    let mut last = None;
+    for _ in 0..reps {
+        let t = Instant::now();
+        last = Some(cg_batched(ctx, pipes, &a, &b, &x0, &descs)?);
+        times.push(ms(t));
+    }
+    let batched_ms = median(times);
+    let out = last.expect("one repetition");
+    let converged = out
+        .reports
+        .iter()
+        .filter(|r| r.status == decalbake::solve::sparse::CgStatus::Converged)
+        .count();
+    let t = Instant::now();
+    let mut single_dispatches = 0;
+    for (s, x) in &systems {
+        let o = cg_batched(
+            ctx,
+            pipes,
+            &s.matrix,
+            &s.rhs,
+            x,
+            &[SystemDesc::new(
+                0,
+                s.matrix.rows,
+                FINAL_RTOL,
+                chart::default_budget(s.matrix.rows),
+            )],
+        )?;
+        single_dispatches += o.dispatches;
+    }
+    let single_ms = ms(t);
+    let t = Instant::now();
+    for (s, x) in &systems {
+        let mut xc = x.clone();
+        decalbake::solve::sparse::pcg(
+            &s.matrix,
+            &s.rhs,
+            &mut xc,
+            FINAL_RTOL as f64,
+            chart::default_budget(s.matrix.rows),
+        );
+    }
+    let cpu_ms = ms(t);
+    let mean_v = systems.iter().map(|(s, _)| s.vertices.len()).sum::<usize>() as f64
+        / systems.len().max(1) as f64;
+    let n = systems.len() as f64;
+    emit(serde_json::json!({
+        "bench": "lscm_batch", "mesh": source, "charts": systems.len(), "mean_chart_vertices": mean_v, "converged": converged,
+        "batched_ms": batched_ms, "batched_charts_per_s": n / (batched_ms / 1e3), "batched_dispatches": out.dispatches, "batched_submits": out.submits,
+        "one_by_one_ms": single_ms, "one_by_one_charts_per_s": n / (single_ms / 1e3), "one_by_one_dispatches": single_dispatches,
+        "batched_over_one_by_one": single_ms / batched_ms,
+        "cpu_twin_ms": cpu_ms, "cpu_twin_charts_per_s": n / (cpu_ms / 1e3),
+    }));
+    let _ = std::fs::remove_dir_all(&dir);
+    Ok(())
+}

@@ -1,0 +1,7 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! `decalbake bench`: the bake ([`bake`]), exponential maps ([`geodesic`]) and the linear algebra
+//! ([`linalg`]), each printing JSON lines; [`common`] holds the workloads they share.
+pub mod bake;
+pub mod common;
+pub mod geodesic;
+pub mod linalg;

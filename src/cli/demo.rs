@@ -1,0 +1,131 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The built-in demo scene: Keenan Crane's "Spot" (public domain, bundled in `assets/`) with four
+//! decals generated in code, one per blend style. `decalbake demo` writes the scene's files (mesh,
+//! decal PNGs, job file) next to its outputs, so the job can be edited and re-run with `decalbake bake`.
+
+use decalbake::io::image::{srgb_to_linear, LinearImage};
+use std::f32::consts::PI;
+
+/// The bundled mesh.
+pub const SPOT_GLB: &[u8] = include_bytes!("../../assets/spot.glb");
+
+fn img(side: u32, f: impl Fn(f32, f32) -> [f32; 4]) -> LinearImage {
+    let mut out = LinearImage::solid(side, side, [0.0; 4]);
+    for y in 0..side {
+        for x in 0..side {
+            // Centred coordinates in [-1, 1], y up.
+            let u = 2.0 * (x as f32 + 0.5) / side as f32 - 1.0;
+            let v = 1.0 - 2.0 * (y as f32 + 0.5) / side as f32;
+            let c = f(u, v);
+            out.pixels[(y * side + x) as usize] = [
+                srgb_to_linear(c[0]),
+                srgb_to_linear(c[1]),
+                srgb_to_linear(c[2]),
+                c[3],
+            ];
+        }
+    }
+    out
+}
+
+fn smooth_edge(d: f32, width: f32) -> f32 {
+    (0.5 - d / width).clamp(0.0, 1.0)
+}
+
+/// A round badge with a five-pointed star (sRGB colours given, alpha outside the disc).
+pub fn badge(side: u32) -> LinearImage {
+    let aa = 2.0 / side as f32;
+    img(side, |u, v| {
+        let r = (u * u + v * v).sqrt();
+        let disc = smooth_edge(r - 0.95, aa);
+        let ring = smooth_edge((r - 0.84).abs() - 0.05, aa);
+        // Star: radius as a function of angle between inner 0.28 and outer 0.7.
+        let a = v.atan2(u) - PI / 2.0;
+        let sector = (a.rem_euclid(2.0 * PI / 5.0) - PI / 5.0).abs() / (PI / 5.0);
+        let star_r = 0.3 + 0.42 * (1.0 - sector).powf(1.6);
+        let star = smooth_edge(r - star_r, aa);
+        let base = [0.75, 0.08, 0.1];
+        let gold = [1.0, 0.8, 0.2];
+        let mix = |a: [f32; 3], b: [f32; 3], t: f32| {
+            [
+                a[0] + (b[0] - a[0]) * t,
+                a[1] + (b[1] - a[1]) * t,
+                a[2] + (b[2] - a[2]) * t,
+            ]
+        };
+        let c = mix(mix(base, gold, ring), gold, star);
+        [c[0], c[1], c[2], disc]
+    })
+}
+
+/// Diagonal racing stripes in a rounded rectangle.
+pub fn stripes(side: u32) -> LinearImage {
+    let aa = 2.0 / side as f32;
+    img(side, |u, v| {
+        let d = ((u.abs() - 0.9).max(0.0).powi(2) + (v.abs() - 0.9).max(0.0).powi(2)).sqrt();
+        let inside = smooth_edge(d - 0.08, aa);
+        let s = ((u + v) * 4.0).rem_euclid(2.0);
+        let t = smooth_edge((s - 1.0).abs() - 0.5, aa * 8.0);
+        let blue = [0.1, 0.25, 0.8];
+        let white = [0.97, 0.97, 0.97];
+        let c = [
+            blue[0] + (white[0] - blue[0]) * t,
+            blue[1] + (white[1] - blue[1]) * t,
+            blue[2] + (white[2] - blue[2]) * t,
+        ];
+        [c[0], c[1], c[2], inside]
+    })
+}
+
+/// Concentric rings (used with multiply).
+pub fn rings(side: u32) -> LinearImage {
+    let aa = 2.0 / side as f32;
+    img(side, |u, v| {
+        let r = (u * u + v * v).sqrt();
+        let band = ((r * 5.0).rem_euclid(1.0) - 0.5).abs();
+        let dark = smooth_edge(band - 0.22, aa * 5.0);
+        let alpha = smooth_edge(r - 0.95, aa);
+        let c = 1.0 - 0.85 * dark;
+        [c * 0.4 + 0.1, c * 0.2 + 0.05, c, alpha]
+    })
+}
+
+/// A soft glow (used with screen).
+pub fn glow(side: u32) -> LinearImage {
+    img(side, |u, v| {
+        let r2 = u * u + v * v;
+        let a = (-r2 * 4.0).exp() * (1.0 - r2).max(0.0);
+        [1.0, 0.85, 0.3, a]
+    })
+}
+
+/// The demo job (paths relative to the demo directory).
+pub fn job_json() -> String {
+    serde_json::to_string_pretty(&serde_json::json!({
+        "mesh": "spot.glb",
+        "uv_set": 0,
+        "texture": { "width": 1024, "height": 1024, "base": "material", "padding": 16, "samples": 4 },
+        "layers": [
+            { "kind": "decal", "image": "decals/badge.png", "at": { "ray": { "origin": [1.5, 0.0, 0.45], "dir": [-1, 0, 0] } },
+              "size": [0.32, 0.32], "angle": 0.0, "up": [0, 1, 0], "method": "planar", "blend": "normal", "opacity": 1.0 },
+            { "kind": "decal", "image": "decals/stripes.png", "at": { "ray": { "origin": [0.0, 1.5, 0.55], "dir": [0, -1, 0] } },
+              "size": [0.3, 0.3], "angle": 45.0, "up": [0, 0, 1], "method": "expmap", "blend": "normal", "opacity": 0.9 },
+            { "kind": "decal", "image": "decals/rings.png", "at": { "ray": { "origin": [-1.5, 0.0, 0.45], "dir": [1, 0, 0] } },
+              "size": [0.35, 0.35], "up": [0, 1, 0], "method": "lscm", "blend": "multiply" },
+            { "kind": "decal", "image": "decals/glow.png", "at": { "ray": { "origin": [0.0, 0.55, -1.5], "dir": [0, 0, 1] } },
+              "size": [0.3, 0.3], "method": "planar", "blend": "screen", "opacity": 0.8 }
+        ],
+        "output": { "texture": "baked.png", "bit_depth": 8, "glb": "baked.glb", "report": "report.json", "preview": "preview.png" }
+    }))
+    .expect("static JSON serializes")
+}
+
+/// The decal images of the demo: (file name, image).
+pub fn decals() -> Vec<(&'static str, LinearImage)> {
+    vec![
+        ("badge.png", badge(256)),
+        ("stripes.png", stripes(256)),
+        ("rings.png", rings(256)),
+        ("glow.png", glow(256)),
+    ]
+}

@@ -1,0 +1,258 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The `decalbake` command line.
+
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+use decalbake::{Engine, Job};
+
+mod bench;
+mod demo;
+use std::path::{Path, PathBuf};
+
+#[derive(Parser)]
+#[command(
+    name = "decalbake",
+    version,
+    about = "Bakes decals onto 3D meshes, straight into the mesh's texture, on the GPU."
+)]
+struct Cli {
+    /// GPU backend: vulkan or gl (default: WGPU_BACKEND, else Vulkan then GL).
+    #[arg(long, global = true)]
+    backend: Option<String>,
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Bake the built-in demo scene (Spot with four decals).
+    Demo {
+        /// Output directory.
+        #[arg(long, default_value = "decalbake-demo")]
+        out: PathBuf,
+    },
+    /// Bake a job file.
+    Bake {
+        /// The job file (JSON).
+        job: PathBuf,
+        /// Output directory (default: next to the job file).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Write a layer's local coordinates per reached vertex as CSV: x,y,z,distance,u,v.
+    Param {
+        /// The job file (JSON).
+        job: PathBuf,
+        /// Which layer (0-based).
+        #[arg(long, default_value_t = 0)]
+        layer: usize,
+        /// Output CSV file.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Print what the engine sees in a mesh.
+    Info {
+        /// A .gltf or .glb file.
+        mesh: PathBuf,
+    },
+    /// Benchmark the bake and print JSON figures.
+    Bench {
+        /// Mesh to bake onto (default: the largest mesh with UVs in ../shared/data/meshes, else the demo mesh).
+        #[arg(long)]
+        mesh: Option<PathBuf>,
+        /// Texture sides to measure.
+        #[arg(long, value_delimiter = ',', default_value = "2048,4096")]
+        sizes: Vec<u32>,
+        /// Decal counts to measure.
+        #[arg(long, value_delimiter = ',', default_value = "1,16,256")]
+        decals: Vec<usize>,
+        /// Repetitions per configuration (the median is reported).
+        #[arg(long, default_value_t = 3)]
+        reps: usize,
+        /// Midpoint subdivisions of the mesh (each multiplies the triangles by 4).
+        #[arg(long, default_value_t = 0)]
+        subdivide: u32,
+        /// Time the CPU twin too when decals × side² is at most this.
+        #[arg(long, default_value_t = 16 * 2048 * 2048)]
+        cpu_budget: u64,
+        /// Benchmark exponential maps instead of bakes (discs of about 1k, 10k and 100k vertices on
+        /// the mesh subdivided 2 and 3 times, or `--subdivide` times; then a batch of small maps).
+        #[arg(long)]
+        geodesic: bool,
+        /// Decal method of the bake benchmark's layers: `planar` (default) or `expmap` (then the
+        /// bake includes every decal's exponential map).
+        #[arg(long, default_value = "planar")]
+        method: String,
+        /// With `--geodesic`: the paper's plain update instead of the smooth mode.
+        #[arg(long)]
+        fast: bool,
+        /// Maps in the batched geodesic benchmark (charts in the batched `--linalg` one: 1024).
+        #[arg(long)]
+        batch: Option<usize>,
+        /// Benchmark the GPU linear algebra and LSCM charts instead of bakes (copy bandwidth, SpMV,
+        /// charts of about 1k, 10k and 100k vertices on the mesh subdivided `--subdivide` times
+        /// (default 3), and a batch of small charts).
+        #[arg(long)]
+        linalg: bool,
+        /// With `--linalg` or `--geodesic`: the `../shared/peers` directory, to run libigl's LSCM or
+        /// potpourri3d's log maps on the same patches / meshes and seeds.
+        #[arg(long)]
+        peers: Option<PathBuf>,
+        /// With `--linalg`: chart sizes (vertices) to solve one at a time.
+        #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000")]
+        charts: Vec<usize>,
+    },
+}
+
+fn main() {
+    let cli = Cli::parse();
+    if let Err(e) = run(cli) {
+        eprintln!("error: {e:#}");
+        let input = e.chain().any(|c| {
+            c.downcast_ref::<decalbake::Error>()
+                .is_some_and(|d| d.is_input_error())
+        });
+        std::process::exit(if input { 2 } else { 1 });
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.cmd {
+        Cmd::Demo { out } => demo(&out, cli.backend.as_deref()),
+        Cmd::Bake { job, out } => {
+            let job = Job::load(&job, out.as_deref())?;
+            let engine = engine(cli.backend.as_deref())?;
+            bake(&engine, &job)
+        }
+        Cmd::Info { mesh } => info(&mesh),
+        Cmd::Param { job, layer, out } => {
+            let job = Job::load(&job, None)?;
+            let engine = engine(cli.backend.as_deref())?;
+            let mesh = engine.load_mesh(&job.mesh)?;
+            let rows = engine.layer_param(&mesh, &job, layer)?;
+            let mut csv = String::from("x,y,z,distance,u,v\n");
+            for r in &rows {
+                let d = r.distance.map(|d| d.to_string()).unwrap_or_default();
+                csv.push_str(&format!(
+                    "{},{},{},{d},{},{}\n",
+                    r.position[0], r.position[1], r.position[2], r.uv[0], r.uv[1]
+                ));
+            }
+            decalbake::io::image::write_atomic(&out, csv.as_bytes())?;
+            eprintln!("{} vertices written to {}", rows.len(), out.display());
+            Ok(())
+        }
+        Cmd::Bench {
+            mesh,
+            subdivide,
+            sizes,
+            decals,
+            reps,
+            cpu_budget,
+            method,
+            geodesic,
+            fast,
+            batch,
+            linalg,
+            peers,
+            charts,
+        } => {
+            let engine = engine(cli.backend.as_deref())?;
+            if linalg {
+                let opts = bench::linalg::LinalgOptions {
+                    mesh,
+                    subdivide: if subdivide == 0 { 3 } else { subdivide },
+                    batch: batch.unwrap_or(1024),
+                    reps,
+                    peers,
+                    charts,
+                };
+                bench::linalg::run(&engine, &opts, |v| println!("{v}"))?;
+                return Ok(());
+            }
+            let opts = bench::bake::BenchOptions {
+                mesh,
+                subdivide,
+                sizes,
+                decals,
+                reps,
+                cpu_budget,
+                method,
+                accuracy: if fast {
+                    decalbake::maps::expmap::Accuracy::Fast
+                } else {
+                    decalbake::maps::expmap::Accuracy::Smooth
+                },
+                peers: peers.clone(),
+            };
+            if geodesic {
+                if let Some(dir) = &opts.peers {
+                    bench::geodesic::run_sphere_accuracy(&engine, dir, |v| println!("{v}"))?;
+                }
+                bench::geodesic::run_geodesic(&engine, &opts, batch.unwrap_or(256), |v| {
+                    println!("{v}")
+                })?;
+            } else {
+                bench::bake::run(&engine, &opts, |v| println!("{v}"))?;
+            }
+            Ok(())
+        }
+    }
+}
+
+/// A headless engine, its adapter named on stderr.
+fn engine(backend: Option<&str>) -> Result<Engine> {
+    let engine = Engine::new(backend)?;
+    eprintln!("adapter: {}", engine.ctx.adapter);
+    Ok(engine)
+}
+
+fn bake(engine: &Engine, job: &Job) -> Result<()> {
+    let mesh = engine.load_mesh(&job.mesh)?;
+    let mut baked = engine.bake(&mesh, job)?;
+    let files = decalbake::output::write_outputs(engine, &mesh, job, &mut baked)?;
+    let r = &baked.report;
+    for l in &r.layers {
+        eprintln!(
+            "layer {}: {} triangles, {} texels, placed at {:?} (moved {:.4})",
+            l.index, l.triangles_covered, l.texels_covered, l.placement.point, l.distance_moved
+        );
+    }
+    for w in &r.warnings {
+        eprintln!("warning: {w}");
+    }
+    for f in files {
+        println!("{}", f.display());
+    }
+    Ok(())
+}
+
+fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
+    std::fs::create_dir_all(out.join("decals"))
+        .with_context(|| format!("creating {}", out.display()))?;
+    decalbake::io::image::write_atomic(&out.join("spot.glb"), demo::SPOT_GLB)?;
+    for (name, img) in demo::decals() {
+        decalbake::io::image::write_atomic(&out.join("decals").join(name), &img.encode_png(8))?;
+    }
+    let job_path = out.join("job.json");
+    decalbake::io::image::write_atomic(&job_path, demo::job_json().as_bytes())?;
+    let job = Job::load(&job_path, None)?;
+    let engine = engine(backend)?;
+    bake(&engine, &job)?;
+    eprintln!(
+        "demo written to {} (edit job.json and run `decalbake bake {}` to re-bake)",
+        out.display(),
+        job_path.display()
+    );
+    Ok(())
+}
+
+fn info(path: &Path) -> Result<()> {
+    let t = std::time::Instant::now();
+    let mesh = decalbake::mesh::Mesh::load(path)?;
+    let topo = decalbake::mesh::Topology::build(&mesh, decalbake::mesh::DEFAULT_WELD_TOLERANCE);
+    let stats = decalbake::LoadedMesh::stats_of(&mesh, &topo);
+    println!("{}", serde_json::to_string_pretty(&stats)?);
+    eprintln!("({:.1} ms)", t.elapsed().as_secs_f64() * 1000.0);
+    Ok(())
+}

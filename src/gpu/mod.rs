@@ -1,0 +1,240 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The GPU context: adapter selection, device creation, error scopes, device loss and read-back.
+//!
+//! decalbake runs headless. [`GpuContext::new`] prefers Vulkan and falls back to GL (both work on Mesa's
+//! software drivers, lavapipe and llvmpipe); `WGPU_BACKEND` or an explicit backend name override the
+//! choice. [`GpuContext::from_device`] wraps a host renderer's device and queue instead.
+//!
+//! Every GPU stage runs inside [`GpuContext::scoped`], which turns wgpu validation and out-of-memory
+//! errors into [`Error::Gpu`]; a lost device is reported as [`Error::DeviceLost`] at the next wait.
+
+use crate::error::{Error, Result};
+pub mod pipelines;
+pub mod shaders;
+use std::sync::{Arc, Mutex};
+
+/// A device and queue plus what the engine needs to know about them.
+pub struct GpuContext {
+    /// The wgpu device.
+    pub device: wgpu::Device,
+    /// The wgpu queue.
+    pub queue: wgpu::Queue,
+    /// Adapter description (name, backend, driver), for logs and reports.
+    pub adapter: String,
+    /// The backend, when known (`None` for a host device created elsewhere).
+    pub backend: Option<wgpu::Backend>,
+    lost: Arc<Mutex<Option<String>>>,
+}
+
+/// Parses a backend name as accepted by `--backend` (`vulkan`, `gl`, `metal`, `dx12`, or a comma list).
+pub fn parse_backends(name: &str) -> Option<wgpu::Backends> {
+    let b = wgpu::Backends::from_comma_list(name);
+    if b.is_empty() {
+        None
+    } else {
+        Some(b)
+    }
+}
+
+impl GpuContext {
+    /// Creates a headless device. `backend` (e.g. `"vulkan"`, `"gl"`) overrides `WGPU_BACKEND`; with
+    /// neither, Vulkan is tried first and GL second.
+    pub fn new(backend: Option<&str>) -> Result<Self> {
+        let requested = match backend {
+            Some(name) => Some(parse_backends(name).ok_or_else(|| Error::NoAdapter {
+                backends: name.to_string(),
+                detail: "unknown backend name (use vulkan, gl, metal or dx12)".into(),
+            })?),
+            None => wgpu::Backends::from_env(),
+        };
+        let attempts: Vec<wgpu::Backends> = match requested {
+            Some(b) => vec![b],
+            None => vec![wgpu::Backends::VULKAN, wgpu::Backends::GL],
+        };
+        let mut last_err = String::from("no backend tried");
+        for backends in &attempts {
+            let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+                backends: *backends,
+                ..wgpu::InstanceDescriptor::new_without_display_handle()
+            });
+            let adapter =
+                match pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+                    power_preference: wgpu::PowerPreference::HighPerformance,
+                    ..Default::default()
+                })) {
+                    Ok(a) => a,
+                    Err(e) => {
+                        last_err = e.to_string();
+                        continue;
+                    }
+                };
+            let info = adapter.get_info();
+            let downlevel = adapter.get_downlevel_capabilities();
+            if !downlevel
+                .flags
+                .contains(wgpu::DownlevelFlags::COMPUTE_SHADERS)
+            {
+                last_err = format!("adapter {} has no compute shaders", info.name);
+                continue;
+            }
+            let (device, queue) =
+                pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+                    label: Some("decalbake"),
+                    required_features: adapter.features()
+                        & (wgpu::Features::FLOAT32_FILTERABLE | wgpu::Features::FLOAT32_BLENDABLE),
+                    required_limits: adapter.limits(),
+                    experimental_features: wgpu::ExperimentalFeatures::disabled(),
+                    memory_hints: wgpu::MemoryHints::Performance,
+                    trace: wgpu::Trace::Off,
+                }))
+                .map_err(|e| Error::DeviceCreation {
+                    adapter: info.name.clone(),
+                    detail: e.to_string(),
+                })?;
+            return Ok(Self::from_device(device, queue, Some(info)));
+        }
+        Err(Error::NoAdapter {
+            backends: attempts
+                .iter()
+                .map(|b| format!("{b:?}"))
+                .collect::<Vec<_>>()
+                .join(" then "),
+            detail: last_err,
+        })
+    }
+
+    /// Wraps a host's device and queue. `info` names the adapter in reports (pass
+    /// `adapter.get_info()`); without it the report says "host device".
+    pub fn from_device(
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        info: Option<wgpu::AdapterInfo>,
+    ) -> Self {
+        let lost = Arc::new(Mutex::new(None));
+        let lost2 = lost.clone();
+        device.set_device_lost_callback(move |reason, msg| {
+            if let Ok(mut l) = lost2.lock() {
+                *l = Some(format!("{reason:?}: {msg}"));
+            }
+        });
+        device.on_uncaptured_error(Arc::new(|e| {
+            log::error!("uncaptured wgpu error: {e}");
+        }));
+        let backend = info.as_ref().map(|i| i.backend);
+        let adapter = match info {
+            Some(i) => format!(
+                "{} ({:?}, {:?}, {} {})",
+                i.name, i.backend, i.device_type, i.driver, i.driver_info
+            )
+            .trim_end()
+            .to_string(),
+            None => "host device".to_string(),
+        };
+        Self {
+            device,
+            queue,
+            adapter,
+            backend,
+            lost,
+        }
+    }
+
+    /// The largest 2D texture side this device accepts.
+    pub fn max_texture_side(&self) -> u32 {
+        self.device.limits().max_texture_dimension_2d
+    }
+
+    /// Runs `f` inside validation and out-of-memory error scopes; a captured error becomes
+    /// [`Error::Gpu`] naming `stage`.
+    pub fn scoped<T>(&self, stage: &str, f: impl FnOnce() -> T) -> Result<T> {
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let val = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let out = f();
+        let v = pollster::block_on(val.pop());
+        let o = pollster::block_on(oom.pop());
+        if let Some(e) = v.or(o) {
+            return Err(Error::Gpu {
+                stage: stage.to_string(),
+                detail: e.to_string(),
+            });
+        }
+        self.check_lost(stage)?;
+        Ok(out)
+    }
+
+    /// Returns [`Error::DeviceLost`] if the device has been lost.
+    pub fn check_lost(&self, stage: &str) -> Result<()> {
+        if let Some(msg) = self.lost.lock().ok().and_then(|l| l.clone()) {
+            return Err(Error::DeviceLost {
+                stage: stage.to_string(),
+                detail: msg,
+            });
+        }
+        Ok(())
+    }
+
+    /// Blocks until all submitted work is done.
+    pub fn wait(&self, stage: &str) -> Result<()> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::Gpu {
+                stage: stage.to_string(),
+                detail: e.to_string(),
+            })?;
+        self.check_lost(stage)
+    }
+
+    /// Copies `size` bytes of `src` (which needs `COPY_SRC`) to the CPU. One submit and one wait.
+    pub fn read_buffer(&self, src: &wgpu::Buffer, size: u64, stage: &str) -> Result<Vec<u8>> {
+        self.read_buffer_range(src, 0, size, stage)
+    }
+
+    /// Copies `size` bytes of `src` from `offset` (both multiples of 4) to the CPU.
+    pub fn read_buffer_range(
+        &self,
+        src: &wgpu::Buffer,
+        offset: u64,
+        size: u64,
+        stage: &str,
+    ) -> Result<Vec<u8>> {
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("decalbake.readback"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        enc.copy_buffer_to_buffer(src, offset, &staging, 0, size);
+        self.queue.submit([enc.finish()]);
+        self.map_and_read(&staging, stage)
+    }
+
+    /// Maps an already-filled `MAP_READ` buffer and returns its contents.
+    pub fn map_and_read(&self, staging: &wgpu::Buffer, stage: &str) -> Result<Vec<u8>> {
+        let (tx, rx) = std::sync::mpsc::channel();
+        staging.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.wait(stage)?;
+        rx.recv()
+            .map_err(|e| Error::Gpu {
+                stage: stage.to_string(),
+                detail: e.to_string(),
+            })?
+            .map_err(|e| Error::Gpu {
+                stage: stage.to_string(),
+                detail: e.to_string(),
+            })?;
+        let view = staging
+            .slice(..)
+            .get_mapped_range()
+            .map_err(|e| Error::Gpu {
+                stage: stage.to_string(),
+                detail: e.to_string(),
+            })?;
+        let bytes = view.to_vec();
+        drop(view);
+        staging.unmap();
+        Ok(bytes)
+    }
+}

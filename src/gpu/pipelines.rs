@@ -1,0 +1,528 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Every compute and render pipeline of the engine, created once per [`crate::Engine`], with their
+//! bind-group layouts described as data (one [`Bind`] list per kernel, in WGSL binding order).
+
+use crate::gpu::shaders;
+
+/// Preferred format of the supersampled layer colour target (premultiplied, linear). Devices that
+/// cannot render to it (wgpu's GL backend) use `Rgba16Float`; see [`Pipelines::layer_format`].
+pub const LAYER_COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+/// Format of the coverage targets.
+pub const COVERAGE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Unorm;
+/// Preview colour format.
+pub const PREVIEW_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+
+/// One binding's kind.
+#[derive(Clone, Copy, Debug)]
+pub enum Bind {
+    /// The `Params` uniform, with a dynamic offset.
+    Params,
+    /// A plain uniform buffer.
+    Uniform,
+    /// Read-only storage buffer.
+    Ro,
+    /// Read-write storage buffer.
+    Rw,
+    /// Float texture; `true` = filterable.
+    Tex(bool),
+    /// Filtering sampler.
+    Sampler,
+}
+
+fn layout(
+    device: &wgpu::Device,
+    label: &str,
+    binds: &[(u32, Bind)],
+    vis: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayout {
+    let entries: Vec<wgpu::BindGroupLayoutEntry> = binds
+        .iter()
+        .map(|&(binding, kind)| {
+            let buf = |ty, dynamic| wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: dynamic,
+                min_binding_size: None,
+            };
+            let ty = match kind {
+                Bind::Params => buf(wgpu::BufferBindingType::Uniform, true),
+                Bind::Uniform => buf(wgpu::BufferBindingType::Uniform, false),
+                Bind::Ro => buf(wgpu::BufferBindingType::Storage { read_only: true }, false),
+                Bind::Rw => buf(wgpu::BufferBindingType::Storage { read_only: false }, false),
+                Bind::Tex(filterable) => wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable },
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+                Bind::Sampler => wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+            };
+            wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility: vis,
+                ty,
+                count: None,
+            }
+        })
+        .collect();
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(label),
+        entries: &entries,
+    })
+}
+
+/// The pipeline layout (one bind group) and shader module of kernel or pipeline `name` (or of
+/// `text`, a variant of it).
+fn layout_and_module(
+    device: &wgpu::Device,
+    name: &str,
+    layout: &wgpu::BindGroupLayout,
+    text: Option<String>,
+) -> (wgpu::PipelineLayout, wgpu::ShaderModule) {
+    let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(name),
+        bind_group_layouts: &[Some(layout)],
+        immediate_size: 0,
+    });
+    let module = match text {
+        Some(t) => shaders::module_from(device, name, t),
+        None => shaders::module(device, name),
+    };
+    (pl, module)
+}
+
+/// A compute pipeline and its bind-group layout.
+pub struct Kernel {
+    /// The pipeline.
+    pub pipeline: wgpu::ComputePipeline,
+    /// Its group-0 layout.
+    pub layout: wgpu::BindGroupLayout,
+}
+
+impl Kernel {
+    fn new(device: &wgpu::Device, name: &str, binds: &[(u32, Bind)]) -> Self {
+        Self::with_source(device, name, binds, None)
+    }
+
+    fn with_source(
+        device: &wgpu::Device,
+        name: &str,
+        binds: &[(u32, Bind)],
+        text: Option<String>,
+    ) -> Self {
+        let layout = layout(device, name, binds, wgpu::ShaderStages::COMPUTE);
+        let (pl, module) = layout_and_module(device, name, &layout, text);
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(name),
+            layout: Some(&pl),
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        Self { pipeline, layout }
+    }
+
+    /// Builds a bind group from buffers/views/samplers in binding order.
+    pub fn bind(
+        &self,
+        device: &wgpu::Device,
+        label: &str,
+        entries: &[(u32, wgpu::BindingResource<'_>)],
+    ) -> wgpu::BindGroup {
+        make_bind_group(device, &self.layout, label, entries)
+    }
+}
+
+/// Builds a bind group.
+pub fn make_bind_group(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    label: &str,
+    entries: &[(u32, wgpu::BindingResource<'_>)],
+) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> = entries
+        .iter()
+        .map(|(binding, resource)| wgpu::BindGroupEntry {
+            binding: *binding,
+            resource: resource.clone(),
+        })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout,
+        entries: &entries,
+    })
+}
+
+/// A render pipeline and its bind-group layout.
+pub struct Raster {
+    /// The pipeline.
+    pub pipeline: wgpu::RenderPipeline,
+    /// Its group-0 layout.
+    pub layout: wgpu::BindGroupLayout,
+}
+
+/// All pipelines.
+pub struct Pipelines {
+    /// Placement stage 1.
+    pub place_candidates: Kernel,
+    /// Placement stage 2.
+    pub place_reduce: Kernel,
+    /// Planar layer coordinates.
+    pub planar_coords: Kernel,
+    /// Triangle selection.
+    pub select_triangles: Kernel,
+    /// Layer raster.
+    pub layer_raster: Raster,
+    /// Island raster.
+    pub island_raster: Raster,
+    /// Island mask reduction.
+    pub island_mask: Kernel,
+    /// Layer composition.
+    pub compose: Kernel,
+    /// Base fill.
+    pub base_init: Kernel,
+    /// EDT pass 1.
+    pub edt_columns: Kernel,
+    /// EDT pass 2: nearest island texel per texel.
+    pub edt_rows: Kernel,
+    /// sRGB encode.
+    pub encode: Kernel,
+    /// Exponential-map relaxation.
+    pub expmap_relax: Kernel,
+    /// Per-layer distortion partials.
+    pub distortion: Kernel,
+    /// Batched Jacobi-preconditioned conjugate gradient, 256 invocations per system.
+    pub cg_batched: Kernel,
+    /// The same with 64 invocations per system (small systems).
+    pub cg_batched_narrow: Kernel,
+    /// CSR sparse matrix-vector product.
+    pub spmv: Kernel,
+    /// Batched dot products and norms.
+    pub dot_batched: Kernel,
+    /// Streaming copy (bandwidth reference).
+    pub copy: Kernel,
+    /// Chart coordinates into coords slots.
+    pub chart_scatter: Kernel,
+    /// Preview.
+    pub preview: Raster,
+    /// Whether the layer target blends premultiplied source-over within a layer
+    /// (needs `FLOAT32_BLENDABLE`; without it the last triangle drawn at a sample wins).
+    pub layer_blending: bool,
+    /// Format of the layer colour targets.
+    pub layer_format: wgpu::TextureFormat,
+    /// Format of decal/mask/base textures: `Rgba32Float` with `FLOAT32_FILTERABLE`, else `Rgba16Float`.
+    pub image_format: wgpu::TextureFormat,
+}
+
+impl Pipelines {
+    /// Creates every pipeline on `device`.
+    pub fn new(device: &wgpu::Device) -> Self {
+        use Bind::*;
+        let features = device.features();
+        let layer_blending = features.contains(wgpu::Features::FLOAT32_BLENDABLE);
+        let image_format = if features.contains(wgpu::Features::FLOAT32_FILTERABLE) {
+            wgpu::TextureFormat::Rgba32Float
+        } else {
+            wgpu::TextureFormat::Rgba16Float
+        };
+        let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
+
+        let layer_layout = layout(
+            device,
+            "layer_raster",
+            &[
+                (0, Params),
+                (1, Ro),
+                (2, Ro),
+                (3, Ro),
+                (4, Ro),
+                (5, Ro),
+                (6, Tex(true)),
+                (7, Tex(true)),
+                (8, Sampler),
+            ],
+            vf,
+        );
+        let premult_over = wgpu::BlendState {
+            color: wgpu::BlendComponent {
+                src_factor: wgpu::BlendFactor::One,
+                dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
+                operation: wgpu::BlendOperation::Add,
+            },
+            alpha: wgpu::BlendComponent {
+                src_factor: wgpu::BlendFactor::One,
+                dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
+                operation: wgpu::BlendOperation::Add,
+            },
+        };
+        let make_layer = |format: wgpu::TextureFormat, blend: bool| {
+            raster(
+                device,
+                "layer_raster",
+                layer_layout.clone(),
+                &[],
+                &[
+                    Some(wgpu::ColorTargetState {
+                        format,
+                        blend: blend.then_some(premult_over),
+                        write_mask: wgpu::ColorWrites::ALL,
+                    }),
+                    Some(COVERAGE_FORMAT.into()),
+                ],
+                None,
+                1,
+            )
+        };
+        // f32 targets keep 16-bit output exact; where f32 is not renderable (GL), fall back to f16.
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let first = make_layer(LAYER_COLOR_FORMAT, layer_blending);
+        let (layer_raster, layer_format, layer_blending) = match pollster::block_on(scope.pop()) {
+            None => (first, LAYER_COLOR_FORMAT, layer_blending),
+            Some(_) => (
+                make_layer(wgpu::TextureFormat::Rgba16Float, true),
+                wgpu::TextureFormat::Rgba16Float,
+                true,
+            ),
+        };
+        let cg_binds = &[
+            (0, Uniform),
+            (1, Ro),
+            (2, Ro),
+            (3, Ro),
+            (4, Ro),
+            (5, Ro),
+            (6, Ro),
+            (7, Rw),
+            (8, Rw),
+            (9, Rw),
+            (10, Rw),
+            (11, Rw),
+        ];
+        let island_layout = layout(
+            device,
+            "island_raster",
+            &[(0, Params), (1, Ro), (2, Ro), (3, Ro)],
+            vf,
+        );
+        let island_raster = raster(
+            device,
+            "island_raster",
+            island_layout,
+            &[],
+            &[Some(COVERAGE_FORMAT.into())],
+            None,
+            1,
+        );
+
+        let preview_layout = layout(
+            device,
+            "preview",
+            &[(0, Uniform), (1, Tex(true)), (2, Sampler)],
+            vf,
+        );
+        let vb = |loc: u32, fmt: wgpu::VertexFormat| -> Vec<wgpu::VertexAttribute> {
+            vec![wgpu::VertexAttribute {
+                format: fmt,
+                offset: 0,
+                shader_location: loc,
+            }]
+        };
+        let a0 = vb(0, wgpu::VertexFormat::Float32x3);
+        let a1 = vb(1, wgpu::VertexFormat::Float32x3);
+        let a2 = vb(2, wgpu::VertexFormat::Float32x2);
+        let buffers = [
+            Some(wgpu::VertexBufferLayout {
+                array_stride: 12,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &a0,
+            }),
+            Some(wgpu::VertexBufferLayout {
+                array_stride: 12,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &a1,
+            }),
+            Some(wgpu::VertexBufferLayout {
+                array_stride: 8,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &a2,
+            }),
+        ];
+        let preview = raster(
+            device,
+            "preview",
+            preview_layout,
+            &buffers,
+            &[Some(PREVIEW_FORMAT.into())],
+            Some(wgpu::DepthStencilState {
+                format: wgpu::TextureFormat::Depth32Float,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            4,
+        );
+
+        Self {
+            place_candidates: Kernel::new(
+                device,
+                "place_candidates",
+                &[(0, Ro), (1, Ro), (2, Ro), (3, Rw)],
+            ),
+            place_reduce: Kernel::new(
+                device,
+                "place_reduce",
+                &[(0, Ro), (1, Ro), (2, Ro), (3, Ro), (4, Ro), (5, Rw)],
+            ),
+            planar_coords: Kernel::new(device, "planar_coords", &[(0, Params), (1, Ro), (2, Rw)]),
+            select_triangles: Kernel::new(
+                device,
+                "select_triangles",
+                &[
+                    (0, Params),
+                    (1, Ro),
+                    (2, Ro),
+                    (3, Ro),
+                    (4, Ro),
+                    (5, Ro),
+                    (6, Rw),
+                    (7, Rw),
+                ],
+            ),
+            layer_raster,
+            island_raster,
+            island_mask: Kernel::new(
+                device,
+                "island_mask",
+                &[(0, Params), (1, Tex(false)), (2, Rw), (3, Rw)],
+            ),
+            compose: Kernel::new(
+                device,
+                "compose",
+                &[
+                    (0, Params),
+                    (1, Tex(false)),
+                    (2, Tex(false)),
+                    (3, Rw),
+                    (10, Rw),
+                    (11, Rw),
+                ],
+            ),
+            base_init: Kernel::new(
+                device,
+                "base_init",
+                &[
+                    (0, Params),
+                    (1, Tex(true)),
+                    (2, Sampler),
+                    (10, Rw),
+                    (11, Rw),
+                ],
+            ),
+            edt_columns: Kernel::new(device, "edt_columns", &[(0, Params), (1, Ro), (2, Rw)]),
+            edt_rows: Kernel::new(
+                device,
+                "edt_rows",
+                &[(0, Params), (1, Ro), (2, Ro), (3, Rw), (4, Rw), (5, Rw)],
+            ),
+            encode: Kernel::new(
+                device,
+                "encode",
+                &[(0, Params), (1, Rw), (2, Ro), (3, Ro), (10, Rw), (11, Rw)],
+            ),
+            distortion: Kernel::new(
+                device,
+                "distortion",
+                &[
+                    (0, Params),
+                    (1, Ro),
+                    (2, Ro),
+                    (3, Ro),
+                    (4, Ro),
+                    (5, Ro),
+                    (6, Rw),
+                ],
+            ),
+            cg_batched: Kernel::new(device, "cg_batched", cg_binds),
+            cg_batched_narrow: Kernel::with_source(
+                device,
+                "cg_batched",
+                cg_binds,
+                Some(shaders::narrow_source("cg_batched")),
+            ),
+            spmv: Kernel::new(
+                device,
+                "spmv",
+                &[(0, Uniform), (1, Ro), (2, Ro), (3, Ro), (4, Ro), (5, Rw)],
+            ),
+            dot_batched: Kernel::new(device, "dot_batched", &[(0, Ro), (1, Ro), (2, Ro), (3, Rw)]),
+            copy: Kernel::new(device, "copy", &[(0, Uniform), (1, Ro), (2, Rw)]),
+            chart_scatter: Kernel::new(device, "chart_scatter", &[(0, Uniform), (1, Ro), (2, Rw)]),
+            expmap_relax: Kernel::new(
+                device,
+                "expmap_relax",
+                &[
+                    (0, Ro),
+                    (1, Ro),
+                    (2, Ro),
+                    (3, Ro),
+                    (4, Ro),
+                    (5, Ro),
+                    (6, Ro),
+                    (7, Rw),
+                    (8, Rw),
+                    (9, Uniform),
+                    (10, Rw),
+                    (11, Rw),
+                    (12, Rw),
+                    (13, Rw),
+                    (14, Ro),
+                ],
+            ),
+            preview,
+            layer_blending,
+            layer_format,
+            image_format,
+        }
+    }
+}
+
+fn raster(
+    device: &wgpu::Device,
+    name: &str,
+    layout: wgpu::BindGroupLayout,
+    buffers: &[Option<wgpu::VertexBufferLayout<'_>>],
+    targets: &[Option<wgpu::ColorTargetState>],
+    depth: Option<wgpu::DepthStencilState>,
+    samples: u32,
+) -> Raster {
+    let (pl, module) = layout_and_module(device, name, &layout, None);
+    let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(name),
+        layout: Some(&pl),
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some("vs_main"),
+            compilation_options: Default::default(),
+            buffers,
+        },
+        primitive: wgpu::PrimitiveState {
+            cull_mode: None,
+            ..Default::default()
+        },
+        depth_stencil: depth,
+        multisample: wgpu::MultisampleState {
+            count: samples,
+            ..Default::default()
+        },
+        fragment: Some(wgpu::FragmentState {
+            module: &module,
+            entry_point: Some("fs_main"),
+            compilation_options: Default::default(),
+            targets,
+        }),
+        multiview_mask: None,
+        cache: None,
+    });
+    Raster { pipeline, layout }
+}

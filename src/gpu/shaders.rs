@@ -1,0 +1,143 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! WGSL sources, one file per kernel or pipeline under `wgsl/`, with shared code under `wgsl/shared/`.
+//!
+//! A line `#import name` pulls in `wgsl/shared/name.wgsl` (once per shader). [`source`] does that for
+//! the runtime; the naga validation test (`tests/shader_validation.rs`) uses the same function, so
+//! what is validated is exactly what runs.
+
+/// Kernel and pipeline files: (name, text).
+pub const KERNELS: &[(&str, &str)] = &[
+    (
+        "place_candidates",
+        include_str!("../../wgsl/place/place_candidates.wgsl"),
+    ),
+    (
+        "place_reduce",
+        include_str!("../../wgsl/place/place_reduce.wgsl"),
+    ),
+    (
+        "planar_coords",
+        include_str!("../../wgsl/maps/planar_coords.wgsl"),
+    ),
+    (
+        "select_triangles",
+        include_str!("../../wgsl/bake/select_triangles.wgsl"),
+    ),
+    (
+        "layer_raster",
+        include_str!("../../wgsl/bake/layer_raster.wgsl"),
+    ),
+    (
+        "island_raster",
+        include_str!("../../wgsl/bake/island_raster.wgsl"),
+    ),
+    (
+        "island_mask",
+        include_str!("../../wgsl/bake/island_mask.wgsl"),
+    ),
+    ("compose", include_str!("../../wgsl/bake/compose.wgsl")),
+    ("base_init", include_str!("../../wgsl/bake/base_init.wgsl")),
+    (
+        "edt_columns",
+        include_str!("../../wgsl/bake/edt_columns.wgsl"),
+    ),
+    ("edt_rows", include_str!("../../wgsl/bake/edt_rows.wgsl")),
+    ("encode", include_str!("../../wgsl/bake/encode.wgsl")),
+    ("preview", include_str!("../../wgsl/output/preview.wgsl")),
+    (
+        "expmap_relax",
+        include_str!("../../wgsl/maps/expmap_relax.wgsl"),
+    ),
+    (
+        "distortion",
+        include_str!("../../wgsl/maps/distortion.wgsl"),
+    ),
+    (
+        "cg_batched",
+        include_str!("../../wgsl/solve/cg_batched.wgsl"),
+    ),
+    ("spmv", include_str!("../../wgsl/solve/spmv.wgsl")),
+    (
+        "dot_batched",
+        include_str!("../../wgsl/solve/dot_batched.wgsl"),
+    ),
+    ("copy", include_str!("../../wgsl/solve/copy.wgsl")),
+    (
+        "chart_scatter",
+        include_str!("../../wgsl/maps/chart_scatter.wgsl"),
+    ),
+];
+
+/// Shared files that `#import` can name.
+pub const SHARED: &[(&str, &str)] = &[
+    ("params", include_str!("../../wgsl/shared/params.wgsl")),
+    ("geometry", include_str!("../../wgsl/shared/geometry.wgsl")),
+    ("blend", include_str!("../../wgsl/shared/blend.wgsl")),
+    ("acc", include_str!("../../wgsl/shared/acc.wgsl")),
+    ("expmap", include_str!("../../wgsl/shared/expmap.wgsl")),
+    ("linalg", include_str!("../../wgsl/shared/linalg.wgsl")),
+    ("dims", include_str!("../../wgsl/shared/dims.wgsl")),
+];
+
+/// The complete WGSL text of kernel `name`, imports resolved. Panics on an unknown name or import:
+/// both are programming errors caught by the validation test.
+pub fn source(name: &str) -> String {
+    let text = KERNELS
+        .iter()
+        .find(|(n, _)| *n == name)
+        .unwrap_or_else(|| panic!("unknown shader {name}"))
+        .1;
+    resolve(text)
+}
+
+/// Resolves `#import` lines in `text`.
+pub fn resolve(text: &str) -> String {
+    let mut out = String::new();
+    let mut seen: Vec<&str> = Vec::new();
+    for line in text.lines() {
+        if let Some(name) = line.trim().strip_prefix("#import ") {
+            let name = name.trim();
+            if !seen.contains(&name) {
+                seen.push(name);
+                let shared = SHARED
+                    .iter()
+                    .find(|(n, _)| *n == name)
+                    .unwrap_or_else(|| panic!("unknown WGSL import {name}"))
+                    .1;
+                out.push_str(shared);
+                out.push('\n');
+            }
+        } else {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    out
+}
+
+/// Workgroup size of the linear-algebra kernels as written (`WG` in wgsl/shared/linalg.wgsl).
+pub const LINALG_WG: u32 = 256;
+/// Workgroup size of their narrow variant, for systems small enough that 64 invocations per system
+/// stay under the loop budget (fewer idle lanes and cheaper barriers on small charts).
+pub const LINALG_WG_NARROW: u32 = 64;
+
+/// The source of linear-algebra kernel `name` with a workgroup of [`LINALG_WG_NARROW`].
+pub fn narrow_source(name: &str) -> String {
+    let full = source(name);
+    let from = format!("const WG: u32 = {LINALG_WG}u;");
+    assert!(full.contains(&from), "{name} has no `{from}`");
+    full.replace(&from, &format!("const WG: u32 = {LINALG_WG_NARROW}u;"))
+}
+
+/// Creates a shader module for kernel `name`.
+pub fn module(device: &wgpu::Device, name: &str) -> wgpu::ShaderModule {
+    module_from(device, name, source(name))
+}
+
+/// Creates a shader module from WGSL text.
+pub fn module_from(device: &wgpu::Device, label: &str, text: String) -> wgpu::ShaderModule {
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(text.into()),
+    })
+}

@@ -1,0 +1,5 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Inputs: the job file ([`job`], whose types are the schema the rest of the engine reads) and image
+//! decoding and encoding ([`image`], also the atomic file writer every output goes through).
+pub mod image;
+pub mod job;

@@ -1,0 +1,870 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Local conformal charts for decals: `"method": "lscm"` (Maillot, "Continuous Local Parameterization
+//! of Polygons", sections 4, 6 and 9) and `"method": "hybrid"` (Schmidt, Grimm & Wyvill 2006,
+//! section 5.1).
+//!
+//! LSCM chart, per decal:
+//! 1. **Selection** (Maillot §4, §9): breadth-first over triangle adjacency from the placed triangle,
+//!    keeping the connected triangles whose projection along the placed normal meets the stamp's disc
+//!    (the decal rectangle's circumscribed circle); cost proportional to the triangles kept.
+//! 2. **Solve**: the LSCM system ([`crate::maps::chart::lscm`]) with two pins (the chart's extreme vertices along
+//!    the decal's x axis, held where the warm start puts them), by the batched GPU CG, all charts of
+//!    a bake in one batch. Warm start: the planar projection for the first solve, the previous
+//!    solution afterwards.
+//! 3. **Normalisation**: the similarity that puts the placed point on the image centre, turns the
+//!    frame's axes onto the image axes and makes the chart's area equal the surface area it covers
+//!    ([`crate::maps::chart::lscm::normalising_similarity`]). Pins therefore only fix the null space; their
+//!    positions do not matter (LSCM with two pins is unique up to a similarity).
+//! 4. **Refinement** (Maillot §6): the first adjustment drops triangles whose image lies wholly
+//!    outside the decal rectangle (keeping the placed triangle's connected part); every adjustment
+//!    adds the neighbour across each border edge whose image crosses the rectangle's interior (when
+//!    that edge is not a mesh boundary). Re-solve until the set no longer changes, at most
+//!    [`MAX_ROUNDS`] times; a set seen before stops the loop (no cycling). Intermediate solves use the
+//!    coarse tolerance [`COARSE_RTOL`], the final one [`FINAL_RTOL`] (Maillot §9).
+//!
+//! Hybrid decal: the exponential map (already computed on the GPU) is the start; triangles whose
+//! angle distortion s1 / s2 exceeds the layer's threshold mark their vertices free; every other
+//! vertex of the triangles touching a free vertex is held at its exponential-map position, and the
+//! conformal energy of those triangles is minimised over the free vertices. The map keeps the
+//! exponential map's frame and geodesic radius where it was good and becomes conformal where it was
+//! not.
+//!
+//! The CPU here does set logic and assembly (proportional to the chart); the solves run on the GPU
+//! ([`Solver::Gpu`]) or, for the CPU twin of a bake, in f64 on the CPU ([`Solver::Cpu`]).
+
+use crate::error::Result;
+use crate::maps::Frame;
+use crate::mesh::{Topology, NO_NEIGHBOR};
+use crate::solve::sparse::{CgReport, CgStatus, Csr};
+use lscm::System;
+pub mod lscm;
+use glam::{DVec2, DVec3};
+use std::collections::{HashMap, HashSet};
+
+/// Relative residual of the solves while the triangle set is still changing.
+pub const COARSE_RTOL: f32 = 1e-3;
+/// Relative residual (normwise backward error, see [`crate::solve::sparse::residual_scale`]) of the final
+/// solve: about 16 f32 ulps, what a row of about 14 terms can still resolve. Measured on Spot, 1e-5
+/// left the chart's conformal energy 3 % above the optimum, 1e-6 within 3e-4.
+pub const FINAL_RTOL: f32 = 1e-6;
+/// Rings of vertices around the distorted triangles that a hybrid decal frees as well.
+pub const HYBRID_RINGS: u32 = 2;
+/// Most refinement rounds per chart.
+pub const MAX_ROUNDS: u32 = 8;
+
+/// Which chart to build.
+#[derive(Debug, Clone, Copy)]
+pub enum ChartKind<'a> {
+    /// A free-boundary LSCM chart.
+    Lscm,
+    /// Exponential map (per welded vertex `(u, v, _, valid)`) with its distorted part re-solved.
+    Hybrid {
+        /// The exponential map.
+        expmap: &'a [[f32; 4]],
+        /// s1 / s2 above which a triangle is re-solved.
+        threshold: f32,
+    },
+}
+
+/// One decal's chart request.
+#[derive(Debug, Clone, Copy)]
+pub struct ChartRequest<'a> {
+    /// The decal frame at the placed point.
+    pub frame: Frame,
+    /// Placed triangle (welded).
+    pub triangle: u32,
+    /// Kind.
+    pub kind: ChartKind<'a>,
+    /// Final-solve CG budget (`None` = 50 sqrt(unknowns) + 500).
+    pub max_iter: Option<u32>,
+    /// LSCM: an exponential map at the same placement (per welded vertex `(u, v, _, valid)`), the
+    /// warm start where it reaches; elsewhere the planar projection is used.
+    pub warm: Option<&'a [[f32; 4]]>,
+}
+
+impl<'a> ChartRequest<'a> {
+    /// The request of an `lscm` or `hybrid` layer placed at `frame` / `triangle`, starting from the
+    /// layer's exponential map `expmap` (hybrid: re-solved in part; LSCM: the warm start).
+    pub fn for_layer(
+        frame: Frame,
+        triangle: u32,
+        layer: &crate::io::job::Layer,
+        expmap: &'a [[f32; 4]],
+    ) -> Self {
+        let hybrid = layer.method == crate::io::job::Method::Hybrid;
+        Self {
+            frame,
+            triangle,
+            kind: if hybrid {
+                ChartKind::Hybrid {
+                    expmap,
+                    threshold: layer.hybrid_threshold,
+                }
+            } else {
+                ChartKind::Lscm
+            },
+            max_iter: layer.cg_max_iterations,
+            warm: (!hybrid).then_some(expmap),
+        }
+    }
+}
+
+/// What a chart reports (bake report, per layer).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ChartReport {
+    /// Triangles in the final chart (hybrid: in the re-solved region).
+    pub triangles: u32,
+    /// Vertices in the final chart (hybrid: vertices moved).
+    pub vertices: u32,
+    /// Hybrid: vertices held at their exponential-map position (LSCM: the 2 pins).
+    pub fixed_vertices: u32,
+    /// Solves run (refinement rounds plus the final solve).
+    pub rounds: u32,
+    /// CG iterations of the final solve.
+    pub cg_iterations: u32,
+    /// CG iterations over all solves.
+    pub cg_iterations_total: u32,
+    /// Final relative residual.
+    pub residual: f64,
+    /// Final status.
+    pub status: CgStatus,
+    /// Whether the triangle set stopped changing within [`MAX_ROUNDS`] (always true for hybrid).
+    pub settled: bool,
+}
+
+/// A chart: coordinates per welded vertex, model units in the decal frame (image centre at 0).
+#[derive(Debug, Clone)]
+pub struct Chart {
+    /// (welded vertex, (x, y)) for every vertex the chart sets.
+    pub coords: Vec<(u32, [f32; 2])>,
+    /// Chart triangles (LSCM: the final set; hybrid: the re-solved region).
+    pub triangles: Vec<u32>,
+    /// Report.
+    pub report: ChartReport,
+}
+
+/// Where the solves run.
+pub enum Solver<'a> {
+    /// Batched GPU CG (f32).
+    Gpu(
+        &'a crate::gpu::GpuContext,
+        &'a crate::gpu::pipelines::Pipelines,
+    ),
+    /// f64 CG on the CPU (the twin).
+    Cpu,
+}
+
+/// Totals of the GPU work issued.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct SolveStats {
+    /// Batched solves.
+    pub batches: u32,
+    /// Compute dispatches.
+    pub dispatches: u32,
+    /// Submissions (each with one status read-back).
+    pub submits: u32,
+}
+
+impl Solver<'_> {
+    /// Solves `systems` (with warm starts) to `rtol`, each within its budget.
+    fn solve(
+        &self,
+        systems: &[(&System, Vec<f64>, u32)],
+        rtol: f32,
+        stats: &mut SolveStats,
+    ) -> Result<Vec<(Vec<f64>, CgReport)>> {
+        if systems.is_empty() {
+            return Ok(Vec::new());
+        }
+        match self {
+            Solver::Cpu => Ok(systems
+                .iter()
+                .map(|(s, x0, budget)| {
+                    let mut x = x0.clone();
+                    let rep =
+                        crate::solve::sparse::pcg(&s.matrix, &s.rhs, &mut x, rtol as f64, *budget);
+                    (x, rep)
+                })
+                .collect()),
+            Solver::Gpu(ctx, pipes) => {
+                let blocks: Vec<&Csr> = systems.iter().map(|(s, _, _)| &s.matrix).collect();
+                let (a, starts) = Csr::block_diagonal(&blocks);
+                let b: Vec<f64> = systems.iter().flat_map(|(s, _, _)| s.rhs.clone()).collect();
+                let x0: Vec<f64> = systems.iter().flat_map(|(_, x, _)| x.clone()).collect();
+                let descs: Vec<crate::solve::gpu::SystemDesc> = systems
+                    .iter()
+                    .zip(&starts)
+                    .map(|((s, _, budget), &r0)| {
+                        crate::solve::gpu::SystemDesc::new(r0, s.matrix.rows, rtol, *budget)
+                    })
+                    .collect();
+                let out = crate::solve::gpu::cg_batched(ctx, pipes, &a, &b, &x0, &descs)?;
+                stats.batches += 1;
+                stats.dispatches += out.dispatches;
+                stats.submits += out.submits;
+                Ok(systems
+                    .iter()
+                    .zip(&starts)
+                    .zip(out.reports)
+                    .map(|(((s, _, _), &r0), rep)| {
+                        let x = out.x[r0..r0 + s.matrix.rows]
+                            .iter()
+                            .map(|&v| v as f64)
+                            .collect();
+                        (x, rep)
+                    })
+                    .collect())
+            }
+        }
+    }
+}
+
+/// Automatic final-solve budget for `unknowns`.
+pub fn default_budget(unknowns: usize) -> u32 {
+    (50.0 * (unknowns as f64).sqrt() + 500.0) as u32
+}
+
+/// Positions in the frame's plane, relative to the centre (model units).
+fn project(frame: &Frame, p: glam::Vec3) -> DVec2 {
+    let d = (p - frame.center).as_dvec3();
+    DVec2::new(
+        d.dot(frame.axis_u.as_dvec3()),
+        d.dot(frame.axis_v.as_dvec3()),
+    )
+}
+
+fn half_extent(frame: &Frame) -> DVec2 {
+    DVec2::new(0.5 * frame.size[0] as f64, 0.5 * frame.size[1] as f64)
+}
+
+/// Distance from `c` to segment `a`-`b`.
+fn segment_distance(a: DVec2, b: DVec2, c: DVec2) -> f64 {
+    let ab = b - a;
+    let t = if ab.length_squared() > 0.0 {
+        ((c - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (a + t * ab - c).length()
+}
+
+fn point_in_triangle(q: [DVec2; 3], c: DVec2) -> bool {
+    let s = |a: DVec2, b: DVec2| (b - a).perp_dot(c - a);
+    let (d0, d1, d2) = (s(q[0], q[1]), s(q[1], q[2]), s(q[2], q[0]));
+    (d0 >= 0.0 && d1 >= 0.0 && d2 >= 0.0) || (d0 <= 0.0 && d1 <= 0.0 && d2 <= 0.0)
+}
+
+/// Maillot §4 selection: the connected triangles, from `start`, whose projection along the frame
+/// normal meets the disc of radius `radius` around the centre.
+pub fn select(topo: &Topology, frame: &Frame, start: u32, radius: f64) -> Vec<u32> {
+    let hits = |t: u32| -> bool {
+        if topo.degenerate[t as usize] {
+            return false;
+        }
+        if !within_reach(topo, frame, t) {
+            return false;
+        }
+        let q = topo.triangles[t as usize].map(|v| project(frame, topo.positions[v as usize]));
+        point_in_triangle(q, DVec2::ZERO)
+            || (0..3).any(|k| segment_distance(q[k], q[(k + 1) % 3], DVec2::ZERO) <= radius)
+    };
+    let mut seen = HashSet::from([start]);
+    let mut out = vec![start];
+    let mut queue = std::collections::VecDeque::from([start]);
+    while let Some(t) = queue.pop_front() {
+        for nb in topo.triangle_neighbors[t as usize] {
+            if nb != NO_NEIGHBOR && seen.insert(nb) && hits(nb) {
+                out.push(nb);
+                queue.push_back(nb);
+            }
+        }
+    }
+    out
+}
+
+/// Charts never reach farther than this multiple of the decal's half-diagonal from the placed point
+/// (3D distance). Without it a decal larger than a rounded feature (a head, a knob) keeps adding
+/// triangles all around it, and the conformal chart of a nearly closed surface crushes its far side.
+pub const REACH: f64 = 1.5;
+
+fn within_reach(topo: &Topology, frame: &Frame, t: u32) -> bool {
+    let r = REACH * half_extent(frame).length();
+    topo.triangles[t as usize].iter().any(|&v| {
+        (topo.positions[v as usize] - frame.center)
+            .as_dvec3()
+            .length()
+            <= r
+    })
+}
+
+/// Does segment `a`-`b` meet the open rectangle |x| < h.x, |y| < h.y? (Liang-Barsky clipping.)
+fn segment_meets_rect(a: DVec2, b: DVec2, h: DVec2) -> bool {
+    let d = b - a;
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for (p, q) in [
+        (-d.x, a.x + h.x),
+        (d.x, h.x - a.x),
+        (-d.y, a.y + h.y),
+        (d.y, h.y - a.y),
+    ] {
+        if p == 0.0 {
+            if q <= 0.0 {
+                return false;
+            }
+        } else {
+            let r = q / p;
+            if p < 0.0 {
+                t0 = t0.max(r);
+            } else {
+                t1 = t1.min(r);
+            }
+        }
+    }
+    t0 < t1
+}
+
+fn box_meets_rect(q: [DVec2; 3], h: DVec2) -> bool {
+    let lo = q[0].min(q[1]).min(q[2]);
+    let hi = q[0].max(q[1]).max(q[2]);
+    !(hi.x < -h.x || lo.x > h.x || hi.y < -h.y || lo.y > h.y)
+}
+
+/// Position of `c` unfolded across the edge `a`-`b` whose images are `za`, `zb` (a similarity of
+/// the triangle `t`'s own plane, orientation kept).
+fn unfold(topo: &Topology, t: u32, a: u32, b: u32, c: u32, za: DVec2, zb: DVec2) -> DVec2 {
+    let tri = topo.triangles[t as usize];
+    let p = |v: u32| topo.positions[v as usize].as_dvec3();
+    let n = (p(tri[1]) - p(tri[0])).cross(p(tri[2]) - p(tri[0]));
+    let n = if n.length() > 0.0 {
+        n.normalize()
+    } else {
+        DVec3::Z
+    };
+    let (ab, ac) = (p(b) - p(a), p(c) - p(a));
+    let l2 = ab.length_squared().max(f64::MIN_POSITIVE);
+    let w = DVec2::new(ac.dot(ab) / l2, ab.cross(ac).dot(n) / l2);
+    za + lscm::cmul(zb - za, w)
+}
+
+/// Per-chart state during refinement.
+struct Work {
+    triangles: Vec<u32>,
+    /// Current coordinates (model units, frame-aligned) per welded vertex.
+    warm: HashMap<u32, DVec2>,
+    seen: HashSet<Vec<u32>>,
+    rounds: u32,
+    iterations: u32,
+    done: bool,
+}
+
+/// A solved system's unknowns (scaled back by `scale`) as a per-vertex chart coordinate.
+fn solved_coord<'a>(
+    sys: &'a lscm::System,
+    x: &'a [f64],
+    scale: f64,
+) -> impl Fn(u32) -> [f64; 2] + 'a {
+    move |v| {
+        let i = sys.local[&v] as usize;
+        [x[2 * i] * scale, x[2 * i + 1] * scale]
+    }
+}
+
+/// [`lscm::normalising_similarity`] for the request's frame.
+fn frame_similarity(
+    topo: &Topology,
+    triangles: &[u32],
+    coord: &dyn Fn(u32) -> [f64; 2],
+    req: &ChartRequest,
+) -> Option<(DVec2, DVec2)> {
+    lscm::normalising_similarity(
+        topo,
+        triangles,
+        coord,
+        req.triangle,
+        req.frame.center.as_dvec3(),
+        req.frame.axis_u.as_dvec3(),
+        req.frame.axis_v.as_dvec3(),
+    )
+}
+
+/// Builds the charts of `requests` (LSCM and hybrid), solving all charts of a round in one batch.
+pub fn build(
+    topo: &Topology,
+    requests: &[ChartRequest],
+    solver: &Solver,
+    stats: &mut SolveStats,
+) -> Result<Vec<Chart>> {
+    let mut out: Vec<Option<Chart>> = vec![None; requests.len()];
+    // LSCM charts: selection, then rounds of solve + refine.
+    let lscm_ids: Vec<usize> = (0..requests.len())
+        .filter(|&i| matches!(requests[i].kind, ChartKind::Lscm))
+        .collect();
+    let mut work: Vec<Work> = lscm_ids
+        .iter()
+        .map(|&i| {
+            let r = &requests[i];
+            let radius = half_extent(&r.frame).length();
+            let triangles = select(topo, &r.frame, r.triangle, radius);
+            let mut warm = HashMap::new();
+            for &t in &triangles {
+                for v in topo.triangles[t as usize] {
+                    warm.entry(v).or_insert_with(|| match r.warm {
+                        Some(m) if m[v as usize][3] > 0.5 => {
+                            DVec2::new(m[v as usize][0] as f64, m[v as usize][1] as f64)
+                        }
+                        _ => project(&r.frame, topo.positions[v as usize]),
+                    });
+                }
+            }
+            Work {
+                triangles,
+                warm,
+                seen: HashSet::new(),
+                rounds: 0,
+                iterations: 0,
+                done: false,
+            }
+        })
+        .collect();
+    let mut finals: Vec<Option<(Vec<f64>, CgReport, System)>> = vec![None; lscm_ids.len()];
+    for round in 0..=MAX_ROUNDS {
+        let last = round == MAX_ROUNDS || work.iter().all(|w| w.done);
+        let active: Vec<usize> = (0..work.len()).filter(|&k| last || !work[k].done).collect();
+        if active.is_empty() {
+            break;
+        }
+        let systems: Vec<(System, Vec<f64>)> = active
+            .iter()
+            .map(|&k| pinned_system(topo, &requests[lscm_ids[k]], &work[k]))
+            .collect();
+        let (rtol, budgets): (f32, Vec<u32>) = if last {
+            (
+                FINAL_RTOL,
+                active
+                    .iter()
+                    .zip(&systems)
+                    .map(|(&k, (s, _))| {
+                        requests[lscm_ids[k]]
+                            .max_iter
+                            .unwrap_or_else(|| default_budget(s.matrix.rows))
+                    })
+                    .collect(),
+            )
+        } else {
+            (
+                COARSE_RTOL,
+                systems
+                    .iter()
+                    .map(|(s, _)| default_budget(s.matrix.rows))
+                    .collect(),
+            )
+        };
+        let input: Vec<(&System, Vec<f64>, u32)> = systems
+            .iter()
+            .zip(&budgets)
+            .map(|((s, x0), &b)| (s, x0.clone(), b))
+            .collect();
+        let solved = solver.solve(&input, rtol, stats)?;
+        for ((&k, (sys, _)), (x, rep)) in active.iter().zip(systems).zip(solved) {
+            let req = &requests[lscm_ids[k]];
+            let w = &mut work[k];
+            w.rounds += 1;
+            w.iterations += rep.iterations;
+            let scale = half_extent(&req.frame).length();
+            if rep.status != CgStatus::Breakdown {
+                let coord = solved_coord(&sys, &x, scale);
+                if let Some((alpha, beta)) = frame_similarity(topo, &w.triangles, &coord, req) {
+                    for &v in &sys.vertices {
+                        let z = DVec2::from(coord(v));
+                        w.warm.insert(v, lscm::cmul(alpha, z) + beta);
+                    }
+                }
+            }
+            if last {
+                finals[k] = Some((x, rep, sys));
+                continue;
+            }
+            if rep.status == CgStatus::Breakdown {
+                w.done = true;
+                continue;
+            }
+            w.seen.insert(sorted(&w.triangles));
+            let changed = refine(topo, req, w, round == 0);
+            if !changed || w.seen.contains(&sorted(&w.triangles)) {
+                w.done = true;
+            }
+        }
+        if last {
+            break;
+        }
+    }
+    for (k, f) in finals.into_iter().enumerate() {
+        let (_, rep, sys) = f.expect("every chart gets a final solve");
+        let w = &work[k];
+        let coords = sys
+            .vertices
+            .iter()
+            .map(|&v| {
+                let z = w.warm[&v];
+                (v, [z.x as f32, z.y as f32])
+            })
+            .collect();
+        out[lscm_ids[k]] = Some(Chart {
+            coords,
+            triangles: w.triangles.clone(),
+            report: ChartReport {
+                triangles: w.triangles.len() as u32,
+                vertices: sys.vertices.len() as u32,
+                fixed_vertices: sys.fixed.len() as u32,
+                rounds: w.rounds,
+                cg_iterations: rep.iterations,
+                cg_iterations_total: w.iterations,
+                residual: rep.residual,
+                status: rep.status,
+                settled: w.done,
+            },
+        });
+    }
+    // Hybrid charts: one constrained solve each, all in one batch.
+    let hybrid: Vec<(usize, System, Vec<f64>, u32, bool)> = (0..requests.len())
+        .filter_map(|i| match requests[i].kind {
+            ChartKind::Hybrid { expmap, threshold } => {
+                let (sys, x0, whole) = hybrid_system(topo, &requests[i], expmap, threshold);
+                let budget = requests[i]
+                    .max_iter
+                    .unwrap_or_else(|| default_budget(sys.matrix.rows));
+                Some((i, sys, x0, budget, whole))
+            }
+            ChartKind::Lscm => None,
+        })
+        .collect();
+    let input: Vec<(&System, Vec<f64>, u32)> = hybrid
+        .iter()
+        .filter(|(_, s, _, _, _)| s.matrix.rows > 0)
+        .map(|(_, s, x0, b, _)| (s, x0.clone(), *b))
+        .collect();
+    let mut solved = solver.solve(&input, FINAL_RTOL, stats)?.into_iter();
+    for (i, sys, _, _, whole) in hybrid {
+        let req = &requests[i];
+        let scale = half_extent(&req.frame).length();
+        let (coords, report) = if sys.matrix.rows == 0 {
+            (
+                Vec::new(),
+                ChartReport {
+                    triangles: 0,
+                    vertices: 0,
+                    fixed_vertices: 0,
+                    rounds: 0,
+                    cg_iterations: 0,
+                    cg_iterations_total: 0,
+                    residual: 0.0,
+                    status: CgStatus::Converged,
+                    settled: true,
+                },
+            )
+        } else {
+            let (x, rep) = solved.next().expect("one solution per hybrid system");
+            let coord = solved_coord(&sys, &x, scale);
+            // Whole disc re-solved: normalise like an LSCM chart, every vertex moves.
+            let similarity = if whole {
+                frame_similarity(topo, &sys.triangles, &coord, req)
+            } else {
+                None
+            };
+            let fixed: HashSet<u32> = sys.fixed.iter().map(|f| f.0).collect();
+            let coords = (0..sys.vertices.len())
+                .filter(|i| whole || !fixed.contains(&(*i as u32)))
+                .map(|i| {
+                    let v = sys.vertices[i];
+                    let mut z = DVec2::from(coord(v));
+                    if let Some((alpha, beta)) = similarity {
+                        z = lscm::cmul(alpha, z) + beta;
+                    }
+                    (v, [z.x as f32, z.y as f32])
+                })
+                .collect::<Vec<_>>();
+            let report = ChartReport {
+                triangles: sys.triangles.len() as u32,
+                vertices: coords.len() as u32,
+                fixed_vertices: sys.fixed.len() as u32,
+                rounds: 1,
+                cg_iterations: rep.iterations,
+                cg_iterations_total: rep.iterations,
+                residual: rep.residual,
+                status: rep.status,
+                settled: true,
+            };
+            (coords, report)
+        };
+        out[i] = Some(Chart {
+            coords,
+            triangles: sys.triangles.clone(),
+            report,
+        });
+    }
+    Ok(out
+        .into_iter()
+        .map(|c| c.expect("every request answered"))
+        .collect())
+}
+
+/// The first LSCM system of a chart (Maillot §4 selection, two pins, planar warm start, unknowns in
+/// units of the decal's half-diagonal), for benchmarks and peer comparisons: returns the selected
+/// triangles, the system and the warm start.
+pub fn initial_system(
+    topo: &Topology,
+    frame: &Frame,
+    triangle: u32,
+) -> (Vec<u32>, System, Vec<f64>) {
+    let radius = half_extent(frame).length();
+    let triangles = select(topo, frame, triangle, radius);
+    let mut warm = HashMap::new();
+    for &t in &triangles {
+        for v in topo.triangles[t as usize] {
+            warm.entry(v)
+                .or_insert_with(|| project(frame, topo.positions[v as usize]));
+        }
+    }
+    let w = Work {
+        triangles: triangles.clone(),
+        warm,
+        seen: HashSet::new(),
+        rounds: 0,
+        iterations: 0,
+        done: false,
+    };
+    let req = ChartRequest {
+        frame: *frame,
+        triangle,
+        kind: ChartKind::Lscm,
+        max_iter: None,
+        warm: None,
+    };
+    let (sys, x0) = pinned_system(topo, &req, &w);
+    (triangles, sys, x0)
+}
+
+fn sorted(v: &[u32]) -> Vec<u32> {
+    let mut s = v.to_vec();
+    s.sort_unstable();
+    s
+}
+
+/// The LSCM system of a chart with two pins at its extreme vertices along x, unknowns in units of
+/// the decal's half-diagonal, and the warm start.
+fn pinned_system(topo: &Topology, req: &ChartRequest, w: &Work) -> (System, Vec<f64>) {
+    let scale = half_extent(&req.frame).length();
+    let warm = |v: u32| -> [f64; 2] {
+        let z = w.warm[&v] / scale;
+        [z.x, z.y]
+    };
+    pinned_lscm(topo, &w.triangles, &|v| w.warm[&v].x, &warm)
+}
+
+/// The LSCM system of `triangles` with two pins, the vertices of least and greatest `x`, held at
+/// `warm`, and the warm start.
+fn pinned_lscm(
+    topo: &Topology,
+    triangles: &[u32],
+    x: &dyn Fn(u32) -> f64,
+    warm: &dyn Fn(u32) -> [f64; 2],
+) -> (System, Vec<f64>) {
+    let mut verts: Vec<u32> = triangles
+        .iter()
+        .flat_map(|&t| topo.triangles[t as usize])
+        .collect();
+    verts.sort_unstable();
+    verts.dedup();
+    let lo = *verts
+        .iter()
+        .min_by(|a, b| x(**a).total_cmp(&x(**b)))
+        .expect("a chart has vertices");
+    let hi = *verts
+        .iter()
+        .max_by(|a, b| x(**a).total_cmp(&x(**b)))
+        .expect("a chart has vertices");
+    let fixed = if lo == hi {
+        vec![(lo, warm(lo))]
+    } else {
+        vec![(lo, warm(lo)), (hi, warm(hi))]
+    };
+    let sys = lscm::assemble(topo, triangles, &fixed, warm);
+    let x0 = sys.vertices.iter().flat_map(|&v| warm(v)).collect();
+    (sys, x0)
+}
+
+/// Maillot §6 adjustment of one chart from its normalised coordinates; returns whether the triangle
+/// set changed.
+fn refine(topo: &Topology, req: &ChartRequest, w: &mut Work, remove: bool) -> bool {
+    let h = half_extent(&req.frame);
+    let before = w.triangles.len();
+    let img = |w: &Work, t: u32| topo.triangles[t as usize].map(|v| w.warm[&v]);
+    let mut changed = false;
+    if remove {
+        let keep: HashSet<u32> = w
+            .triangles
+            .iter()
+            .copied()
+            .filter(|&t| t == req.triangle || box_meets_rect(img(w, t), h))
+            .collect();
+        // The placed triangle's connected part of what is kept.
+        let mut comp = vec![req.triangle];
+        let mut seen = HashSet::from([req.triangle]);
+        let mut i = 0;
+        while i < comp.len() {
+            for nb in topo.triangle_neighbors[comp[i] as usize] {
+                if nb != NO_NEIGHBOR && keep.contains(&nb) && seen.insert(nb) {
+                    comp.push(nb);
+                }
+            }
+            i += 1;
+        }
+        changed |= comp.len() != before;
+        w.triangles = comp;
+    }
+    let set: HashSet<u32> = w.triangles.iter().copied().collect();
+    let mut add = Vec::new();
+    let mut added = HashSet::new();
+    for &t in &w.triangles {
+        let tri = topo.triangles[t as usize];
+        for k in 0..3 {
+            let nb = topo.triangle_neighbors[t as usize][k];
+            if nb == NO_NEIGHBOR
+                || set.contains(&nb)
+                || topo.degenerate[nb as usize]
+                || !within_reach(topo, &req.frame, nb)
+            {
+                continue;
+            }
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            if segment_meets_rect(w.warm[&a], w.warm[&b], h) && added.insert(nb) {
+                add.push((nb, a, b));
+            }
+        }
+    }
+    for (nb, a, b) in add {
+        let c = topo.triangles[nb as usize]
+            .into_iter()
+            .find(|&v| v != a && v != b)
+            .expect("a triangle has a third vertex");
+        if !w.warm.contains_key(&c) {
+            let z = unfold(topo, nb, a, b, c, w.warm[&a], w.warm[&b]);
+            w.warm.insert(c, z);
+        }
+        w.triangles.push(nb);
+        changed = true;
+    }
+    changed
+}
+
+/// Angle distortion s1 / s2 of a triangle's map `z` (per vertex) from its own plane.
+pub fn angle_distortion(topo: &Topology, tri: [u32; 3], z: [DVec2; 3]) -> f64 {
+    let Some((e, _)) = lscm::triangle_edges(topo, tri) else {
+        return 1.0;
+    };
+    // Writing the affine map as z = α w + β conj(w) + c on the triangle's plane, Σ conj(e_k) z_k =
+    // 4A|α| in modulus and Σ e_k z_k is 4A|β| in modulus; the singular values are
+    // |α| + |β| and ||α| - |β||.
+    let (mut h, mut a) = (DVec2::ZERO, DVec2::ZERO);
+    for k in 0..3 {
+        h += lscm::cmul(DVec2::new(e[k].x, -e[k].y), z[k]);
+        a += lscm::cmul(e[k], z[k]);
+    }
+    let (p, q) = (h.length(), a.length());
+    if (p - q).abs() == 0.0 {
+        f64::INFINITY
+    } else {
+        (p + q) / (p - q).abs()
+    }
+}
+
+/// The hybrid system of one request: free vertices are those of triangles whose angle distortion
+/// exceeds the threshold; the energy covers every map triangle touching a free vertex; their other
+/// vertices are held at the exponential map. Unknowns in units of the decal's half-diagonal. The flag
+/// says the whole disc was freed (then the result needs normalising).
+fn hybrid_system(
+    topo: &Topology,
+    req: &ChartRequest,
+    expmap: &[[f32; 4]],
+    threshold: f32,
+) -> (System, Vec<f64>, bool) {
+    let scale = half_extent(&req.frame).length();
+    let h = half_extent(&req.frame);
+    let valid = |v: u32| expmap[v as usize][3] > 0.5;
+    let z = |v: u32| DVec2::new(expmap[v as usize][0] as f64, expmap[v as usize][1] as f64);
+    let mut free: HashSet<u32> = HashSet::new();
+    // The map's triangles, found from its vertices (cost proportional to the map, not the mesh).
+    let mut map_tris: Vec<u32> = (0..expmap.len() as u32)
+        .filter(|&v| valid(v))
+        .flat_map(|v| {
+            let (a, b) = (
+                topo.vertex_triangle_offsets[v as usize] as usize,
+                topo.vertex_triangle_offsets[v as usize + 1] as usize,
+            );
+            topo.vertex_triangles[a..b].iter().copied()
+        })
+        .filter(|&t| {
+            !topo.degenerate[t as usize] && topo.triangles[t as usize].iter().all(|&v| valid(v))
+        })
+        .collect();
+    map_tris.sort_unstable();
+    map_tris.dedup();
+    for &t in &map_tris {
+        let tri = &topo.triangles[t as usize];
+        let img = tri.map(z);
+        // Only triangles under the decal matter.
+        if box_meets_rect(img, h) && angle_distortion(topo, *tri, img) > threshold as f64 {
+            free.extend(tri.iter().copied());
+        }
+    }
+    // Grow the free region by HYBRID_RINGS rings inside the map, so the held vertices sit away from
+    // the distortion they would otherwise pin in place.
+    for _ in 0..HYBRID_RINGS {
+        let ring: Vec<u32> = free
+            .iter()
+            .flat_map(|&v| {
+                let (a, b) = (
+                    topo.adjacency_offsets[v as usize] as usize,
+                    topo.adjacency_offsets[v as usize + 1] as usize,
+                );
+                topo.adjacency[a..b].iter().copied()
+            })
+            .filter(|&q| valid(q))
+            .collect();
+        free.extend(ring);
+    }
+    let energy: Vec<u32> = map_tris
+        .iter()
+        .copied()
+        .filter(|&t| topo.triangles[t as usize].iter().any(|v| free.contains(v)))
+        .collect();
+    let warm = |v: u32| -> [f64; 2] {
+        let q = z(v) / scale;
+        [q.x, q.y]
+    };
+    let mut fixed: Vec<(u32, [f64; 2])> = Vec::new();
+    let mut fixed_seen = HashSet::new();
+    for &t in &energy {
+        for v in topo.triangles[t as usize] {
+            if !free.contains(&v) && fixed_seen.insert(v) {
+                fixed.push((v, warm(v)));
+            }
+        }
+    }
+    // When the distorted part dominates the decal there is nothing good to keep, and the few held
+    // vertices (themselves in distorted surroundings) would dictate the result: solve the whole
+    // geodesic disc conformally instead, with two pins, and normalise it like an LSCM chart.
+    let under: HashSet<u32> = map_tris
+        .iter()
+        .filter(|&&t| box_meets_rect(topo.triangles[t as usize].map(z), h))
+        .flat_map(|&t| topo.triangles[t as usize])
+        .collect();
+    let free_under = under.iter().filter(|v| free.contains(v)).count();
+    if !energy.is_empty() && (fixed.len() < 2 || 2 * free_under > under.len()) {
+        let (sys, x0) = pinned_lscm(topo, &map_tris, &|v| z(v).x, &warm);
+        return (sys, x0, true);
+    }
+    let sys = lscm::assemble(topo, &energy, &fixed, &warm);
+    let x0 = sys.vertices.iter().flat_map(|&v| warm(v)).collect();
+    (sys, x0, false)
+}

@@ -1,0 +1,95 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Distortion of a layer's map over the triangles it covers: kernel `wgsl/maps/distortion.wgsl`
+//! (dispatched by the compose stage, which has the triangle lists), CPU twin [`distortion`].
+
+use crate::mesh::Topology;
+use glam::Vec2;
+
+/// Workgroups per layer in `distortion.wgsl`. Keep in sync with the WGSL constant.
+pub const DIST_GROUPS: u32 = 16;
+
+/// Distortion of a layer's map over the triangles it covers (whole triangles, area-weighted), from
+/// the singular values s1 >= s2 of each triangle's Jacobian into the layer's (u, v).
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct Distortion {
+    /// Area-weighted mean of s1 s2 (1 = area kept).
+    pub area_ratio_mean: f32,
+    /// Smallest s1 s2 (negative for flipped triangles).
+    pub area_ratio_min: f32,
+    /// Largest s1 s2.
+    pub area_ratio_max: f32,
+    /// Area-weighted mean of s1 / s2 (1 = angles kept).
+    pub angle_distortion_mean: f32,
+    /// Largest s1 / s2.
+    pub angle_distortion_max: f32,
+    /// Triangles whose image is flipped.
+    pub flipped: u32,
+}
+
+impl Distortion {
+    /// Adds up the GPU partials of one layer (`2 × DIST_GROUPS` vec4s).
+    pub fn from_partials(p: &[[f32; 4]]) -> Self {
+        let (mut a, mut ratio_max, mut ratio_min, mut angle_max) =
+            ([0.0f64; 4], f32::MIN, f32::MAX, 0.0f32);
+        for pair in p.chunks_exact(2) {
+            for k in 0..4 {
+                a[k] += pair[0][k] as f64;
+            }
+            angle_max = angle_max.max(pair[1][0]);
+            ratio_max = ratio_max.max(pair[1][1]);
+            ratio_min = ratio_min.min(pair[1][2]);
+        }
+        let w = a[0].max(f64::MIN_POSITIVE);
+        Self {
+            area_ratio_mean: (a[1] / w) as f32,
+            area_ratio_min: ratio_min,
+            area_ratio_max: ratio_max,
+            angle_distortion_mean: (a[2] / w) as f32,
+            angle_distortion_max: angle_max,
+            flipped: a[3].round() as u32,
+        }
+    }
+}
+
+/// CPU twin of `distortion.wgsl` for one layer.
+pub fn distortion(topo: &Topology, coords: &[[f32; 4]], triangles: &[u32]) -> Distortion {
+    let mut partial = [[0.0f32; 4], [0.0, f32::MIN, f32::MAX, 0.0]];
+    partial[1][0] = 0.0;
+    for &t in triangles {
+        let tri = topo.triangles[t as usize];
+        let p0 = topo.positions[tri[0] as usize];
+        let e1 = topo.positions[tri[1] as usize] - p0;
+        let e2 = topo.positions[tri[2] as usize] - p0;
+        let n = e1.cross(e2);
+        let area = 0.5 * n.length();
+        let l1 = e1.length();
+        if area <= 0.0 || l1 <= 0.0 {
+            continue;
+        }
+        let x = e1 / l1;
+        let y = n.cross(x).normalize();
+        let q2 = Vec2::new(e2.dot(x), e2.dot(y));
+        let c = |v: u32| Vec2::new(coords[v as usize][0], coords[v as usize][1]);
+        let (d1, d2) = (c(tri[1]) - c(tri[0]), c(tri[2]) - c(tri[0]));
+        let inv_det = 1.0 / (l1 * q2.y);
+        let m00 = (d1.x * q2.y) * inv_det;
+        let m10 = (d1.y * q2.y) * inv_det;
+        let m01 = (d2.x * l1 - d1.x * q2.x) * inv_det;
+        let m11 = (d2.y * l1 - d1.y * q2.x) * inv_det;
+        let det = m00 * m11 - m01 * m10;
+        // Singular values of a 2x2 matrix without cancellation: (sqrt(p) +- sqrt(q)) / 2.
+        let p = ((m00 + m11) * (m00 + m11) + (m10 - m01) * (m10 - m01)).sqrt();
+        let q = ((m00 - m11) * (m00 - m11) + (m10 + m01) * (m10 + m01)).sqrt();
+        let s1 = 0.5 * (p + q);
+        let s2 = 0.5 * (p - q).abs();
+        let angle = if s2 > 0.0 { s1 / s2 } else { 3.0e38 };
+        partial[0][0] += area;
+        partial[0][1] += area * det;
+        partial[0][2] += area * angle.min(1.0e6);
+        partial[0][3] += if det < 0.0 { 1.0 } else { 0.0 };
+        partial[1][0] = partial[1][0].max(angle);
+        partial[1][1] = partial[1][1].max(det);
+        partial[1][2] = partial[1][2].min(det);
+    }
+    Distortion::from_partials(&partial)
+}

@@ -1,0 +1,406 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! GPU side of the discrete exponential maps: candidate discs (CPU, proportional to the disc) and the
+//! one-dispatch relaxation (`wgsl/maps/expmap_relax.wgsl`, one workgroup per decal).
+
+use crate::error::Result;
+use crate::gpu::pipelines::Pipelines;
+use crate::maps::expmap::cpu::{Options, Seed};
+use crate::mesh::{SurfaceRef, Topology};
+use wgpu::util::DeviceExt;
+
+/// One decal's map request. Keep in sync with `GeoJob` in wgsl/maps/expmap_relax.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GeoJob {
+    seed: [f32; 4],
+    normal: [f32; 4],
+    e1: [f32; 4],
+    e2: [f32; 4],
+    tri: [u32; 4],
+    radius: f32,
+    curvature_stop: f32,
+    cand_offset: u32,
+    cand_count: u32,
+    vertex_count: u32,
+    max_sweeps: u32,
+    /// Vertices next to the candidates but outside them, listed right after the candidates: the
+    /// first round marks them as not reachable, so no slot ever needs clearing in full.
+    halo_count: u32,
+    /// 1 for [`crate::maps::expmap::Accuracy::Smooth`].
+    smooth: u32,
+}
+
+/// What the relaxation reports per decal. Keep in sync with `GeoResult` in wgsl/maps/expmap_relax.wgsl.
+#[repr(C)]
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable, serde::Serialize,
+)]
+pub struct GeoResult {
+    /// Relaxation sweeps run (the last one changed nothing when converged).
+    pub sweeps: u32,
+    /// Vertices that received coordinates.
+    pub reached: u32,
+    /// 1 when a sweep changed nothing before the sweep limit.
+    pub converged: u32,
+    /// Triangles whose three vertices the map reached. Not computed by the relaxation (the kernel
+    /// writes 0 in its padding word); a bake fills it in from its triangle selection
+    /// (`wgsl/bake/select_triangles.wgsl`).
+    pub triangles_reached: u32,
+}
+
+/// The vertices a map can reach: connected to the seed triangle through vertices within Euclidean
+/// distance 1.5 × `radius` of the seed point, plus one ring. Geodesic distance is never shorter than
+/// Euclidean, but the map's distance estimate |u| can be (it is an approximation), so the ball keeps
+/// a margin. Cost proportional to the result.
+pub fn candidates(topo: &Topology, seed: &Seed, radius: f32) -> Vec<u32> {
+    let mut seen = std::collections::HashSet::new();
+    let mut out = Vec::new();
+    let mut stack = Vec::new();
+    for &v in &topo.triangles[seed.triangle as usize] {
+        if seen.insert(v) {
+            out.push(v);
+            stack.push(v);
+        }
+    }
+    while let Some(v) = stack.pop() {
+        if (topo.positions[v as usize] - seed.point).length() > 1.5 * radius {
+            continue;
+        }
+        let (a, b) = (
+            topo.adjacency_offsets[v as usize] as usize,
+            topo.adjacency_offsets[v as usize + 1] as usize,
+        );
+        for &q in &topo.adjacency[a..b] {
+            if seen.insert(q) {
+                out.push(q);
+                stack.push(q);
+            }
+        }
+    }
+    out
+}
+
+/// Builds the jobs and candidate lists for `maps` (seed, options, coords slot).
+pub fn build_jobs(topo: &Topology, maps: &[(Seed, Options, u32)]) -> (Vec<GeoJob>, Vec<u32>) {
+    let mut jobs = Vec::new();
+    let mut cands = Vec::new();
+    for (seed, opts, slot) in maps {
+        let c = candidates(topo, seed, opts.radius);
+        let inside: std::collections::HashSet<u32> = c.iter().copied().collect();
+        let mut halo: Vec<u32> = Vec::new();
+        let mut seen = std::collections::HashSet::new();
+        for &v in &c {
+            let (a, b) = (
+                topo.adjacency_offsets[v as usize] as usize,
+                topo.adjacency_offsets[v as usize + 1] as usize,
+            );
+            for &q in &topo.adjacency[a..b] {
+                if !inside.contains(&q) && seen.insert(q) {
+                    halo.push(q);
+                }
+            }
+        }
+        let t = topo.triangles[seed.triangle as usize];
+        jobs.push(GeoJob {
+            seed: seed.point.extend(0.0).to_array(),
+            normal: seed.normal.extend(0.0).to_array(),
+            e1: seed.e1.extend(0.0).to_array(),
+            e2: seed.e2.extend(0.0).to_array(),
+            tri: [t[0], t[1], t[2], *slot],
+            radius: opts.radius,
+            curvature_stop: opts.curvature_stop.min(f32::MAX),
+            cand_offset: cands.len() as u32,
+            cand_count: c.len() as u32,
+            vertex_count: topo.positions.len() as u32,
+            // Each sweep settles at least one more ring; four times the candidates is a generous cap.
+            max_sweeps: 4 * c.len() as u32 + 16,
+            halo_count: halo.len() as u32,
+            smooth: u32::from(opts.accuracy == crate::maps::expmap::Accuracy::Smooth),
+        });
+        cands.extend(c);
+        cands.extend(halo);
+    }
+    if cands.is_empty() {
+        cands.push(0);
+    }
+    (jobs, cands)
+}
+
+/// Per-dispatch round parameters. Keep in sync with `Round` in wgsl/maps/expmap_relax.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Round {
+    init: u32,
+    sweeps: u32,
+    pad: [u32; 2],
+}
+
+/// Loop iterations one invocation may run in a dispatch, kept well under lavapipe's cut-off (65535
+/// loop iterations per invocation, after which it silently abandons the shader).
+const LOOP_BUDGET: u32 = 20_000;
+/// Rounds recorded per submission before the host checks convergence.
+const ROUNDS_PER_SUBMIT: u32 = 4;
+
+/// Computes `maps` (seed, options, coords slot) into their slots of `coords`: builds the jobs and
+/// candidate lists, then runs the relaxation to convergence: seeds the maps (clearing their coords
+/// slots), then dispatches rounds of sweeps, `ROUNDS_PER_SUBMIT` per submission, reading back only
+/// the per-map status between submissions. Returns the per-map results and the dispatches issued.
+///
+/// On wgpu's GL backend the maps come from the CPU twin instead (see [`run_cpu_twin`]).
+pub fn run(
+    ctx: &crate::gpu::GpuContext,
+    pipes: &Pipelines,
+    mesh: SurfaceRef<'_>,
+    maps: &[(Seed, Options, u32)],
+    coords: &wgpu::Buffer,
+) -> Result<(Vec<GeoResult>, u32)> {
+    if maps.is_empty() {
+        return Ok((Vec::new(), 0));
+    }
+    if ctx.backend == Some(wgpu::Backend::Gl) {
+        return run_cpu_twin(ctx, mesh, maps, coords);
+    }
+    let (topo, mesh) = (mesh.topo, mesh.gpu);
+    let (jobs, cands) = build_jobs(topo, maps);
+    let (jobs, cands) = (&jobs[..], &cands[..]);
+    let device = &ctx.device;
+    let max_count = jobs.iter().map(|j| j.cand_count).max().unwrap_or(1);
+    // Per sweep an invocation visits at most ceil(count / 256) front vertices, with about twenty
+    // loop steps each (neighbours read, then neighbours queued).
+    let sweeps_per_round = (LOOP_BUDGET / (max_count.div_ceil(256) * 20)).clamp(1, 1024);
+    let max_sweeps = jobs.iter().map(|j| j.max_sweeps).max().unwrap_or(16);
+    let results_size = jobs.len() as u64 * 16;
+    let slots = jobs.iter().map(|j| j.tri[3] as u64 + 1).max().unwrap_or(1);
+    let (jobs_buf, cand_buf, results, rounds, fstate, fronts, marks) =
+        ctx.scoped("exponential maps", || {
+            let plain = |label, size: u64| {
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size: size.max(16),
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                })
+            };
+            let fstate = plain("expmap.front_state", jobs.len() as u64 * 16);
+            let fronts = plain("expmap.fronts", 2 * cands.len() as u64 * 4);
+            let marks = plain("expmap.marks", slots * mesh.vertex_count as u64 * 4);
+            let state = plain("expmap.state", slots * mesh.vertex_count as u64 * 16);
+            let jobs_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("expmap.jobs"),
+                contents: bytemuck::cast_slice(jobs),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+            let cand_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("expmap.candidates"),
+                contents: bytemuck::cast_slice(cands),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+            let results = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("expmap.results"),
+                size: results_size,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let mk = |init: u32| {
+                device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("expmap.round"),
+                    contents: bytemuck::bytes_of(&Round {
+                        init,
+                        sweeps: sweeps_per_round,
+                        pad: [0; 2],
+                    }),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                })
+            };
+            (
+                jobs_buf,
+                cand_buf,
+                results,
+                [mk(1), mk(0)],
+                fstate,
+                fronts,
+                (marks, state),
+            )
+        })?;
+    let (marks, state) = marks;
+    let bind = |round: &wgpu::Buffer| {
+        pipes.expmap_relax.bind(
+            device,
+            "expmap.relax",
+            &[
+                (0, jobs_buf.as_entire_binding()),
+                (1, mesh.positions.as_entire_binding()),
+                (2, mesh.normals.as_entire_binding()),
+                (3, mesh.adjacency_offsets.as_entire_binding()),
+                (4, mesh.adjacency.as_entire_binding()),
+                (5, mesh.curvature.as_entire_binding()),
+                (6, cand_buf.as_entire_binding()),
+                (7, coords.as_entire_binding()),
+                (8, results.as_entire_binding()),
+                (9, round.as_entire_binding()),
+                (10, fstate.as_entire_binding()),
+                (11, fronts.as_entire_binding()),
+                (12, marks.as_entire_binding()),
+                (13, state.as_entire_binding()),
+                (14, mesh.edge_angles.as_entire_binding()),
+            ],
+        )
+    };
+    let (bg_init, bg_more) =
+        ctx.scoped("exponential maps", || (bind(&rounds[0]), bind(&rounds[1])))?;
+    let mut dispatches = 0;
+    let mut first = true;
+    loop {
+        ctx.scoped("exponential maps", || {
+            let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("expmap"),
+            });
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("expmap.relax"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(&pipes.expmap_relax.pipeline);
+                for k in 0..ROUNDS_PER_SUBMIT {
+                    pass.set_bind_group(0, if first && k == 0 { &bg_init } else { &bg_more }, &[]);
+                    pass.dispatch_workgroups(jobs.len() as u32, 1, 1);
+                }
+            }
+            ctx.queue.submit([enc.finish()]);
+        })?;
+        dispatches += ROUNDS_PER_SUBMIT;
+        first = false;
+        let bytes = ctx.read_buffer(&results, results_size, "expmap status read-back")?;
+        let res: Vec<GeoResult> = bytemuck::cast_slice(&bytes).to_vec();
+        let pending = res
+            .iter()
+            .any(|r| r.converged == 0 && r.sweeps < max_sweeps);
+        if !pending {
+            return Ok((res, dispatches));
+        }
+    }
+}
+
+/// The GL path of [`run`]. On wgpu's GL backend (Mesa llvmpipe) the relaxation settles on longer
+/// paths than the shortest for some vertices (seen on Spot even with one invocation per workgroup,
+/// so not a race; not yet understood; on Vulkan it matches the twin, `tests/expmap.rs`). There each
+/// map comes from its CPU twin ([`crate::maps::expmap::cpu::dem_cpu`], same fixed point) and its whole slot
+/// is uploaded: (u, v, distance, 1) reached, 2 for seed-triangle vertices, zeros elsewhere.
+fn run_cpu_twin(
+    ctx: &crate::gpu::GpuContext,
+    mesh: SurfaceRef<'_>,
+    maps: &[(Seed, Options, u32)],
+    coords: &wgpu::Buffer,
+) -> Result<(Vec<GeoResult>, u32)> {
+    let (topo, k) = (mesh.topo, mesh.surface);
+    let n = topo.positions.len();
+    let mut results = Vec::with_capacity(maps.len());
+    for (seed, opts, slot) in maps {
+        let map = crate::maps::expmap::cpu::dem_cpu(topo, seed, *opts, k);
+        let seed_tri = topo.triangles[seed.triangle as usize];
+        let mut data = vec![[0f32; 4]; n];
+        let mut reached = 0;
+        for (v, d) in data.iter_mut().enumerate() {
+            if map.dist[v].is_finite() {
+                let flag = if seed_tri.contains(&(v as u32)) {
+                    2.0
+                } else {
+                    1.0
+                };
+                *d = [map.uv[v][0], map.uv[v][1], map.dist[v], flag];
+                reached += 1;
+            }
+        }
+        ctx.scoped("exponential maps (CPU twin upload)", || {
+            ctx.queue.write_buffer(
+                coords,
+                *slot as u64 * n as u64 * 16,
+                bytemuck::cast_slice(&data),
+            )
+        })?;
+        results.push(GeoResult {
+            sweeps: 0,
+            reached,
+            converged: 1,
+            triangles_reached: 0,
+        });
+    }
+    Ok((results, 0))
+}
+
+/// Per-vertex result of a GPU map read back: (u, v, distance, state) with state 0 = unreached,
+/// 1 = reached, 2 = seed-triangle vertex.
+pub type MapCoords = Vec<[f32; 4]>;
+
+/// Runs `maps` in chunks whose coords slots fit 64 MiB, calling `each(results, coords, dispatches)`
+/// after every chunk.
+fn in_chunks(
+    ctx: &crate::gpu::GpuContext,
+    pipes: &Pipelines,
+    mesh: SurfaceRef<'_>,
+    maps: &[(Seed, Options)],
+    mut each: impl FnMut(Vec<GeoResult>, &wgpu::Buffer, u32) -> Result<()>,
+) -> Result<()> {
+    let nv = mesh.gpu.vertex_count as u64;
+    let per_chunk = ((64u64 << 20) / (nv * 16)).max(1) as usize;
+    let coords = ctx.scoped("exponential maps", || {
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("expmap.coords"),
+            size: per_chunk.min(maps.len().max(1)) as u64 * nv * 16,
+            // COPY_DST: the GL path uploads its CPU-twin maps.
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    })?;
+    for chunk in maps.chunks(per_chunk) {
+        let slots: Vec<(Seed, Options, u32)> = chunk
+            .iter()
+            .enumerate()
+            .map(|(i, (s, o))| (*s, *o, i as u32))
+            .collect();
+        let (results, d) = run(ctx, pipes, mesh, &slots, &coords)?;
+        each(results, &coords, d)?;
+    }
+    Ok(())
+}
+
+/// Computes maps on the GPU and reads back only their status (the coordinates stay on the GPU, as
+/// in a bake); returns the status and the dispatches issued. For benchmarks.
+pub fn expmaps_gpu_status(
+    ctx: &crate::gpu::GpuContext,
+    pipes: &Pipelines,
+    mesh: SurfaceRef<'_>,
+    maps: &[(Seed, Options)],
+) -> Result<(Vec<GeoResult>, u32)> {
+    let mut out = Vec::with_capacity(maps.len());
+    let mut dispatches = 0;
+    in_chunks(ctx, pipes, mesh, maps, |r, _, d| {
+        out.extend(r);
+        dispatches += d;
+        Ok(())
+    })?;
+    Ok((out, dispatches))
+}
+
+/// Computes maps on the GPU and reads them back (for tests, `decalbake param` and benchmarks).
+pub fn expmaps_gpu(
+    ctx: &crate::gpu::GpuContext,
+    pipes: &Pipelines,
+    mesh: SurfaceRef<'_>,
+    maps: &[(Seed, Options)],
+) -> Result<Vec<(MapCoords, GeoResult)>> {
+    let nv = mesh.gpu.vertex_count as usize;
+    let mut out = Vec::with_capacity(maps.len());
+    in_chunks(ctx, pipes, mesh, maps, |results, coords, _| {
+        let size = (results.len() * nv * 16) as u64;
+        let c = ctx.read_buffer(coords, size, "expmap read-back")?;
+        let c: &[[f32; 4]] = bytemuck::cast_slice(&c);
+        for (i, r) in results.iter().enumerate() {
+            out.push((c[i * nv..(i + 1) * nv].to_vec(), *r));
+        }
+        Ok(())
+    })?;
+    Ok(out)
+}

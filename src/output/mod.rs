@@ -1,0 +1,96 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Writing a bake's files: texture PNG, `.glb`, preview PNG and JSON report.
+//!
+//! Every file's bytes are produced first; then each is written to a temporary file beside its target
+//! and renamed into place. A failure before the renames leaves no output behind.
+
+pub mod glb;
+pub mod preview;
+
+use crate::bake::{Baked, Engine, LoadedMesh};
+use crate::error::{Error, Result};
+use crate::io::job::Job;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Files written, in order.
+pub fn write_outputs(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    job: &Job,
+    baked: &mut Baked,
+) -> Result<Vec<PathBuf>> {
+    let t = Instant::now();
+    let mut files: Vec<(PathBuf, Vec<u8>)> = Vec::new();
+    let png = baked.to_png();
+    if let Some(p) = &job.out_glb {
+        files.push((
+            p.clone(),
+            crate::output::glb::build_glb(mesh, &png, job.uv_set),
+        ));
+    }
+    if let Some(p) = &job.out_preview {
+        let px = crate::output::preview::render_preview(engine, mesh, baked)?;
+        let side = 2 * crate::output::preview::VIEW_SIDE;
+        let mut out = Vec::new();
+        use image::ImageEncoder;
+        image::codecs::png::PngEncoder::new(&mut out)
+            .write_image(&px, side, side, image::ExtendedColorType::Rgba8)
+            .map_err(|e| Error::Image {
+                path: p.clone(),
+                action: "encoding",
+                detail: e.to_string(),
+            })?;
+        files.push((p.clone(), out));
+    }
+    if let Some(p) = &job.out_texture {
+        files.insert(0, (p.clone(), png));
+    }
+    baked.report.timings.write_ms = t.elapsed().as_secs_f64() * 1000.0;
+    if let Some(p) = &job.out_report {
+        let json = serde_json::to_vec_pretty(&baked.report).expect("the report serializes");
+        files.push((p.clone(), json));
+    }
+    for (p, _) in &files {
+        if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|source| Error::Io {
+                path: dir.to_path_buf(),
+                action: "creating the output directory",
+                source,
+            })?;
+        }
+    }
+    // Stage everything, then rename.
+    let mut staged = Vec::new();
+    for (p, bytes) in &files {
+        let tmp = tmp_path(p);
+        if let Err(source) = std::fs::write(&tmp, bytes) {
+            for (t, _) in &staged {
+                let _ = std::fs::remove_file(t);
+            }
+            let _ = std::fs::remove_file(&tmp);
+            return Err(Error::Io {
+                path: p.clone(),
+                action: "writing",
+                source,
+            });
+        }
+        staged.push((tmp, p.clone()));
+    }
+    for (tmp, p) in &staged {
+        std::fs::rename(tmp, p).map_err(|source| Error::Io {
+            path: p.clone(),
+            action: "renaming into place",
+            source,
+        })?;
+    }
+    Ok(files.into_iter().map(|(p, _)| p).collect())
+}
+
+fn tmp_path(p: &std::path::Path) -> PathBuf {
+    let name = p
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    p.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
+}

@@ -1,0 +1,600 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! GPU sparse linear algebra: CSR matrices in storage buffers ([`GpuCsr`]), the product `A x`
+//! (`wgsl/solve/spmv.wgsl`), batched dot products and norms (`wgsl/solve/dot_batched.wgsl`) and a batched
+//! Jacobi-preconditioned conjugate gradient (`wgsl/solve/cg_batched.wgsl`), plus the streaming copy used as
+//! the bandwidth reference in benchmarks. CPU twins: [`crate::solve::sparse`].
+//!
+//! The solver is built around what lavapipe charges (about 80 µs per dispatch, 280 µs per
+//! submit-and-wait) and what it cannot do (an invocation that loops more than about 65535 times is
+//! silently abandoned): one workgroup per system runs a whole block of fused iterations per dispatch,
+//! sized to stay under the loop cut-off; all state lives in buffers; a submission carries enough
+//! dispatches for about [`ITERS_PER_SUBMIT`] iterations and the host reads back only the per-system
+//! status between submissions. All arithmetic is f32 with a fixed reduction order, so a system's
+//! iteration count and result do not depend on the rest of its batch.
+
+use crate::error::{Error, Result};
+use crate::gpu::pipelines::Pipelines;
+use crate::gpu::GpuContext;
+use crate::solve::sparse::{CgReport, CgStatus, Csr};
+use wgpu::util::DeviceExt;
+
+/// Loop steps one invocation may run per dispatch (lavapipe abandons invocations past about 65535).
+const LOOP_BUDGET: usize = 20_000;
+/// Loop steps per invocation above which a single iteration is refused (lavapipe abandons an
+/// invocation past about 65535).
+const HARD_LOOP_LIMIT: usize = 50_000;
+/// Iterations per submission before the host looks at the status.
+pub const ITERS_PER_SUBMIT: u32 = 512;
+/// Workgroup size of the batched kernels (`WG` in wgsl/shared/linalg.wgsl).
+const WG: usize = 256;
+
+/// One system of a batch. Keep in sync with `System` in wgsl/shared/linalg.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SystemDesc {
+    /// First row.
+    pub row0: u32,
+    /// Rows.
+    pub n: u32,
+    /// Iteration budget.
+    pub max_iter: u32,
+    /// Set by the solver: 1 = solved by the 256-wide kernel, 0 = by the 64-wide one.
+    wide: u32,
+    /// Target relative residual |b - A x| / |b|.
+    pub rtol: f32,
+    pad1: [f32; 3],
+}
+
+impl SystemDesc {
+    /// System of rows `row0 .. row0 + n`.
+    pub fn new(row0: usize, n: usize, rtol: f32, max_iter: u32) -> Self {
+        Self {
+            row0: row0 as u32,
+            n: n as u32,
+            max_iter,
+            rtol,
+            ..Default::default()
+        }
+    }
+}
+
+/// Keep in sync with `Round` in wgsl/solve/cg_batched.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct CgRound {
+    iters: u32,
+    base: u32,
+    pad: [u32; 2],
+}
+
+/// Keep in sync with `State` in wgsl/solve/cg_batched.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct CgState {
+    status: u32,
+    iters: u32,
+    pad0: [u32; 2],
+    rz: f32,
+    bnorm: f32,
+    rel_residual: f32,
+    scale: f32,
+}
+
+/// A CSR matrix in storage buffers (values f32).
+pub struct GpuCsr {
+    /// Row offsets.
+    pub row_ptr: wgpu::Buffer,
+    /// Columns.
+    pub cols: wgpu::Buffer,
+    /// Values.
+    pub vals: wgpu::Buffer,
+    /// Rows.
+    pub rows: u32,
+    /// Stored entries.
+    pub nnz: u32,
+    /// Longest row.
+    pub max_row_len: u32,
+}
+
+fn storage_init(
+    ctx: &GpuContext,
+    label: &str,
+    bytes: &[u8],
+    extra: wgpu::BufferUsages,
+) -> wgpu::Buffer {
+    // wgpu rejects zero-sized bindings: pad empty arrays to one word.
+    let pad = [0u8; 16];
+    ctx.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: if bytes.is_empty() { &pad } else { bytes },
+            usage: wgpu::BufferUsages::STORAGE | extra,
+        })
+}
+
+fn uniform(ctx: &GpuContext, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+    ctx.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: bytes,
+            usage: wgpu::BufferUsages::UNIFORM,
+        })
+}
+
+fn f32s(v: &[f64]) -> Vec<f32> {
+    v.iter().map(|&x| x as f32).collect()
+}
+
+impl GpuCsr {
+    /// Uploads `a` (values rounded to f32).
+    pub fn upload(ctx: &GpuContext, a: &Csr) -> Result<Self> {
+        ctx.scoped("sparse matrix upload", || Self {
+            row_ptr: storage_init(
+                ctx,
+                "csr.row_ptr",
+                bytemuck::cast_slice(&a.row_ptr),
+                wgpu::BufferUsages::empty(),
+            ),
+            cols: storage_init(
+                ctx,
+                "csr.cols",
+                bytemuck::cast_slice(&a.cols),
+                wgpu::BufferUsages::empty(),
+            ),
+            vals: storage_init(
+                ctx,
+                "csr.vals",
+                bytemuck::cast_slice(&f32s(&a.vals)),
+                wgpu::BufferUsages::empty(),
+            ),
+            rows: a.rows as u32,
+            nnz: a.nnz() as u32,
+            max_row_len: a.max_row_len() as u32,
+        })
+    }
+
+    /// Bytes one product streams at least once: the matrix, x and y.
+    pub fn bytes_per_product(&self) -> u64 {
+        self.nnz as u64 * 8 + self.rows as u64 * 4 * 3
+    }
+}
+
+/// Workgroup grid for `groups` one-dimensional workgroups, within the 65535 per-dimension limit.
+fn grid(groups: u32) -> (u32, u32) {
+    let x = groups.clamp(1, 65535);
+    (x, groups.div_ceil(x).max(1))
+}
+
+/// `y = A x` on the GPU, `reps` times in one submission (for benchmarks; 1 for a plain product).
+/// Returns y and the seconds the submission took.
+pub fn spmv(
+    ctx: &GpuContext,
+    pipes: &Pipelines,
+    a: &GpuCsr,
+    x: &[f32],
+    reps: u32,
+) -> Result<(Vec<f32>, f64)> {
+    let dev = &ctx.device;
+    let (xb, yb, dims, bg) = ctx.scoped("spmv", || {
+        let xb = storage_init(
+            ctx,
+            "spmv.x",
+            bytemuck::cast_slice(x),
+            wgpu::BufferUsages::empty(),
+        );
+        let yb = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("spmv.y"),
+            size: (a.rows as u64 * 4).max(16),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let dims = uniform(ctx, "spmv.dims", bytemuck::cast_slice(&[a.rows, 0, 0, 0]));
+        let bg = pipes.spmv.bind(
+            dev,
+            "spmv",
+            &[
+                (0, dims.as_entire_binding()),
+                (1, a.row_ptr.as_entire_binding()),
+                (2, a.cols.as_entire_binding()),
+                (3, a.vals.as_entire_binding()),
+                (4, xb.as_entire_binding()),
+                (5, yb.as_entire_binding()),
+            ],
+        );
+        (xb, yb, dims, bg)
+    })?;
+    let t = std::time::Instant::now();
+    ctx.scoped("spmv", || {
+        let mut enc = dev.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&pipes.spmv.pipeline);
+            pass.set_bind_group(0, &bg, &[]);
+            let (gx, gy) = grid(a.rows.div_ceil(64));
+            for _ in 0..reps.max(1) {
+                pass.dispatch_workgroups(gx, gy, 1);
+            }
+        }
+        ctx.queue.submit([enc.finish()]);
+    })?;
+    ctx.wait("spmv")?;
+    let secs = t.elapsed().as_secs_f64();
+    let y = ctx.read_buffer(&yb, a.rows as u64 * 4, "spmv read-back")?;
+    drop((xb, dims));
+    Ok((
+        bytemuck::cast_slice(&y[..a.rows as usize * 4]).to_vec(),
+        secs,
+    ))
+}
+
+/// Batched dot products: per segment (`row0`, `n` of each [`SystemDesc`]), (<a, b>, <a, a>, <b, b>)
+/// with the CG kernel's fixed reduction order.
+pub fn dots(
+    ctx: &GpuContext,
+    pipes: &Pipelines,
+    a: &[f32],
+    b: &[f32],
+    segments: &[SystemDesc],
+) -> Result<Vec<[f32; 3]>> {
+    let dev = &ctx.device;
+    let out_size = (segments.len() as u64 * 16).max(16);
+    let (out, bg, keep) = ctx.scoped("dot products", || {
+        let sys = storage_init(
+            ctx,
+            "dot.systems",
+            bytemuck::cast_slice(segments),
+            wgpu::BufferUsages::empty(),
+        );
+        let ab = storage_init(
+            ctx,
+            "dot.a",
+            bytemuck::cast_slice(a),
+            wgpu::BufferUsages::empty(),
+        );
+        let bb = storage_init(
+            ctx,
+            "dot.b",
+            bytemuck::cast_slice(b),
+            wgpu::BufferUsages::empty(),
+        );
+        let out = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("dot.out"),
+            size: out_size,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let bg = pipes.dot_batched.bind(
+            dev,
+            "dot",
+            &[
+                (0, sys.as_entire_binding()),
+                (1, ab.as_entire_binding()),
+                (2, bb.as_entire_binding()),
+                (3, out.as_entire_binding()),
+            ],
+        );
+        (out, bg, (sys, ab, bb))
+    })?;
+    ctx.scoped("dot products", || {
+        let mut enc = dev.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&pipes.dot_batched.pipeline);
+            pass.set_bind_group(0, &bg, &[]);
+            for base in (0..segments.len()).step_by(65535) {
+                // Segments beyond the first 65535 would need an offset; benchmarks and tests stay below.
+                debug_assert_eq!(base, 0, "at most 65535 segments");
+                pass.dispatch_workgroups((segments.len() - base).min(65535) as u32, 1, 1);
+            }
+        }
+        ctx.queue.submit([enc.finish()]);
+    })?;
+    let bytes = ctx.read_buffer(&out, out_size, "dot read-back")?;
+    drop(keep);
+    let v: &[[f32; 4]] = bytemuck::cast_slice(&bytes);
+    Ok(v[..segments.len()]
+        .iter()
+        .map(|r| [r[0], r[1], r[2]])
+        .collect())
+}
+
+/// Streams `bytes` (rounded to 16) from one buffer to another `reps` times in one submission;
+/// returns the achieved bandwidth in GB/s (read + write bytes per second).
+pub fn copy_bandwidth(ctx: &GpuContext, pipes: &Pipelines, bytes: u64, reps: u32) -> Result<f64> {
+    let dev = &ctx.device;
+    let len = (bytes / 16).max(1) as u32;
+    let (bg, keep) = ctx.scoped("copy", || {
+        let src = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("copy.src"),
+            size: len as u64 * 16,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let dst = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("copy.dst"),
+            size: len as u64 * 16,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let dims = uniform(ctx, "copy.dims", bytemuck::cast_slice(&[len, 0, 0, 0]));
+        let bg = pipes.copy.bind(
+            dev,
+            "copy",
+            &[
+                (0, dims.as_entire_binding()),
+                (1, src.as_entire_binding()),
+                (2, dst.as_entire_binding()),
+            ],
+        );
+        (bg, (src, dst, dims))
+    })?;
+    let run = |n: u32| -> Result<f64> {
+        let t = std::time::Instant::now();
+        ctx.scoped("copy", || {
+            let mut enc = dev.create_command_encoder(&Default::default());
+            {
+                let mut pass = enc.begin_compute_pass(&Default::default());
+                pass.set_pipeline(&pipes.copy.pipeline);
+                pass.set_bind_group(0, &bg, &[]);
+                let (gx, gy) = grid(len.div_ceil(256));
+                for _ in 0..n {
+                    pass.dispatch_workgroups(gx, gy, 1);
+                }
+            }
+            ctx.queue.submit([enc.finish()]);
+        })?;
+        ctx.wait("copy")?;
+        Ok(t.elapsed().as_secs_f64())
+    };
+    run(1)?; // warm-up
+    let secs = run(reps.max(1))?;
+    drop(keep);
+    Ok(2.0 * len as f64 * 16.0 * reps.max(1) as f64 / secs / 1e9)
+}
+
+/// Result of a batched solve.
+#[derive(Debug, Clone)]
+pub struct Solved {
+    /// Solution, all systems (rows of the block-diagonal matrix).
+    pub x: Vec<f32>,
+    /// Per system.
+    pub reports: Vec<CgReport>,
+    /// Compute dispatches issued.
+    pub dispatches: u32,
+    /// Submissions (each followed by one status read-back).
+    pub submits: u32,
+}
+
+/// Solves every system of the block-diagonal SPD matrix `a` (`systems` give each block's rows,
+/// tolerance and budget) by Jacobi-preconditioned CG from the warm start `x0`, on the GPU.
+pub fn cg_batched(
+    ctx: &GpuContext,
+    pipes: &Pipelines,
+    a: &Csr,
+    b: &[f64],
+    x0: &[f64],
+    systems: &[SystemDesc],
+) -> Result<Solved> {
+    let gpu = GpuCsr::upload(ctx, a)?;
+    cg_batched_on(ctx, pipes, &gpu, a, b, x0, systems)
+}
+
+/// [`cg_batched`] with the matrix already on the GPU (`a` gives the diagonal and row lengths).
+#[allow(clippy::too_many_arguments, reason = "the solve's inputs")]
+pub fn cg_batched_on(
+    ctx: &GpuContext,
+    pipes: &Pipelines,
+    gpu: &GpuCsr,
+    a: &Csr,
+    b: &[f64],
+    x0: &[f64],
+    systems: &[SystemDesc],
+) -> Result<Solved> {
+    let dev = &ctx.device;
+    let rows = a.rows;
+    if b.len() != rows || x0.len() != rows {
+        return Err(Error::Gpu {
+            stage: "conjugate gradient".into(),
+            detail: format!("{} rows but b has {} and x0 {}", rows, b.len(), x0.len()),
+        });
+    }
+    if systems.is_empty() {
+        return Ok(Solved {
+            x: f32s(x0),
+            reports: Vec::new(),
+            dispatches: 0,
+            submits: 0,
+        });
+    }
+    let dinv: Vec<f32> = a
+        .diagonal()
+        .iter()
+        .map(|&d| {
+            if d != 0.0 && d.is_finite() {
+                (1.0 / d) as f32
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    // Each system gets the 64-wide kernel when one iteration of it stays well under the loop budget
+    // with 64 invocations, else the 256-wide one: a choice that depends on the system alone, so its
+    // arithmetic (and result) is the same in any batch. Iterations per dispatch per class: each
+    // iteration an invocation walks its rows (ceil(n / WG)) a few times, each row's entries, plus
+    // the reductions' fixed steps.
+    let row_len = 3 * gpu.max_row_len as usize + 8;
+    let cost = |n: u32, wg: u32| (n as usize).div_ceil(wg as usize).max(1) * row_len + 60;
+    let narrow_wg = crate::gpu::shaders::LINALG_WG_NARROW;
+    let systems: Vec<SystemDesc> = systems
+        .iter()
+        .map(|s| SystemDesc {
+            wide: u32::from(cost(s.n, narrow_wg) > LOOP_BUDGET / 8),
+            ..*s
+        })
+        .collect();
+    let mut classes = Vec::new();
+    for (wide, kernel, wg) in [
+        (0u32, &pipes.cg_batched_narrow, narrow_wg),
+        (1u32, &pipes.cg_batched, WG as u32),
+    ] {
+        let Some(max_n) = systems.iter().filter(|s| s.wide == wide).map(|s| s.n).max() else {
+            continue;
+        };
+        let per_iter = cost(max_n, wg);
+        if per_iter > HARD_LOOP_LIMIT {
+            return Err(Error::Gpu {
+                stage: "conjugate gradient".into(),
+                detail: format!(
+                    "a system of {max_n} unknowns (rows up to {} entries) is too large for one workgroup: one iteration would loop about {per_iter} times per invocation, past the {HARD_LOOP_LIMIT} a software driver runs reliably; split it (a smaller decal) or solve it on the CPU",
+                    gpu.max_row_len
+                ),
+            });
+        }
+        classes.push((wide, kernel, (LOOP_BUDGET / per_iter).clamp(1, 256) as u32));
+    }
+    let max_iter = systems.iter().map(|s| s.max_iter).max().unwrap_or(1);
+    let state_size = systems.len() as u64 * 32;
+    let vec_buf = |label: &str, data: Option<&[f32]>| -> wgpu::Buffer {
+        match data {
+            Some(d) => storage_init(
+                ctx,
+                label,
+                bytemuck::cast_slice(d),
+                wgpu::BufferUsages::COPY_SRC,
+            ),
+            None => dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: (rows as u64 * 4).max(16),
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            }),
+        }
+    };
+    let (xb, state, bgs, keep) = ctx.scoped("conjugate gradient", || {
+        let sys = storage_init(
+            ctx,
+            "cg.systems",
+            bytemuck::cast_slice(&systems),
+            wgpu::BufferUsages::empty(),
+        );
+        let bb = vec_buf("cg.b", Some(&f32s(b)));
+        let db = vec_buf("cg.dinv", Some(&dinv));
+        let xb = vec_buf("cg.x", Some(&f32s(x0)));
+        let (rb, pb, qb) = (
+            vec_buf("cg.r", None),
+            vec_buf("cg.p", None),
+            vec_buf("cg.ap", None),
+        );
+        let state = storage_init(
+            ctx,
+            "cg.state",
+            bytemuck::cast_slice(&vec![CgState::default(); systems.len()]),
+            wgpu::BufferUsages::COPY_SRC,
+        );
+        let mut rounds = Vec::new();
+        // Per class: (kernel, iterations per dispatch, [(bind group, workgroups)]).
+        let mut bgs = Vec::new();
+        for &(_, kernel, iters) in &classes {
+            let mut groups = Vec::new();
+            for base in (0..systems.len()).step_by(65535) {
+                let count = (systems.len() - base).min(65535) as u32;
+                let round = uniform(
+                    ctx,
+                    "cg.round",
+                    bytemuck::bytes_of(&CgRound {
+                        iters,
+                        base: base as u32,
+                        pad: [0; 2],
+                    }),
+                );
+                groups.push((
+                    kernel.bind(
+                        dev,
+                        "cg",
+                        &[
+                            (0, round.as_entire_binding()),
+                            (1, sys.as_entire_binding()),
+                            (2, gpu.row_ptr.as_entire_binding()),
+                            (3, gpu.cols.as_entire_binding()),
+                            (4, gpu.vals.as_entire_binding()),
+                            (5, bb.as_entire_binding()),
+                            (6, db.as_entire_binding()),
+                            (7, xb.as_entire_binding()),
+                            (8, rb.as_entire_binding()),
+                            (9, pb.as_entire_binding()),
+                            (10, qb.as_entire_binding()),
+                            (11, state.as_entire_binding()),
+                        ],
+                    ),
+                    count,
+                ));
+                rounds.push(round);
+            }
+            bgs.push((kernel, iters, groups));
+        }
+        (xb, state, bgs, (sys, bb, db, rb, pb, qb, rounds))
+    })?;
+    let per_submit = |iters: u32| {
+        ITERS_PER_SUBMIT
+            .min(max_iter.saturating_add(1))
+            .div_ceil(iters)
+            .max(1)
+    };
+    let (mut dispatches, mut submits) = (0u32, 0u32);
+    let states = loop {
+        ctx.scoped("conjugate gradient", || {
+            let mut enc =
+                dev.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("cg") });
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("cg.iterate"),
+                    timestamp_writes: None,
+                });
+                for (kernel, iters, groups) in &bgs {
+                    pass.set_pipeline(&kernel.pipeline);
+                    for _ in 0..per_submit(*iters) {
+                        for (bg, count) in groups {
+                            pass.set_bind_group(0, bg, &[]);
+                            pass.dispatch_workgroups(*count, 1, 1);
+                        }
+                    }
+                }
+            }
+            ctx.queue.submit([enc.finish()]);
+        })?;
+        dispatches += bgs
+            .iter()
+            .map(|(_, iters, groups)| per_submit(*iters) * groups.len() as u32)
+            .sum::<u32>();
+        submits += 1;
+        let bytes = ctx.read_buffer(&state, state_size, "conjugate-gradient status read-back")?;
+        let st: Vec<CgState> = bytemuck::cast_slice(&bytes).to_vec();
+        if st.iter().all(|s| s.status >= 2) {
+            break st;
+        }
+    };
+    let xbytes = ctx.read_buffer(
+        &xb,
+        rows as u64 * 4,
+        "conjugate-gradient solution read-back",
+    )?;
+    drop(keep);
+    let reports = states
+        .iter()
+        .map(|s| CgReport {
+            status: match s.status {
+                2 => CgStatus::Converged,
+                3 => CgStatus::NotConverged,
+                _ => CgStatus::Breakdown,
+            },
+            iterations: s.iters,
+            residual: s.rel_residual as f64,
+        })
+        .collect();
+    Ok(Solved {
+        x: bytemuck::cast_slice(&xbytes[..rows * 4]).to_vec(),
+        reports,
+        dispatches,
+        submits,
+    })
+}
