@@ -24,6 +24,7 @@ fn spot() -> std::path::PathBuf {
 fn frame_at(topo: &Topology, at: Vec3, up: [f32; 3], size: [f32; 2]) -> (Frame, u32) {
     let p = place_cpu(topo, Query::Point(at));
     let job_layer: decalbake::io::job::Layer = decalbake::io::job::Layer {
+        kind: decalbake::io::job::LayerKind::Decal,
         image: "x.png".into(),
         mask: None,
         at: decalbake::io::job::AtSpec::Point(at.to_array()),

@@ -1,10 +1,144 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-//! The bake.
+//! The bake: layers placed, mapped, rasterized at their global UVs and composed into the texture,
+//! then padding and encoding, all on the GPU. [`run`] names the stages in order; each is a module:
+//!
+//! 0. [`check`]: the job against the mesh and the device's limits;
+//! 1. [`images`]: base, layer images and masks decoded and uploaded;
+//! 2. [`place`]: every layer placed in one submission, its kind ([`kinds`]) makes its frame;
+//! 3. [`canvas`]: the accumulation image filled with the base, the mesh's islands ([`islands`]);
+//!
+//! then, per chunk of layers that fits the memory budget ([`maps::Slots`]):
+//!
+//! 4. [`maps`]: each layer's local coordinates, by its method's plug-in;
+//! 5. [`select`]: the triangles each layer covers and the texture cells they touch;
+//! 6. [`compose`]: raster jobs planned ([`plan`]), drawn into atlas targets and composed in job
+//!    order;
+//!
+//! and last:
+//!
+//! 7. [`finish`]: padding from the islands' distance transform and sRGB encoding, in one pass.
+//!
+//! The engine ([`Engine`]: device, pipelines, pooled targets) and the loaded mesh ([`LoadedMesh`]:
+//! GPU buffers and per-mesh caches) are in [`engine`]; [`cpu`] is the CPU twin of the whole bake.
 pub mod blend;
+mod canvas;
+mod check;
+mod compose;
 pub mod cpu;
 mod engine;
+mod finish;
+mod images;
+mod islands;
+mod kinds;
+mod maps;
+mod param;
 pub mod params;
+mod place;
+pub mod plan;
 pub mod report;
 pub mod select;
 
-pub use engine::*;
+pub use engine::{Baked, Engine, LoadedMesh};
+pub use images::f32_to_f16;
+pub use param::ParamRow;
+
+use crate::error::Result;
+use crate::io::job::Job;
+use report::{LayerReport, Report, Timings};
+use std::time::Instant;
+
+/// What every stage reads: the engine, the mesh and the job.
+#[derive(Clone, Copy)]
+pub(crate) struct Cx<'a> {
+    pub engine: &'a Engine,
+    pub mesh: &'a LoadedMesh,
+    pub job: &'a Job,
+}
+
+/// What the stages record as they go, for the report.
+pub(crate) struct Log {
+    /// Milliseconds per stage.
+    pub timings: Timings,
+    /// Warnings, in the order they arose.
+    pub warnings: Vec<String>,
+    /// GPU dispatches and draws issued.
+    pub commands: u32,
+}
+
+/// A bake on the GPU before read-back: the encoded texture and the report.
+pub(crate) struct Run {
+    pub encoded: finish::Encoded,
+    pub report: Report,
+}
+
+/// Bakes `job` onto `mesh`, stage by stage.
+pub(crate) fn run(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Run> {
+    check::check_job(engine, mesh, job)?;
+    let mut log = Log {
+        timings: Timings {
+            load_ms: mesh.timings.0,
+            weld_ms: mesh.timings.1,
+            upload_ms: mesh.timings.2,
+            ..Default::default()
+        },
+        warnings: Vec::new(),
+        commands: 0,
+    };
+    let cx = Cx { engine, mesh, job };
+    let t = Instant::now();
+    let images = images::load(engine, mesh, job)?;
+    log.timings.images_ms = ms(t);
+    let t = Instant::now();
+    let placed = place::place(cx, &mut log)?;
+    log.timings.placement_ms = ms(t);
+
+    let t = Instant::now();
+    let canvas = canvas::Canvas::new(cx, &images, &mut log)?;
+    let slots = maps::Slots::new(engine, mesh, job);
+    let mut layers: Vec<LayerReport> = Vec::with_capacity(job.layers.len());
+    for range in slots.chunks(job.layers.len()) {
+        let maps = maps::compute(cx, &placed, &slots, range.clone(), &canvas.global, &mut log)?;
+        let stats = select::select(cx, &canvas, &slots, &maps, &mut log)?;
+        let first = layers.len();
+        for i in range {
+            let row = canvas.row(&stats, i);
+            let r = report::layer_report(job, i, &placed, &maps, row, &mut log.warnings);
+            layers.push(r);
+        }
+        let d = compose::compose(cx, &images, &canvas, &slots, &maps, &stats, &mut log)?;
+        for (l, d) in layers[first..].iter_mut().zip(d) {
+            l.distortion = d;
+        }
+    }
+    engine.ctx.wait("compose")?;
+    log.timings.compose_ms = ms(t);
+
+    let t = Instant::now();
+    let encoded = finish::pad_and_encode(cx, &canvas, &mut log)?;
+    log.timings.padding_ms = ms(t);
+    let stats = canvas.read_stats(engine, "stats read-back")?;
+    for l in &mut layers {
+        l.texels_covered = canvas.row(&stats, l.index)[5].max(0) as u32;
+    }
+    let report = Report {
+        version: env!("CARGO_PKG_VERSION"),
+        adapter: engine.ctx.adapter.clone(),
+        job: job.source.display().to_string(),
+        mesh: mesh.stats.clone(),
+        uv_set: job.uv_set,
+        texture: [job.width, job.height],
+        samples: job.ss * job.ss,
+        padding: Some(finish::padding_radius(job.padding)).filter(|&p| p != u32::MAX),
+        layers,
+        island_texels: canvas.islands.count,
+        warnings: log.warnings,
+        timings: log.timings,
+        gpu_commands: log.commands,
+    };
+    Ok(Run { encoded, report })
+}
+
+/// Milliseconds since `t`.
+pub(crate) fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1000.0
+}

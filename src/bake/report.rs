@@ -125,3 +125,44 @@ pub struct Report {
     /// GPU dispatches and draws issued.
     pub gpu_commands: u32,
 }
+
+/// Layer `i`'s report from its placement, map and selection (stats row `row`); the distortion and
+/// texels covered are filled in later. Warns when its exponential map did not converge.
+pub(crate) fn layer_report(
+    job: &crate::io::job::Job,
+    i: usize,
+    placed: &super::place::Placed,
+    maps: &super::maps::LayerMaps,
+    row: &[i32],
+    warnings: &mut Vec<String>,
+) -> LayerReport {
+    let k = i - maps.range.start;
+    let l = &job.layers[i];
+    let expmap = maps.expmap[k].map(|g| crate::maps::expmap::GeoResult {
+        triangles_reached: row[6].max(0) as u32,
+        ..g
+    });
+    if let Some(g) = maps.expmap[k] {
+        if g.converged == 0 {
+            warnings.push(format!(
+                "layer {i}: the exponential map did not converge in {} sweeps; the decal may be incomplete",
+                g.sweeps
+            ));
+        }
+    }
+    LayerReport {
+        index: i,
+        image: l.image.display().to_string(),
+        method: l.method,
+        blend: l.blend,
+        placement: placed.placements[i],
+        distance_moved: placed.placements[i].distance,
+        frame: placed.frames[i],
+        triangles_covered: row[0].max(0) as u32,
+        texels_covered: 0,
+        texel_box: [row[1], row[2], row[3], row[4]],
+        distortion: Default::default(),
+        expmap,
+        chart: maps.chart[k],
+    }
+}

@@ -285,9 +285,31 @@ impl Method {
     }
 }
 
+/// What a layer is; each kind is a module under `src/bake/kinds/`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LayerKind {
+    /// An image placed at one surface point.
+    #[default]
+    Decal,
+}
+
+impl LayerKind {
+    fn parse(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "decal" => Ok(LayerKind::Decal),
+            other => Err(format!(
+                "\"{other}\" is not a layer kind this build knows; use \"decal\""
+            )),
+        }
+    }
+}
+
 /// A layer after validation, paths resolved.
 #[derive(Debug, Clone)]
 pub struct Layer {
+    /// Kind.
+    pub kind: LayerKind,
     /// Decal image path.
     pub image: PathBuf,
     /// Mask image path.
@@ -455,15 +477,7 @@ impl Job {
         let mut layers = Vec::with_capacity(f.layers.len());
         for (i, l) in f.layers.iter().enumerate() {
             let field = |name: &str| format!("layers[{i}].{name}");
-            if l.kind != "decal" {
-                return Err(err(
-                    &field("kind"),
-                    format!(
-                        "\"{}\" is not a layer kind this build knows; use \"decal\"",
-                        l.kind
-                    ),
-                ));
-            }
+            let kind = LayerKind::parse(&l.kind).map_err(|d| err(&field("kind"), d))?;
             for (k, s) in l.size.iter().enumerate() {
                 if !s.is_finite() || *s <= 0.0 || *s > MAX_SIZE_MODEL_UNITS {
                     return Err(err(&field("size"), format!("size[{k}] = {s} must be a positive decal width/height in model units (at most {MAX_SIZE_MODEL_UNITS})")));
@@ -554,6 +568,7 @@ impl Job {
                 ));
             }
             layers.push(Layer {
+                kind,
                 image: input_dir.join(&l.image),
                 mask: l.mask.as_ref().map(|m| input_dir.join(m)),
                 at: l.at.clone(),

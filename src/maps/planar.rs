@@ -22,3 +22,46 @@ pub fn planar_coords(topo: &Topology, f: &Frame) -> Vec<[f32; 4]> {
         })
         .collect()
 }
+
+/// `"method": "planar"`.
+pub struct Planar;
+
+impl super::MapMethod for Planar {
+    fn front_facing(&self) -> bool {
+        true
+    }
+
+    fn record(
+        &self,
+        cx: &super::Record<'_>,
+        pass: &mut wgpu::ComputePass<'_>,
+        offsets: &[u32],
+    ) -> u32 {
+        let bg = cx.pipes.planar_coords.bind(
+            cx.device,
+            "bake.planar_coords",
+            &[
+                (0, cx.params.clone()),
+                (1, cx.mesh.gpu.positions.as_entire_binding()),
+                (2, cx.coords.as_entire_binding()),
+            ],
+        );
+        pass.set_pipeline(&cx.pipes.planar_coords.pipeline);
+        for &off in offsets {
+            pass.set_bind_group(0, &bg, &[off]);
+            pass.dispatch_workgroups(cx.mesh.gpu.vertex_count.div_ceil(64), 1, 1);
+        }
+        offsets.len() as u32
+    }
+
+    fn cpu_coords(
+        &self,
+        topo: &Topology,
+        _layer: &crate::io::job::Layer,
+        frame: &Frame,
+        _triangle: u32,
+        _expmap: Option<Vec<[f32; 4]>>,
+    ) -> Vec<[f32; 4]> {
+        planar_coords(topo, frame)
+    }
+}

@@ -83,7 +83,7 @@ pub struct ChartRequest<'a> {
 }
 
 impl<'a> ChartRequest<'a> {
-    /// The request of an `lscm` or `hybrid` layer placed at `frame` / `triangle`, starting from the
+    /// The request of an `lscm` or `hybrid` layer (see [`crate::maps::MapMethod::chart`]) placed at `frame` / `triangle`, starting from the
     /// layer's exponential map `expmap` (hybrid: re-solved in part; LSCM: the warm start).
     pub fn for_layer(
         frame: Frame,
@@ -91,21 +91,9 @@ impl<'a> ChartRequest<'a> {
         layer: &crate::io::job::Layer,
         expmap: &'a [[f32; 4]],
     ) -> Self {
-        let hybrid = layer.method == crate::io::job::Method::Hybrid;
-        Self {
-            frame,
-            triangle,
-            kind: if hybrid {
-                ChartKind::Hybrid {
-                    expmap,
-                    threshold: layer.hybrid_threshold,
-                }
-            } else {
-                ChartKind::Lscm
-            },
-            max_iter: layer.cg_max_iterations,
-            warm: (!hybrid).then_some(expmap),
-        }
+        crate::maps::method(layer.method)
+            .chart(layer, frame, triangle, expmap)
+            .expect("for_layer takes an lscm or hybrid layer")
     }
 }
 

@@ -10,3 +10,27 @@ pub mod sphere;
 pub use crate::io::job::Accuracy;
 pub use cpu::{dem_cpu, ExpMap, Options, Seed};
 pub use gpu::GeoResult;
+
+use super::{Frame, MapMethod};
+use crate::io::job::Layer;
+use crate::mesh::Topology;
+
+/// `"method": "expmap"`: the coordinates are the exponential map itself.
+pub struct Expmap;
+
+impl MapMethod for Expmap {
+    fn uses_expmap(&self) -> bool {
+        true
+    }
+
+    fn cpu_coords(
+        &self,
+        _topo: &Topology,
+        _layer: &Layer,
+        _frame: &Frame,
+        _triangle: u32,
+        expmap: Option<Vec<[f32; 4]>>,
+    ) -> Vec<[f32; 4]> {
+        expmap.expect("the exponential map is computed for expmap layers")
+    }
+}

@@ -1,0 +1,146 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The canvas every layer composes into: a linear f32 accumulation image in two storage planes
+//! (`wgsl/shared/acc.wgsl`), filled with the base by `wgsl/bake/base_init.wgsl`; the per-layer
+//! statistics rows the selection stage fills; and the mesh's islands at this size
+//! ([`super::islands`]). Created once per bake, owned by it, dropped with it.
+
+use super::engine::Engine;
+use super::images::Images;
+use super::islands::{islands, Islands};
+use super::params::{params_buffer, pbind, Params};
+use super::plan::CELL;
+use super::{Cx, Log};
+use crate::error::Result;
+use std::sync::Arc;
+use wgpu::util::DeviceExt;
+
+/// Counters at the start of a layer's stats row (`wgsl/bake/select_triangles.wgsl`): triangles,
+/// texel box (4), texels covered, triangles reached, spare; the layer's cell mask follows.
+pub const STATS_COUNTERS: u32 = 8;
+
+/// The bake's accumulation image, statistics and islands.
+pub struct Canvas {
+    /// Accumulation plane: red and green (f32 each).
+    pub acc_rg: wgpu::Buffer,
+    /// Accumulation plane: blue and alpha.
+    pub acc_ba: wgpu::Buffer,
+    /// One row per layer: [`STATS_COUNTERS`] counters, then its cell mask.
+    pub stats: wgpu::Buffer,
+    /// Bytes of `stats`.
+    pub stats_size: u64,
+    /// Words per stats row.
+    pub stats_stride: u32,
+    /// Cells per row and column.
+    pub grid: [u32; 2],
+    /// The `Params` fields every kernel of this bake shares.
+    pub global: Params,
+    /// The mesh's islands at this size.
+    pub islands: Arc<Islands>,
+}
+
+impl Canvas {
+    /// Allocates the canvas, fetches (or computes) the islands and fills the base.
+    pub(crate) fn new(cx: Cx<'_>, images: &Images, log: &mut Log) -> Result<Self> {
+        let Cx { engine, mesh, job } = cx;
+        let dev = &engine.ctx.device;
+        let g = &mesh.gpu;
+        let (w, h, ss) = (job.width, job.height, job.ss);
+        let texels = w as u64 * h as u64;
+        let plane = |label| {
+            dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: texels * 8,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        };
+        let (acc_rg, acc_ba) = (plane("bake.acc_rg"), plane("bake.acc_ba"));
+        let nl = job.layers.len().max(1) as u64;
+        let grid = [w.div_ceil(CELL), h.div_ceil(CELL)];
+        let mask_words = (grid[0] * grid[1]).div_ceil(32);
+        let stats_stride = STATS_COUNTERS + mask_words;
+        let stats_init: Vec<i32> = (0..nl)
+            .flat_map(|_| {
+                [0, i32::MAX, i32::MAX, i32::MIN, i32::MIN, 0, 0, 0]
+                    .into_iter()
+                    .chain(std::iter::repeat_n(0, mask_words as usize))
+            })
+            .collect();
+        let stats = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("bake.stats"),
+            contents: bytemuck::cast_slice(&stats_init),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        });
+        let global = Params {
+            tex_size: [w, h],
+            ss,
+            vertex_count: g.vertex_count,
+            triangle_count: g.triangle_count,
+            stats_stride,
+            cell: CELL,
+            grid,
+            ..Default::default()
+        };
+        let islands = islands(engine, mesh, job.uv_set, [w, h], ss, &mut log.commands)?;
+        let canvas = Self {
+            acc_rg,
+            acc_ba,
+            stats,
+            stats_size: nl * stats_stride as u64 * 4,
+            stats_stride,
+            grid,
+            global,
+            islands,
+        };
+        canvas.fill_base(engine, images, log)?;
+        Ok(canvas)
+    }
+
+    /// `base_init`: the base image, sampled at every texel centre, into the accumulation planes.
+    fn fill_base(&self, engine: &Engine, images: &Images, log: &mut Log) -> Result<()> {
+        let (dev, pipes) = (&engine.ctx.device, &engine.pipes);
+        let [w, h] = self.global.tex_size;
+        let base_params = params_buffer(dev, "bake.base_params", &[self.global]);
+        engine.ctx.scoped("base", || {
+            let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("bake.base"),
+            });
+            let bg_base = pipes.base_init.bind(
+                dev,
+                "bake.base_init",
+                &[
+                    (0, pbind(&base_params)),
+                    (1, wgpu::BindingResource::TextureView(&images.base.view)),
+                    (2, wgpu::BindingResource::Sampler(&engine.linear_sampler)),
+                    (10, self.acc_rg.as_entire_binding()),
+                    (11, self.acc_ba.as_entire_binding()),
+                ],
+            );
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("bake.base_init"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(&pipes.base_init.pipeline);
+                pass.set_bind_group(0, &bg_base, &[0]);
+                pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+            }
+            log.commands += 1;
+            engine.ctx.queue.submit([enc.finish()]);
+        })
+    }
+
+    /// The stats rows, read back.
+    pub fn read_stats(&self, engine: &Engine, stage: &str) -> Result<Vec<i32>> {
+        let bytes = engine
+            .ctx
+            .read_buffer(&self.stats, self.stats_size, stage)?;
+        Ok(bytemuck::cast_slice(&bytes).to_vec())
+    }
+
+    /// Layer `i`'s stats row in `stats` (as read by [`Canvas::read_stats`]).
+    pub fn row<'a>(&self, stats: &'a [i32], i: usize) -> &'a [i32] {
+        let n = self.stats_stride as usize;
+        &stats[i * n..(i + 1) * n]
+    }
+}

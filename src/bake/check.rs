@@ -1,0 +1,61 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Stage 0, checks: what can only be checked against the mesh and the device (texture size against
+//! the adapter's limits, the mesh has the UV set).
+
+use super::engine::{Engine, LoadedMesh};
+use crate::error::{Error, Result};
+use crate::io::job::Job;
+
+/// Checks `job` against `mesh` and the engine's device.
+pub fn check_job(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<()> {
+    let src = &job.source;
+    let max_side = engine.ctx.max_texture_side();
+    for (field, v) in [("texture.width", job.width), ("texture.height", job.height)] {
+        if v > max_side {
+            return Err(Error::job(
+                src,
+                field,
+                format!("{v} exceeds this adapter's texture limit of {max_side} texels"),
+            ));
+        }
+    }
+    let limits = engine.ctx.device.limits();
+    let max_binding = limits.max_storage_buffer_binding_size;
+    let texels = job.width as u64 * job.height as u64;
+    if texels * 8 > max_binding {
+        return Err(Error::job(
+                src,
+                "texture.width",
+                format!(
+                    "{}x{} needs {} MiB per accumulation plane, above this adapter's storage binding limit of {} MiB (at most {} texels, e.g. {}x{})",
+                    job.width,
+                    job.height,
+                    (texels * 8) >> 20,
+                    max_binding >> 20,
+                    max_binding / 8,
+                    1u64 << ((max_binding / 8).ilog2() / 2),
+                    1u64 << ((max_binding / 8).ilog2() / 2)
+                ),
+            ));
+    }
+    let sets = mesh.mesh.uv_sets.len();
+    if sets == 0 {
+        return Err(Error::mesh(
+                &mesh.mesh.source,
+                "the mesh has no UV coordinates (no TEXCOORD_0), so there is no texture layout to bake into; unwrap it first (for example Blender's Smart UV Project) and export again",
+            ));
+    }
+    if job.uv_set as usize >= sets {
+        return Err(Error::job(
+            src,
+            "uv_set",
+            format!(
+                "{} does not exist: {} has {sets} UV set(s) (TEXCOORD_0..TEXCOORD_{})",
+                job.uv_set,
+                mesh.mesh.source.display(),
+                sets - 1
+            ),
+        ));
+    }
+    Ok(())
+}

@@ -1,0 +1,286 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Stage 5, raster and compose: each layer's selected triangles are drawn at their global UVs into
+//! supersampled atlas targets, carrying the layer's local coordinates, sampling its image (trilinear,
+//! premultiplied) and mask (`wgsl/bake/layer_raster.wgsl`); `wgsl/bake/compose.wgsl` then blends the
+//! covered texels into the canvas with the layer's blend mode, in job order. The same submission
+//! measures each layer's distortion over its triangles (`wgsl/maps/distortion.wgsl`). CPU twin of
+//! the whole stage: [`crate::bake::cpu::bake_cpu`].
+
+use super::canvas::Canvas;
+use super::engine::{Engine, LoadedMesh};
+use super::images::Images;
+use super::maps::{LayerMaps, Slots};
+use super::params::{params_buffer, pbind, Params, PARAMS_STRIDE};
+use super::plan::{pack_atlas, plan_cells, Batch, TILE_TARGET};
+use super::{Cx, Log};
+use crate::error::Result;
+use crate::gpu::pipelines::make_bind_group;
+use crate::io::job::Job;
+use crate::maps::distortion::{Distortion, DIST_GROUPS};
+use std::collections::HashMap;
+
+/// The raster jobs of the chunk's layers, in layer order: (layer, `Params` with the job's texel
+/// rectangle and UV tile), one per run of marked cells per UV tile the layer's texel box touches.
+pub fn raster_jobs(
+    job: &Job,
+    canvas: &Canvas,
+    maps: &LayerMaps,
+    stats: &[i32],
+) -> Vec<(usize, Params)> {
+    let (w, h, ss) = (job.width, job.height, job.ss);
+    let mut jobs = Vec::new();
+    for i in maps.range.clone() {
+        let row = canvas.row(stats, i);
+        let bx = [row[1], row[2], row[3], row[4]];
+        let base = maps.params[i - maps.range.start];
+        let rects = plan_cells(
+            &row[8..],
+            canvas.grid,
+            super::plan::CELL,
+            [w, h],
+            TILE_TARGET / ss,
+        );
+        for tj in bx[1].div_euclid(h as i32)..=(bx[3] - 1).max(bx[1]).div_euclid(h as i32) {
+            for ti in bx[0].div_euclid(w as i32)..=(bx[2] - 1).max(bx[0]).div_euclid(w as i32) {
+                for r in &rects {
+                    jobs.push((
+                        i,
+                        Params {
+                            rect_origin: [r[0], r[1]],
+                            rect_size: [r[2] as u32, r[3] as u32],
+                            tile: [ti, tj],
+                            ..base
+                        },
+                    ));
+                }
+            }
+        }
+    }
+    jobs
+}
+
+/// Rasterizes and composes the chunk's layers into the canvas; returns each layer's distortion.
+pub(crate) fn compose(
+    cx: Cx<'_>,
+    images: &Images,
+    canvas: &Canvas,
+    slots: &Slots,
+    maps: &LayerMaps,
+    stats: &[i32],
+    log: &mut Log,
+) -> Result<Vec<Distortion>> {
+    let Cx { engine, mesh, job } = cx;
+    let dev = &engine.ctx.device;
+    let mut jobs = raster_jobs(job, canvas, maps, stats);
+    let sizes: Vec<[u32; 2]> = jobs.iter().map(|(_, p)| p.rect_size).collect();
+    let (origins, batches) = pack_atlas(&sizes, job.ss);
+    for ((_, p), o) in jobs.iter_mut().zip(&origins) {
+        p.atlas_origin = *o;
+    }
+    if std::env::var("DECALBAKE_DEBUG").is_ok() {
+        let covered: u64 = sizes.iter().map(|s| s[0] as u64 * s[1] as u64).sum();
+        eprintln!(
+            "raster jobs {} in {} batches, rect texels {covered}",
+            jobs.len(),
+            batches.len()
+        );
+    }
+    let jp: Vec<Params> = jobs.iter().map(|(_, p)| *p).collect();
+    let job_params = params_buffer(dev, "bake.raster_params", &jp);
+    let n_chunk = maps.range.len() as u64;
+    let partials_size = n_chunk * DIST_GROUPS as u64 * 32;
+    let partials = dev.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("bake.distortion"),
+        size: partials_size,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let cx = Recording {
+        engine,
+        mesh,
+        job,
+        images,
+        canvas,
+        slots,
+        stats,
+        jobs: &jobs,
+        job_params: &job_params,
+    };
+    engine.ctx.scoped("raster and compose", || {
+        let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("bake.compose"),
+        });
+        log.commands += record_distortion(engine, mesh, canvas, slots, maps, &partials, &mut enc);
+        let mut layer_bgs = HashMap::new();
+        for batch in &batches {
+            log.commands += cx.record_batch(batch, &mut layer_bgs, &mut enc);
+        }
+        engine.ctx.queue.submit([enc.finish()]);
+    })?;
+    let pb = engine
+        .ctx
+        .read_buffer(&partials, partials_size, "distortion read-back")?;
+    let pf: &[[f32; 4]] = bytemuck::cast_slice(&pb);
+    let per = 2 * DIST_GROUPS as usize;
+    Ok(pf
+        .chunks_exact(per)
+        .map(Distortion::from_partials)
+        .collect())
+}
+
+/// `distortion`: each layer's map over its selected triangles, partial sums per workgroup.
+fn record_distortion(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    canvas: &Canvas,
+    slots: &Slots,
+    maps: &LayerMaps,
+    partials: &wgpu::Buffer,
+    enc: &mut wgpu::CommandEncoder,
+) -> u32 {
+    let (dev, pipes, g) = (&engine.ctx.device, &engine.pipes, &mesh.gpu);
+    let bg = pipes.distortion.bind(
+        dev,
+        "bake.distortion",
+        &[
+            (0, pbind(&maps.buffer)),
+            (1, g.positions.as_entire_binding()),
+            (2, g.tris.as_entire_binding()),
+            (3, slots.coords.as_entire_binding()),
+            (4, slots.lists.as_entire_binding()),
+            (5, canvas.stats.as_entire_binding()),
+            (6, partials.as_entire_binding()),
+        ],
+    );
+    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some("bake.distortion"),
+        timestamp_writes: None,
+    });
+    pass.set_pipeline(&pipes.distortion.pipeline);
+    for k in 0..maps.range.len() as u64 {
+        pass.set_bind_group(0, &bg, &[(k * PARAMS_STRIDE) as u32]);
+        pass.dispatch_workgroups(DIST_GROUPS, 1, 1);
+    }
+    maps.range.len() as u32
+}
+
+/// What recording a batch reads.
+struct Recording<'a> {
+    engine: &'a Engine,
+    mesh: &'a LoadedMesh,
+    job: &'a Job,
+    images: &'a Images,
+    canvas: &'a Canvas,
+    slots: &'a Slots,
+    stats: &'a [i32],
+    jobs: &'a [(usize, Params)],
+    job_params: &'a wgpu::Buffer,
+}
+
+impl Recording<'_> {
+    /// One atlas batch: a render pass drawing each raster job into its region of the target, then
+    /// one compose dispatch per job, in job order (so overlapping layers still apply in order).
+    /// Returns the draws and dispatches recorded.
+    fn record_batch(
+        &self,
+        (batch, used_h): &Batch,
+        layer_bgs: &mut HashMap<usize, wgpu::BindGroup>,
+        enc: &mut wgpu::CommandEncoder,
+    ) -> u32 {
+        let (engine, pipes) = (self.engine, &self.engine.pipes);
+        let ss = self.job.ss;
+        let tg = engine.targets([TILE_TARGET, used_h.next_power_of_two().max(64)]);
+        {
+            let clear = wgpu::Operations {
+                load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                store: wgpu::StoreOp::Store,
+            };
+            let attachment = |view| {
+                Some(wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: clear,
+                })
+            };
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("bake.layer_raster"),
+                color_attachments: &[attachment(&tg.color_view), attachment(&tg.cov_view)],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&pipes.layer_raster.pipeline);
+            for &(k, origin) in batch {
+                let (i, p) = &self.jobs[k];
+                let bg = layer_bgs
+                    .entry(*i)
+                    .or_insert_with(|| self.layer_bind_group(*i));
+                let count = (self.canvas.row(self.stats, *i)[0].max(0) as u32)
+                    .min(self.mesh.gpu.triangle_count);
+                let (jw, jh) = (p.rect_size[0] * ss, p.rect_size[1] * ss);
+                pass.set_bind_group(0, &*bg, &[(k as u64 * PARAMS_STRIDE) as u32]);
+                pass.set_viewport(
+                    origin[0] as f32,
+                    origin[1] as f32,
+                    jw as f32,
+                    jh as f32,
+                    0.0,
+                    1.0,
+                );
+                pass.set_scissor_rect(origin[0], origin[1], jw, jh);
+                pass.draw(0..3 * count, 0..1);
+            }
+        }
+        let bg_compose = pipes.compose.bind(
+            &engine.ctx.device,
+            "bake.compose",
+            &[
+                (0, pbind(self.job_params)),
+                (1, wgpu::BindingResource::TextureView(&tg.color_view)),
+                (2, wgpu::BindingResource::TextureView(&tg.cov_view)),
+                (3, self.canvas.stats.as_entire_binding()),
+                (10, self.canvas.acc_rg.as_entire_binding()),
+                (11, self.canvas.acc_ba.as_entire_binding()),
+            ],
+        );
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("bake.compose"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&pipes.compose.pipeline);
+        for &(k, _) in batch {
+            let p = &self.jobs[k].1;
+            pass.set_bind_group(0, &bg_compose, &[(k as u64 * PARAMS_STRIDE) as u32]);
+            pass.dispatch_workgroups(p.rect_size[0].div_ceil(8), p.rect_size[1].div_ceil(8), 1);
+        }
+        2 * batch.len() as u32
+    }
+
+    /// Layer `i`'s raster bind group: its triangle list, UVs, coords, image and mask.
+    fn layer_bind_group(&self, i: usize) -> wgpu::BindGroup {
+        let (engine, g) = (self.engine, &self.mesh.gpu);
+        let (img, m) = &self.images.layers[i];
+        let mview = m
+            .as_ref()
+            .map(|m| &m.view)
+            .unwrap_or(&self.images.dummy.view);
+        make_bind_group(
+            &engine.ctx.device,
+            &engine.pipes.layer_raster.layout,
+            "bake.layer_raster",
+            &[
+                (0, pbind(self.job_params)),
+                (1, self.slots.lists.as_entire_binding()),
+                (2, g.split_tris.as_entire_binding()),
+                (3, g.uvs[self.job.uv_set as usize].as_entire_binding()),
+                (4, g.welded_of.as_entire_binding()),
+                (5, self.slots.coords.as_entire_binding()),
+                (6, wgpu::BindingResource::TextureView(&img.view)),
+                (7, wgpu::BindingResource::TextureView(mview)),
+                (8, wgpu::BindingResource::Sampler(&engine.linear_sampler)),
+            ],
+        )
+    }
+}

@@ -1,0 +1,89 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Stages 6 and 7, padding and encoding, in one pass (`wgsl/bake/encode.wgsl`): background texels
+//! within `padding` of an island (or all, for `"full"`) take the colour of their nearest island texel
+//! (from the islands' distance transform), then every texel is encoded to sRGB 8 or 16 bits into a
+//! packed buffer with 256-byte rows, ready for one read-back or a copy into a host texture.
+
+use super::canvas::Canvas;
+use super::params::{params_buffer, pbind, Params, FLAG_16BIT};
+use super::{Cx, Log};
+use crate::error::Result;
+use crate::io::job::Padding;
+
+/// The encoded texture on the GPU.
+pub struct Encoded {
+    /// Packed texels: RGBA8 in one word, or RGBA16 in two, rows `stride` words apart.
+    pub packed: wgpu::Buffer,
+    /// Bytes of `packed`.
+    pub packed_size: u64,
+    /// Words per row.
+    pub stride: u32,
+}
+
+/// Pads and encodes the canvas.
+pub(crate) fn pad_and_encode(cx: Cx<'_>, canvas: &Canvas, log: &mut Log) -> Result<Encoded> {
+    let Cx { engine, job, .. } = cx;
+    let (dev, pipes) = (&engine.ctx.device, &engine.pipes);
+    let (w, h) = (job.width, job.height);
+    let stride = if job.bit_depth == 16 {
+        (2 * w).next_multiple_of(64)
+    } else {
+        w.next_multiple_of(64)
+    };
+    let fin = [Params {
+        rect_size: [stride, 0],
+        flags: if job.bit_depth == 16 { FLAG_16BIT } else { 0 },
+        aux: padding_radius(job.padding),
+        ..canvas.global
+    }];
+    let fin_params = params_buffer(dev, "bake.final_params", &fin);
+    let packed_size = stride as u64 * h as u64 * 4;
+    let packed = dev.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("bake.packed"),
+        size: packed_size,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    engine.ctx.scoped("padding and encode", || {
+        let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("bake.finish"),
+        });
+        let bg_enc = pipes.encode.bind(
+            dev,
+            "bake.encode",
+            &[
+                (0, pbind(&fin_params)),
+                (1, packed.as_entire_binding()),
+                (2, canvas.islands.mask.as_entire_binding()),
+                (3, canvas.islands.nearest.as_entire_binding()),
+                (10, canvas.acc_rg.as_entire_binding()),
+                (11, canvas.acc_ba.as_entire_binding()),
+            ],
+        );
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("bake.finish"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&pipes.encode.pipeline);
+            pass.set_bind_group(0, &bg_enc, &[0]);
+            pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+        }
+        log.commands += 1;
+        engine.ctx.queue.submit([enc.finish()]);
+    })?;
+    engine.ctx.wait("padding")?;
+    Ok(Encoded {
+        packed,
+        packed_size,
+        stride,
+    })
+}
+
+/// The encode kernel's padding radius in texels (`u32::MAX` = the whole background).
+pub fn padding_radius(p: Padding) -> u32 {
+    match p {
+        Padding::Texels(n) => n,
+        Padding::Full => u32::MAX,
+    }
+}

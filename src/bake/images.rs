@@ -1,0 +1,232 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Stage 1, images: the base and every layer's image and mask decoded, checked against the
+//! adapter's limits and uploaded (layer images with premultiplied mipmaps). Each file is decoded once
+//! per bake; the material's texture once per mesh.
+
+use super::engine::{Engine, LoadedMesh};
+use crate::error::{Error, Result};
+use crate::io::image::LinearImage;
+use crate::io::job::{Base, Job};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// A decoded image on the GPU.
+pub struct GpuImage {
+    /// Its view.
+    pub view: wgpu::TextureView,
+    _tex: wgpu::Texture,
+}
+
+/// Every image a bake samples, on the GPU.
+pub struct Images {
+    /// The base texture.
+    pub base: Arc<GpuImage>,
+    /// Per layer: image and optional mask.
+    pub layers: Vec<(Arc<GpuImage>, Option<Arc<GpuImage>>)>,
+    /// A 1×1 white image bound where a layer has no mask.
+    pub dummy: GpuImage,
+}
+
+/// Loads and uploads the base and every layer's image and mask.
+pub fn load(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Images> {
+    let base = load_base(engine, mesh, job)?;
+    let mut cache: HashMap<(PathBuf, bool), Arc<GpuImage>> = HashMap::new();
+    let mut get = |path: &Path, field: String, raw: bool| -> Result<Arc<GpuImage>> {
+        if let Some(x) = cache.get(&(path.to_path_buf(), raw)) {
+            return Ok(x.clone());
+        }
+        let im = checked_image(engine, path, job, &field, raw)?;
+        let label = if raw { "layer.mask" } else { "layer.image" };
+        let gi = Arc::new(upload_image(engine, &im, true, label));
+        cache.insert((path.to_path_buf(), raw), gi.clone());
+        Ok(gi)
+    };
+    let mut layers = Vec::with_capacity(job.layers.len());
+    for (i, l) in job.layers.iter().enumerate() {
+        let img = get(&l.image, format!("layers[{i}].image"), false)?;
+        let mask = match &l.mask {
+            None => None,
+            Some(p) => Some(get(p, format!("layers[{i}].mask"), true)?),
+        };
+        layers.push((img, mask));
+    }
+    let dummy = upload_image(
+        engine,
+        &LinearImage::solid(1, 1, [1.0; 4]),
+        false,
+        "bake.dummy",
+    );
+    Ok(Images {
+        base,
+        layers,
+        dummy,
+    })
+}
+
+/// Uploads `img` as a sampled texture (with premultiplied mipmaps when `mips`), in the engine's
+/// image format (f32, or f16 where f32 is not filterable).
+pub fn upload_image(engine: &Engine, img: &LinearImage, mips: bool, label: &str) -> GpuImage {
+    let levels = if mips {
+        img.premultiplied_mips()
+    } else {
+        vec![img.clone()]
+    };
+    let format = engine.pipes.image_format;
+    let tex = engine.ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: img.width,
+            height: img.height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: levels.len() as u32,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    for (level, l) in levels.iter().enumerate() {
+        let (bytes, bpp): (Vec<u8>, u32) = if format == wgpu::TextureFormat::Rgba32Float {
+            (bytemuck::cast_slice(&l.pixels).to_vec(), 16)
+        } else {
+            let h: Vec<u16> = l.pixels.iter().flatten().map(|v| f32_to_f16(*v)).collect();
+            (bytemuck::cast_slice(&h).to_vec(), 8)
+        };
+        engine.ctx.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &tex,
+                mip_level: level as u32,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            &bytes,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(l.width * bpp),
+                rows_per_image: Some(l.height),
+            },
+            wgpu::Extent3d {
+                width: l.width,
+                height: l.height,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+    GpuImage {
+        view: tex.create_view(&Default::default()),
+        _tex: tex,
+    }
+}
+
+/// The base texture: the material's (uploaded once per mesh), an image, or a solid colour.
+fn load_base(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Arc<GpuImage>> {
+    let solid = |c: [f32; 4]| {
+        Arc::new(upload_image(
+            engine,
+            &LinearImage::solid(1, 1, c),
+            false,
+            "bake.base",
+        ))
+    };
+    Ok(match &job.base {
+        Base::Color(c) => solid(*c),
+        Base::Image(p) => {
+            let img = checked_image(engine, p, job, "texture.base", false)?;
+            Arc::new(upload_image(engine, &img, false, "bake.base"))
+        }
+        Base::Material => match &mesh.mesh.material {
+            Some(m) => match &m.base_color_texture {
+                Some(t) => mesh
+                    .material_texture
+                    .get_or_init(|| Arc::new(upload_image(engine, t, false, "mesh.base_color")))
+                    .clone(),
+                None => solid(m.base_color_factor),
+            },
+            None => solid([0.5, 0.5, 0.5, 1.0]),
+        },
+    })
+}
+
+fn checked_image(
+    engine: &Engine,
+    path: &Path,
+    job: &Job,
+    field: &str,
+    raw: bool,
+) -> Result<LinearImage> {
+    let img = if raw {
+        load_raw(path)?
+    } else {
+        LinearImage::load(path)?
+    };
+    let max = engine.ctx.max_texture_side();
+    if img.width > max || img.height > max {
+        return Err(Error::job(
+            &job.source,
+            field,
+            format!(
+                "{} is {}x{}, above this adapter's texture limit of {max}; downscale it",
+                path.display(),
+                img.width,
+                img.height
+            ),
+        ));
+    }
+    Ok(img)
+}
+
+fn load_raw(path: &Path) -> Result<LinearImage> {
+    let img = LinearImage::load(path)?;
+    // Masks are data, not colour: undo the sRGB decode so a mid-grey mask value means 50 %.
+    Ok(LinearImage {
+        pixels: img
+            .pixels
+            .iter()
+            .map(|p| {
+                [
+                    crate::io::image::linear_to_srgb(p[0]),
+                    crate::io::image::linear_to_srgb(p[1]),
+                    crate::io::image::linear_to_srgb(p[2]),
+                    p[3],
+                ]
+            })
+            .collect(),
+        ..img
+    })
+}
+
+/// f32 → IEEE half bits, round to nearest even (for devices without filterable f32 textures).
+pub fn f32_to_f16(v: f32) -> u16 {
+    let x = v.to_bits();
+    let sign = ((x >> 16) & 0x8000) as u16;
+    let exp = ((x >> 23) & 0xff) as i32;
+    let mant = x & 0x7f_ffff;
+    if exp == 255 {
+        return sign | 0x7c00 | if mant != 0 { 0x200 } else { 0 };
+    }
+    let e = exp - 127 + 15;
+    if e >= 31 {
+        return sign | 0x7c00;
+    }
+    if e <= 0 {
+        if e < -10 {
+            return sign;
+        }
+        let m = mant | 0x80_0000;
+        let shift = (14 - e) as u32;
+        let half = 1u32 << (shift - 1);
+        let rounded = (m + half - 1 + ((m >> shift) & 1)) >> shift;
+        return sign | rounded as u16;
+    }
+    let rounded = mant + 0xfff + ((mant >> 13) & 1);
+    if rounded & 0x80_0000 != 0 {
+        let e2 = e + 1;
+        if e2 >= 31 {
+            return sign | 0x7c00;
+        }
+        return sign | ((e2 as u16) << 10);
+    }
+    sign | ((e as u16) << 10) | (rounded >> 13) as u16
+}

@@ -1,0 +1,260 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The UV layout rasterized at a texture size (which texels the islands cover) and its exact
+//! Euclidean distance transform (every texel's nearest island texel), computed once per mesh, UV set,
+//! size and sampling and cached on the mesh. Kernels `wgsl/bake/island_raster.wgsl`,
+//! `island_mask.wgsl`, `edt_columns.wgsl`, `edt_rows.wgsl`; CPU twin
+//! [`crate::bake::cpu::nearest_island_map`]. The padding stage reads the result.
+
+use super::engine::{Engine, LoadedMesh};
+use super::params::{params_buffer, pbind, Params, PARAMS_STRIDE};
+use super::plan::{split_rect, target_side, uv_tile_range, TILE_TARGET};
+use crate::error::Result;
+use crate::gpu::pipelines::make_bind_group;
+use std::sync::Arc;
+
+/// (UV set, width, height, supersampling).
+pub type IslandKey = (u32, u32, u32, u32);
+
+/// A UV layout rasterized at one texture size: which texels the islands cover, and for every texel
+/// the index of its nearest island texel (exact Euclidean distance transform).
+pub struct Islands {
+    /// 1 per island texel.
+    pub mask: wgpu::Buffer,
+    /// Index of the nearest island texel, per texel.
+    pub nearest: wgpu::Buffer,
+    /// Island texels.
+    pub count: u64,
+}
+
+/// The islands of `mesh` for a UV set, texture size and sampling, computed on first use and cached
+/// on the mesh. Counts its dispatches and draws into `commands`.
+///
+/// Longer than a screen: one GPU recording (the raster of every UV tile, then the two transform
+/// passes) whose buffers and bind groups are shared across the steps; split, they would have to be
+/// passed around as a struct for no gain in clarity.
+pub fn islands(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    uv_set: u32,
+    size: [u32; 2],
+    ss: u32,
+    commands: &mut u32,
+) -> Result<Arc<Islands>> {
+    let key = (uv_set, size[0], size[1], ss);
+    if let Some(c) = mesh
+        .islands
+        .lock()
+        .expect("island cache poisoned")
+        .get(&key)
+    {
+        return Ok(c.clone());
+    }
+    let dev = &engine.ctx.device;
+    let pipes = &engine.pipes;
+    let g = &mesh.gpu;
+    let uvs = &g.uvs[uv_set as usize];
+    let [w, h] = size;
+    let texels = w as u64 * h as u64;
+    let buf = |label, bytes: u64| {
+        dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: bytes,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    };
+    let mask = buf("islands.mask", texels * 4);
+    let nearest = buf("islands.nearest", texels * 4);
+    let counter = buf("islands.count", 16);
+    let global = Params {
+        tex_size: size,
+        ss,
+        triangle_count: g.triangle_count,
+        stats_stride: 1,
+        ..Default::default()
+    };
+    let range = uv_tile_range(&mesh.mesh.uv_sets[uv_set as usize]);
+    let mut jobs = Vec::new();
+    for tj in range[1]..=range[3] {
+        for ti in range[0]..=range[2] {
+            for rect in split_rect([0, 0, w as i32, h as i32], TILE_TARGET / ss) {
+                jobs.push(Params {
+                    rect_origin: [rect[0], rect[1]],
+                    rect_size: [rect[2] as u32, rect[3] as u32],
+                    tile: [ti, tj],
+                    ..global
+                });
+            }
+        }
+    }
+    let mut entries = vec![global];
+    entries.extend(jobs.iter().copied());
+    let params = params_buffer(dev, "islands.params", &entries);
+    engine.ctx.scoped("islands", || {
+        let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("islands"),
+        });
+        enc.clear_buffer(&mask, 0, None);
+        enc.clear_buffer(&counter, 0, None);
+        let bg_island = make_bind_group(
+            dev,
+            &pipes.island_raster.layout,
+            "islands.raster",
+            &[
+                (0, pbind(&params)),
+                (1, g.tris.as_entire_binding()),
+                (2, g.split_tris.as_entire_binding()),
+                (3, uvs.as_entire_binding()),
+            ],
+        );
+        for (k, j) in jobs.iter().enumerate() {
+            let off = ((k + 1) as u64 * PARAMS_STRIDE) as u32;
+            let side = target_side(j.rect_size, ss);
+            let tg = engine.targets([side, side]);
+            {
+                let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("islands.raster"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &tg.cov_view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    depth_stencil_attachment: None,
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                pass.set_pipeline(&pipes.island_raster.pipeline);
+                pass.set_bind_group(0, &bg_island, &[off]);
+                pass.set_viewport(
+                    0.0,
+                    0.0,
+                    (j.rect_size[0] * ss) as f32,
+                    (j.rect_size[1] * ss) as f32,
+                    0.0,
+                    1.0,
+                );
+                pass.draw(0..3 * g.triangle_count, 0..1);
+            }
+            let bg_mask = pipes.island_mask.bind(
+                dev,
+                "islands.mask",
+                &[
+                    (0, pbind(&params)),
+                    (1, wgpu::BindingResource::TextureView(&tg.cov_view)),
+                    (2, mask.as_entire_binding()),
+                    (3, counter.as_entire_binding()),
+                ],
+            );
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("islands.mask"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&pipes.island_mask.pipeline);
+            pass.set_bind_group(0, &bg_mask, &[off]);
+            pass.dispatch_workgroups(j.rect_size[0].div_ceil(8), j.rect_size[1].div_ceil(8), 1);
+            *commands += 2;
+        }
+        let col_near = buf("islands.edt.col_near", texels * 4);
+        let env_v = buf("islands.edt.env_v", texels * 4);
+        let env_z = buf("islands.edt.env_z", (w as u64 + 1) * h as u64 * 4);
+        let bg_cols = pipes.edt_columns.bind(
+            dev,
+            "islands.edt_columns",
+            &[
+                (0, pbind(&params)),
+                (1, mask.as_entire_binding()),
+                (2, col_near.as_entire_binding()),
+            ],
+        );
+        let bg_rows = pipes.edt_rows.bind(
+            dev,
+            "islands.edt_rows",
+            &[
+                (0, pbind(&params)),
+                (1, mask.as_entire_binding()),
+                (2, col_near.as_entire_binding()),
+                (3, env_v.as_entire_binding()),
+                (4, env_z.as_entire_binding()),
+                (5, nearest.as_entire_binding()),
+            ],
+        );
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("islands.edt"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&pipes.edt_columns.pipeline);
+        pass.set_bind_group(0, &bg_cols, &[0]);
+        pass.dispatch_workgroups(w.div_ceil(64), 1, 1);
+        pass.set_pipeline(&pipes.edt_rows.pipeline);
+        pass.set_bind_group(0, &bg_rows, &[0]);
+        pass.dispatch_workgroups(h.div_ceil(64), 1, 1);
+        *commands += 2;
+        drop(pass);
+        engine.ctx.queue.submit([enc.finish()]);
+    })?;
+    if engine.ctx.backend == Some(wgpu::Backend::Gl) {
+        // wgpu's GL backend (Mesa llvmpipe) gets the GPU distance transform wrong (not yet
+        // understood; Vulkan is exact, see tests/padding_edt.rs). There, compute the same exact
+        // transform with its CPU twin, once per mesh and size, and upload it.
+        let m = engine
+            .ctx
+            .read_buffer(&mask, texels * 4, "island mask read-back")?;
+        let island: Vec<bool> = bytemuck::cast_slice::<u8, u32>(&m)
+            .iter()
+            .map(|v| *v != 0)
+            .collect();
+        let near = crate::bake::cpu::nearest_island_map(&island, w, h);
+        engine
+            .ctx
+            .queue
+            .write_buffer(&nearest, 0, bytemuck::cast_slice(&near));
+    }
+    let count_bytes = engine
+        .ctx
+        .read_buffer(&counter, 16, "island count read-back")?;
+    let count = bytemuck::cast_slice::<u8, u32>(&count_bytes)[0] as u64;
+    let islands = Arc::new(Islands {
+        mask,
+        nearest,
+        count,
+    });
+    mesh.islands
+        .lock()
+        .expect("island cache poisoned")
+        .insert(key, islands.clone());
+    Ok(islands)
+}
+
+impl Engine {
+    /// The island mask (1 = island texel) and the nearest-island-texel index of every texel, as the
+    /// bake uses them, read back to the CPU. For tests and debugging; `samples` is 1, 4, 9 or 16.
+    pub fn island_maps(
+        &self,
+        mesh: &LoadedMesh,
+        uv_set: u32,
+        size: [u32; 2],
+        samples: u32,
+    ) -> Result<(Vec<u32>, Vec<u32>)> {
+        let ss = (samples as f32).sqrt().round() as u32;
+        let mut commands = 0;
+        let isl = islands(self, mesh, uv_set, size, ss.max(1), &mut commands)?;
+        let bytes = size[0] as u64 * size[1] as u64 * 4;
+        let mask = self
+            .ctx
+            .read_buffer(&isl.mask, bytes, "island mask read-back")?;
+        let nearest = self
+            .ctx
+            .read_buffer(&isl.nearest, bytes, "nearest map read-back")?;
+        Ok((
+            bytemuck::cast_slice(&mask).to_vec(),
+            bytemuck::cast_slice(&nearest).to_vec(),
+        ))
+    }
+}
