@@ -9,8 +9,7 @@
 
 use crate::bake::select::select_triangles;
 use crate::io::image::LinearImage;
-use crate::io::job::{Job, Method};
-use crate::maps::planar::planar_coords;
+use crate::io::job::{Job, Layer};
 use crate::maps::Frame;
 use crate::mesh::{Mesh, Topology};
 use crate::place::Placement;
@@ -75,8 +74,7 @@ pub fn bake_cpu(
     base: &LinearImage,
     images: &[(LinearImage, Option<LinearImage>)],
 ) -> CpuBake {
-    let (w, h, ss) = (job.width, job.height, job.ss);
-    let uvs = &mesh.uv_sets[job.uv_set as usize];
+    let (w, h) = (job.width, job.height);
     let size = Vec2::new(w as f32, h as f32);
     let mut composed = LinearImage::solid(w, h, [0.0; 4]);
     for y in 0..h {
@@ -85,153 +83,23 @@ pub fn bake_cpu(
             composed.pixels[(y * w + x) as usize] = sample_bilinear(base, uv);
         }
     }
-    let sample_pos = |x: u32, y: u32, i: u32, j: u32| {
-        Vec2::new(
-            x as f32 + (i as f32 + 0.5) / ss as f32,
-            y as f32 + (j as f32 + 0.5) / ss as f32,
-        ) / size
-    };
-    let tri_uv = |t: usize| mesh.triangles[t].map(|s| uvs[s as usize]);
-    // Islands (UVs assumed inside the [0,1] tile here; the GPU also handles other tiles).
-    let mut island = vec![false; (w * h) as usize];
-    for (t, _) in mesh.triangles.iter().enumerate() {
-        if topo.degenerate[t] {
-            continue;
-        }
-        let [a, b, c] = tri_uv(t);
-        let lo = a.min(b).min(c) * size;
-        let hi = a.max(b).max(c) * size;
-        for y in (lo.y.floor().max(0.0) as u32)..(hi.y.ceil().min(h as f32) as u32) {
-            for x in (lo.x.floor().max(0.0) as u32)..(hi.x.ceil().min(w as f32) as u32) {
-                let idx = (y * w + x) as usize;
-                if island[idx] {
-                    continue;
-                }
-                'samples: for j in 0..ss {
-                    for i in 0..ss {
-                        if barycentric(sample_pos(x, y, i, j), a, b, c).is_some() {
-                            island[idx] = true;
-                            break 'samples;
-                        }
-                    }
-                }
-            }
-        }
-    }
+    let island = islands_cpu(mesh, topo, job);
     let mut selected = Vec::new();
     let surface = crate::mesh::SurfaceData::new(topo);
     for (li, layer) in job.layers.iter().enumerate() {
         let frame = Frame::new(&placements[li], layer);
-        let expmap = || -> Vec<[f32; 4]> {
-            let opts = frame.expmap_options(layer);
-            let map = crate::maps::expmap::cpu::dem_cpu(
-                topo,
-                &frame.seed(&placements[li]),
-                opts,
-                &surface,
-            );
-            map.dist
-                .iter()
-                .zip(&map.uv)
-                .map(|(d, uv)| [uv[0], uv[1], *d, if d.is_finite() { 1.0 } else { 0.0 }])
-                .collect()
-        };
-        let coords = match layer.method {
-            Method::Planar => planar_coords(topo, &frame),
-            Method::Expmap => expmap(),
-            Method::Lscm | Method::Hybrid => {
-                // As in the bake: both start from the exponential map (hybrid re-solves part of
-                // it; LSCM warm-starts from it).
-                let map = expmap();
-                let hybrid = layer.method == Method::Hybrid;
-                let req = crate::maps::chart::ChartRequest::for_layer(
-                    frame,
-                    placements[li].triangle,
-                    layer,
-                    &map,
-                );
-                let chart = crate::maps::chart::build(
-                    topo,
-                    &[req],
-                    &crate::maps::chart::Solver::Cpu,
-                    &mut Default::default(),
-                )
-                .expect("the CPU solver does not fail")
-                .remove(0);
-                let mut coords = if hybrid {
-                    map
-                } else {
-                    vec![[0.0; 4]; topo.positions.len()]
-                };
-                for (v, c) in chart.coords {
-                    coords[v as usize] = [c[0], c[1], 0.0, 1.0];
-                }
-                coords
-            }
-        };
-        let facing = layer.method == Method::Planar;
-        let sel = select_triangles(mesh, topo, uvs, &coords, &frame, facing, [w, h]);
-        let (img, mask) = &images[li];
-        let premult = LinearImage {
-            pixels: img
-                .pixels
-                .iter()
-                .map(|p| [p[0] * p[3], p[1] * p[3], p[2] * p[3], p[3]])
-                .collect(),
-            ..img.clone()
-        };
+        let coords = layer_coords_cpu(topo, &surface, layer, &frame, &placements[li]);
+        let m = crate::maps::method(layer.method);
+        let uvs = &mesh.uv_sets[job.uv_set as usize];
+        let sel = select_triangles(mesh, topo, uvs, &coords, &frame, m.front_facing(), [w, h]);
+        let raster = LayerRaster::new(mesh, topo, job, layer, &coords, &images[li]);
         let b = sel.texel_box;
         for y in b[1].max(0)..b[3].min(h as i32) {
             for x in b[0].max(0)..b[2].min(w as i32) {
                 let (x, y) = (x as u32, y as u32);
-                let mut sum = [0.0f32; 4];
-                let mut n = 0u32;
-                for j in 0..ss {
-                    for i in 0..ss {
-                        let p = sample_pos(x, y, i, j);
-                        let mut covered = false;
-                        let mut acc = [0.0f32; 4];
-                        for &t in &sel.triangles {
-                            let [a, bb, c] = tri_uv(t as usize);
-                            let Some(bc) = barycentric(p, a, bb, c) else {
-                                continue;
-                            };
-                            covered = true;
-                            let tri = topo.triangles[t as usize];
-                            let lc = tri.map(|v| coords[v as usize]);
-                            let lx = bc[0] * lc[0][0] + bc[1] * lc[1][0] + bc[2] * lc[2][0];
-                            let ly = bc[0] * lc[0][1] + bc[1] * lc[1][1] + bc[2] * lc[2][1];
-                            let im = Vec2::new(lx / layer.size[0] + 0.5, 0.5 - ly / layer.size[1]);
-                            let mut s = [0.0; 4];
-                            if im.x >= 0.0 && im.y >= 0.0 && im.x <= 1.0 && im.y <= 1.0 {
-                                s = sample_bilinear(&premult, im);
-                                if let Some(m) = mask {
-                                    let mv = sample_bilinear(m, im);
-                                    let f = mv[0] * mv[3];
-                                    s = s.map(|v| v * f);
-                                }
-                                s = s.map(|v| v * layer.opacity);
-                            }
-                            // Premultiplied source-over within the layer, in list order.
-                            for k in 0..4 {
-                                acc[k] = s[k] + acc[k] * (1.0 - s[3]);
-                            }
-                        }
-                        if covered {
-                            n += 1;
-                            for k in 0..4 {
-                                sum[k] += acc[k];
-                            }
-                        }
-                    }
-                }
-                if n == 0 {
+                let Some(src) = raster.texel(x, y, &sel.triangles) else {
                     continue;
-                }
-                let src = sum.map(|v| v / n as f32);
-                if src[3] <= 0.0 {
-                    continue;
-                }
+                };
                 let idx = (y * w + x) as usize;
                 composed.pixels[idx] = layer.blend.blend(composed.pixels[idx], src);
             }
@@ -242,6 +110,171 @@ pub fn bake_cpu(
         composed,
         island,
         selected,
+    }
+}
+
+/// Twin of the island raster: a texel is an island texel when any of its samples lies in a
+/// triangle (UVs assumed inside the [0,1] tile here; the GPU also handles other tiles).
+fn islands_cpu(mesh: &Mesh, topo: &Topology, job: &Job) -> Vec<bool> {
+    let (w, h, ss) = (job.width, job.height, job.ss);
+    let uvs = &mesh.uv_sets[job.uv_set as usize];
+    let size = Vec2::new(w as f32, h as f32);
+    let mut island = vec![false; (w * h) as usize];
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        if topo.degenerate[t] {
+            continue;
+        }
+        let [a, b, c] = tri.map(|s| uvs[s as usize]);
+        let lo = a.min(b).min(c) * size;
+        let hi = a.max(b).max(c) * size;
+        for y in (lo.y.floor().max(0.0) as u32)..(hi.y.ceil().min(h as f32) as u32) {
+            for x in (lo.x.floor().max(0.0) as u32)..(hi.x.ceil().min(w as f32) as u32) {
+                let idx = (y * w + x) as usize;
+                if island[idx] {
+                    continue;
+                }
+                'samples: for j in 0..ss {
+                    for i in 0..ss {
+                        let p = sample_pos(x, y, i, j, ss, size);
+                        if barycentric(p, a, b, c).is_some() {
+                            island[idx] = true;
+                            break 'samples;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    island
+}
+
+/// Sample (i, j) of texel (x, y) in UV space, on an ss × ss grid.
+fn sample_pos(x: u32, y: u32, i: u32, j: u32, ss: u32, size: Vec2) -> Vec2 {
+    Vec2::new(
+        x as f32 + (i as f32 + 0.5) / ss as f32,
+        y as f32 + (j as f32 + 0.5) / ss as f32,
+    ) / size
+}
+
+/// A layer's coordinates as the map stage computes them, on the CPU: the layer's exponential map
+/// ([`crate::maps::expmap::cpu::dem_cpu`]) where its method uses one, then the method's twin.
+pub fn layer_coords_cpu(
+    topo: &Topology,
+    surface: &crate::mesh::SurfaceData,
+    layer: &Layer,
+    frame: &Frame,
+    placement: &Placement,
+) -> Vec<[f32; 4]> {
+    let m = crate::maps::method(layer.method);
+    let expmap = m.uses_expmap().then(|| {
+        let opts = frame.expmap_options(layer);
+        let seed = frame.seed(placement);
+        let map = crate::maps::expmap::cpu::dem_cpu(topo, &seed, opts, surface);
+        map.dist
+            .iter()
+            .zip(&map.uv)
+            .map(|(d, uv)| [uv[0], uv[1], *d, if d.is_finite() { 1.0 } else { 0.0 }])
+            .collect()
+    });
+    m.cpu_coords(topo, layer, frame, placement.triangle, expmap)
+}
+
+/// Twin of `layer_raster` + `compose`'s averaging for one layer.
+struct LayerRaster<'a> {
+    mesh: &'a Mesh,
+    topo: &'a Topology,
+    job: &'a Job,
+    layer: &'a Layer,
+    coords: &'a [[f32; 4]],
+    premult: LinearImage,
+    mask: Option<&'a LinearImage>,
+}
+
+impl<'a> LayerRaster<'a> {
+    fn new(
+        mesh: &'a Mesh,
+        topo: &'a Topology,
+        job: &'a Job,
+        layer: &'a Layer,
+        coords: &'a [[f32; 4]],
+        (img, mask): &'a (LinearImage, Option<LinearImage>),
+    ) -> Self {
+        let premult = LinearImage {
+            pixels: img
+                .pixels
+                .iter()
+                .map(|p| [p[0] * p[3], p[1] * p[3], p[2] * p[3], p[3]])
+                .collect(),
+            ..img.clone()
+        };
+        Self {
+            mesh,
+            topo,
+            job,
+            layer,
+            coords,
+            premult,
+            mask: mask.as_ref(),
+        }
+    }
+
+    /// The layer's premultiplied colour at texel (x, y): the average over the samples that some
+    /// selected triangle covers; `None` when no sample is covered or the result is transparent.
+    fn texel(&self, x: u32, y: u32, triangles: &[u32]) -> Option<[f32; 4]> {
+        let ss = self.job.ss;
+        let size = Vec2::new(self.job.width as f32, self.job.height as f32);
+        let mut sum = [0.0f32; 4];
+        let mut n = 0u32;
+        for j in 0..ss {
+            for i in 0..ss {
+                if let Some(acc) = self.sample(sample_pos(x, y, i, j, ss, size), triangles) {
+                    n += 1;
+                    for k in 0..4 {
+                        sum[k] += acc[k];
+                    }
+                }
+            }
+        }
+        if n == 0 {
+            return None;
+        }
+        let src = sum.map(|v| v / n as f32);
+        (src[3] > 0.0).then_some(src)
+    }
+
+    /// One sample: every selected triangle covering `p` composed source-over in list order; `None`
+    /// when none covers it.
+    fn sample(&self, p: Vec2, triangles: &[u32]) -> Option<[f32; 4]> {
+        let uvs = &self.mesh.uv_sets[self.job.uv_set as usize];
+        let layer = self.layer;
+        let mut covered = false;
+        let mut acc = [0.0f32; 4];
+        for &t in triangles {
+            let [a, bb, c] = self.mesh.triangles[t as usize].map(|s| uvs[s as usize]);
+            let Some(bc) = barycentric(p, a, bb, c) else {
+                continue;
+            };
+            covered = true;
+            let lc = self.topo.triangles[t as usize].map(|v| self.coords[v as usize]);
+            let lx = bc[0] * lc[0][0] + bc[1] * lc[1][0] + bc[2] * lc[2][0];
+            let ly = bc[0] * lc[0][1] + bc[1] * lc[1][1] + bc[2] * lc[2][1];
+            let im = Vec2::new(lx / layer.size[0] + 0.5, 0.5 - ly / layer.size[1]);
+            let mut s = [0.0; 4];
+            if im.x >= 0.0 && im.y >= 0.0 && im.x <= 1.0 && im.y <= 1.0 {
+                s = sample_bilinear(&self.premult, im);
+                if let Some(m) = self.mask {
+                    let mv = sample_bilinear(m, im);
+                    let f = mv[0] * mv[3];
+                    s = s.map(|v| v * f);
+                }
+                s = s.map(|v| v * layer.opacity);
+            }
+            // Premultiplied source-over within the layer, in list order.
+            for k in 0..4 {
+                acc[k] = s[k] + acc[k] * (1.0 - s[3]);
+            }
+        }
+        covered.then_some(acc)
     }
 }
 

@@ -28,10 +28,6 @@ pub struct Islands {
 
 /// The islands of `mesh` for a UV set, texture size and sampling, computed on first use and cached
 /// on the mesh. Counts its dispatches and draws into `commands`.
-///
-/// Longer than a screen: one GPU recording (the raster of every UV tile, then the two transform
-/// passes) whose buffers and bind groups are shared across the steps; split, they would have to be
-/// passed around as a struct for no gain in clarity.
 pub fn islands(
     engine: &Engine,
     mesh: &LoadedMesh,
@@ -41,19 +37,24 @@ pub fn islands(
     commands: &mut u32,
 ) -> Result<Arc<Islands>> {
     let key = (uv_set, size[0], size[1], ss);
-    if let Some(c) = mesh
-        .islands
-        .lock()
-        .expect("island cache poisoned")
-        .get(&key)
-    {
+    let cache = || mesh.islands.lock().expect("island cache poisoned");
+    if let Some(c) = cache().get(&key) {
         return Ok(c.clone());
     }
+    let islands = Arc::new(compute(engine, mesh, key, commands)?);
+    cache().insert(key, islands.clone());
+    Ok(islands)
+}
+
+/// The island raster (per UV tile, in target-sized pieces) and the distance transform, in one
+/// submission; then the island count.
+fn compute(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    (uv_set, w, h, ss): IslandKey,
+    commands: &mut u32,
+) -> Result<Islands> {
     let dev = &engine.ctx.device;
-    let pipes = &engine.pipes;
-    let g = &mesh.gpu;
-    let uvs = &g.uvs[uv_set as usize];
-    let [w, h] = size;
     let texels = w as u64 * h as u64;
     let buf = |label, bytes: u64| {
         dev.create_buffer(&wgpu::BufferDescriptor {
@@ -65,13 +66,10 @@ pub fn islands(
             mapped_at_creation: false,
         })
     };
-    let mask = buf("islands.mask", texels * 4);
-    let nearest = buf("islands.nearest", texels * 4);
-    let counter = buf("islands.count", 16);
     let global = Params {
-        tex_size: size,
+        tex_size: [w, h],
         ss,
-        triangle_count: g.triangle_count,
+        triangle_count: mesh.gpu.triangle_count,
         stats_stride: 1,
         ..Default::default()
     };
@@ -91,28 +89,92 @@ pub fn islands(
     }
     let mut entries = vec![global];
     entries.extend(jobs.iter().copied());
-    let params = params_buffer(dev, "islands.params", &entries);
+    let pass = Pass {
+        engine,
+        mesh,
+        uv_set,
+        ss,
+        params: params_buffer(dev, "islands.params", &entries),
+        mask: buf("islands.mask", texels * 4),
+        nearest: buf("islands.nearest", texels * 4),
+        counter: buf("islands.count", 16),
+    };
     engine.ctx.scoped("islands", || {
         let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("islands"),
         });
-        enc.clear_buffer(&mask, 0, None);
-        enc.clear_buffer(&counter, 0, None);
+        enc.clear_buffer(&pass.mask, 0, None);
+        enc.clear_buffer(&pass.counter, 0, None);
+        *commands += pass.record_raster(&jobs, &mut enc);
+        let edt = [
+            buf("islands.edt.col_near", texels * 4),
+            buf("islands.edt.env_v", texels * 4),
+            buf("islands.edt.env_z", (w as u64 + 1) * h as u64 * 4),
+        ];
+        *commands += pass.record_edt([w, h], &edt, &mut enc);
+        engine.ctx.queue.submit([enc.finish()]);
+    })?;
+    if engine.ctx.backend == Some(wgpu::Backend::Gl) {
+        // wgpu's GL backend (Mesa llvmpipe) gets the GPU distance transform wrong (not yet
+        // understood; Vulkan is exact, see tests/padding_edt.rs). There, compute the same exact
+        // transform with its CPU twin, once per mesh and size, and upload it.
+        let m = engine
+            .ctx
+            .read_buffer(&pass.mask, texels * 4, "island mask read-back")?;
+        let island: Vec<bool> = bytemuck::cast_slice::<u8, u32>(&m)
+            .iter()
+            .map(|v| *v != 0)
+            .collect();
+        let near = crate::bake::cpu::nearest_island_map(&island, w, h);
+        engine
+            .ctx
+            .queue
+            .write_buffer(&pass.nearest, 0, bytemuck::cast_slice(&near));
+    }
+    let count_bytes = engine
+        .ctx
+        .read_buffer(&pass.counter, 16, "island count read-back")?;
+    Ok(Islands {
+        count: bytemuck::cast_slice::<u8, u32>(&count_bytes)[0] as u64,
+        mask: pass.mask,
+        nearest: pass.nearest,
+    })
+}
+
+/// What the island passes bind.
+struct Pass<'a> {
+    engine: &'a Engine,
+    mesh: &'a LoadedMesh,
+    uv_set: u32,
+    ss: u32,
+    /// Entry 0: the whole texture; entry k + 1: raster job k.
+    params: wgpu::Buffer,
+    mask: wgpu::Buffer,
+    nearest: wgpu::Buffer,
+    counter: wgpu::Buffer,
+}
+
+impl Pass<'_> {
+    /// Per raster job: `island_raster` draws every triangle into a coverage target, `island_mask`
+    /// marks the texels with any covered sample. Returns the draws and dispatches recorded.
+    fn record_raster(&self, jobs: &[Params], enc: &mut wgpu::CommandEncoder) -> u32 {
+        let (dev, pipes, g) = (&self.engine.ctx.device, &self.engine.pipes, &self.mesh.gpu);
+        let ss = self.ss;
         let bg_island = make_bind_group(
             dev,
             &pipes.island_raster.layout,
             "islands.raster",
             &[
-                (0, pbind(&params)),
+                (0, pbind(&self.params)),
                 (1, g.tris.as_entire_binding()),
                 (2, g.split_tris.as_entire_binding()),
-                (3, uvs.as_entire_binding()),
+                (3, g.uvs[self.uv_set as usize].as_entire_binding()),
             ],
         );
         for (k, j) in jobs.iter().enumerate() {
             let off = ((k + 1) as u64 * PARAMS_STRIDE) as u32;
             let side = target_side(j.rect_size, ss);
-            let tg = engine.targets([side, side]);
+            let tg = self.engine.targets([side, side]);
             {
                 let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                     label: Some("islands.raster"),
@@ -132,24 +194,18 @@ pub fn islands(
                 });
                 pass.set_pipeline(&pipes.island_raster.pipeline);
                 pass.set_bind_group(0, &bg_island, &[off]);
-                pass.set_viewport(
-                    0.0,
-                    0.0,
-                    (j.rect_size[0] * ss) as f32,
-                    (j.rect_size[1] * ss) as f32,
-                    0.0,
-                    1.0,
-                );
+                let [jw, jh] = j.rect_size.map(|v| (v * ss) as f32);
+                pass.set_viewport(0.0, 0.0, jw, jh, 0.0, 1.0);
                 pass.draw(0..3 * g.triangle_count, 0..1);
             }
             let bg_mask = pipes.island_mask.bind(
                 dev,
                 "islands.mask",
                 &[
-                    (0, pbind(&params)),
+                    (0, pbind(&self.params)),
                     (1, wgpu::BindingResource::TextureView(&tg.cov_view)),
-                    (2, mask.as_entire_binding()),
-                    (3, counter.as_entire_binding()),
+                    (2, self.mask.as_entire_binding()),
+                    (3, self.counter.as_entire_binding()),
                 ],
             );
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -159,17 +215,27 @@ pub fn islands(
             pass.set_pipeline(&pipes.island_mask.pipeline);
             pass.set_bind_group(0, &bg_mask, &[off]);
             pass.dispatch_workgroups(j.rect_size[0].div_ceil(8), j.rect_size[1].div_ceil(8), 1);
-            *commands += 2;
         }
-        let col_near = buf("islands.edt.col_near", texels * 4);
-        let env_v = buf("islands.edt.env_v", texels * 4);
-        let env_z = buf("islands.edt.env_z", (w as u64 + 1) * h as u64 * 4);
+        2 * jobs.len() as u32
+    }
+
+    /// The exact Euclidean distance transform of the mask (Felzenszwalb & Huttenlocher): nearest
+    /// island texel per column (`edt_columns`), then the lower envelope along each row
+    /// (`edt_rows`). `scratch`: column nearest, envelope vertices, envelope boundaries.
+    fn record_edt(
+        &self,
+        [w, h]: [u32; 2],
+        scratch: &[wgpu::Buffer; 3],
+        enc: &mut wgpu::CommandEncoder,
+    ) -> u32 {
+        let (dev, pipes) = (&self.engine.ctx.device, &self.engine.pipes);
+        let [col_near, env_v, env_z] = scratch;
         let bg_cols = pipes.edt_columns.bind(
             dev,
             "islands.edt_columns",
             &[
-                (0, pbind(&params)),
-                (1, mask.as_entire_binding()),
+                (0, pbind(&self.params)),
+                (1, self.mask.as_entire_binding()),
                 (2, col_near.as_entire_binding()),
             ],
         );
@@ -177,12 +243,12 @@ pub fn islands(
             dev,
             "islands.edt_rows",
             &[
-                (0, pbind(&params)),
-                (1, mask.as_entire_binding()),
+                (0, pbind(&self.params)),
+                (1, self.mask.as_entire_binding()),
                 (2, col_near.as_entire_binding()),
                 (3, env_v.as_entire_binding()),
                 (4, env_z.as_entire_binding()),
-                (5, nearest.as_entire_binding()),
+                (5, self.nearest.as_entire_binding()),
             ],
         );
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -195,41 +261,8 @@ pub fn islands(
         pass.set_pipeline(&pipes.edt_rows.pipeline);
         pass.set_bind_group(0, &bg_rows, &[0]);
         pass.dispatch_workgroups(h.div_ceil(64), 1, 1);
-        *commands += 2;
-        drop(pass);
-        engine.ctx.queue.submit([enc.finish()]);
-    })?;
-    if engine.ctx.backend == Some(wgpu::Backend::Gl) {
-        // wgpu's GL backend (Mesa llvmpipe) gets the GPU distance transform wrong (not yet
-        // understood; Vulkan is exact, see tests/padding_edt.rs). There, compute the same exact
-        // transform with its CPU twin, once per mesh and size, and upload it.
-        let m = engine
-            .ctx
-            .read_buffer(&mask, texels * 4, "island mask read-back")?;
-        let island: Vec<bool> = bytemuck::cast_slice::<u8, u32>(&m)
-            .iter()
-            .map(|v| *v != 0)
-            .collect();
-        let near = crate::bake::cpu::nearest_island_map(&island, w, h);
-        engine
-            .ctx
-            .queue
-            .write_buffer(&nearest, 0, bytemuck::cast_slice(&near));
+        2
     }
-    let count_bytes = engine
-        .ctx
-        .read_buffer(&counter, 16, "island count read-back")?;
-    let count = bytemuck::cast_slice::<u8, u32>(&count_bytes)[0] as u64;
-    let islands = Arc::new(Islands {
-        mask,
-        nearest,
-        count,
-    });
-    mesh.islands
-        .lock()
-        .expect("island cache poisoned")
-        .insert(key, islands.clone());
-    Ok(islands)
 }
 
 impl Engine {

@@ -216,6 +216,10 @@ pub struct Pipelines {
 
 impl Pipelines {
     /// Creates every pipeline on `device`.
+    ///
+    /// Longer than a screen on purpose: it is the table of the engine's pipelines, one entry per
+    /// kernel with its bindings in binding order (the data the style guide asks for, as vello's
+    /// `add_shader!` list). Adding a kernel adds an entry here; splitting the table would scatter it.
     pub fn new(device: &wgpu::Device) -> Self {
         use Bind::*;
         let features = device.features();

@@ -474,117 +474,12 @@ impl Job {
                 format!("{} is not 8 or 16", f.output.bit_depth),
             ));
         }
-        let mut layers = Vec::with_capacity(f.layers.len());
-        for (i, l) in f.layers.iter().enumerate() {
-            let field = |name: &str| format!("layers[{i}].{name}");
-            let kind = LayerKind::parse(&l.kind).map_err(|d| err(&field("kind"), d))?;
-            for (k, s) in l.size.iter().enumerate() {
-                if !s.is_finite() || *s <= 0.0 || *s > MAX_SIZE_MODEL_UNITS {
-                    return Err(err(&field("size"), format!("size[{k}] = {s} must be a positive decal width/height in model units (at most {MAX_SIZE_MODEL_UNITS})")));
-                }
-            }
-            let finite3 = |v: &[f32; 3]| v.iter().all(|x| x.is_finite() && x.abs() <= 1e30);
-            match &l.at {
-                AtSpec::Point(p) if !finite3(p) => {
-                    return Err(err(&field("at"), format!("point {p:?} is not finite")))
-                }
-                AtSpec::Ray { ray } => {
-                    if !finite3(&ray.origin) || !finite3(&ray.dir) {
-                        return Err(err(
-                            &field("at.ray"),
-                            "origin and dir must be finite".into(),
-                        ));
-                    }
-                    if ray.dir.iter().map(|x| x * x).sum::<f32>() <= 1e-20 {
-                        return Err(err(
-                            &field("at.ray.dir"),
-                            "the ray direction is zero".into(),
-                        ));
-                    }
-                }
-                _ => {}
-            }
-            if !finite3(&l.up) || l.up.iter().map(|x| x * x).sum::<f32>() <= 1e-20 {
-                return Err(err(
-                    &field("up"),
-                    format!("{:?} must be a non-zero finite direction", l.up),
-                ));
-            }
-            if !l.angle.is_finite() {
-                return Err(err(&field("angle"), "must be finite (degrees)".into()));
-            }
-            if !l.opacity.is_finite() || !(0.0..=1.0).contains(&l.opacity) {
-                return Err(err(
-                    &field("opacity"),
-                    format!("{} must be in [0, 1]", l.opacity),
-                ));
-            }
-            let method = Method::parse(&l.method).map_err(|d| err(&field("method"), d))?;
-            let blend = BlendMode::parse(&l.blend).map_err(|d| err(&field("blend"), d))?;
-            let curvature_stop = match l.curvature_stop {
-                Some(k) if !k.is_finite() || k < 0.0 => {
-                    return Err(err(
-                        &field("curvature_stop"),
-                        format!("{k} must be a non-negative curvature (1 / model units²)"),
-                    ))
-                }
-                Some(k) => k,
-                None => f32::INFINITY,
-            };
-            let depth = match l.depth {
-                Some(d) if !d.is_finite() || d <= 0.0 => {
-                    return Err(err(
-                        &field("depth"),
-                        format!("{d} must be a positive distance"),
-                    ))
-                }
-                Some(d) => d,
-                None => 0.5 * l.size[0].max(l.size[1]),
-            };
-            let hybrid_threshold = match l.hybrid_threshold {
-                Some(k) if !k.is_finite() || k < 1.0 => {
-                    return Err(err(
-                        &field("hybrid_threshold"),
-                        format!("{k} must be at least 1 (a ratio of singular values, s1 / s2)"),
-                    ))
-                }
-                Some(k) => k,
-                None => 1.1,
-            };
-            let accuracy = match l.accuracy.as_deref() {
-                None | Some("smooth") => crate::maps::expmap::Accuracy::Smooth,
-                Some("fast") => crate::maps::expmap::Accuracy::Fast,
-                Some(other) => {
-                    return Err(err(
-                        &field("accuracy"),
-                        format!("unknown accuracy \"{other}\"; use \"smooth\" or \"fast\""),
-                    ))
-                }
-            };
-            if l.cg_max_iterations == Some(0) {
-                return Err(err(
-                    &field("cg_max_iterations"),
-                    "must be at least 1 (leave it out for the automatic budget)".into(),
-                ));
-            }
-            layers.push(Layer {
-                kind,
-                image: input_dir.join(&l.image),
-                mask: l.mask.as_ref().map(|m| input_dir.join(m)),
-                at: l.at.clone(),
-                size: l.size,
-                angle: l.angle,
-                up: l.up,
-                method,
-                blend,
-                opacity: l.opacity,
-                depth,
-                curvature_stop,
-                accuracy,
-                hybrid_threshold,
-                cg_max_iterations: l.cg_max_iterations,
-            });
-        }
+        let layers = f
+            .layers
+            .iter()
+            .enumerate()
+            .map(|(i, l)| validate_layer(l, i, src, input_dir))
+            .collect::<Result<Vec<_>>>()?;
         let out = |p: &Option<PathBuf>| p.as_ref().map(|p| output_dir.join(p));
         Ok(Job {
             source: src.to_path_buf(),
@@ -705,4 +600,118 @@ pub enum Accuracy {
     /// values (up to f32 rounding).
     #[default]
     Smooth,
+}
+
+/// Validates layer `i` of a job file (`src`, for messages), resolving its paths against
+/// `input_dir`.
+fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Result<Layer> {
+    let err = |field: &str, detail: String| Error::job(src, field, detail);
+    let field = |name: &str| format!("layers[{i}].{name}");
+    let kind = LayerKind::parse(&l.kind).map_err(|d| err(&field("kind"), d))?;
+    for (k, s) in l.size.iter().enumerate() {
+        if !s.is_finite() || *s <= 0.0 || *s > MAX_SIZE_MODEL_UNITS {
+            return Err(err(&field("size"), format!("size[{k}] = {s} must be a positive decal width/height in model units (at most {MAX_SIZE_MODEL_UNITS})")));
+        }
+    }
+    let finite3 = |v: &[f32; 3]| v.iter().all(|x| x.is_finite() && x.abs() <= 1e30);
+    match &l.at {
+        AtSpec::Point(p) if !finite3(p) => {
+            return Err(err(&field("at"), format!("point {p:?} is not finite")))
+        }
+        AtSpec::Ray { ray } => {
+            if !finite3(&ray.origin) || !finite3(&ray.dir) {
+                return Err(err(
+                    &field("at.ray"),
+                    "origin and dir must be finite".into(),
+                ));
+            }
+            if ray.dir.iter().map(|x| x * x).sum::<f32>() <= 1e-20 {
+                return Err(err(
+                    &field("at.ray.dir"),
+                    "the ray direction is zero".into(),
+                ));
+            }
+        }
+        _ => {}
+    }
+    if !finite3(&l.up) || l.up.iter().map(|x| x * x).sum::<f32>() <= 1e-20 {
+        return Err(err(
+            &field("up"),
+            format!("{:?} must be a non-zero finite direction", l.up),
+        ));
+    }
+    if !l.angle.is_finite() {
+        return Err(err(&field("angle"), "must be finite (degrees)".into()));
+    }
+    if !l.opacity.is_finite() || !(0.0..=1.0).contains(&l.opacity) {
+        return Err(err(
+            &field("opacity"),
+            format!("{} must be in [0, 1]", l.opacity),
+        ));
+    }
+    let method = Method::parse(&l.method).map_err(|d| err(&field("method"), d))?;
+    let blend = BlendMode::parse(&l.blend).map_err(|d| err(&field("blend"), d))?;
+    let curvature_stop = match l.curvature_stop {
+        Some(k) if !k.is_finite() || k < 0.0 => {
+            return Err(err(
+                &field("curvature_stop"),
+                format!("{k} must be a non-negative curvature (1 / model units²)"),
+            ))
+        }
+        Some(k) => k,
+        None => f32::INFINITY,
+    };
+    let depth = match l.depth {
+        Some(d) if !d.is_finite() || d <= 0.0 => {
+            return Err(err(
+                &field("depth"),
+                format!("{d} must be a positive distance"),
+            ))
+        }
+        Some(d) => d,
+        None => 0.5 * l.size[0].max(l.size[1]),
+    };
+    let hybrid_threshold = match l.hybrid_threshold {
+        Some(k) if !k.is_finite() || k < 1.0 => {
+            return Err(err(
+                &field("hybrid_threshold"),
+                format!("{k} must be at least 1 (a ratio of singular values, s1 / s2)"),
+            ))
+        }
+        Some(k) => k,
+        None => 1.1,
+    };
+    let accuracy = match l.accuracy.as_deref() {
+        None | Some("smooth") => crate::maps::expmap::Accuracy::Smooth,
+        Some("fast") => crate::maps::expmap::Accuracy::Fast,
+        Some(other) => {
+            return Err(err(
+                &field("accuracy"),
+                format!("unknown accuracy \"{other}\"; use \"smooth\" or \"fast\""),
+            ))
+        }
+    };
+    if l.cg_max_iterations == Some(0) {
+        return Err(err(
+            &field("cg_max_iterations"),
+            "must be at least 1 (leave it out for the automatic budget)".into(),
+        ));
+    }
+    Ok(Layer {
+        kind,
+        image: input_dir.join(&l.image),
+        mask: l.mask.as_ref().map(|m| input_dir.join(m)),
+        at: l.at.clone(),
+        size: l.size,
+        angle: l.angle,
+        up: l.up,
+        method,
+        blend,
+        opacity: l.opacity,
+        depth,
+        curvature_stop,
+        accuracy,
+        hybrid_threshold,
+        cg_max_iterations: l.cg_max_iterations,
+    })
 }

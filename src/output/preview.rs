@@ -22,66 +22,8 @@ struct ViewUniform {
 pub fn render_preview(engine: &Engine, mesh: &LoadedMesh, baked: &Baked) -> Result<Vec<u8>> {
     let ctx = &engine.ctx;
     let dev = &ctx.device;
-    let side = 2 * VIEW_SIDE;
-    let uv_buf = &mesh.gpu.uvs[baked_uv_set(baked)];
     ctx.scoped("preview", || {
-        // Baked texture with a box-filtered mip chain (in sRGB bytes: good enough for a preview).
-        let mut levels = vec![(baked.width, baked.height, baked.rgba8())];
-        while levels.last().is_some_and(|l| l.0 > 1 || l.1 > 1) {
-            let (w, h, ref px) = *levels.last().expect("non-empty");
-            let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
-            let mut out = vec![0u8; (nw * nh * 4) as usize];
-            for y in 0..nh {
-                for x in 0..nw {
-                    for k in 0..4 {
-                        let mut s = 0u32;
-                        for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                            let sx = (2 * x + dx).min(w - 1);
-                            let sy = (2 * y + dy).min(h - 1);
-                            s += px[((sy * w + sx) * 4 + k) as usize] as u32;
-                        }
-                        out[((y * nw + x) * 4 + k) as usize] = ((s + 2) / 4) as u8;
-                    }
-                }
-            }
-            levels.push((nw, nh, out));
-        }
-        let tex = dev.create_texture(&wgpu::TextureDescriptor {
-            label: Some("preview.baked"),
-            size: wgpu::Extent3d {
-                width: baked.width,
-                height: baked.height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: levels.len() as u32,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba8UnormSrgb,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        });
-        for (i, (w, h, px)) in levels.iter().enumerate() {
-            ctx.queue.write_texture(
-                wgpu::TexelCopyTextureInfo {
-                    texture: &tex,
-                    mip_level: i as u32,
-                    origin: wgpu::Origin3d::ZERO,
-                    aspect: wgpu::TextureAspect::All,
-                },
-                px,
-                wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(w * 4),
-                    rows_per_image: Some(*h),
-                },
-                wgpu::Extent3d {
-                    width: *w,
-                    height: *h,
-                    depth_or_array_layers: 1,
-                },
-            );
-        }
-        let view = tex.create_view(&Default::default());
+        let view = upload_texture(engine, baked);
         let sampler = dev.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("preview.sampler"),
             address_mode_u: wgpu::AddressMode::Repeat,
@@ -92,154 +34,246 @@ pub fn render_preview(engine: &Engine, mesh: &LoadedMesh, baked: &Baked) -> Resu
             anisotropy_clamp: 8,
             ..Default::default()
         });
-        let mk = |label: &str, format, samples, usage| {
-            dev.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width: side,
-                    height: side,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: samples,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
-        };
-        let msaa = mk(
-            "preview.msaa",
-            PREVIEW_FORMAT,
-            4,
-            wgpu::TextureUsages::RENDER_ATTACHMENT,
-        );
-        let resolved = mk(
-            "preview.resolved",
-            PREVIEW_FORMAT,
-            1,
-            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-        );
-        let depth = mk(
-            "preview.depth",
-            wgpu::TextureFormat::Depth32Float,
-            4,
-            wgpu::TextureUsages::RENDER_ATTACHMENT,
-        );
-        let (lo, hi) = (
-            Vec3::from(mesh.stats.bbox_min),
-            Vec3::from(mesh.stats.bbox_max),
-        );
-        let center = 0.5 * (lo + hi);
-        let r = 0.5 * (hi - lo).length().max(1e-6);
-        let mut groups = Vec::new();
-        for k in 0..4 {
-            let az = k as f32 * std::f32::consts::FRAC_PI_2;
-            let el = 20f32.to_radians();
-            let dir = Vec3::new(az.sin() * el.cos(), el.sin(), az.cos() * el.cos());
-            let eye = center + dir * 2.0 * r;
-            let vp = Mat4::orthographic_rh(-r, r, -r, r, 0.5 * r, 3.5 * r)
-                * Mat4::look_at_rh(eye, center, Vec3::Y);
-            let light = (dir + Vec3::new(0.3, 0.5, 0.0)).normalize();
-            let u = ViewUniform {
-                view_proj: vp.to_cols_array_2d(),
-                light: light.extend(0.0).to_array(),
-            };
-            let buf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("preview.view"),
-                contents: bytemuck::bytes_of(&u),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
-            let bg = crate::gpu::pipelines::make_bind_group(
-                dev,
-                &engine.pipes.preview.layout,
-                "preview",
-                &[
-                    (0, buf.as_entire_binding()),
-                    (1, wgpu::BindingResource::TextureView(&view)),
-                    (2, wgpu::BindingResource::Sampler(&sampler)),
-                ],
-            );
-            groups.push((bg, buf));
-        }
-        let readback = dev.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("preview.readback"),
-            size: (side * side * 4) as u64,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut enc = dev.create_command_encoder(&Default::default());
-        {
-            let mview = msaa.create_view(&Default::default());
-            let rview = resolved.create_view(&Default::default());
-            let dview = depth.create_view(&Default::default());
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("preview"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &mview,
-                    depth_slice: None,
-                    resolve_target: Some(&rview),
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color {
-                            r: 0.8,
-                            g: 0.82,
-                            b: 0.85,
-                            a: 1.0,
-                        }),
-                        store: wgpu::StoreOp::Discard,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &dview,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_pipeline(&engine.pipes.preview.pipeline);
-            pass.set_vertex_buffer(0, mesh.gpu.split_positions.slice(..));
-            pass.set_vertex_buffer(1, mesh.gpu.split_normals.slice(..));
-            pass.set_vertex_buffer(2, uv_buf.slice(..));
-            pass.set_index_buffer(mesh.gpu.split_tris.slice(..), wgpu::IndexFormat::Uint32);
-            for (k, (bg, _)) in groups.iter().enumerate() {
-                let (x, y) = ((k as u32 % 2) * VIEW_SIDE, (k as u32 / 2) * VIEW_SIDE);
-                pass.set_viewport(
-                    x as f32,
-                    y as f32,
-                    VIEW_SIDE as f32,
-                    VIEW_SIDE as f32,
-                    0.0,
-                    1.0,
-                );
-                pass.set_bind_group(0, bg, &[]);
-                pass.draw_indexed(0..3 * mesh.mesh.triangles.len() as u32, 0, 0..1);
+        let groups = view_groups(engine, mesh, &view, &sampler);
+        draw(engine, mesh, baked, &groups)
+    })
+    .and_then(|readback| ctx.map_and_read(&readback, "preview read-back"))
+}
+
+/// The baked texture with a box-filtered mip chain (in sRGB bytes: good enough for a preview).
+fn mip_chain(baked: &Baked) -> Vec<(u32, u32, Vec<u8>)> {
+    let mut levels = vec![(baked.width, baked.height, baked.rgba8())];
+    while levels.last().is_some_and(|l| l.0 > 1 || l.1 > 1) {
+        let (w, h, ref px) = *levels.last().expect("non-empty");
+        let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
+        let mut out = vec![0u8; (nw * nh * 4) as usize];
+        for y in 0..nh {
+            for x in 0..nw {
+                for k in 0..4 {
+                    let mut s = 0u32;
+                    for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                        let sx = (2 * x + dx).min(w - 1);
+                        let sy = (2 * y + dy).min(h - 1);
+                        s += px[((sy * w + sx) * 4 + k) as usize] as u32;
+                    }
+                    out[((y * nw + x) * 4 + k) as usize] = ((s + 2) / 4) as u8;
+                }
             }
         }
-        enc.copy_texture_to_buffer(
-            resolved.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer: &readback,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(side * 4),
-                    rows_per_image: Some(side),
-                },
+        levels.push((nw, nh, out));
+    }
+    levels
+}
+
+/// The baked texture and its mips on the GPU.
+fn upload_texture(engine: &Engine, baked: &Baked) -> wgpu::TextureView {
+    let (ctx, dev) = (&engine.ctx, &engine.ctx.device);
+    let levels = mip_chain(baked);
+    let tex = dev.create_texture(&wgpu::TextureDescriptor {
+        label: Some("preview.baked"),
+        size: wgpu::Extent3d {
+            width: baked.width,
+            height: baked.height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: levels.len() as u32,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba8UnormSrgb,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    for (i, (w, h, px)) in levels.iter().enumerate() {
+        ctx.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &tex,
+                mip_level: i as u32,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            px,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(w * 4),
+                rows_per_image: Some(*h),
             },
             wgpu::Extent3d {
+                width: *w,
+                height: *h,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+    tex.create_view(&Default::default())
+}
+
+/// One view-uniform bind group per side: orthographic, from 20° above, at 90° steps.
+fn view_groups(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    view: &wgpu::TextureView,
+    sampler: &wgpu::Sampler,
+) -> Vec<(wgpu::BindGroup, wgpu::Buffer)> {
+    let dev = &engine.ctx.device;
+    let (lo, hi) = (
+        Vec3::from(mesh.stats.bbox_min),
+        Vec3::from(mesh.stats.bbox_max),
+    );
+    let center = 0.5 * (lo + hi);
+    let r = 0.5 * (hi - lo).length().max(1e-6);
+    let mut groups = Vec::new();
+    for k in 0..4 {
+        let az = k as f32 * std::f32::consts::FRAC_PI_2;
+        let el = 20f32.to_radians();
+        let dir = Vec3::new(az.sin() * el.cos(), el.sin(), az.cos() * el.cos());
+        let eye = center + dir * 2.0 * r;
+        let vp = Mat4::orthographic_rh(-r, r, -r, r, 0.5 * r, 3.5 * r)
+            * Mat4::look_at_rh(eye, center, Vec3::Y);
+        let light = (dir + Vec3::new(0.3, 0.5, 0.0)).normalize();
+        let u = ViewUniform {
+            view_proj: vp.to_cols_array_2d(),
+            light: light.extend(0.0).to_array(),
+        };
+        let buf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("preview.view"),
+            contents: bytemuck::bytes_of(&u),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let bg = crate::gpu::pipelines::make_bind_group(
+            dev,
+            &engine.pipes.preview.layout,
+            "preview",
+            &[
+                (0, buf.as_entire_binding()),
+                (1, wgpu::BindingResource::TextureView(view)),
+                (2, wgpu::BindingResource::Sampler(sampler)),
+            ],
+        );
+        groups.push((bg, buf));
+    }
+    groups
+}
+
+/// Draws the four views (4× MSAA, resolved) and copies the result into a mappable buffer.
+fn draw(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    baked: &Baked,
+    groups: &[(wgpu::BindGroup, wgpu::Buffer)],
+) -> wgpu::Buffer {
+    let (ctx, dev) = (&engine.ctx, &engine.ctx.device);
+    let side = 2 * VIEW_SIDE;
+    let uv_buf = &mesh.gpu.uvs[baked_uv_set(baked)];
+    let mk = |label: &str, format, samples, usage| {
+        dev.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
                 width: side,
                 height: side,
                 depth_or_array_layers: 1,
             },
-        );
-        ctx.queue.submit([enc.finish()]);
-        readback
-    })
-    .and_then(|readback| ctx.map_and_read(&readback, "preview read-back"))
+            mip_level_count: 1,
+            sample_count: samples,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage,
+            view_formats: &[],
+        })
+    };
+    let msaa = mk(
+        "preview.msaa",
+        PREVIEW_FORMAT,
+        4,
+        wgpu::TextureUsages::RENDER_ATTACHMENT,
+    );
+    let resolved = mk(
+        "preview.resolved",
+        PREVIEW_FORMAT,
+        1,
+        wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+    );
+    let depth = mk(
+        "preview.depth",
+        wgpu::TextureFormat::Depth32Float,
+        4,
+        wgpu::TextureUsages::RENDER_ATTACHMENT,
+    );
+    let readback = dev.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("preview.readback"),
+        size: (side * side * 4) as u64,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = dev.create_command_encoder(&Default::default());
+    {
+        let mview = msaa.create_view(&Default::default());
+        let rview = resolved.create_view(&Default::default());
+        let dview = depth.create_view(&Default::default());
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("preview"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &mview,
+                depth_slice: None,
+                resolve_target: Some(&rview),
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color {
+                        r: 0.8,
+                        g: 0.82,
+                        b: 0.85,
+                        a: 1.0,
+                    }),
+                    store: wgpu::StoreOp::Discard,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &dview,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&engine.pipes.preview.pipeline);
+        pass.set_vertex_buffer(0, mesh.gpu.split_positions.slice(..));
+        pass.set_vertex_buffer(1, mesh.gpu.split_normals.slice(..));
+        pass.set_vertex_buffer(2, uv_buf.slice(..));
+        pass.set_index_buffer(mesh.gpu.split_tris.slice(..), wgpu::IndexFormat::Uint32);
+        for (k, (bg, _)) in groups.iter().enumerate() {
+            let (x, y) = ((k as u32 % 2) * VIEW_SIDE, (k as u32 / 2) * VIEW_SIDE);
+            pass.set_viewport(
+                x as f32,
+                y as f32,
+                VIEW_SIDE as f32,
+                VIEW_SIDE as f32,
+                0.0,
+                1.0,
+            );
+            pass.set_bind_group(0, bg, &[]);
+            pass.draw_indexed(0..3 * mesh.mesh.triangles.len() as u32, 0, 0..1);
+        }
+    }
+    enc.copy_texture_to_buffer(
+        resolved.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &readback,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(side * 4),
+                rows_per_image: Some(side),
+            },
+        },
+        wgpu::Extent3d {
+            width: side,
+            height: side,
+            depth_or_array_layers: 1,
+        },
+    );
+    ctx.queue.submit([enc.finish()]);
+    readback
 }
 
 fn baked_uv_set(baked: &Baked) -> usize {

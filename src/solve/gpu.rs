@@ -13,7 +13,7 @@
 //! iteration count and result do not depend on the rest of its batch.
 
 use crate::error::{Error, Result};
-use crate::gpu::pipelines::Pipelines;
+use crate::gpu::pipelines::{Kernel, Pipelines};
 use crate::gpu::GpuContext;
 use crate::solve::sparse::{CgReport, CgStatus, Csr};
 use wgpu::util::DeviceExt;
@@ -417,41 +417,7 @@ pub fn cg_batched_on(
             }
         })
         .collect();
-    // Each system gets the 64-wide kernel when one iteration of it stays well under the loop budget
-    // with 64 invocations, else the 256-wide one: a choice that depends on the system alone, so its
-    // arithmetic (and result) is the same in any batch. Iterations per dispatch per class: each
-    // iteration an invocation walks its rows (ceil(n / WG)) a few times, each row's entries, plus
-    // the reductions' fixed steps.
-    let row_len = 3 * gpu.max_row_len as usize + 8;
-    let cost = |n: u32, wg: u32| (n as usize).div_ceil(wg as usize).max(1) * row_len + 60;
-    let narrow_wg = crate::gpu::shaders::LINALG_WG_NARROW;
-    let systems: Vec<SystemDesc> = systems
-        .iter()
-        .map(|s| SystemDesc {
-            wide: u32::from(cost(s.n, narrow_wg) > LOOP_BUDGET / 8),
-            ..*s
-        })
-        .collect();
-    let mut classes = Vec::new();
-    for (wide, kernel, wg) in [
-        (0u32, &pipes.cg_batched_narrow, narrow_wg),
-        (1u32, &pipes.cg_batched, WG as u32),
-    ] {
-        let Some(max_n) = systems.iter().filter(|s| s.wide == wide).map(|s| s.n).max() else {
-            continue;
-        };
-        let per_iter = cost(max_n, wg);
-        if per_iter > HARD_LOOP_LIMIT {
-            return Err(Error::Gpu {
-                stage: "conjugate gradient".into(),
-                detail: format!(
-                    "a system of {max_n} unknowns (rows up to {} entries) is too large for one workgroup: one iteration would loop about {per_iter} times per invocation, past the {HARD_LOOP_LIMIT} a software driver runs reliably; split it (a smaller decal) or solve it on the CPU",
-                    gpu.max_row_len
-                ),
-            });
-        }
-        classes.push((wide, kernel, (LOOP_BUDGET / per_iter).clamp(1, 256) as u32));
-    }
+    let (systems, classes) = kernel_classes(pipes, gpu, systems)?;
     let max_iter = systems.iter().map(|s| s.max_iter).max().unwrap_or(1);
     let state_size = systems.len() as u64 * 32;
     let vec_buf = |label: &str, data: Option<&[f32]>| -> wgpu::Buffer {
@@ -534,45 +500,7 @@ pub fn cg_batched_on(
         }
         (xb, state, bgs, (sys, bb, db, rb, pb, qb, rounds))
     })?;
-    let per_submit = |iters: u32| {
-        ITERS_PER_SUBMIT
-            .min(max_iter.saturating_add(1))
-            .div_ceil(iters)
-            .max(1)
-    };
-    let (mut dispatches, mut submits) = (0u32, 0u32);
-    let states = loop {
-        ctx.scoped("conjugate gradient", || {
-            let mut enc =
-                dev.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("cg") });
-            {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("cg.iterate"),
-                    timestamp_writes: None,
-                });
-                for (kernel, iters, groups) in &bgs {
-                    pass.set_pipeline(&kernel.pipeline);
-                    for _ in 0..per_submit(*iters) {
-                        for (bg, count) in groups {
-                            pass.set_bind_group(0, bg, &[]);
-                            pass.dispatch_workgroups(*count, 1, 1);
-                        }
-                    }
-                }
-            }
-            ctx.queue.submit([enc.finish()]);
-        })?;
-        dispatches += bgs
-            .iter()
-            .map(|(_, iters, groups)| per_submit(*iters) * groups.len() as u32)
-            .sum::<u32>();
-        submits += 1;
-        let bytes = ctx.read_buffer(&state, state_size, "conjugate-gradient status read-back")?;
-        let st: Vec<CgState> = bytemuck::cast_slice(&bytes).to_vec();
-        if st.iter().all(|s| s.status >= 2) {
-            break st;
-        }
-    };
+    let (states, dispatches, submits) = iterate(ctx, &bgs, max_iter, &state, state_size)?;
     let xbytes = ctx.read_buffer(
         &xb,
         rows as u64 * 4,
@@ -597,4 +525,105 @@ pub fn cg_batched_on(
         dispatches,
         submits,
     })
+}
+
+/// Per system, the 64- or 256-wide kernel; per kernel class (wide, kernel, iterations per dispatch).
+///
+/// Each system gets the 64-wide kernel when one iteration of it stays well under the loop budget
+/// with 64 invocations, else the 256-wide one: a choice that depends on the system alone, so its
+/// arithmetic (and result) is the same in any batch.
+#[allow(clippy::type_complexity)]
+fn kernel_classes<'p>(
+    pipes: &'p Pipelines,
+    gpu: &GpuCsr,
+    systems: &[SystemDesc],
+) -> Result<(Vec<SystemDesc>, Vec<(u32, &'p Kernel, u32)>)> {
+    // Iterations per dispatch per class: each
+    // iteration an invocation walks its rows (ceil(n / WG)) a few times, each row's entries, plus
+    // the reductions' fixed steps.
+    let row_len = 3 * gpu.max_row_len as usize + 8;
+    let cost = |n: u32, wg: u32| (n as usize).div_ceil(wg as usize).max(1) * row_len + 60;
+    let narrow_wg = crate::gpu::shaders::LINALG_WG_NARROW;
+    let systems: Vec<SystemDesc> = systems
+        .iter()
+        .map(|s| SystemDesc {
+            wide: u32::from(cost(s.n, narrow_wg) > LOOP_BUDGET / 8),
+            ..*s
+        })
+        .collect();
+    let mut classes = Vec::new();
+    for (wide, kernel, wg) in [
+        (0u32, &pipes.cg_batched_narrow, narrow_wg),
+        (1u32, &pipes.cg_batched, WG as u32),
+    ] {
+        let Some(max_n) = systems.iter().filter(|s| s.wide == wide).map(|s| s.n).max() else {
+            continue;
+        };
+        let per_iter = cost(max_n, wg);
+        if per_iter > HARD_LOOP_LIMIT {
+            return Err(Error::Gpu {
+                stage: "conjugate gradient".into(),
+                detail: format!(
+                    "a system of {max_n} unknowns (rows up to {} entries) is too large for one workgroup: one iteration would loop about {per_iter} times per invocation, past the {HARD_LOOP_LIMIT} a software driver runs reliably; split it (a smaller decal) or solve it on the CPU",
+                    gpu.max_row_len
+                ),
+            });
+        }
+        classes.push((wide, kernel, (LOOP_BUDGET / per_iter).clamp(1, 256) as u32));
+    }
+    Ok((systems, classes))
+}
+
+/// Submissions of fused iterations until every system has a final status (converged, budget spent
+/// or breakdown), reading back only the 32-byte status per system between them. Returns the
+/// statuses, dispatches and submissions.
+#[allow(clippy::type_complexity)]
+fn iterate(
+    ctx: &GpuContext,
+    bgs: &[(&Kernel, u32, Vec<(wgpu::BindGroup, u32)>)],
+    max_iter: u32,
+    state: &wgpu::Buffer,
+    state_size: u64,
+) -> Result<(Vec<CgState>, u32, u32)> {
+    let dev = &ctx.device;
+    let per_submit = |iters: u32| {
+        ITERS_PER_SUBMIT
+            .min(max_iter.saturating_add(1))
+            .div_ceil(iters)
+            .max(1)
+    };
+    let (mut dispatches, mut submits) = (0u32, 0u32);
+    let states = loop {
+        ctx.scoped("conjugate gradient", || {
+            let mut enc =
+                dev.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("cg") });
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("cg.iterate"),
+                    timestamp_writes: None,
+                });
+                for (kernel, iters, groups) in bgs {
+                    pass.set_pipeline(&kernel.pipeline);
+                    for _ in 0..per_submit(*iters) {
+                        for (bg, count) in groups {
+                            pass.set_bind_group(0, bg, &[]);
+                            pass.dispatch_workgroups(*count, 1, 1);
+                        }
+                    }
+                }
+            }
+            ctx.queue.submit([enc.finish()]);
+        })?;
+        dispatches += bgs
+            .iter()
+            .map(|(_, iters, groups)| per_submit(*iters) * groups.len() as u32)
+            .sum::<u32>();
+        submits += 1;
+        let bytes = ctx.read_buffer(state, state_size, "conjugate-gradient status read-back")?;
+        let st: Vec<CgState> = bytemuck::cast_slice(&bytes).to_vec();
+        if st.iter().all(|s| s.status >= 2) {
+            break st;
+        }
+    };
+    Ok((states, dispatches, submits))
 }

@@ -127,7 +127,6 @@ pub fn run(
 ) -> Result<()> {
     let ctx = &engine.ctx;
     let pipes = engine.pipelines();
-    let reps = opts.reps.max(1);
     // Device bandwidth reference.
     let copy_gbs = copy_bandwidth(ctx, pipes, 64 << 20, 20)?;
     emit(
@@ -150,8 +149,25 @@ pub fn run(
         .map(|p| p.display().to_string())
         .unwrap_or_else(|| "spot (bundled)".into());
 
+    bench_spmv(engine, &topo, &source, opts, copy_gbs, &mut emit)?;
+    bench_charts(engine, &topo, &source, opts, &mut emit)?;
+    bench_batch(engine, &topo, &source, opts, &mut emit)
+}
+
+/// SpMV on the mesh Laplacian, GPU against the f64 twin, as a fraction of the copy bandwidth.
+fn bench_spmv(
+    engine: &Engine,
+    topo: &Topology,
+    source: &str,
+    opts: &LinalgOptions,
+    copy_gbs: f64,
+    emit: &mut impl FnMut(serde_json::Value),
+) -> Result<()> {
+    let ctx = &engine.ctx;
+    let pipes = engine.pipelines();
+    let reps = opts.reps.max(1);
     // SpMV on the mesh Laplacian.
-    let lap = decalbake::maps::chart::lscm::shifted_laplacian(&topo, 1.0);
+    let lap = decalbake::maps::chart::lscm::shifted_laplacian(topo, 1.0);
     let g = GpuCsr::upload(ctx, &lap)?;
     let x: Vec<f32> = (0..lap.rows)
         .map(|i| ((i * 37) % 101) as f32 / 101.0)
@@ -174,6 +190,20 @@ pub fn run(
         "nnz_per_s": lap.nnz() as f64 / gpu_s, "cpu_twin_ms": cpu_s * 1e3, "cpu_over_gpu": cpu_s / gpu_s,
     }));
 
+    Ok(())
+}
+
+/// One chart of each requested size: GPU CG, the CPU twin and (with `--peers`) libigl and scipy.
+fn bench_charts(
+    engine: &Engine,
+    topo: &Topology,
+    source: &str,
+    opts: &LinalgOptions,
+    emit: &mut impl FnMut(serde_json::Value),
+) -> Result<()> {
+    let ctx = &engine.ctx;
+    let pipes = engine.pipelines();
+    let reps = opts.reps.max(1);
     // One chart of each size.
     let dir = std::env::temp_dir().join(format!("decalbake-bench-{}", std::process::id()));
     std::fs::create_dir_all(&dir).map_err(|e| decalbake::Error::Io {
@@ -186,10 +216,10 @@ pub fn run(
         if target * 2 > topo.positions.len() {
             continue;
         }
-        let (frame, tris, sys, x0) = chart_of_size(&topo, seed_tri, target);
+        let (frame, tris, sys, x0) = chart_of_size(topo, seed_tri, target);
         // Set-up on the CPU: selection, pins and assembly of this chart.
         let t = Instant::now();
-        let _ = std::hint::black_box(chart::initial_system(&topo, &frame, seed_tri as u32));
+        let _ = std::hint::black_box(chart::initial_system(topo, &frame, seed_tri as u32));
         let setup_ms = ms(t);
         let budget = 20 * chart::default_budget(sys.matrix.rows);
         let desc = [SystemDesc::new(0, sys.matrix.rows, FINAL_RTOL, budget)];
@@ -224,7 +254,7 @@ pub fn run(
         let peer = match &opts.peers {
             Some(p) => {
                 let obj = dir.join(format!("chart_{target}.obj"));
-                write_obj(&obj, &topo, &tris)?;
+                write_obj(&obj, topo, &tris)?;
                 run_peer(p, &obj, sys.vertices.len())
             }
             None => serde_json::Value::Null,
@@ -240,14 +270,30 @@ pub fn run(
         }));
     }
 
+    let _ = std::fs::remove_dir_all(&dir);
+    Ok(())
+}
+
+/// Many small charts: one batched GPU solve against one solve each and the CPU twin.
+fn bench_batch(
+    engine: &Engine,
+    topo: &Topology,
+    source: &str,
+    opts: &LinalgOptions,
+    emit: &mut impl FnMut(serde_json::Value),
+) -> Result<()> {
+    let ctx = &engine.ctx;
+    let pipes = engine.pipelines();
+    let reps = opts.reps.max(1);
+    let seed_tri = topo.triangles.len() / 3;
     // Batched small charts versus one solve per chart.
     let step = (topo.triangles.len() / opts.batch.max(1)).max(1);
     // The decal size that gives one chart of about 300 vertices, used at every position.
-    let side = chart_of_size(&topo, seed_tri, 300).0.size[0];
+    let side = chart_of_size(topo, seed_tri, 300).0.size[0];
     let systems: Vec<(decalbake::maps::chart::lscm::System, Vec<f64>)> = (0..opts.batch)
         .map(|i| {
             let t = (i * step + step / 2) % topo.triangles.len();
-            let (_, s, x0) = chart::initial_system(&topo, &frame_at(&topo, t, side), t as u32);
+            let (_, s, x0) = chart::initial_system(topo, &frame_at(topo, t, side), t as u32);
             (s, x0)
         })
         .collect();
@@ -323,6 +369,5 @@ pub fn run(
         "batched_over_one_by_one": single_ms / batched_ms,
         "cpu_twin_ms": cpu_ms, "cpu_twin_charts_per_s": n / (cpu_ms / 1e3),
     }));
-    let _ = std::fs::remove_dir_all(&dir);
     Ok(())
 }

@@ -383,36 +383,30 @@ pub fn build(
     stats: &mut SolveStats,
 ) -> Result<Vec<Chart>> {
     let mut out: Vec<Option<Chart>> = vec![None; requests.len()];
-    // LSCM charts: selection, then rounds of solve + refine.
+    build_lscm(topo, requests, solver, stats, &mut out)?;
+    build_hybrid(topo, requests, solver, stats, &mut out)?;
+    Ok(out
+        .into_iter()
+        .map(|c| c.expect("every request answered"))
+        .collect())
+}
+
+/// The LSCM charts of `requests`: selection, then rounds of solve and refinement (all charts of a
+/// round in one batch) until every chart settles or [`MAX_ROUNDS`], then a final solve to
+/// [`FINAL_RTOL`].
+fn build_lscm(
+    topo: &Topology,
+    requests: &[ChartRequest],
+    solver: &Solver,
+    stats: &mut SolveStats,
+    out: &mut [Option<Chart>],
+) -> Result<()> {
     let lscm_ids: Vec<usize> = (0..requests.len())
         .filter(|&i| matches!(requests[i].kind, ChartKind::Lscm))
         .collect();
     let mut work: Vec<Work> = lscm_ids
         .iter()
-        .map(|&i| {
-            let r = &requests[i];
-            let radius = half_extent(&r.frame).length();
-            let triangles = select(topo, &r.frame, r.triangle, radius);
-            let mut warm = HashMap::new();
-            for &t in &triangles {
-                for v in topo.triangles[t as usize] {
-                    warm.entry(v).or_insert_with(|| match r.warm {
-                        Some(m) if m[v as usize][3] > 0.5 => {
-                            DVec2::new(m[v as usize][0] as f64, m[v as usize][1] as f64)
-                        }
-                        _ => project(&r.frame, topo.positions[v as usize]),
-                    });
-                }
-            }
-            Work {
-                triangles,
-                warm,
-                seen: HashSet::new(),
-                rounds: 0,
-                iterations: 0,
-                done: false,
-            }
-        })
+        .map(|&i| start_work(topo, &requests[i]))
         .collect();
     let mut finals: Vec<Option<(Vec<f64>, CgReport, System)>> = vec![None; lscm_ids.len()];
     for round in 0..=MAX_ROUNDS {
@@ -488,32 +482,72 @@ pub fn build(
     }
     for (k, f) in finals.into_iter().enumerate() {
         let (_, rep, sys) = f.expect("every chart gets a final solve");
-        let w = &work[k];
-        let coords = sys
-            .vertices
-            .iter()
-            .map(|&v| {
-                let z = w.warm[&v];
-                (v, [z.x as f32, z.y as f32])
-            })
-            .collect();
-        out[lscm_ids[k]] = Some(Chart {
-            coords,
-            triangles: w.triangles.clone(),
-            report: ChartReport {
-                triangles: w.triangles.len() as u32,
-                vertices: sys.vertices.len() as u32,
-                fixed_vertices: sys.fixed.len() as u32,
-                rounds: w.rounds,
-                cg_iterations: rep.iterations,
-                cg_iterations_total: w.iterations,
-                residual: rep.residual,
-                status: rep.status,
-                settled: w.done,
-            },
-        });
+        out[lscm_ids[k]] = Some(finished_chart(&work[k], rep, sys));
     }
-    // Hybrid charts: one constrained solve each, all in one batch.
+    Ok(())
+}
+
+/// A chart's first selection, with its warm start: the request's map where it reaches, else the
+/// planar projection.
+fn start_work(topo: &Topology, r: &ChartRequest) -> Work {
+    let radius = half_extent(&r.frame).length();
+    let triangles = select(topo, &r.frame, r.triangle, radius);
+    let mut warm = HashMap::new();
+    for &t in &triangles {
+        for v in topo.triangles[t as usize] {
+            warm.entry(v).or_insert_with(|| match r.warm {
+                Some(m) if m[v as usize][3] > 0.5 => {
+                    DVec2::new(m[v as usize][0] as f64, m[v as usize][1] as f64)
+                }
+                _ => project(&r.frame, topo.positions[v as usize]),
+            });
+        }
+    }
+    Work {
+        triangles,
+        warm,
+        seen: HashSet::new(),
+        rounds: 0,
+        iterations: 0,
+        done: false,
+    }
+}
+
+/// The chart of a finished LSCM solve.
+fn finished_chart(w: &Work, rep: CgReport, sys: System) -> Chart {
+    let coords = sys
+        .vertices
+        .iter()
+        .map(|&v| {
+            let z = w.warm[&v];
+            (v, [z.x as f32, z.y as f32])
+        })
+        .collect();
+    Chart {
+        coords,
+        triangles: w.triangles.clone(),
+        report: ChartReport {
+            triangles: w.triangles.len() as u32,
+            vertices: sys.vertices.len() as u32,
+            fixed_vertices: sys.fixed.len() as u32,
+            rounds: w.rounds,
+            cg_iterations: rep.iterations,
+            cg_iterations_total: w.iterations,
+            residual: rep.residual,
+            status: rep.status,
+            settled: w.done,
+        },
+    }
+}
+
+/// The hybrid charts of `requests`: one constrained solve each, all in one batch.
+fn build_hybrid(
+    topo: &Topology,
+    requests: &[ChartRequest],
+    solver: &Solver,
+    stats: &mut SolveStats,
+    out: &mut [Option<Chart>],
+) -> Result<()> {
     let hybrid: Vec<(usize, System, Vec<f64>, u32, bool)> = (0..requests.len())
         .filter_map(|i| match requests[i].kind {
             ChartKind::Hybrid { expmap, threshold } => {
@@ -590,10 +624,7 @@ pub fn build(
             report,
         });
     }
-    Ok(out
-        .into_iter()
-        .map(|c| c.expect("every request answered"))
-        .collect())
+    Ok(())
 }
 
 /// The first LSCM system of a chart (Maillot §4 selection, two pins, planar warm start, unknowns in
