@@ -283,7 +283,7 @@ fn padding_fills_exactly_the_band_from_the_nearest_island_texel() {
 /// (slope 0.25 over 0.5); the exponential map of this developable sheet keeps both up to the crease:
 /// the vertices on the fold carry the average of the two panels' normals, so the edges leaving them
 /// are laid into a plane halfway between (within 3 % here). The GPU figures also equal the CPU twin
-/// `layer::distortion`.
+/// `maps::distortion::distortion`.
 #[test]
 fn distortion_report_matches_analytic_values_on_the_folded_sheet() {
     let dir = scratch("distortion");
@@ -334,7 +334,7 @@ fn distortion_report_matches_analytic_values_on_the_folded_sheet() {
     let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
     let frame = decalbake::maps::Frame::new(&baked.report.layers[0].placement, &job.layers[0]);
     let coords = decalbake::maps::planar::planar_coords(&topo, &frame);
-    let sel = decalbake::bake::select::select_triangles(
+    let sel = decalbake::bake::cpu::select_triangles(
         &mesh,
         &topo,
         &mesh.uv_sets[0],

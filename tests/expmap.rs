@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! Discrete exponential maps (Schmidt et al. 2006): the GPU relaxation reaches the same fixed point
-//! as the serial Dijkstra twin (`geodesic::dem_cpu`); both are exact on a plane; the error against the
+//! as the serial Dijkstra twin (`maps::expmap::dem_cpu`); both are exact on a plane; the error against the
 //! analytic exponential map of a sphere is measured and printed.
 
 mod common;

@@ -5,11 +5,12 @@
 //! ([`super::islands`]). Created once per bake, owned by it, dropped with it.
 
 use super::engine::Engine;
+use super::engine::Islands;
 use super::images::Images;
-use super::islands::{islands, Islands};
+use super::islands::islands;
 use super::params::{params_buffer, pbind, Params};
 use super::plan::CELL;
-use super::{Cx, Log};
+use super::stage::{Cx, Log};
 use crate::error::Result;
 use std::sync::Arc;
 use wgpu::util::DeviceExt;

@@ -12,7 +12,7 @@ use super::images::Images;
 use super::maps::{LayerMaps, Slots};
 use super::params::{params_buffer, pbind, Params, PARAMS_STRIDE};
 use super::plan::{pack_atlas, plan_cells, Batch, TILE_TARGET};
-use super::{Cx, Log};
+use super::stage::{Cx, Log};
 use crate::error::Result;
 use crate::gpu::pipelines::make_bind_group;
 use crate::io::job::Job;

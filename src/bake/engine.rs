@@ -4,8 +4,6 @@
 //! texture, the islands per size) ([`LoadedMesh`]); and the read-back result ([`Baked`]). The bake
 //! itself is [`super::run`], stage by stage.
 
-use super::images::GpuImage;
-use super::islands::{IslandKey, Islands};
 use crate::bake::report::{MeshStats, Report};
 use crate::error::Result;
 use crate::gpu::pipelines::{Pipelines, COVERAGE_FORMAT};
@@ -403,4 +401,25 @@ impl Engine {
 
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1000.0
+}
+
+/// A decoded image on the GPU.
+pub struct GpuImage {
+    /// Its view.
+    pub view: wgpu::TextureView,
+    pub(crate) _tex: wgpu::Texture,
+}
+
+/// (UV set, width, height, supersampling).
+pub type IslandKey = (u32, u32, u32, u32);
+
+/// A UV layout rasterized at one texture size: which texels the islands cover, and for every texel
+/// the index of its nearest island texel (exact Euclidean distance transform).
+pub struct Islands {
+    /// 1 per island texel.
+    pub mask: wgpu::Buffer,
+    /// Index of the nearest island texel, per texel.
+    pub nearest: wgpu::Buffer,
+    /// Island texels.
+    pub count: u64,
 }

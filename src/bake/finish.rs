@@ -6,7 +6,7 @@
 
 use super::canvas::Canvas;
 use super::params::{params_buffer, pbind, Params, FLAG_16BIT};
-use super::{Cx, Log};
+use super::stage::{Cx, Log};
 use crate::error::Result;
 use crate::io::job::Padding;
 

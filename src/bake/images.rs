@@ -3,20 +3,13 @@
 //! adapter's limits and uploaded (layer images with premultiplied mipmaps). Each file is decoded once
 //! per bake; the material's texture once per mesh.
 
-use super::engine::{Engine, LoadedMesh};
+use super::engine::{Engine, GpuImage, LoadedMesh};
 use crate::error::{Error, Result};
 use crate::io::image::LinearImage;
 use crate::io::job::{Base, Job};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-
-/// A decoded image on the GPU.
-pub struct GpuImage {
-    /// Its view.
-    pub view: wgpu::TextureView,
-    _tex: wgpu::Texture,
-}
 
 /// Every image a bake samples, on the GPU.
 pub struct Images {

@@ -5,26 +5,12 @@
 //! `island_mask.wgsl`, `edt_columns.wgsl`, `edt_rows.wgsl`; CPU twin
 //! [`crate::bake::cpu::nearest_island_map`]. The padding stage reads the result.
 
-use super::engine::{Engine, LoadedMesh};
+use super::engine::{Engine, IslandKey, Islands, LoadedMesh};
 use super::params::{params_buffer, pbind, Params, PARAMS_STRIDE};
 use super::plan::{split_rect, target_side, uv_tile_range, TILE_TARGET};
 use crate::error::Result;
 use crate::gpu::pipelines::make_bind_group;
 use std::sync::Arc;
-
-/// (UV set, width, height, supersampling).
-pub type IslandKey = (u32, u32, u32, u32);
-
-/// A UV layout rasterized at one texture size: which texels the islands cover, and for every texel
-/// the index of its nearest island texel (exact Euclidean distance transform).
-pub struct Islands {
-    /// 1 per island texel.
-    pub mask: wgpu::Buffer,
-    /// Index of the nearest island texel, per texel.
-    pub nearest: wgpu::Buffer,
-    /// Island texels.
-    pub count: u64,
-}
 
 /// The islands of `mesh` for a UV set, texture size and sampling, computed on first use and cached
 /// on the mesh. Counts its dispatches and draws into `commands`.

@@ -11,7 +11,7 @@
 use super::engine::{Engine, LoadedMesh};
 use super::params::{params_buffer, pbind, Params, FLAG_FACING, FLAG_MASK, PARAMS_STRIDE};
 use super::place::Placed;
-use super::{ms, Cx, Log};
+use super::stage::{ms, Cx, Log};
 use crate::error::{Error, Result};
 use crate::io::job::Job;
 use crate::maps::chart::{self, ChartReport};

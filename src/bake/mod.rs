@@ -37,6 +37,7 @@ mod place;
 pub mod plan;
 pub mod report;
 pub mod select;
+mod stage;
 
 pub use engine::{Baked, Engine, LoadedMesh};
 pub use images::f32_to_f16;
@@ -45,25 +46,8 @@ pub use param::ParamRow;
 use crate::error::Result;
 use crate::io::job::Job;
 use report::{LayerReport, Report, Timings};
+use stage::{ms, Cx, Log};
 use std::time::Instant;
-
-/// What every stage reads: the engine, the mesh and the job.
-#[derive(Clone, Copy)]
-pub(crate) struct Cx<'a> {
-    pub engine: &'a Engine,
-    pub mesh: &'a LoadedMesh,
-    pub job: &'a Job,
-}
-
-/// What the stages record as they go, for the report.
-pub(crate) struct Log {
-    /// Milliseconds per stage.
-    pub timings: Timings,
-    /// Warnings, in the order they arose.
-    pub warnings: Vec<String>,
-    /// GPU dispatches and draws issued.
-    pub commands: u32,
-}
 
 /// A bake on the GPU before read-back: the encoded texture and the report.
 pub(crate) struct Run {
@@ -102,7 +86,7 @@ pub(crate) fn run(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Run> 
         let first = layers.len();
         for i in range {
             let row = canvas.row(&stats, i);
-            let r = report::layer_report(job, i, &placed, &maps, row, &mut log.warnings);
+            let r = layer_report(job, i, &placed, &maps, row, &mut log.warnings);
             layers.push(r);
         }
         let d = compose::compose(cx, &images, &canvas, &slots, &maps, &stats, &mut log)?;
@@ -138,7 +122,43 @@ pub(crate) fn run(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Run> 
     Ok(Run { encoded, report })
 }
 
-/// Milliseconds since `t`.
-pub(crate) fn ms(t: Instant) -> f64 {
-    t.elapsed().as_secs_f64() * 1000.0
+/// Layer `i`'s report from its placement, map and selection (stats row `row`); the distortion and
+/// texels covered are filled in later. Warns when its exponential map did not converge.
+fn layer_report(
+    job: &crate::io::job::Job,
+    i: usize,
+    placed: &place::Placed,
+    maps: &maps::LayerMaps,
+    row: &[i32],
+    warnings: &mut Vec<String>,
+) -> LayerReport {
+    let k = i - maps.range.start;
+    let l = &job.layers[i];
+    let expmap = maps.expmap[k].map(|g| crate::maps::expmap::GeoResult {
+        triangles_reached: row[6].max(0) as u32,
+        ..g
+    });
+    if let Some(g) = maps.expmap[k] {
+        if g.converged == 0 {
+            warnings.push(format!(
+                "layer {i}: the exponential map did not converge in {} sweeps; the decal may be incomplete",
+                g.sweeps
+            ));
+        }
+    }
+    LayerReport {
+        index: i,
+        image: l.image.display().to_string(),
+        method: l.method,
+        blend: l.blend,
+        placement: placed.placements[i],
+        distance_moved: placed.placements[i].distance,
+        frame: placed.frames[i],
+        triangles_covered: row[0].max(0) as u32,
+        texels_covered: 0,
+        texel_box: [row[1], row[2], row[3], row[4]],
+        distortion: Default::default(),
+        expmap,
+        chart: maps.chart[k],
+    }
 }

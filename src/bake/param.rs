@@ -120,7 +120,7 @@ impl Engine {
                 let coords = crate::maps::planar::planar_coords(topo, &frame);
                 // Selection needs UVs only for the texel box, which param does not use.
                 let no_uvs = vec![glam::Vec2::ZERO; mesh.mesh.positions.len()];
-                let sel = crate::bake::select::select_triangles(
+                let sel = crate::bake::cpu::select_triangles(
                     &mesh.mesh,
                     topo,
                     &no_uvs,

@@ -4,7 +4,7 @@
 //! [`crate::place::place_cpu`]), then each layer's kind turns its placement into a frame.
 
 use super::kinds::kind;
-use super::{Cx, Log};
+use super::stage::{Cx, Log};
 use crate::error::Result;
 use crate::maps::Frame;
 use crate::place::{place_gpu, Placement};

@@ -180,7 +180,7 @@ pub struct LayerSpec {
     /// Expmap: halt propagation at vertices whose |Gaussian curvature| exceeds this (partial decals).
     #[serde(default)]
     pub curvature_stop: Option<f32>,
-    /// Expmap: `"smooth"` (default; second order, see `geodesic::Accuracy::Smooth`) or `"fast"`
+    /// Expmap: `"smooth"` (default; second order, see `Accuracy::Smooth`) or `"fast"`
     /// (the paper's update).
     #[serde(default)]
     pub accuracy: Option<String>,
@@ -333,7 +333,7 @@ pub struct Layer {
     /// Expmap curvature stop (`f32::INFINITY` = off).
     pub curvature_stop: f32,
     /// Expmap update rule (also the start of lscm and hybrid layers).
-    pub accuracy: crate::maps::expmap::Accuracy,
+    pub accuracy: Accuracy,
     /// Hybrid re-solve threshold on s1 / s2.
     pub hybrid_threshold: f32,
     /// LSCM / hybrid final-solve iteration budget (`None` = automatic).
@@ -682,8 +682,8 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
         None => 1.1,
     };
     let accuracy = match l.accuracy.as_deref() {
-        None | Some("smooth") => crate::maps::expmap::Accuracy::Smooth,
-        Some("fast") => crate::maps::expmap::Accuracy::Fast,
+        None | Some("smooth") => Accuracy::Smooth,
+        Some("fast") => Accuracy::Fast,
         Some(other) => {
             return Err(err(
                 &field("accuracy"),

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! `decalbake bench`: bake time per stage for N planar decals at several texture sizes, printed as one
-//! JSON object per configuration, with the CPU twin (`compose_cpu`) timed in the same run as the
+//! JSON object per configuration, with the CPU twin (`bake::cpu::bake_cpu`) timed in the same run as the
 //! baseline where it finishes in reasonable time.
 //!
 //! Decals are placed at deterministic pseudo-random surface points (area-weighted), each 8 % of the
