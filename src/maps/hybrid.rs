@@ -7,7 +7,6 @@
 use super::chart::{ChartKind, ChartRequest};
 use super::{Frame, MapMethod};
 use crate::io::job::Layer;
-use crate::mesh::Topology;
 
 /// `"method": "hybrid"`.
 pub struct Hybrid;
@@ -42,17 +41,5 @@ impl MapMethod for Hybrid {
 
     fn chart_keeps_expmap(&self) -> bool {
         true
-    }
-
-    fn cpu_coords(
-        &self,
-        topo: &Topology,
-        layer: &Layer,
-        frame: &Frame,
-        triangle: u32,
-        expmap: Option<Vec<[f32; 4]>>,
-    ) -> Vec<[f32; 4]> {
-        let map = expmap.expect("hybrid starts from the exponential map");
-        super::cpu_chart_coords(self, topo, layer, frame, triangle, map)
     }
 }

@@ -7,7 +7,6 @@
 use super::chart::{ChartKind, ChartRequest};
 use super::{Frame, MapMethod};
 use crate::io::job::Layer;
-use crate::mesh::Topology;
 
 /// `"method": "lscm"`.
 pub struct Lscm;
@@ -35,17 +34,5 @@ impl MapMethod for Lscm {
             max_iter: layer.cg_max_iterations,
             warm: Some(expmap),
         })
-    }
-
-    fn cpu_coords(
-        &self,
-        topo: &Topology,
-        layer: &Layer,
-        frame: &Frame,
-        triangle: u32,
-        expmap: Option<Vec<[f32; 4]>>,
-    ) -> Vec<[f32; 4]> {
-        let map = expmap.expect("lscm starts from the exponential map");
-        super::cpu_chart_coords(self, topo, layer, frame, triangle, map)
     }
 }

@@ -95,7 +95,8 @@ pub trait MapMethod: Sync {
     }
 
     /// CPU twin: the layer's coordinates for every welded vertex. `expmap` is the layer's CPU
-    /// exponential map when [`MapMethod::uses_expmap`].
+    /// exponential map when [`MapMethod::uses_expmap`]. The default serves the methods built on
+    /// the exponential map: the chart solved in f64 from it, or the map itself.
     fn cpu_coords(
         &self,
         topo: &Topology,
@@ -103,7 +104,14 @@ pub trait MapMethod: Sync {
         frame: &Frame,
         triangle: u32,
         expmap: Option<Vec<[f32; 4]>>,
-    ) -> Vec<[f32; 4]>;
+    ) -> Vec<[f32; 4]> {
+        let map = expmap.expect("the exponential map is computed for methods that use it");
+        if self.solves_chart() {
+            cpu_chart_coords(self, topo, layer, frame, triangle, map)
+        } else {
+            map
+        }
+    }
 }
 
 /// The one place where a job's `method` becomes its implementation.
@@ -118,8 +126,8 @@ pub fn method(m: Method) -> &'static dyn MapMethod {
 
 /// CPU twin of a chart method's coordinates: the chart solved in f64 from `expmap`, written over a
 /// zero slot, or over the exponential map when the method keeps it.
-pub(crate) fn cpu_chart_coords(
-    m: &dyn MapMethod,
+fn cpu_chart_coords<M: MapMethod + ?Sized>(
+    m: &M,
     topo: &Topology,
     layer: &Layer,
     frame: &Frame,

@@ -11,9 +11,7 @@ pub use crate::io::job::Accuracy;
 pub use cpu::{dem_cpu, ExpMap, Options, Seed};
 pub use gpu::GeoResult;
 
-use super::{Frame, MapMethod};
-use crate::io::job::Layer;
-use crate::mesh::Topology;
+use super::MapMethod;
 
 /// `"method": "expmap"`: the coordinates are the exponential map itself.
 pub struct Expmap;
@@ -21,16 +19,5 @@ pub struct Expmap;
 impl MapMethod for Expmap {
     fn uses_expmap(&self) -> bool {
         true
-    }
-
-    fn cpu_coords(
-        &self,
-        _topo: &Topology,
-        _layer: &Layer,
-        _frame: &Frame,
-        _triangle: u32,
-        expmap: Option<Vec<[f32; 4]>>,
-    ) -> Vec<[f32; 4]> {
-        expmap.expect("the exponential map is computed for expmap layers")
     }
 }
