@@ -252,8 +252,9 @@ fn chart_pass(
     }
     let cleared: Vec<u64> = layers
         .iter()
-        .filter(|&&i| !method(job.layers[i].method).chart_keeps_expmap())
-        .map(|&i| (i - start) as u64 * nv * 16)
+        .zip(&charts)
+        .filter(|(_, c)| c.replaces_map)
+        .map(|(&i, _)| (i - start) as u64 * nv * 16)
         .collect();
     scatter(engine, slots, &items, &cleared, nv * 16)?;
     log.commands += 1;
@@ -272,6 +273,31 @@ fn check_chart(job: &Job, i: usize, r: &ChartReport, log: &mut Log) -> Result<()
                 r.triangles, r.status, r.cg_iterations, r.residual, chart::FINAL_RTOL
             ),
         });
+    }
+    if r.fallback == chart::Fallback::Refused {
+        return Err(Error::Placement {
+            path: job.source.clone(),
+            layer: i,
+            detail: format!(
+                "the conformal chart folds inside the decal ({} flipped and {} collapsed of its {} triangles) even when solved on a smaller region; make the decal smaller, move it off the sharp feature, or use \"expmap\" or \"hybrid\"",
+                r.footprint_flipped, r.footprint_collapsed, r.footprint_triangles
+            ),
+        });
+    }
+    if r.region.fix == chart::region::RegionFix::ShrunkToDisc {
+        log.warnings.push(format!(
+            "layer {i}: the conformal chart's region was not a disc (Euler characteristic {}, {} boundary loop(s)); it was shrunk to a disc around the placed point, cutting the handle open",
+            r.region.euler_characteristic, r.region.boundary_loops
+        ));
+    }
+    match r.fallback {
+        chart::Fallback::SmallerRegion => log.warnings.push(format!(
+            "layer {i}: the conformal chart folded inside the decal; it was re-solved on a smaller region"
+        )),
+        chart::Fallback::Lscm => log.warnings.push(format!(
+            "layer {i}: the hybrid re-solve folded inside the decal; it was re-solved as a free conformal chart"
+        )),
+        _ => {}
     }
     if !r.settled {
         log.warnings.push(format!(

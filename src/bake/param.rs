@@ -93,8 +93,9 @@ impl Engine {
                     &mut Default::default(),
                 )?
                 .remove(0);
+                let replaces = chart.replaces_map;
                 let mut uv: HashMap<u32, [f32; 2]> = chart.coords.into_iter().collect();
-                if hybrid {
+                if !replaces {
                     // Vertices the hybrid solve did not move keep their exponential-map position.
                     for (v, c) in expmap.iter().enumerate() {
                         if c[3] > 0.5 {

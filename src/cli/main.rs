@@ -94,6 +94,10 @@ enum Cmd {
         /// (default 3), and a batch of small charts).
         #[arg(long)]
         linalg: bool,
+        /// Measure whether decals keep their size: one decal at each mesh's highest vertex per method
+        /// (expmap, lscm, hybrid); `--mesh` or the shared spot, fandisk, bob and Duck.
+        #[arg(long)]
+        scale: bool,
         /// With `--linalg` or `--geodesic`: the `../shared/peers` directory, to run libigl's LSCM or
         /// potpourri3d's log maps on the same patches / meshes and seeds.
         #[arg(long)]
@@ -154,10 +158,19 @@ fn run(cli: Cli) -> Result<()> {
             fast,
             batch,
             linalg,
+            scale,
             peers,
             charts,
         } => {
             let engine = engine(cli.backend.as_deref())?;
+            if scale {
+                let meshes = match mesh {
+                    Some(m) => vec![m],
+                    None => bench::scale::default_meshes(Path::new(bench::common::SHARED_MESHES)),
+                };
+                bench::scale::run(&engine, &meshes, |v| println!("{v}"))?;
+                return Ok(());
+            }
             if linalg {
                 let opts = bench::linalg::LinalgOptions {
                     mesh,

@@ -38,8 +38,4 @@ impl MapMethod for Hybrid {
             warm: None,
         })
     }
-
-    fn chart_keeps_expmap(&self) -> bool {
-        true
-    }
 }

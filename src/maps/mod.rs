@@ -82,12 +82,6 @@ pub trait MapMethod: Sync {
         None
     }
 
-    /// True when the chart's coordinates overwrite only the vertices it solved, the rest of the
-    /// slot keeping the exponential map; false when they replace the slot.
-    fn chart_keeps_expmap(&self) -> bool {
-        false
-    }
-
     /// Records the method's own coordinate kernel in the direct pass, one dispatch per layer
     /// (`offsets`: each layer's `Params` offset); returns the dispatches recorded.
     fn record(&self, _cx: &Record<'_>, _pass: &mut wgpu::ComputePass<'_>, _offsets: &[u32]) -> u32 {
@@ -140,7 +134,7 @@ fn cpu_chart_coords<M: MapMethod + ?Sized>(
     let solved = chart::build(topo, &[req], &chart::Solver::Cpu, &mut Default::default())
         .expect("the CPU solver does not fail")
         .remove(0);
-    let mut coords = if m.chart_keeps_expmap() {
+    let mut coords = if !solved.replaces_map {
         expmap
     } else {
         vec![[0.0; 4]; topo.positions.len()]

@@ -5,3 +5,4 @@ pub mod bake;
 pub mod common;
 pub mod geodesic;
 pub mod linalg;
+pub mod scale;

@@ -187,9 +187,11 @@ pub fn areas(topo: &Topology, triangles: &[u32], coord: impl Fn(u32) -> [f64; 2]
 }
 
 /// The similarity `z -> alpha z + beta` (complex `alpha = (re, im)`) that normalises a chart
-/// (Maillot section 7's alignment, with the area rule of this engine): the seed point lands on 0, the
-/// frame's axes map onto +x and +y (least squares over the triangles around the seed triangle), and
-/// the image's area equals the surface area of `triangles`.
+/// (Maillot section 7's alignment, fixed at the placed point): the seed point lands on 0, the frame's
+/// axes map onto +x and +y (least squares of the Jacobian's images of the axes over the triangles
+/// around the seed triangle), and the chart's scale at the seed point is 1 ([`scale_at`] over the
+/// vertices within `fit_radius`). A global fit (matching the chart's area to the surface's) would be
+/// dominated by the chart's far parts, where the conformal factor of a curved region differs most.
 #[allow(clippy::too_many_arguments, reason = "the frame")]
 pub fn normalising_similarity(
     topo: &Topology,
@@ -199,25 +201,10 @@ pub fn normalising_similarity(
     seed_point: DVec3,
     axis_u: DVec3,
     axis_v: DVec3,
+    fit_radius: f64,
 ) -> Option<(DVec2, DVec2)> {
-    let (img, surf) = areas(topo, triangles, coord);
-    if img.is_nan() || img == 0.0 || surf.is_nan() || surf <= 0.0 {
-        return None;
-    }
     let st = topo.triangles[seed_triangle as usize];
-    // Images of the frame axes under the map's Jacobian, over the seed triangle's neighbourhood.
-    let mut around: Vec<u32> = Vec::new();
-    for v in st {
-        let (a, b) = (
-            topo.vertex_triangle_offsets[v as usize] as usize,
-            topo.vertex_triangle_offsets[v as usize + 1] as usize,
-        );
-        around.extend(&topo.vertex_triangles[a..b]);
-    }
-    let in_chart: std::collections::HashSet<u32> = triangles.iter().copied().collect();
-    around.retain(|t| in_chart.contains(t));
-    around.sort_unstable();
-    around.dedup();
+    let around = seed_ring(topo, triangles, seed_triangle);
     let (mut ju, mut jv) = (DVec2::ZERO, DVec2::ZERO);
     for &t in &around {
         let tri = topo.triangles[t as usize];
@@ -242,7 +229,7 @@ pub fn normalising_similarity(
         ju += area * g(axis_u);
         jv += area * g(axis_v);
     }
-    if ju.length() == 0.0 || jv.length() == 0.0 {
+    if !(ju.length() > 0.0 && jv.length() > 0.0) {
         return None;
     }
     // Rotation r (unit complex) with r ju ≈ +x and r jv ≈ +y: r = conj(ju^) + i conj(jv^) normalised.
@@ -254,8 +241,6 @@ pub fn normalising_similarity(
     } else {
         DVec2::X
     };
-    let scale = (surf / img.abs()).sqrt();
-    let alpha = rot * scale;
     // Seed point's image.
     let p = st.map(|v| topo.positions[v as usize].as_dvec3());
     let bary = barycentric(p, seed_point);
@@ -263,8 +248,75 @@ pub fn normalising_similarity(
         .iter()
         .zip(bary)
         .fold(DVec2::ZERO, |acc, (&v, w)| acc + w * DVec2::from(coord(v)));
+    let scale = scale_at(
+        topo,
+        triangles,
+        coord,
+        seed_triangle,
+        seed_point,
+        zs,
+        fit_radius,
+    )?;
+    let alpha = rot / scale;
     let beta = -cmul(alpha, zs);
     Some((alpha, beta))
+}
+
+/// The triangles of `triangles` that share a vertex with the seed triangle (its one-ring).
+fn seed_ring(topo: &Topology, triangles: &[u32], seed_triangle: u32) -> Vec<u32> {
+    let mut around: Vec<u32> = Vec::new();
+    for v in topo.triangles[seed_triangle as usize] {
+        let (a, b) = (
+            topo.vertex_triangle_offsets[v as usize] as usize,
+            topo.vertex_triangle_offsets[v as usize + 1] as usize,
+        );
+        around.extend(&topo.vertex_triangles[a..b]);
+    }
+    let in_chart: std::collections::HashSet<u32> = triangles.iter().copied().collect();
+    around.retain(|t| in_chart.contains(t));
+    around.sort_unstable();
+    around.dedup();
+    around
+}
+
+/// The chart's scale at the seed point `p` (image `zs`): the median, over the chart's vertices
+/// within `radius` of `p` (3D distance; at least the vertices of the seed triangle's one-ring), of
+/// |z_v − zs| / |x_v − p|. For a conformal map this tends to the Jacobian's scale at `p` as the
+/// radius shrinks. It is stable where a single triangle's Jacobian is not: a median over a ring of
+/// vertices ignores one sliver triangle, and at the tip of a horn or a cone (where the per-triangle
+/// Jacobians of a conformal flattening vary most) it measures what a viewer reads as the decal's
+/// size, the distance from its centre. `None` when no vertex is usable.
+pub fn scale_at(
+    topo: &Topology,
+    triangles: &[u32],
+    coord: &dyn Fn(u32) -> [f64; 2],
+    seed_triangle: u32,
+    p: DVec3,
+    zs: DVec2,
+    radius: f64,
+) -> Option<f64> {
+    let ring: std::collections::HashSet<u32> = seed_ring(topo, triangles, seed_triangle)
+        .iter()
+        .flat_map(|&t| topo.triangles[t as usize])
+        .collect();
+    let mut vertices: Vec<u32> = triangles
+        .iter()
+        .flat_map(|&t| topo.triangles[t as usize])
+        .collect();
+    vertices.sort_unstable();
+    vertices.dedup();
+    let mut ratios: Vec<f64> = vertices
+        .iter()
+        .filter_map(|&v| {
+            let d = (topo.positions[v as usize].as_dvec3() - p).length();
+            let near = d <= radius || ring.contains(&v);
+            let r = (DVec2::from(coord(v)) - zs).length() / d;
+            (near && d > 1e-9 * radius.max(f64::MIN_POSITIVE) && r.is_finite() && r > 0.0)
+                .then_some(r)
+        })
+        .collect();
+    ratios.sort_by(f64::total_cmp);
+    ratios.get(ratios.len() / 2).copied()
 }
 
 /// Complex product.

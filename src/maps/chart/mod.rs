@@ -37,16 +37,20 @@ use crate::maps::Frame;
 use crate::mesh::{Topology, NO_NEIGHBOR};
 use crate::solve::sparse::{CgReport, CgStatus, Csr};
 use lscm::System;
+use region::{RegionFix, RegionReport};
 pub mod lscm;
+pub mod region;
 use glam::{DVec2, DVec3};
 use std::collections::{HashMap, HashSet};
 
 /// Relative residual of the solves while the triangle set is still changing.
 pub const COARSE_RTOL: f32 = 1e-3;
 /// Relative residual (normwise backward error, see [`crate::solve::sparse::residual_scale`]) of the final
-/// solve: about 16 f32 ulps, what a row of about 14 terms can still resolve. Measured on Spot, 1e-5
-/// left the chart's conformal energy 3 % above the optimum, 1e-6 within 3e-4.
-pub const FINAL_RTOL: f32 = 1e-6;
+/// solve: about 4 f32 ulps, twice the rounding floor of a row of about 14 terms. Measured on Spot,
+/// 1e-5 left the chart's conformal energy 3 % above the optimum; 1e-6 within 3e-4 for one chart but
+/// 1.3e-3 for another (`tests/lscm.rs`, a chart of 392 unknowns, stopped one iteration early); 5e-7
+/// within 4e-4 for both, for one more iteration.
+pub const FINAL_RTOL: f32 = 5e-7;
 /// Rings of vertices around the distorted triangles that a hybrid decal frees as well.
 pub const HYBRID_RINGS: u32 = 2;
 /// Most refinement rounds per chart.
@@ -118,6 +122,42 @@ pub struct ChartReport {
     pub status: CgStatus,
     /// Whether the triangle set stopped changing within [`MAX_ROUNDS`] (always true for hybrid).
     pub settled: bool,
+    /// The chart's scale at the placed point after normalisation: the median of |z − z_p| / |x − p|
+    /// over its vertices within [`CHECK_RADIUS`] × the decal's larger side (1 = the size asked for).
+    pub scale_at_point: f64,
+    /// The topology of the selected region and what was done when it was not a disc (hybrid: the
+    /// exponential map's region).
+    pub region: RegionReport,
+    /// Triangles whose image meets the decal's rectangle (hybrid: of the whole map).
+    pub footprint_triangles: u32,
+    /// Of those, flipped.
+    pub footprint_flipped: u32,
+    /// Of those, collapsed: image area below [`COLLAPSED`] of the chart's median area ratio.
+    pub footprint_collapsed: u32,
+    /// What was done when the chart folded into the footprint.
+    pub fallback: Fallback,
+}
+
+/// A footprint triangle whose image-to-surface area ratio is below this fraction of the chart's
+/// median ratio counts as collapsed.
+pub const COLLAPSED: f64 = 1e-3;
+
+/// Reach of the re-solves when a chart folds into its footprint, as multiples of [`REACH`].
+pub const FALLBACK_REACH: [f64; 2] = [0.7, 0.45];
+
+/// What was done when a chart folded into its footprint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Fallback {
+    /// Nothing was needed.
+    None,
+    /// LSCM: re-solved on a smaller region (the report's figures are the final chart's).
+    SmallerRegion,
+    /// Hybrid: re-solved as a free LSCM chart from its exponential map (on a smaller region too
+    /// where that still folded).
+    Lscm,
+    /// Still folded on the smallest region; the bake refuses the layer.
+    Refused,
 }
 
 /// A chart: coordinates per welded vertex, model units in the decal frame (image centre at 0).
@@ -129,6 +169,9 @@ pub struct Chart {
     pub triangles: Vec<u32>,
     /// Report.
     pub report: ChartReport,
+    /// True when the chart replaces the layer's map (LSCM); false when it only moves its own
+    /// vertices and the others keep their exponential-map coordinates (hybrid).
+    pub replaces_map: bool,
 }
 
 /// Where the solves run.
@@ -245,11 +288,16 @@ fn point_in_triangle(q: [DVec2; 3], c: DVec2) -> bool {
 /// Maillot §4 selection: the connected triangles, from `start`, whose projection along the frame
 /// normal meets the disc of radius `radius` around the centre.
 pub fn select(topo: &Topology, frame: &Frame, start: u32, radius: f64) -> Vec<u32> {
+    select_within(topo, frame, start, radius, REACH)
+}
+
+/// [`select`] with the reach limit `reach` (multiples of the decal's half-diagonal).
+fn select_within(topo: &Topology, frame: &Frame, start: u32, radius: f64, reach: f64) -> Vec<u32> {
     let hits = |t: u32| -> bool {
         if topo.degenerate[t as usize] {
             return false;
         }
-        if !within_reach(topo, frame, t) {
+        if !within_reach(topo, frame, t, reach) {
             return false;
         }
         let q = topo.triangles[t as usize].map(|v| project(frame, topo.positions[v as usize]));
@@ -275,8 +323,8 @@ pub fn select(topo: &Topology, frame: &Frame, start: u32, radius: f64) -> Vec<u3
 /// triangles all around it, and the conformal chart of a nearly closed surface crushes its far side.
 pub const REACH: f64 = 1.5;
 
-fn within_reach(topo: &Topology, frame: &Frame, t: u32) -> bool {
-    let r = REACH * half_extent(frame).length();
+fn within_reach(topo: &Topology, frame: &Frame, t: u32, reach: f64) -> bool {
+    let r = reach * half_extent(frame).length();
     topo.triangles[t as usize].iter().any(|&v| {
         (topo.positions[v as usize] - frame.center)
             .as_dvec3()
@@ -337,6 +385,10 @@ fn unfold(topo: &Topology, t: u32, a: u32, b: u32, c: u32, za: DVec2, zb: DVec2)
 /// Per-chart state during refinement.
 struct Work {
     triangles: Vec<u32>,
+    /// Reach limit (multiples of the half-diagonal).
+    reach: f64,
+    /// The first selection's topology, and whether any round had to shrink the region to a disc.
+    region: RegionReport,
     /// Current coordinates (model units, frame-aligned) per welded vertex.
     warm: HashMap<u32, DVec2>,
     seen: HashSet<Vec<u32>>,
@@ -372,7 +424,19 @@ fn frame_similarity(
         req.frame.center.as_dvec3(),
         req.frame.axis_u.as_dvec3(),
         req.frame.axis_v.as_dvec3(),
+        FIT_RADIUS * max_side(&req.frame),
     )
+}
+
+/// The scale at the placed point is fitted over the vertices within this fraction of the decal's
+/// larger side (see [`lscm::scale_at`]); the report measures it out to [`CHECK_RADIUS`].
+pub const FIT_RADIUS: f64 = 0.1;
+/// The report's `scale_at_point` is measured over the vertices within this fraction of the decal's
+/// larger side.
+pub const CHECK_RADIUS: f64 = 0.2;
+
+fn max_side(frame: &Frame) -> f64 {
+    frame.size[0].max(frame.size[1]) as f64
 }
 
 /// Builds the charts of `requests` (LSCM and hybrid), solving all charts of a round in one batch.
@@ -383,30 +447,196 @@ pub fn build(
     stats: &mut SolveStats,
 ) -> Result<Vec<Chart>> {
     let mut out: Vec<Option<Chart>> = vec![None; requests.len()];
-    build_lscm(topo, requests, solver, stats, &mut out)?;
+    let lscm_ids: Vec<usize> = (0..requests.len())
+        .filter(|&i| matches!(requests[i].kind, ChartKind::Lscm))
+        .collect();
+    build_lscm(topo, requests, &lscm_ids, REACH, solver, stats, &mut out)?;
     build_hybrid(topo, requests, solver, stats, &mut out)?;
-    Ok(out
+    let mut out: Vec<Chart> = out
         .into_iter()
         .map(|c| c.expect("every request answered"))
-        .collect())
+        .collect();
+    for (req, chart) in requests.iter().zip(&mut out) {
+        assess(topo, req, chart);
+    }
+    // Folds in the footprint: an LSCM chart is re-solved on smaller regions; a hybrid decal is
+    // re-solved as a free LSCM chart from its exponential map (then on smaller regions too).
+    let as_lscm: Vec<ChartRequest> = requests
+        .iter()
+        .map(|r| ChartRequest {
+            kind: ChartKind::Lscm,
+            warm: match r.kind {
+                ChartKind::Hybrid { expmap, .. } => Some(expmap),
+                ChartKind::Lscm => r.warm,
+            },
+            ..*r
+        })
+        .collect();
+    let hybrid = |i: usize| matches!(requests[i].kind, ChartKind::Hybrid { .. });
+    for factor in [1.0].into_iter().chain(FALLBACK_REACH) {
+        let folded: Vec<usize> = (0..requests.len())
+            .filter(|&i| out[i].report.folded() && (factor < 1.0 || hybrid(i)))
+            .collect();
+        if folded.is_empty() {
+            continue;
+        }
+        let mut again: Vec<Option<Chart>> = vec![None; requests.len()];
+        build_lscm(
+            topo,
+            &as_lscm,
+            &folded,
+            factor * REACH,
+            solver,
+            stats,
+            &mut again,
+        )?;
+        for i in folded {
+            let mut c = again[i].take().expect("re-solved");
+            assess(topo, &as_lscm[i], &mut c);
+            c.report.fallback = if hybrid(i) {
+                Fallback::Lscm
+            } else {
+                Fallback::SmallerRegion
+            };
+            out[i] = c;
+        }
+    }
+    for chart in &mut out {
+        if chart.report.folded() {
+            chart.report.fallback = Fallback::Refused;
+        }
+    }
+    Ok(out)
 }
 
-/// The LSCM charts of `requests`: selection, then rounds of solve and refinement (all charts of a
+impl ChartReport {
+    /// Some triangle of the footprint is flipped or collapsed.
+    pub fn folded(&self) -> bool {
+        self.footprint_flipped + self.footprint_collapsed > 0
+    }
+}
+
+/// Fills `chart`'s scale at the placed point and footprint figures, from the map the layer ends up
+/// with (hybrid: the exponential map with the chart's vertices moved).
+fn assess(topo: &Topology, req: &ChartRequest, chart: &mut Chart) {
+    let mut z: HashMap<u32, DVec2> = HashMap::new();
+    let tris = match req.kind {
+        ChartKind::Lscm => chart.triangles.clone(),
+        ChartKind::Hybrid { expmap, .. } => {
+            for (v, c) in expmap.iter().enumerate() {
+                if c[3] > 0.5 {
+                    z.insert(v as u32, DVec2::new(c[0] as f64, c[1] as f64));
+                }
+            }
+            map_triangles(topo, expmap)
+        }
+    };
+    for &(v, c) in &chart.coords {
+        z.insert(v, DVec2::new(c[0] as f64, c[1] as f64));
+    }
+    let tris: Vec<u32> = tris
+        .into_iter()
+        .filter(|&t| topo.triangles[t as usize].iter().all(|v| z.contains_key(v)))
+        .collect();
+    let coord = |v: u32| z.get(&v).map_or([f64::NAN; 2], |c| [c.x, c.y]);
+    let st = topo.triangles[req.triangle as usize];
+    let p = req.frame.center.as_dvec3();
+    let bary = lscm::barycentric(st.map(|v| topo.positions[v as usize].as_dvec3()), p);
+    let zs = st
+        .iter()
+        .zip(bary)
+        .fold(DVec2::ZERO, |a, (&v, w)| a + w * DVec2::from(coord(v)));
+    let radius = CHECK_RADIUS * max_side(&req.frame);
+    let r = &mut chart.report;
+    r.scale_at_point =
+        lscm::scale_at(topo, &tris, &coord, req.triangle, p, zs, radius).unwrap_or(f64::NAN);
+    let (ratios, foot) = footprint(topo, &tris, &z, half_extent(&req.frame));
+    let median = {
+        let mut v = ratios;
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(0.0)
+    };
+    r.footprint_triangles = foot.len() as u32;
+    r.footprint_flipped = foot.iter().filter(|&&f| f <= 0.0).count() as u32;
+    r.footprint_collapsed = foot
+        .iter()
+        .filter(|&&f| f > 0.0 && f < COLLAPSED * median)
+        .count() as u32;
+}
+
+/// Every triangle's image-to-surface area ratio (unsigned), and the signed ratios of the triangles
+/// whose image meets the rectangle of half-extent `h` (positive: orientation kept).
+fn footprint(
+    topo: &Topology,
+    tris: &[u32],
+    z: &HashMap<u32, DVec2>,
+    h: DVec2,
+) -> (Vec<f64>, Vec<f64>) {
+    let mut ratios = Vec::with_capacity(tris.len());
+    let mut foot = Vec::new();
+    for &t in tris {
+        let tri = topo.triangles[t as usize];
+        let Some((_, area3)) = lscm::triangle_edges(topo, tri) else {
+            continue;
+        };
+        let q = tri.map(|v| z[&v]);
+        let ratio = 0.5 * (q[1] - q[0]).perp_dot(q[2] - q[0]) / area3;
+        ratios.push(ratio.abs());
+        if box_meets_rect(q, h) {
+            foot.push(ratio);
+        }
+    }
+    (ratios, foot)
+}
+
+/// The triangles whose three vertices an exponential map (`(u, v, _, valid)` per welded vertex)
+/// reaches, found from its vertices (cost proportional to the map, not the mesh), ascending.
+fn map_triangles(topo: &Topology, expmap: &[[f32; 4]]) -> Vec<u32> {
+    let valid = |v: u32| expmap[v as usize][3] > 0.5;
+    let mut tris: Vec<u32> = (0..expmap.len() as u32)
+        .filter(|&v| valid(v))
+        .flat_map(|v| {
+            let (a, b) = (
+                topo.vertex_triangle_offsets[v as usize] as usize,
+                topo.vertex_triangle_offsets[v as usize + 1] as usize,
+            );
+            topo.vertex_triangles[a..b].iter().copied()
+        })
+        .filter(|&t| {
+            !topo.degenerate[t as usize] && topo.triangles[t as usize].iter().all(|&v| valid(v))
+        })
+        .collect();
+    tris.sort_unstable();
+    tris.dedup();
+    tris
+}
+
+/// A hybrid decal's region: the exponential map's triangles; when the whole disc is re-solved and
+/// it is not a disc, it is shrunk to one.
+fn hybrid_region(topo: &Topology, expmap: &[[f32; 4]], whole: bool) -> RegionReport {
+    let mut r = region::topology(topo, &map_triangles(topo, expmap));
+    if whole && !r.disc {
+        r.fix = RegionFix::ShrunkToDisc;
+    }
+    r
+}
+
+/// The LSCM charts `lscm_ids` of `requests` (within `reach` half-diagonals): selection, then rounds of solve and refinement (all charts of a
 /// round in one batch) until every chart settles or [`MAX_ROUNDS`], then a final solve to
 /// [`FINAL_RTOL`].
+#[allow(clippy::too_many_arguments)]
 fn build_lscm(
     topo: &Topology,
     requests: &[ChartRequest],
+    lscm_ids: &[usize],
+    reach: f64,
     solver: &Solver,
     stats: &mut SolveStats,
     out: &mut [Option<Chart>],
 ) -> Result<()> {
-    let lscm_ids: Vec<usize> = (0..requests.len())
-        .filter(|&i| matches!(requests[i].kind, ChartKind::Lscm))
-        .collect();
     let mut work: Vec<Work> = lscm_ids
         .iter()
-        .map(|&i| start_work(topo, &requests[i]))
+        .map(|&i| start_work(topo, &requests[i], reach))
         .collect();
     let mut finals: Vec<Option<(Vec<f64>, CgReport, System)>> = vec![None; lscm_ids.len()];
     for round in 0..=MAX_ROUNDS {
@@ -489,9 +719,14 @@ fn build_lscm(
 
 /// A chart's first selection, with its warm start: the request's map where it reaches, else the
 /// planar projection.
-fn start_work(topo: &Topology, r: &ChartRequest) -> Work {
+fn start_work(topo: &Topology, r: &ChartRequest, reach: f64) -> Work {
     let radius = half_extent(&r.frame).length();
-    let triangles = select(topo, &r.frame, r.triangle, radius);
+    let mut triangles = select_within(topo, &r.frame, r.triangle, radius, reach);
+    let mut region = region::topology(topo, &triangles);
+    if !region.disc {
+        triangles = region::grow_disc(topo, &triangles, r.triangle, r.frame.center.as_dvec3());
+        region.fix = RegionFix::ShrunkToDisc;
+    }
     let mut warm = HashMap::new();
     for &t in &triangles {
         for v in topo.triangles[t as usize] {
@@ -505,6 +740,8 @@ fn start_work(topo: &Topology, r: &ChartRequest) -> Work {
     }
     Work {
         triangles,
+        reach,
+        region,
         warm,
         seen: HashSet::new(),
         rounds: 0,
@@ -524,6 +761,7 @@ fn finished_chart(w: &Work, rep: CgReport, sys: System) -> Chart {
         })
         .collect();
     Chart {
+        replaces_map: true,
         coords,
         triangles: w.triangles.clone(),
         report: ChartReport {
@@ -536,6 +774,12 @@ fn finished_chart(w: &Work, rep: CgReport, sys: System) -> Chart {
             residual: rep.residual,
             status: rep.status,
             settled: w.done,
+            scale_at_point: f64::NAN,
+            region: w.region,
+            footprint_triangles: 0,
+            footprint_flipped: 0,
+            footprint_collapsed: 0,
+            fallback: Fallback::None,
         },
     }
 }
@@ -568,6 +812,10 @@ fn build_hybrid(
     let mut solved = solver.solve(&input, FINAL_RTOL, stats)?.into_iter();
     for (i, sys, _, _, whole) in hybrid {
         let req = &requests[i];
+        let region_report = match req.kind {
+            ChartKind::Hybrid { expmap, .. } => hybrid_region(topo, expmap, whole),
+            ChartKind::Lscm => unreachable!("hybrid requests only"),
+        };
         let scale = half_extent(&req.frame).length();
         let (coords, report) = if sys.matrix.rows == 0 {
             (
@@ -582,6 +830,12 @@ fn build_hybrid(
                     residual: 0.0,
                     status: CgStatus::Converged,
                     settled: true,
+                    scale_at_point: f64::NAN,
+                    region: region_report,
+                    footprint_triangles: 0,
+                    footprint_flipped: 0,
+                    footprint_collapsed: 0,
+                    fallback: Fallback::None,
                 },
             )
         } else {
@@ -615,10 +869,17 @@ fn build_hybrid(
                 residual: rep.residual,
                 status: rep.status,
                 settled: true,
+                scale_at_point: f64::NAN,
+                region: region_report,
+                footprint_triangles: 0,
+                footprint_flipped: 0,
+                footprint_collapsed: 0,
+                fallback: Fallback::None,
             };
             (coords, report)
         };
         out[i] = Some(Chart {
+            replaces_map: false,
             coords,
             triangles: sys.triangles.clone(),
             report,
@@ -645,7 +906,9 @@ pub fn initial_system(
         }
     }
     let w = Work {
+        region: region::topology(topo, &triangles),
         triangles: triangles.clone(),
+        reach: REACH,
         warm,
         seen: HashSet::new(),
         rounds: 0,
@@ -751,7 +1014,7 @@ fn refine(topo: &Topology, req: &ChartRequest, w: &mut Work, remove: bool) -> bo
             if nb == NO_NEIGHBOR
                 || set.contains(&nb)
                 || topo.degenerate[nb as usize]
-                || !within_reach(topo, &req.frame, nb)
+                || !within_reach(topo, &req.frame, nb, w.reach)
             {
                 continue;
             }
@@ -772,6 +1035,11 @@ fn refine(topo: &Topology, req: &ChartRequest, w: &mut Work, remove: bool) -> bo
         }
         w.triangles.push(nb);
         changed = true;
+    }
+    if changed && !region::topology(topo, &w.triangles).disc {
+        let center = req.frame.center.as_dvec3();
+        w.triangles = region::grow_disc(topo, &w.triangles, req.triangle, center);
+        w.region.fix = RegionFix::ShrunkToDisc;
     }
     changed
 }
@@ -813,21 +1081,7 @@ fn hybrid_system(
     let z = |v: u32| DVec2::new(expmap[v as usize][0] as f64, expmap[v as usize][1] as f64);
     let mut free: HashSet<u32> = HashSet::new();
     // The map's triangles, found from its vertices (cost proportional to the map, not the mesh).
-    let mut map_tris: Vec<u32> = (0..expmap.len() as u32)
-        .filter(|&v| valid(v))
-        .flat_map(|v| {
-            let (a, b) = (
-                topo.vertex_triangle_offsets[v as usize] as usize,
-                topo.vertex_triangle_offsets[v as usize + 1] as usize,
-            );
-            topo.vertex_triangles[a..b].iter().copied()
-        })
-        .filter(|&t| {
-            !topo.degenerate[t as usize] && topo.triangles[t as usize].iter().all(|&v| valid(v))
-        })
-        .collect();
-    map_tris.sort_unstable();
-    map_tris.dedup();
+    let mut map_tris = map_triangles(topo, expmap);
     for &t in &map_tris {
         let tri = &topo.triangles[t as usize];
         let img = tri.map(z);
@@ -880,6 +1134,10 @@ fn hybrid_system(
         .collect();
     let free_under = under.iter().filter(|v| free.contains(v)).count();
     if !energy.is_empty() && (fixed.len() < 2 || 2 * free_under > under.len()) {
+        if !region::topology(topo, &map_tris).disc {
+            map_tris =
+                region::grow_disc(topo, &map_tris, req.triangle, req.frame.center.as_dvec3());
+        }
         let (sys, x0) = pinned_lscm(topo, &map_tris, &|v| z(v).x, &warm);
         return (sys, x0, true);
     }
