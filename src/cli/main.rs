@@ -98,6 +98,10 @@ enum Cmd {
         /// (expmap, lscm, hybrid); `--mesh` or the shared spot, fandisk, bob and Duck.
         #[arg(long)]
         scale: bool,
+        /// Measure the adapter itself: copy bandwidth, dispatch, submit + wait, workgroup barrier,
+        /// atomics, small dense systems per invocation against per workgroup.
+        #[arg(long)]
+        device: bool,
         /// With `--linalg` or `--geodesic`: the `../shared/peers` directory, to run libigl's LSCM or
         /// potpourri3d's log maps on the same patches / meshes and seeds.
         #[arg(long)]
@@ -159,10 +163,15 @@ fn run(cli: Cli) -> Result<()> {
             batch,
             linalg,
             scale,
+            device,
             peers,
             charts,
         } => {
             let engine = engine(cli.backend.as_deref())?;
+            if device {
+                bench::device::run(&engine, |v| println!("{v}"))?;
+                return Ok(());
+            }
             if scale {
                 let meshes = match mesh {
                     Some(m) => vec![m],

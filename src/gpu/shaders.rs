@@ -66,6 +66,10 @@ pub const KERNELS: &[(&str, &str)] = &[
         "chart_scatter",
         include_str!("../../wgsl/maps/chart_scatter.wgsl"),
     ),
+    (
+        "device_probe",
+        include_str!("../../wgsl/gpu/device_probe.wgsl"),
+    ),
 ];
 
 /// Shared files that `#import` can name.

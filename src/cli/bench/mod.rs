@@ -3,6 +3,7 @@
 //! ([`linalg`]), each printing JSON lines; [`common`] holds the workloads they share.
 pub mod bake;
 pub mod common;
+pub mod device;
 pub mod geodesic;
 pub mod linalg;
 pub mod scale;

@@ -1,0 +1,118 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+// Probe kernels for `decalbake bench --device` (src/cli/bench/device.rs): each entry point isolates
+// one cost of the adapter. Not used by bakes.
+
+struct Probe {
+    // Workgroups dispatched (the probes index their output by it).
+    groups: u32,
+    // Rounds of the probe's loop.
+    reps: u32,
+    pad0: u32,
+    pad1: u32,
+}
+
+@group(0) @binding(0) var<uniform> probe: Probe;
+@group(0) @binding(1) var<storage, read_write> data: array<f32>;
+@group(0) @binding(2) var<storage, read_write> counters: array<atomic<u32>>;
+
+var<workgroup> lanes: array<f32, 64>;
+
+// Does nothing: the cost of a dispatch.
+@compute @workgroup_size(64)
+fn empty() {}
+
+// `reps` rounds of a shared-memory exchange with two workgroup barriers each.
+@compute @workgroup_size(64)
+fn with_barrier(@builtin(local_invocation_index) l: u32, @builtin(workgroup_id) w: vec3<u32>) {
+    var x = f32(l);
+    for (var i = 0u; i < probe.reps; i++) {
+        lanes[l] = x;
+        workgroupBarrier();
+        x = x * 0.999 + lanes[(l + 1u) % 64u];
+        workgroupBarrier();
+    }
+    data[w.x * 64u + l] = x;
+}
+
+// The same rounds reading the invocation's own slot, without barriers: the baseline.
+@compute @workgroup_size(64)
+fn no_barrier(@builtin(local_invocation_index) l: u32, @builtin(workgroup_id) w: vec3<u32>) {
+    var x = f32(l);
+    for (var i = 0u; i < probe.reps; i++) {
+        lanes[l] = x;
+        x = x * 0.999 + lanes[l];
+    }
+    data[w.x * 64u + l] = x;
+}
+
+// `reps` atomic additions by every invocation to one shared counter.
+@compute @workgroup_size(64)
+fn atomic_shared(@builtin(global_invocation_id) g: vec3<u32>) {
+    for (var i = 0u; i < probe.reps; i++) {
+        atomicAdd(&counters[0], 1u);
+    }
+}
+
+// `reps` atomic additions by every invocation to its own counter.
+@compute @workgroup_size(64)
+fn atomic_private(@builtin(global_invocation_id) g: vec3<u32>) {
+    for (var i = 0u; i < probe.reps; i++) {
+        atomicAdd(&counters[1u + g.x], 1u);
+    }
+}
+
+// A small dense problem: `reps` Jacobi sweeps on the 16 x 16 system A x = b of system `s`, with
+// A = 20 I + (the cosine pattern below) (diagonally dominant) and b_i = 1 + i + s.
+const DIM: u32 = 16u;
+
+fn entry(s: u32, i: u32, j: u32) -> f32 {
+    if i == j {
+        return 20.0;
+    }
+    return cos(f32(i * 7u + j * 3u + s));
+}
+
+// One system per invocation: the whole sweep in the invocation's registers.
+@compute @workgroup_size(64)
+fn dense_per_invocation(@builtin(global_invocation_id) g: vec3<u32>) {
+    let s = g.x;
+    var x: array<f32, 16>;
+    var y: array<f32, 16>;
+    for (var r = 0u; r < probe.reps; r++) {
+        for (var i = 0u; i < DIM; i++) {
+            var acc = 1.0 + f32(i + s);
+            for (var j = 0u; j < DIM; j++) {
+                if j != i {
+                    acc -= entry(s, i, j) * x[j];
+                }
+            }
+            y[i] = acc / 20.0;
+        }
+        x = y;
+    }
+    data[s] = x[0];
+}
+
+var<workgroup> xs: array<f32, 16>;
+
+// One system per workgroup of 16: invocation i owns row i; two barriers a sweep.
+@compute @workgroup_size(16)
+fn dense_per_workgroup(@builtin(local_invocation_index) i: u32, @builtin(workgroup_id) w: vec3<u32>) {
+    let s = w.x;
+    xs[i] = 0.0;
+    workgroupBarrier();
+    for (var r = 0u; r < probe.reps; r++) {
+        var acc = 1.0 + f32(i + s);
+        for (var j = 0u; j < DIM; j++) {
+            if j != i {
+                acc -= entry(s, i, j) * xs[j];
+            }
+        }
+        workgroupBarrier();
+        xs[i] = acc / 20.0;
+        workgroupBarrier();
+    }
+    if i == 0u {
+        data[s] = xs[0];
+    }
+}
