@@ -11,11 +11,10 @@
 
 mod common;
 use common::*;
-use decalbake::bake::ParamRow;
+use decalbake::bake::{size_figures, ParamRow, SizeFigures};
 use decalbake::mesh::{Mesh, Topology};
 use decalbake::{Engine, Job, LoadedMesh};
-use glam::{DVec2, DVec3, Vec2, Vec3};
-use std::collections::HashMap;
+use glam::{Vec2, Vec3};
 use std::path::Path;
 
 /// Scale bound at the placed point (the issue's): 10 %.
@@ -23,81 +22,10 @@ const SCALE_TOL: f64 = 0.10;
 /// Painted-area bound against the exponential map's (the issue's): 15 %.
 const AREA_TOL: f64 = 0.15;
 
-/// What a decal's coordinates say about its size.
-#[derive(Debug)]
-struct Measured {
-    /// Median of |(u, v)| / |x − p| over the reached vertices within 0.2 × the size.
-    scale: f64,
-    /// Triangles whose (u, v) meet the decal's square.
-    footprint: usize,
-    /// Of those, flipped (negative signed (u, v) area; charts keep the surface's orientation).
-    flipped: usize,
-    /// Of those, collapsed (area ratio below 1e-3 of the median over the map).
-    collapsed: usize,
-    /// Surface area whose (u, v) fall inside the square (15 × 15 barycentric samples a triangle).
-    painted: f64,
-}
-
-fn measure(topo: &Topology, rows: &[ParamRow], p: Vec3, size: f64) -> Measured {
-    let p = p.as_dvec3();
-    let uv: HashMap<u32, DVec2> = rows
-        .iter()
-        .map(|r| (r.vertex, DVec2::new(r.uv[0] as f64, r.uv[1] as f64)))
-        .collect();
-    let mut s: Vec<f64> = rows
-        .iter()
-        .filter_map(|r| {
-            let d = (DVec3::from(r.position.map(f64::from)) - p).length();
-            (d > 1e-9 && d <= 0.2 * size).then(|| uv[&r.vertex].length() / d)
-        })
-        .collect();
-    s.sort_by(f64::total_cmp);
-    let h = 0.5 * size;
-    let (mut ratios, mut foot, mut painted) = (Vec::new(), Vec::new(), 0.0);
-    for tri in &topo.triangles {
-        let Some(z) = tri
-            .iter()
-            .map(|v| uv.get(v).copied())
-            .collect::<Option<Vec<_>>>()
-        else {
-            continue;
-        };
-        let x = tri.map(|v| topo.positions[v as usize].as_dvec3());
-        let a3 = 0.5 * (x[1] - x[0]).cross(x[2] - x[0]).length();
-        if a3 <= 0.0 {
-            continue;
-        }
-        let a2 = 0.5 * (z[1] - z[0]).perp_dot(z[2] - z[0]);
-        ratios.push(a2.abs() / a3);
-        let (lo, hi) = (z[0].min(z[1]).min(z[2]), z[0].max(z[1]).max(z[2]));
-        if hi.x < -h || lo.x > h || hi.y < -h || lo.y > h {
-            continue;
-        }
-        foot.push(a2 / a3);
-        let n = 15;
-        let (mut inside, mut total) = (0, 0);
-        for i in 0..n {
-            for j in 0..n - i {
-                let (a, b) = (
-                    (i as f64 + 1.0 / 3.0) / n as f64,
-                    (j as f64 + 1.0 / 3.0) / n as f64,
-                );
-                let q = z[0] + a * (z[1] - z[0]) + b * (z[2] - z[0]);
-                total += 1;
-                inside += usize::from(q.x.abs() <= h && q.y.abs() <= h);
-            }
-        }
-        painted += a3 * inside as f64 / total as f64;
-    }
-    ratios.sort_by(f64::total_cmp);
-    let median = ratios[ratios.len() / 2];
-    Measured {
-        scale: s.get(s.len() / 2).copied().unwrap_or(f64::NAN),
-        footprint: foot.len(),
-        flipped: foot.iter().filter(|&&r| r < 0.0).count(),
-        collapsed: foot.iter().filter(|&&r| r.abs() < 1e-3 * median).count(),
-        painted,
-    }
+/// The size figures of a decal's `param` rows (`bake::size_figures`: the measure of the issue and of
+/// `decalbake bench --scale`, computed from the exported coordinates, not from the chart report).
+fn measure(topo: &Topology, rows: &[ParamRow], p: Vec3, size: f64) -> SizeFigures {
+    size_figures(topo, rows, p.as_dvec3(), size)
 }
 
 /// The job of one square decal of side `size` at `at` with `method` (its image is never read).
@@ -130,7 +58,7 @@ fn top_and_size(mesh: &LoadedMesh) -> (Vec3, f64) {
     (top, 0.12 * (hi - lo).length() as f64)
 }
 
-fn measure_method(engine: &Engine, mesh: &LoadedMesh, method: &str) -> Measured {
+fn measure_method(engine: &Engine, mesh: &LoadedMesh, method: &str) -> SizeFigures {
     let (top, size) = top_and_size(mesh);
     let rows = engine
         .layer_param(mesh, &decal_job(top, size, method), 0)
@@ -243,8 +171,8 @@ fn conformal_decals_keep_their_size_at_the_placed_point() {
             if method == "expmap" {
                 continue;
             }
-            if (m.scale - 1.0).abs() > SCALE_TOL {
-                bad.push(format!("{name} {method}: scale {:.3}", m.scale));
+            if (m.scale_fifth - 1.0).abs() > SCALE_TOL {
+                bad.push(format!("{name} {method}: scale {:.3}", m.scale_fifth));
             }
             if m.flipped + m.collapsed > 0 || m.footprint < 20 {
                 bad.push(format!("{name} {method}: footprint {m:?}"));
@@ -264,9 +192,9 @@ fn conformal_decals_keep_their_size_at_the_placed_point() {
 fn painted_area_matches_the_exponential_map_away_from_tips() {
     let engine = engine();
     let bob = bundled(&engine, "bob.glb");
-    let expmap = measure_method(&engine, &bob, "expmap").painted;
+    let expmap = measure_method(&engine, &bob, "expmap").painted_area;
     for method in ["lscm", "hybrid"] {
-        let m = measure_method(&engine, &bob, method).painted;
+        let m = measure_method(&engine, &bob, method).painted_area;
         eprintln!("bob top {method}: painted {m:.5} vs expmap {expmap:.5}");
         assert!(
             (m / expmap - 1.0).abs() <= AREA_TOL,
@@ -274,8 +202,8 @@ fn painted_area_matches_the_exponential_map_away_from_tips() {
         );
     }
     let spot = bundled(&engine, "spot.glb");
-    let e = measure_method(&engine, &spot, "expmap").painted;
-    let l = measure_method(&engine, &spot, "lscm").painted;
+    let e = measure_method(&engine, &spot, "expmap").painted_area;
+    let l = measure_method(&engine, &spot, "lscm").painted_area;
     eprintln!("spot horn tip: lscm painted {l:.5} vs expmap {e:.5} (a cone tip: see the doc)");
 }
 
@@ -300,9 +228,9 @@ fn a_region_with_a_handle_is_cut_to_a_disc_without_folds() {
             "torus {method}: folds in the footprint: {m:?}"
         );
         assert!(
-            (m.scale - 1.0).abs() <= SCALE_TOL,
+            (m.scale_fifth - 1.0).abs() <= SCALE_TOL,
             "torus {method}: scale {}",
-            m.scale
+            m.scale_fifth
         );
     }
     // The report of an lscm bake says the region was not a disc and what was done.

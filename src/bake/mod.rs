@@ -41,7 +41,7 @@ mod stage;
 
 pub use engine::{Baked, Engine, LoadedMesh};
 pub use images::f32_to_f16;
-pub use param::ParamRow;
+pub use param::{size_figures, ParamRow, SizeFigures};
 
 use crate::error::Result;
 use crate::io::job::Job;

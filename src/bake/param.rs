@@ -6,8 +6,9 @@ use super::engine::{Engine, LoadedMesh};
 use crate::error::{Error, Result};
 use crate::io::job::{Job, Method};
 use crate::maps::Frame;
+use crate::mesh::Topology;
 use crate::place::{place_gpu, Query};
-use glam::Vec3;
+use glam::{DVec2, DVec3, Vec3};
 use std::collections::HashMap;
 
 /// One row of `decalbake param`: a welded vertex reached by a layer's map.
@@ -149,5 +150,97 @@ impl Engine {
             }
         }
         Ok(rows)
+    }
+}
+
+/// What a layer's coordinates say about its size, the way `decalbake bench --scale` and the tests
+/// measure it (independently of the engine's own chart report).
+#[derive(Debug, Clone, Copy)]
+pub struct SizeFigures {
+    /// Median of |(u, v)| / |x − p| over the reached vertices within half the size of `p`.
+    pub scale_half: f64,
+    /// The same within 0.2 × the size.
+    pub scale_fifth: f64,
+    /// Triangles whose (u, v) meet the decal's square.
+    pub footprint: usize,
+    /// Of those, flipped (negative signed (u, v) area: the maps keep the surface's orientation).
+    pub flipped: usize,
+    /// Of those, collapsed (area ratio below 1e-3 of the median over the map).
+    pub collapsed: usize,
+    /// Surface area whose (u, v) fall inside the square (15 × 15 barycentric samples a triangle).
+    pub painted_area: f64,
+}
+
+/// [`SizeFigures`] of a square decal of side `size` placed at `p`, from its `param` rows.
+pub fn size_figures(topo: &Topology, rows: &[ParamRow], p: DVec3, size: f64) -> SizeFigures {
+    let uv: HashMap<u32, DVec2> = rows
+        .iter()
+        .map(|r| (r.vertex, DVec2::new(r.uv[0] as f64, r.uv[1] as f64)))
+        .collect();
+    let scale = |radius: f64| {
+        let mut s: Vec<f64> = rows
+            .iter()
+            .filter_map(|r| {
+                let d = (DVec3::from(r.position.map(f64::from)) - p).length();
+                (d > 1e-9 * size && d <= radius).then(|| uv[&r.vertex].length() / d)
+            })
+            .collect();
+        s.sort_by(f64::total_cmp);
+        s.get(s.len() / 2).copied().unwrap_or(f64::NAN)
+    };
+    let h = 0.5 * size;
+    let mut ratios = Vec::new();
+    let mut foot = Vec::new();
+    let mut painted = 0.0;
+    for tri in &topo.triangles {
+        let Some(z) = tri
+            .iter()
+            .map(|v| uv.get(v).copied())
+            .collect::<Option<Vec<_>>>()
+        else {
+            continue;
+        };
+        let x = tri.map(|v| topo.positions[v as usize].as_dvec3());
+        let area3 = 0.5 * (x[1] - x[0]).cross(x[2] - x[0]).length();
+        if area3 <= 0.0 {
+            continue;
+        }
+        let area2 = 0.5 * (z[1] - z[0]).perp_dot(z[2] - z[0]);
+        ratios.push(area2.abs() / area3);
+        let lo = z[0].min(z[1]).min(z[2]);
+        let hi = z[0].max(z[1]).max(z[2]);
+        if hi.x < -h || lo.x > h || hi.y < -h || lo.y > h {
+            continue;
+        }
+        foot.push((area2, area3));
+        // Painted area: the fraction of 15 × 15 barycentric samples inside the rectangle.
+        let n = 15;
+        let mut inside = 0;
+        let mut total = 0;
+        for i in 0..n {
+            for j in 0..n - i {
+                let (a, b) = (
+                    (i as f64 + 1.0 / 3.0) / n as f64,
+                    (j as f64 + 1.0 / 3.0) / n as f64,
+                );
+                let q = z[0] + a * (z[1] - z[0]) + b * (z[2] - z[0]);
+                total += 1;
+                inside += usize::from(q.x.abs() <= h && q.y.abs() <= h);
+            }
+        }
+        painted += area3 * inside as f64 / total as f64;
+    }
+    ratios.sort_by(f64::total_cmp);
+    let median = ratios.get(ratios.len() / 2).copied().unwrap_or(0.0);
+    SizeFigures {
+        scale_half: scale(0.5 * size),
+        scale_fifth: scale(0.2 * size),
+        footprint: foot.len(),
+        flipped: foot.iter().filter(|(a2, _)| *a2 < 0.0).count(),
+        collapsed: foot
+            .iter()
+            .filter(|(a2, a3)| a2.abs() / a3 < 1e-3 * median)
+            .count(),
+        painted_area: painted,
     }
 }
