@@ -174,7 +174,7 @@ fn conformal_decals_keep_their_size_at_the_placed_point() {
             if (m.scale_fifth - 1.0).abs() > SCALE_TOL {
                 bad.push(format!("{name} {method}: scale {:.3}", m.scale_fifth));
             }
-            if m.flipped + m.collapsed > 0 || m.footprint < 20 {
+            if m.flipped + m.collapsed + m.torn > 0 || m.footprint < 20 {
                 bad.push(format!("{name} {method}: footprint {m:?}"));
             }
         }
@@ -224,7 +224,7 @@ fn a_region_with_a_handle_is_cut_to_a_disc_without_folds() {
         let m = measure(&mesh.topo, &rows, top, size);
         eprintln!("torus {method}: {m:?}");
         assert!(
-            m.flipped + m.collapsed == 0,
+            m.flipped + m.collapsed + m.torn == 0,
             "torus {method}: folds in the footprint: {m:?}"
         );
         assert!(
@@ -256,7 +256,10 @@ fn a_region_with_a_handle_is_cut_to_a_disc_without_folds() {
         chart.region.fix,
         decalbake::maps::chart::region::RegionFix::ShrunkToDisc
     );
-    assert_eq!(chart.footprint_flipped + chart.footprint_collapsed, 0);
+    assert_eq!(
+        chart.footprint_flipped + chart.footprint_collapsed + chart.footprint_torn,
+        0
+    );
     assert!(
         baked
             .report
@@ -266,6 +269,30 @@ fn a_region_with_a_handle_is_cut_to_a_disc_without_folds() {
         "{:?}",
         baked.report.warnings
     );
+}
+
+/// A decal wider than the tube's circumference: any disc of the tube under it is cut open inside
+/// the decal, where the cut's triangles (their corners on opposite sides of the chart) would be drawn
+/// flipped or stretched across it. The fold check finds them (before it looked only at the chart's
+/// own triangles and let them through), the re-solves on smaller regions cannot avoid them, and
+/// `decalbake param` (like the bake) refuses the layer with a message that names it and says what to
+/// do.
+#[test]
+fn a_decal_wrapping_a_handle_is_refused() {
+    let engine = engine();
+    let mesh = engine.prepare(torus(1.0, 0.25, 96, 32)).unwrap();
+    let top = Vec3::new(1.0, 0.25, 0.0);
+    for method in ["lscm", "hybrid"] {
+        let job = decal_job(top, 2.0, method);
+        let err = engine.layer_param(&mesh, &job, 0).unwrap_err().to_string();
+        eprintln!("{method}: {err}");
+        assert!(
+            err.contains("layer 0")
+                && err.contains("folds inside the decal")
+                && err.contains("torn"),
+            "{method}: {err}"
+        );
+    }
 }
 
 /// The region checks on known shapes: a disc, an annulus (a tube), a closed sphere; and growing a

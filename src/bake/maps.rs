@@ -264,29 +264,12 @@ fn chart_pass(
 
 /// A chart that did not converge stops the bake; one that kept growing is a warning.
 fn check_chart(job: &Job, i: usize, r: &ChartReport, log: &mut Log) -> Result<()> {
-    if r.status != crate::solve::sparse::CgStatus::Converged {
-        return Err(Error::Placement {
-            path: job.source.clone(),
-            layer: i,
-            detail: format!(
-                "the conformal chart ({} triangles) did not converge: {:?} after {} conjugate-gradient iterations, relative residual {:.2e} (target {:.0e}); raise `cg_max_iterations`, make the decal smaller, or use \"expmap\"",
-                r.triangles, r.status, r.cg_iterations, r.residual, chart::FINAL_RTOL
-            ),
-        });
-    }
-    if r.fallback == chart::Fallback::Refused {
-        return Err(Error::Placement {
-            path: job.source.clone(),
-            layer: i,
-            detail: format!(
-                "the conformal chart folds inside the decal ({} flipped and {} collapsed of its {} triangles) even when solved on a smaller region; make the decal smaller, move it off the sharp feature, or use \"expmap\" or \"hybrid\"",
-                r.footprint_flipped, r.footprint_collapsed, r.footprint_triangles
-            ),
-        });
+    if let Some(e) = chart_error(job, i, r) {
+        return Err(e);
     }
     if r.region.fix == chart::region::RegionFix::ShrunkToDisc {
         log.warnings.push(format!(
-            "layer {i}: the conformal chart's region was not a disc (Euler characteristic {}, {} boundary loop(s)); it was shrunk to a disc around the placed point, cutting the handle open",
+            "layer {i}: the conformal chart's region was not a disc (Euler characteristic {}, {} boundary loop(s)); it was shrunk to a disc grown from the placed point, leaving the handle open",
             r.region.euler_characteristic, r.region.boundary_loops
         ));
     }
@@ -397,5 +380,28 @@ fn direct_pass(cx: Cx<'_>, slots: &Slots, maps: &LayerMaps, log: &mut Log) -> Re
             }
         }
         engine.ctx.queue.submit([enc.finish()]);
+    })
+}
+
+/// The error that stops a bake (and `decalbake param`) for layer `i`'s chart: a solve that did not
+/// converge, or a chart that still folds into the decal after the fallbacks.
+pub(super) fn chart_error(job: &Job, i: usize, r: &ChartReport) -> Option<Error> {
+    let detail = if r.status != crate::solve::sparse::CgStatus::Converged {
+        format!(
+            "the conformal chart ({} triangles) did not converge: {:?} after {} conjugate-gradient iterations, relative residual {:.2e} (target {:.0e}); raise `cg_max_iterations`, make the decal smaller, or use \"expmap\"",
+            r.triangles, r.status, r.cg_iterations, r.residual, chart::FINAL_RTOL
+        )
+    } else if r.fallback == chart::Fallback::Refused {
+        format!(
+            "the conformal chart folds inside the decal ({} flipped, {} collapsed and {} torn of the {} triangles under it) even when solved on a smaller region; make the decal smaller, move it off the sharp feature or the handle, or use \"expmap\"",
+            r.footprint_flipped, r.footprint_collapsed, r.footprint_torn, r.footprint_triangles
+        )
+    } else {
+        return None;
+    };
+    Some(Error::Placement {
+        path: job.source.clone(),
+        layer: i,
+        detail,
     })
 }

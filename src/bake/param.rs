@@ -94,6 +94,9 @@ impl Engine {
                     &mut Default::default(),
                 )?
                 .remove(0);
+                if let Some(e) = super::maps::chart_error(job, index, &chart.report) {
+                    return Err(e);
+                }
                 let replaces = chart.replaces_map;
                 let mut uv: HashMap<u32, [f32; 2]> = chart.coords.into_iter().collect();
                 if !replaces {
@@ -105,10 +108,11 @@ impl Engine {
                     }
                 }
                 for (v, c) in uv {
-                    let distance = hybrid.then(|| {
-                        let e = expmap[v as usize];
-                        (e[0] * e[0] + e[1] * e[1]).sqrt()
-                    });
+                    // Hybrid: the exponential map's distance where the map reached the vertex (a
+                    // hybrid re-solved as a free chart can reach beyond it).
+                    let e = expmap[v as usize];
+                    let distance =
+                        (hybrid && e[3] > 0.5).then(|| (e[0] * e[0] + e[1] * e[1]).sqrt());
                     rows.push(ParamRow {
                         vertex: v,
                         position: topo.positions[v as usize].to_array(),
@@ -165,8 +169,10 @@ pub struct SizeFigures {
     pub footprint: usize,
     /// Of those, flipped (negative signed (u, v) area: the maps keep the surface's orientation).
     pub flipped: usize,
-    /// Of those, collapsed (area ratio below 1e-3 of the median over the map).
+    /// Of those not flipped, collapsed (area ratio below 1e-3 of the median over the map).
     pub collapsed: usize,
+    /// Of those, torn (area ratio above 1e3 times the median: stretched across a cut).
+    pub torn: usize,
     /// Surface area whose (u, v) fall inside the square (15 × 15 barycentric samples a triangle).
     pub painted_area: f64,
 }
@@ -239,7 +245,11 @@ pub fn size_figures(topo: &Topology, rows: &[ParamRow], p: DVec3, size: f64) -> 
         flipped: foot.iter().filter(|(a2, _)| *a2 < 0.0).count(),
         collapsed: foot
             .iter()
-            .filter(|(a2, a3)| a2.abs() / a3 < 1e-3 * median)
+            .filter(|(a2, a3)| *a2 >= 0.0 && a2 / a3 < 1e-3 * median)
+            .count(),
+        torn: foot
+            .iter()
+            .filter(|(a2, a3)| a2.abs() / a3 > 1e3 * median)
             .count(),
         painted_area: painted,
     }

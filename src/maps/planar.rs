@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! The planar method: the tangent-plane projection of Schmidt, Grimm & Wyvill 2006 (section 3, the
 //! projection their exponential map improves upon). Kernel `wgsl/maps/planar_coords.wgsl`, recorded in
-//! the bake's selection pass just before `select_triangles`; CPU twin [`planar_coords`].
+//! the map stage's direct pass ([`super::MapMethod::record`]); CPU twin [`planar_coords`].
 
 use crate::maps::Frame;
 use crate::mesh::Topology;

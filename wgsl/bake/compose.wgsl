@@ -2,7 +2,7 @@
 // Composes one rasterized layer rectangle into the linear accumulation buffer. Each texel averages its
 // ss x ss samples over the samples that fell inside the UV island (so island-edge texels keep the
 // island's colour instead of mixing in background), then blends with the layer's mode.
-// Dispatch: (ceil(rect w / 8), ceil(rect h / 8), 1). CPU twin: `compose_rect` in src/compose/cpu.rs.
+// Dispatch: (ceil(rect w / 8), ceil(rect h / 8), 1). CPU twin: `LayerRaster::texel` and `BlendMode::blend` in src/bake/cpu.rs (whole bake: `bake_cpu`).
 #import params
 #import blend
 #import acc

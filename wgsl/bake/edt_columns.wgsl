@@ -2,7 +2,7 @@
 // Exact Euclidean distance transform, pass 1 of 2 (Felzenszwalb & Huttenlocher 2012, "Distance
 // Transforms of Sampled Functions", separable form): for every texel, the row of the nearest island
 // texel in its column (-1 if the column has none). One invocation per column.
-// Dispatch: (ceil(W / 64), 1, 1). CPU twin: `padding` in src/compose/cpu.rs.
+// Dispatch: (ceil(W / 64), 1, 1). CPU twin: `nearest_island_map` in src/bake/cpu.rs.
 #import params
 
 @group(0) @binding(0) var<uniform> params: Params;

@@ -3,7 +3,7 @@
 // (x - q)^2 + g(q)^2 over columns q (g from pass 1) gives each texel its nearest island texel, written
 // as a texel index (island texels point at themselves; 0xffffffff when there is no island at all).
 // One invocation per row. Dispatch: (ceil(H / 64), 1, 1). CPU twin: `nearest_island` in
-// src/compose_cpu.rs.
+// src/bake/cpu.rs.
 #import params
 
 @group(0) @binding(0) var<uniform> params: Params;

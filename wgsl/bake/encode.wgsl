@@ -3,7 +3,7 @@
 // see edt_rows.wgsl) lies within `params.aux` texels (0xffffffff = any distance) takes that texel's
 // colour. Encoding: sRGB, 8 bits (one u32 per texel, RGBA8) or, with flag bit 2, 16 bits (two u32 per
 // texel, RGBA16), rows `rect_size.x` words apart; alpha stays linear. CPU twins: `nearest_island` in
-// src/compose_cpu.rs, `linear_to_srgb` in src/image_io.rs. Dispatch: (ceil(W / 8), ceil(H / 8), 1).
+// src/bake/cpu.rs, `linear_to_srgb` in src/io/image.rs. Dispatch: (ceil(W / 8), ceil(H / 8), 1).
 #import params
 #import acc
 

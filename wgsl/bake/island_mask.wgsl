@@ -2,7 +2,7 @@
 // Marks texels of a rasterized island rectangle: a texel is an island texel when any of its ss x ss
 // samples is covered. Only ever sets 1, so overlapping rectangles (UV tiles) need no ordering; the
 // first setter of a texel counts it in stats row `params.aux` (word 0).
-// Dispatch: (ceil(rect w / 8), ceil(rect h / 8), 1). CPU twin: `island_mask` in src/compose/cpu.rs.
+// Dispatch: (ceil(rect w / 8), ceil(rect h / 8), 1). CPU twin: `islands_cpu` in src/bake/cpu.rs.
 #import params
 
 @group(0) @binding(0) var<uniform> params: Params;

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // Draws every non-degenerate triangle at its global UV into a supersampled coverage target: the UV
 // islands, which padding grows. Non-indexed draw of 3 * triangles vertices; degenerate triangles are
-// collapsed to a point so they produce no fragments. CPU twin: `island_mask` in src/compose/cpu.rs.
+// collapsed to a point so they produce no fragments. CPU twin: `islands_cpu` in src/bake/cpu.rs.
 #import params
 
 @group(0) @binding(0) var<uniform> params: Params;

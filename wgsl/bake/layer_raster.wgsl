@@ -4,7 +4,7 @@
 // image (premultiplied, mipmapped: implicit derivatives pick the level) and the optional mask.
 // Attachment 0: premultiplied colour; attachment 1: island coverage (1 where a triangle is drawn).
 // Non-indexed draw of 3 * (triangles in the layer's list) vertices.
-// CPU twin: `raster_layer` in src/compose/cpu.rs.
+// CPU twin: `LayerRaster` in src/bake/cpu.rs.
 #import params
 
 @group(0) @binding(0) var<uniform> params: Params;

@@ -3,7 +3,7 @@
 // coordinates, the triangle's coordinate box overlaps the decal rectangle, and (planar projection only)
 // the triangle faces the projection. Appends them to the layer's list and grows the layer's texel
 // bounding box in the output texture. Dispatch: (ceil(triangles / 64), 1, 1).
-// CPU twin: `select_triangles` in src/layer/cpu.rs.
+// CPU twin: `select_triangles` in src/bake/cpu.rs.
 #import params
 
 @group(0) @binding(0) var<uniform> params: Params;

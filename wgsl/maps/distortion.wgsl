@@ -3,11 +3,11 @@
 // s1 >= s2 of the Jacobian from the triangle's own plane to the layer's (u, v) coordinates. Area ratio
 // s1 s2 (signed: negative means the triangle is flipped), angle distortion s1 / s2. Each workgroup
 // reduces its triangles (area-weighted sums, extremes, flip count) into one partial; the host adds
-// the partials. Dispatch: (DIST_GROUPS, 1, 1) per layer. CPU twin: `distortion` in src/layer.rs.
+// the partials. Dispatch: (DIST_GROUPS, 1, 1) per layer. CPU twin: `distortion` in src/maps/distortion.rs.
 #import params
 
 const WG: u32 = 64u;
-// Keep in sync with `DIST_GROUPS` in src/layer.rs.
+// Keep in sync with `DIST_GROUPS` in src/maps/distortion.rs.
 const DIST_GROUPS: u32 = 16u;
 
 @group(0) @binding(0) var<uniform> params: Params;

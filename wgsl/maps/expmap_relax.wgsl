@@ -1,14 +1,14 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // Discrete exponential maps by parallel relaxation over an active front, one workgroup per decal
 // (smooth mode: the update also carries a Jacobi field and a frame angle, see `Accuracy` in
-// src/geodesic.rs):
+// src/maps/expmap/cpu.rs):
 // every sweep, each vertex of the front takes the neighbour that minimises (graph distance +
 // edge length) among reached, expandable neighbours (graph distance <= radius, |K| <= curvature
 // stop) and sets its normal coordinates from it (shared/expmap.wgsl); sweeps repeat until one changes
 // nothing. Only vertices next to a vertex that changed in the previous sweep are in the next front,
 // so the work is proportional to the updates, not to sweeps x disc. Distances only decrease
 // (Bellman-Ford), so the in-place, unordered updates converge. The
-// fixed point is the serial Dijkstra map of the paper (`dem_cpu` in src/geodesic.rs).
+// fixed point is the serial Dijkstra map of the paper (`dem_cpu` in src/maps/expmap/cpu.rs).
 // Candidates (the connected vertices within a Euclidean ball that contains the geodesic disc, plus
 // one ring) come from the CPU, so the work is proportional to the disc, not to the mesh.
 // Output per vertex in the layer's coords slot: (u, v, graph distance, 1) reached, 2 for seed
@@ -23,7 +23,7 @@ const WG: u32 = 256u;
 const INF: f32 = 3.0e38;
 const NONE: u32 = 0xffffffffu;
 
-// Keep in sync with `GeoJob` in src/geodesic_gpu.rs.
+// Keep in sync with `GeoJob` in src/maps/expmap/gpu.rs.
 struct GeoJob {
     seed: vec4<f32>,
     normal: vec4<f32>,
@@ -43,7 +43,7 @@ struct GeoJob {
     smooth_mode: u32,
 }
 
-// Keep in sync with `Round` in src/geodesic_gpu.rs.
+// Keep in sync with `Round` in src/maps/expmap/gpu.rs.
 struct Round {
     init: u32,
     sweeps: u32,
@@ -51,7 +51,7 @@ struct Round {
     _pad1: u32,
 }
 
-// Keep in sync with `GeoResult` in src/geodesic_gpu.rs.
+// Keep in sync with `GeoResult` in src/maps/expmap/gpu.rs.
 struct GeoResult {
     sweeps: u32,
     reached: u32,
@@ -78,11 +78,11 @@ struct GeoResult {
 // Per slot and vertex: the smooth mode's state (G, G', frame angle, 0) (see shared/expmap.wgsl).
 @group(0) @binding(13) var<storage, read_write> state: array<vec4<f32>>;
 // Per CSR adjacency entry: the edge's intrinsic angle at its source vertex (`edge_angles` in
-// src/geodesic.rs).
+// src/maps/expmap/cpu.rs).
 @group(0) @binding(14) var<storage, read> edge_angles: array<f32>;
 
 // The intrinsic angle of edge v -> q at v (0 when q is not a neighbour). Twin of `edge_angle` in
-// src/geodesic.rs.
+// src/maps/expmap/cpu.rs.
 fn edge_angle(v: u32, q: u32) -> f32 {
     for (var k = adj_offsets[v]; k < adj_offsets[v + 1u]; k++) {
         if (adjacency[k] == q) { return edge_angles[k]; }
@@ -91,7 +91,7 @@ fn edge_angle(v: u32, q: u32) -> f32 {
 }
 
 // +1 when the seed frame (e1, e2) turns like the seed triangle's winding, -1 when mirrored.
-// Twin of `orient` in `smooth_seed`, src/geodesic.rs.
+// Twin of `orient` in `smooth_seed`, src/maps/expmap/cpu.rs.
 fn seed_orient(job: GeoJob) -> f32 {
     let p0 = positions[job.tri.x].xyz;
     let nt = normalize(cross(positions[job.tri.y].xyz - p0, positions[job.tri.z].xyz - p0));
@@ -100,7 +100,7 @@ fn seed_orient(job: GeoJob) -> f32 {
 }
 
 // The smooth mode's start at seed-triangle vertex i: coordinates in the triangle's plane and the
-// state (distance, 1, frame angle, 0). Twin of `smooth_seed` in src/geodesic.rs.
+// state (distance, 1, frame angle, 0). Twin of `smooth_seed` in src/maps/expmap/cpu.rs.
 fn smooth_seed(job: GeoJob, i: u32, orient: f32) -> SmoothOut {
     let tri = array<u32, 3>(job.tri.x, job.tri.y, job.tri.z);
     let p = array<vec3<f32>, 3>(positions[tri[0]].xyz, positions[tri[1]].xyz, positions[tri[2]].xyz);

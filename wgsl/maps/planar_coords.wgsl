@@ -2,7 +2,7 @@
 // Layer coordinates by tangent-plane projection ("method": "planar"): each welded vertex gets its
 // position in the decal's frame, in model units: (x along axis_u, y along axis_v, depth along the
 // normal, valid). Valid when |depth| <= the depth limit. Dispatch: (ceil(vertices / 64), 1, 1).
-// CPU twin: `planar_coords` in src/layer/cpu.rs.
+// CPU twin: `planar_coords` in src/maps/planar.rs.
 #import params
 
 @group(0) @binding(0) var<uniform> params: Params;

@@ -1,11 +1,11 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // Placement, stage 1 of 2: every triangle is tested against every layer's query (closest point or
 // ray hit); each workgroup reduces its triangles to the best (key, triangle) pair in a fixed order.
-// Dispatch: (PLACE_GROUPS, layers, 1). CPU twin: `src/place/cpu.rs`.
+// Dispatch: (PLACE_GROUPS, layers, 1). CPU twin: `place_cpu` in src/place.rs.
 #import geometry
 
 const WG: u32 = 64u;
-// Keep in sync with `PLACE_GROUPS` in src/place/mod.rs.
+// Keep in sync with `PLACE_GROUPS` in src/place.rs.
 const PLACE_GROUPS: u32 = 32u;
 const NO_TRI: u32 = 0xffffffffu;
 

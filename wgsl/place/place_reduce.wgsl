@@ -3,11 +3,11 @@
 // placed point (triangle, barycentric coordinates, smooth normal). Dispatch: (layers, 1, 1).
 #import geometry
 
-// Keep in sync with `PLACE_GROUPS` in src/place/mod.rs and place_candidates.wgsl.
+// Keep in sync with `PLACE_GROUPS` in src/place.rs and place_candidates.wgsl.
 const PLACE_GROUPS: u32 = 32u;
 const NO_TRI: u32 = 0xffffffffu;
 
-// Keep in sync with `PlaceResult` in src/place/mod.rs.
+// Keep in sync with `PlaceResult` in src/place.rs.
 struct PlaceResult {
     point: vec3<f32>,
     triangle: u32,

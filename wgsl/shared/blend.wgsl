@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // Blend modes (W3C Compositing and Blending Level 1, separable modes; "add" is linear dodge), applied
-// in linear light. Ids keep in sync with `BlendMode` in src/blend.rs, which is also the CPU twin.
+// in linear light. Ids keep in sync with `BlendMode` in src/bake/blend.rs (schema: `io::job::BlendMode`), which is also the CPU twin.
 const BLEND_NORMAL: u32 = 0u;
 const BLEND_MULTIPLY: u32 = 1u;
 const BLEND_SCREEN: u32 = 2u;

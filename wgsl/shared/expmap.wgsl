@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // Discrete exponential map updates: the paper's (Schmidt, Grimm & Wyvill 2006, eq. 2-3: `transfer`)
 // and the smooth mode's second-order step (`smooth_step`; see `Accuracy::Smooth` in
-// src/geodesic.rs). Twins of the functions of the same names in src/geodesic.rs: keep the arithmetic
+// src/maps/expmap/cpu.rs). Twins of the functions of the same names in src/maps/expmap/cpu.rs: keep the arithmetic
 // in the same order.
 
 // v rotated by the minimal rotation taking unit `n_from` onto unit `n_to`.
@@ -13,7 +13,7 @@ fn rotate_min(n_from: vec3<f32>, n_to: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
 }
 
 // Jacobi field (G, G') advanced by `dr` through curvature `k` (exact for constant curvature). Twin of
-// `jacobi_step` in src/geodesic.rs.
+// `jacobi_step` in src/maps/expmap/cpu.rs.
 fn jacobi_step(g: vec2<f32>, k: f32, dr: f32) -> vec2<f32> {
     if (k > 1.0e-12) {
         let w = sqrt(k);
@@ -32,7 +32,7 @@ fn jacobi_step(g: vec2<f32>, k: f32, dr: f32) -> vec2<f32> {
 }
 
 // The smooth mode's increment: `t` with its component perpendicular to `c` scaled by |c| / g. Twin
-// of `smooth_increment` in src/geodesic.rs.
+// of `smooth_increment` in src/maps/expmap/cpu.rs.
 fn smooth_increment(c: vec2<f32>, g: f32, t: vec2<f32>) -> vec2<f32> {
     let r = sqrt(c.x * c.x + c.y * c.y);
     if (r <= 1.0e-12 || g <= 1.0e-12) { return t; }
@@ -57,7 +57,7 @@ fn transfer(r: vec3<f32>, nr: vec3<f32>, q: vec3<f32>, seed_n: vec3<f32>, e1: ve
 }
 
 // x's smooth-mode state (G, G', frame angle, 0) once its coordinates `c` are known; `carried` is
-// y's frame angle carried across the edge. See `smooth_step` in src/geodesic.rs.
+// y's frame angle carried across the edge. See `smooth_step` in src/maps/expmap/cpu.rs.
 fn smooth_state(cy: vec2<f32>, sy: vec4<f32>, km: f32, carried: f32, orient: f32, c: vec2<f32>) -> vec4<f32> {
     let ry = sqrt(cy.x * cy.x + cy.y * cy.y);
     let r = sqrt(c.x * c.x + c.y * c.y);
@@ -85,7 +85,7 @@ struct SmoothOut {
 const PI: f32 = 3.14159265358979;
 
 // One step of the smooth mode from upwind y to x (intrinsic frame carried across the edge,
-// trapezoidal rule with a predictor). Twin of `smooth_step` in src/geodesic.rs: same operations in
+// trapezoidal rule with a predictor). Twin of `smooth_step` in src/maps/expmap/cpu.rs: same operations in
 // the same order.
 fn smooth_step(cy: vec2<f32>, sy: vec4<f32>, ky: f32, kx: f32, len: f32, ty: f32, tx: f32, orient: f32) -> SmoothOut {
     let km = 0.5 * (ky + kx);

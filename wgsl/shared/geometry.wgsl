@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-// Geometry helpers shared by the placement kernels. CPU twin: `src/place/cpu.rs`.
+// Geometry helpers shared by the placement kernels. CPU twin: `place_cpu` in src/place.rs.
 
 // Closest point on triangle (a, b, c) to p, as barycentric coordinates (Ericson, Real-Time Collision
 // Detection, 5.1.5: Voronoi regions of the vertices, edges and face).

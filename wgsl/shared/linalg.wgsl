@@ -6,7 +6,7 @@
 
 const WG: u32 = 256u;
 
-// Keep in sync with `SystemDesc` in src/linalg_gpu.rs.
+// Keep in sync with `SystemDesc` in src/solve/gpu.rs.
 struct System {
     row0: u32,
     n: u32,

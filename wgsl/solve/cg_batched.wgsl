@@ -10,7 +10,7 @@
 // terms of A x (LSCM: only two pinned vertices feed b) could never get under a tight target in f32.
 // Status per system: 0 = not started, 1 = running, 2 = converged, 3 = iteration budget
 // spent (not converged), 4 = breakdown (NaN/Inf seen, or <p, Ap> <= 0: the matrix is not SPD).
-// Dispatch: (systems, 1, 1). CPU twin: `sparse::pcg` in src/sparse.rs (f64).
+// Dispatch: (systems, 1, 1). CPU twin: `sparse::pcg` in src/solve/sparse.rs (f64).
 #import linalg
 
 const REPLACE: u32 = 50u;
@@ -21,7 +21,7 @@ const ST_BUDGET: u32 = 3u;
 const ST_BREAK: u32 = 4u;
 const ST_OTHER: u32 = 99u;
 
-// Keep in sync with `CgRound` in src/linalg_gpu.rs.
+// Keep in sync with `CgRound` in src/solve/gpu.rs.
 struct Round {
     iters: u32,
     // First system of this dispatch (dispatches cover at most 65535 systems each).
@@ -30,7 +30,7 @@ struct Round {
     pad2: u32,
 }
 
-// Keep in sync with `CgState` in src/linalg_gpu.rs.
+// Keep in sync with `CgState` in src/solve/gpu.rs.
 struct State {
     status: u32,
     iters: u32,

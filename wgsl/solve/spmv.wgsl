@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // Sparse matrix-vector product y = A x for a CSR matrix, one invocation per row (rows in index order
 // within the row, so the result is reproducible). Dispatch: (min(groups, 65535), ceil(groups / 65535), 1)
-// with groups = ceil(rows / 64). CPU twin: `Csr::mul` in src/sparse.rs.
+// with groups = ceil(rows / 64). CPU twin: `Csr::mul` in src/solve/sparse.rs.
 #import dims
 
 @group(0) @binding(0) var<uniform> dims: Dims;

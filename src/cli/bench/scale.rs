@@ -48,7 +48,7 @@ pub fn run(
                 "bench": "decal_scale", "mesh": path.display().to_string(), "method": method,
                 "size": size, "scale_half_size": m.scale_half, "scale_fifth_size": m.scale_fifth,
                 "footprint_triangles": m.footprint, "footprint_flipped": m.flipped,
-                "footprint_collapsed": m.collapsed, "painted_area": m.painted_area,
+                "footprint_collapsed": m.collapsed, "footprint_torn": m.torn, "painted_area": m.painted_area,
                 "rectangle_area": size * size,
             }));
         }

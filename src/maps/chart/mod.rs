@@ -12,10 +12,13 @@
 //!    a bake in one batch. Warm start: the planar projection for the first solve, the previous
 //!    solution afterwards.
 //! 3. **Normalisation**: the similarity that puts the placed point on the image centre, turns the
-//!    frame's axes onto the image axes and makes the chart's area equal the surface area it covers
-//!    ([`crate::maps::chart::lscm::normalising_similarity`]). Pins therefore only fix the null space; their
-//!    positions do not matter (LSCM with two pins is unique up to a similarity).
-//! 4. **Refinement** (Maillot §6): the first adjustment drops triangles whose image lies wholly
+//!    frame's axes onto the image axes and makes the chart's scale at the placed point 1
+//!    ([`crate::maps::chart::lscm::normalising_similarity`], [`FIT_RADIUS`]). Pins therefore only
+//!    fix the null space; their positions do not matter (LSCM with two pins is unique up to a
+//!    similarity).
+//! 4. **Disc regions** ([`region`]): a selection that is not a topological disc is shrunk to one,
+//!    after the first selection and after every refinement round.
+//! 5. **Refinement** (Maillot §6): the first adjustment drops triangles whose image lies wholly
 //!    outside the decal rectangle (keeping the placed triangle's connected part); every adjustment
 //!    adds the neighbour across each border edge whose image crosses the rectangle's interior (when
 //!    that edge is not a mesh boundary). Re-solve until the set no longer changes, at most
@@ -28,6 +31,10 @@
 //! conformal energy of those triangles is minimised over the free vertices. The map keeps the
 //! exponential map's frame and geodesic radius where it was good and becomes conformal where it was
 //! not.
+//!
+//! After the solves, every chart is checked where the decal lands ([`ChartReport::folded`]: flipped,
+//! collapsed or torn triangles among those the map covers under the decal) and re-solved on smaller
+//! regions ([`FALLBACK_REACH`]; a hybrid as a free LSCM chart) or refused.
 //!
 //! The CPU here does set logic and assembly (proportional to the chart); the solves run on the GPU
 //! ([`Solver::Gpu`]) or, for the CPU twin of a bake, in f64 on the CPU ([`Solver::Cpu`]).
@@ -134,6 +141,9 @@ pub struct ChartReport {
     pub footprint_flipped: u32,
     /// Of those, collapsed: image area below [`COLLAPSED`] of the chart's median area ratio.
     pub footprint_collapsed: u32,
+    /// Of those, torn: image area above 1 / [`COLLAPSED`] times the median ratio (a triangle whose
+    /// corners lie on opposite sides of a cut, stretched across the chart).
+    pub footprint_torn: u32,
     /// What was done when the chart folded into the footprint.
     pub fallback: Fallback,
 }
@@ -142,8 +152,10 @@ pub struct ChartReport {
 /// median ratio counts as collapsed.
 pub const COLLAPSED: f64 = 1e-3;
 
-/// Reach of the re-solves when a chart folds into its footprint, as multiples of [`REACH`].
-pub const FALLBACK_REACH: [f64; 2] = [0.7, 0.45];
+/// Reach of the re-solves when a chart folds into its footprint, as multiples of [`REACH`]: 1.2 and
+/// then 1.0 half-diagonals, so the region still reaches the decal's corners (a surface point within
+/// geodesic distance r of the placed point is within 3D distance r).
+pub const FALLBACK_REACH: [f64; 2] = [0.8, 2.0 / 3.0];
 
 /// What was done when a chart folded into its footprint.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -510,9 +522,9 @@ pub fn build(
 }
 
 impl ChartReport {
-    /// Some triangle of the footprint is flipped or collapsed.
+    /// Some triangle of the footprint is flipped, collapsed or torn.
     pub fn folded(&self) -> bool {
-        self.footprint_flipped + self.footprint_collapsed > 0
+        self.footprint_flipped + self.footprint_collapsed + self.footprint_torn > 0
     }
 }
 
@@ -520,24 +532,34 @@ impl ChartReport {
 /// with (hybrid: the exponential map with the chart's vertices moved).
 fn assess(topo: &Topology, req: &ChartRequest, chart: &mut Chart) {
     let mut z: HashMap<u32, DVec2> = HashMap::new();
-    let tris = match req.kind {
-        ChartKind::Lscm => chart.triangles.clone(),
-        ChartKind::Hybrid { expmap, .. } => {
-            for (v, c) in expmap.iter().enumerate() {
-                if c[3] > 0.5 {
-                    z.insert(v as u32, DVec2::new(c[0] as f64, c[1] as f64));
-                }
+    if let (ChartKind::Hybrid { expmap, .. }, false) = (req.kind, chart.replaces_map) {
+        for (v, c) in expmap.iter().enumerate() {
+            if c[3] > 0.5 {
+                z.insert(v as u32, DVec2::new(c[0] as f64, c[1] as f64));
             }
-            map_triangles(topo, expmap)
         }
-    };
+    }
     for &(v, c) in &chart.coords {
         z.insert(v, DVec2::new(c[0] as f64, c[1] as f64));
     }
-    let tris: Vec<u32> = tris
-        .into_iter()
-        .filter(|&t| topo.triangles[t as usize].iter().all(|v| z.contains_key(v)))
+    // Every triangle whose three vertices the final map covers: what the selection stage can draw,
+    // including triangles left out of the chart (a handle cut open) whose corners it still covers.
+    let mut tris: Vec<u32> = z
+        .keys()
+        .flat_map(|&v| {
+            let (a, b) = (
+                topo.vertex_triangle_offsets[v as usize] as usize,
+                topo.vertex_triangle_offsets[v as usize + 1] as usize,
+            );
+            topo.vertex_triangles[a..b].iter().copied()
+        })
+        .filter(|&t| {
+            !topo.degenerate[t as usize]
+                && topo.triangles[t as usize].iter().all(|v| z.contains_key(v))
+        })
         .collect();
+    tris.sort_unstable();
+    tris.dedup();
     let coord = |v: u32| z.get(&v).map_or([f64::NAN; 2], |c| [c.x, c.y]);
     let st = topo.triangles[req.triangle as usize];
     let p = req.frame.center.as_dvec3();
@@ -557,11 +579,12 @@ fn assess(topo: &Topology, req: &ChartRequest, chart: &mut Chart) {
         v.get(v.len() / 2).copied().unwrap_or(0.0)
     };
     r.footprint_triangles = foot.len() as u32;
-    r.footprint_flipped = foot.iter().filter(|&&f| f <= 0.0).count() as u32;
+    r.footprint_flipped = foot.iter().filter(|&&f| f < 0.0).count() as u32;
     r.footprint_collapsed = foot
         .iter()
-        .filter(|&&f| f > 0.0 && f < COLLAPSED * median)
+        .filter(|&&f| f >= 0.0 && f < COLLAPSED * median)
         .count() as u32;
+    r.footprint_torn = foot.iter().filter(|&&f| f > median / COLLAPSED).count() as u32;
 }
 
 /// Every triangle's image-to-surface area ratio (unsigned), and the signed ratios of the triangles
@@ -779,6 +802,7 @@ fn finished_chart(w: &Work, rep: CgReport, sys: System) -> Chart {
             footprint_triangles: 0,
             footprint_flipped: 0,
             footprint_collapsed: 0,
+            footprint_torn: 0,
             fallback: Fallback::None,
         },
     }
@@ -835,6 +859,7 @@ fn build_hybrid(
                     footprint_triangles: 0,
                     footprint_flipped: 0,
                     footprint_collapsed: 0,
+                    footprint_torn: 0,
                     fallback: Fallback::None,
                 },
             )
@@ -874,12 +899,15 @@ fn build_hybrid(
                 footprint_triangles: 0,
                 footprint_flipped: 0,
                 footprint_collapsed: 0,
+                footprint_torn: 0,
                 fallback: Fallback::None,
             };
             (coords, report)
         };
         out[i] = Some(Chart {
-            replaces_map: false,
+            // A whole-disc re-solve replaces the map (its disc may have been shrunk); otherwise the
+            // vertices the solve did not free keep their exponential-map coordinates.
+            replaces_map: whole,
             coords,
             triangles: sys.triangles.clone(),
             report,
@@ -1036,10 +1064,16 @@ fn refine(topo: &Topology, req: &ChartRequest, w: &mut Work, remove: bool) -> bo
         w.triangles.push(nb);
         changed = true;
     }
-    if changed && !region::topology(topo, &w.triangles).disc {
-        let center = req.frame.center.as_dvec3();
-        w.triangles = region::grow_disc(topo, &w.triangles, req.triangle, center);
-        w.region.fix = RegionFix::ShrunkToDisc;
+    if changed {
+        let found = region::topology(topo, &w.triangles);
+        if !found.disc {
+            let center = req.frame.center.as_dvec3();
+            w.triangles = region::grow_disc(topo, &w.triangles, req.triangle, center);
+            w.region = RegionReport {
+                fix: RegionFix::ShrunkToDisc,
+                ..found
+            };
+        }
     }
     changed
 }

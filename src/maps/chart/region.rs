@@ -2,19 +2,22 @@
 //! A chart's region must be a topological disc: a conformal flattening of a region with a handle, or
 //! of one that closes up, has to crush or fold part of it. [`topology`] reads a triangle set's Euler
 //! characteristic, boundary loops and components; [`grow_disc`] shrinks a set that is not a disc
-//! to the largest disc grown from the placed triangle in order of distance from the placed point,
-//! which cuts a handle open along the edges where the growing front meets itself.
+//! to a disc grown greedily from the placed triangle in order of distance from the placed point: a
+//! handle is left open where the growing front meets itself. The triangles left out there keep their
+//! corners in the chart, so if they lie inside the decal they would be drawn stretched across it; the
+//! chart's fold check counts them (`footprint_torn`) and re-solves on a smaller region.
 
 use crate::mesh::{Topology, NO_NEIGHBOR};
 use glam::DVec3;
 use std::collections::{BinaryHeap, HashSet};
 
-/// The topology of a chart's region, as selected, and what was done about it.
+/// The topology of a chart's region and what was done about it: the first selection's, or, when a
+/// refinement round had to shrink the region, that round's.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 pub struct RegionReport {
     /// V − E + F of the selected triangles (1 for a disc).
     pub euler_characteristic: i32,
-    /// Boundary loops (1 for a disc).
+    /// Boundary loops (1 for a disc; loops that touch at a vertex count as one).
     pub boundary_loops: u32,
     /// Edge-connected components (1 for a disc).
     pub components: u32,
