@@ -141,52 +141,9 @@ impl Topology {
             adjacency_offsets.push(adjacency.len() as u32);
         }
 
-        // Components over triangles, through shared edges (including non-manifold ones).
-        let mut triangle_component = vec![u32::MAX; triangles.len()];
-        let mut components = 0;
-        let mut stack = Vec::new();
-        for seed in 0..triangles.len() {
-            if degenerate[seed] || triangle_component[seed] != u32::MAX {
-                continue;
-            }
-            triangle_component[seed] = components;
-            stack.push(seed as u32);
-            while let Some(t) = stack.pop() {
-                let tri = triangles[t as usize];
-                for k in 0..3 {
-                    let (a, b) = (tri[k], tri[(k + 1) % 3]);
-                    for &(u, _) in &edges[&(a.min(b), a.max(b))] {
-                        if triangle_component[u as usize] == u32::MAX {
-                            triangle_component[u as usize] = components;
-                            stack.push(u);
-                        }
-                    }
-                }
-            }
-            components += 1;
-        }
-
-        let mut counts = vec![0u32; nv + 1];
-        for (t, tri) in triangles.iter().enumerate() {
-            if !degenerate[t] {
-                for &v in tri {
-                    counts[v as usize + 1] += 1;
-                }
-            }
-        }
-        for i in 0..nv {
-            counts[i + 1] += counts[i];
-        }
-        let vertex_triangle_offsets = counts.clone();
-        let mut vertex_triangles = vec![0u32; counts[nv] as usize];
-        for (t, tri) in triangles.iter().enumerate() {
-            if !degenerate[t] {
-                for &v in tri {
-                    vertex_triangles[counts[v as usize] as usize] = t as u32;
-                    counts[v as usize] += 1;
-                }
-            }
-        }
+        let (triangle_component, components) = components(&triangles, &degenerate, &edges);
+        let (vertex_triangle_offsets, vertex_triangles) =
+            vertex_triangles(&triangles, &degenerate, nv);
 
         Self {
             vertex_triangle_offsets,
@@ -253,4 +210,67 @@ fn weld(points: &[Vec3], eps: f32) -> (Vec<u32>, Vec<Vec3>) {
         map.push(id);
     }
     (map, reps)
+}
+
+/// Edge-connected components over the non-degenerate triangles (non-manifold edges connect too):
+/// each triangle's component (`u32::MAX` for degenerate ones) and the count.
+fn components(
+    triangles: &[[u32; 3]],
+    degenerate: &[bool],
+    edges: &HashMap<(u32, u32), Vec<(u32, u8)>>,
+) -> (Vec<u32>, u32) {
+    let mut triangle_component = vec![u32::MAX; triangles.len()];
+    let mut components = 0;
+    let mut stack = Vec::new();
+    for seed in 0..triangles.len() {
+        if degenerate[seed] || triangle_component[seed] != u32::MAX {
+            continue;
+        }
+        triangle_component[seed] = components;
+        stack.push(seed as u32);
+        while let Some(t) = stack.pop() {
+            let tri = triangles[t as usize];
+            for k in 0..3 {
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                for &(u, _) in &edges[&(a.min(b), a.max(b))] {
+                    if triangle_component[u as usize] == u32::MAX {
+                        triangle_component[u as usize] = components;
+                        stack.push(u);
+                    }
+                }
+            }
+        }
+        components += 1;
+    }
+    (triangle_component, components)
+}
+
+/// CSR of the non-degenerate triangles around each of `nv` vertices: (offsets, triangles).
+fn vertex_triangles(
+    triangles: &[[u32; 3]],
+    degenerate: &[bool],
+    nv: usize,
+) -> (Vec<u32>, Vec<u32>) {
+    let mut counts = vec![0u32; nv + 1];
+    for (t, tri) in triangles.iter().enumerate() {
+        if !degenerate[t] {
+            for &v in tri {
+                counts[v as usize + 1] += 1;
+            }
+        }
+    }
+    for i in 0..nv {
+        counts[i + 1] += counts[i];
+    }
+    let offsets = counts.clone();
+    let mut list = vec![0u32; counts[nv] as usize];
+    for (t, tri) in triangles.iter().enumerate() {
+        if !degenerate[t] {
+            for &v in tri {
+                list[counts[v as usize] as usize] = t as u32;
+                counts[v as usize] += 1;
+            }
+        }
+    }
+    (offsets, list)
 }
