@@ -86,6 +86,20 @@ pub struct LayerMaps {
     pub chart: Vec<Option<ChartReport>>,
 }
 
+impl LayerMaps {
+    /// The chunk's layers (job indices) whose map method satisfies `f`.
+    fn layers_where(
+        &self,
+        job: &Job,
+        f: impl Fn(&dyn crate::maps::MapMethod) -> bool,
+    ) -> Vec<usize> {
+        self.range
+            .clone()
+            .filter(|&i| f(method(job.layers[i].method)))
+            .collect()
+    }
+}
+
 /// Computes the coordinates of the layers in `range` into their slots.
 pub(crate) fn compute(
     cx: Cx<'_>,
@@ -163,11 +177,7 @@ fn expmap_pass(
 ) -> Result<()> {
     let Cx { engine, mesh, job } = cx;
     let start = maps.range.start;
-    let layers: Vec<usize> = maps
-        .range
-        .clone()
-        .filter(|&i| method(job.layers[i].method).uses_expmap())
-        .collect();
+    let layers = maps.layers_where(job, |m| m.uses_expmap());
     let requests: Vec<_> = layers
         .iter()
         .map(|&i| {
@@ -203,14 +213,7 @@ fn chart_pass(
     let Cx { engine, mesh, job } = cx;
     let start = maps.range.start;
     let nv = mesh.gpu.vertex_count as u64;
-    let layers: Vec<usize> = maps
-        .range
-        .clone()
-        .filter(|&i| {
-            let m = method(job.layers[i].method);
-            m.uses_expmap() && m.solves_chart()
-        })
-        .collect();
+    let layers = maps.layers_where(job, |m| m.uses_expmap() && m.solves_chart());
     let (Some(&first), Some(&last)) = (layers.first(), layers.last()) else {
         return Ok(());
     };

@@ -522,6 +522,28 @@ pub fn build(
 }
 
 impl ChartReport {
+    /// A converged, settled report with no solve and no assessment yet (filled by [`assess`]).
+    fn unassessed(region: RegionReport) -> Self {
+        Self {
+            triangles: 0,
+            vertices: 0,
+            fixed_vertices: 0,
+            rounds: 0,
+            cg_iterations: 0,
+            cg_iterations_total: 0,
+            residual: 0.0,
+            status: CgStatus::Converged,
+            settled: true,
+            scale_at_point: f64::NAN,
+            region,
+            footprint_triangles: 0,
+            footprint_flipped: 0,
+            footprint_collapsed: 0,
+            footprint_torn: 0,
+            fallback: Fallback::None,
+        }
+    }
+
     /// Some triangle of the footprint is flipped, collapsed or torn.
     pub fn folded(&self) -> bool {
         self.footprint_flipped + self.footprint_collapsed + self.footprint_torn > 0
@@ -797,13 +819,7 @@ fn finished_chart(w: &Work, rep: CgReport, sys: System) -> Chart {
             residual: rep.residual,
             status: rep.status,
             settled: w.done,
-            scale_at_point: f64::NAN,
-            region: w.region,
-            footprint_triangles: 0,
-            footprint_flipped: 0,
-            footprint_collapsed: 0,
-            footprint_torn: 0,
-            fallback: Fallback::None,
+            ..ChartReport::unassessed(w.region)
         },
     }
 }
@@ -842,27 +858,7 @@ fn build_hybrid(
         };
         let scale = half_extent(&req.frame).length();
         let (coords, report) = if sys.matrix.rows == 0 {
-            (
-                Vec::new(),
-                ChartReport {
-                    triangles: 0,
-                    vertices: 0,
-                    fixed_vertices: 0,
-                    rounds: 0,
-                    cg_iterations: 0,
-                    cg_iterations_total: 0,
-                    residual: 0.0,
-                    status: CgStatus::Converged,
-                    settled: true,
-                    scale_at_point: f64::NAN,
-                    region: region_report,
-                    footprint_triangles: 0,
-                    footprint_flipped: 0,
-                    footprint_collapsed: 0,
-                    footprint_torn: 0,
-                    fallback: Fallback::None,
-                },
-            )
+            (Vec::new(), ChartReport::unassessed(region_report))
         } else {
             let (x, rep) = solved.next().expect("one solution per hybrid system");
             let coord = solved_coord(&sys, &x, scale);
@@ -893,14 +889,7 @@ fn build_hybrid(
                 cg_iterations_total: rep.iterations,
                 residual: rep.residual,
                 status: rep.status,
-                settled: true,
-                scale_at_point: f64::NAN,
-                region: region_report,
-                footprint_triangles: 0,
-                footprint_flipped: 0,
-                footprint_collapsed: 0,
-                footprint_torn: 0,
-                fallback: Fallback::None,
+                ..ChartReport::unassessed(region_report)
             };
             (coords, report)
         };
