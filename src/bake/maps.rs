@@ -368,6 +368,7 @@ fn direct_pass(cx: Cx<'_>, slots: &Slots, maps: &LayerMaps, log: &mut Log) -> Re
         params: pbind(&maps.buffer),
         coords: &slots.coords,
     };
+    let mut recorded = 0;
     engine.ctx.scoped("layer coordinates", || {
         let mut enc = engine
             .ctx
@@ -379,11 +380,16 @@ fn direct_pass(cx: Cx<'_>, slots: &Slots, maps: &LayerMaps, log: &mut Log) -> Re
                 timestamp_writes: None,
             });
             for (m, offsets) in &groups {
-                log.commands += method(*m).record(&cx, &mut pass, offsets);
+                recorded += method(*m).record(&cx, &mut pass, offsets);
             }
         }
-        engine.ctx.queue.submit([enc.finish()]);
-    })
+        // A chunk without direct methods records nothing: no submission.
+        if recorded > 0 {
+            engine.ctx.queue.submit([enc.finish()]);
+        }
+    })?;
+    log.commands += recorded;
+    Ok(())
 }
 
 /// The error that stops a bake (and `decalbake param`) for layer `i`'s chart: a solve that did not
