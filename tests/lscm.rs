@@ -39,6 +39,7 @@ fn frame_at(topo: &Topology, at: Vec3, up: [f32; 3], size: [f32; 2]) -> (Frame, 
         accuracy: decalbake::maps::expmap::Accuracy::Smooth,
         hybrid_threshold: 1.1,
         cg_max_iterations: None,
+        stroke: None,
     };
     (Frame::new(&p, &job_layer), p.triangle)
 }

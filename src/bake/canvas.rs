@@ -16,7 +16,8 @@ use std::sync::Arc;
 use wgpu::util::DeviceExt;
 
 /// Counters at the start of a layer's stats row (`wgsl/bake/select_triangles.wgsl`): triangles,
-/// texel box (4), texels covered, triangles reached, spare; the layer's cell mask follows.
+/// texel box (4), texels covered, triangles reached, texels a stroke changed (counted on its last
+/// unit's row by `stroke_apply`); the layer's cell mask follows.
 pub const STATS_COUNTERS: u32 = 8;
 
 /// The bake's accumulation image, statistics and islands.
@@ -25,6 +26,9 @@ pub struct Canvas {
     pub acc_rg: wgpu::Buffer,
     /// Accumulation plane: blue and alpha.
     pub acc_ba: wgpu::Buffer,
+    /// Where a stroke's stamps build up before the stroke is composed (same layout as the
+    /// accumulation planes, transparent between strokes); only when the job has strokes.
+    pub stroke: Option<[wgpu::Buffer; 2]>,
     /// One row per layer: [`STATS_COUNTERS`] counters, then its cell mask.
     pub stats: wgpu::Buffer,
     /// Bytes of `stats`.
@@ -41,7 +45,8 @@ pub struct Canvas {
 
 impl Canvas {
     /// Allocates the canvas, fetches (or computes) the islands and fills the base.
-    pub(crate) fn new(cx: Cx<'_>, images: &Images, log: &mut Log) -> Result<Self> {
+    /// `strokes`: whether to allocate the stroke buffer.
+    pub(crate) fn new(cx: Cx<'_>, images: &Images, strokes: bool, log: &mut Log) -> Result<Self> {
         let Cx { engine, mesh, job } = cx;
         let dev = &engine.ctx.device;
         let g = &mesh.gpu;
@@ -56,6 +61,8 @@ impl Canvas {
             })
         };
         let (acc_rg, acc_ba) = (plane("bake.acc_rg"), plane("bake.acc_ba"));
+        // wgpu zero-fills new buffers: the stroke buffer starts transparent.
+        let stroke = strokes.then(|| [plane("bake.stroke_rg"), plane("bake.stroke_ba")]);
         let nl = job.layers.len().max(1) as u64;
         let grid = [w.div_ceil(CELL), h.div_ceil(CELL)];
         let mask_words = (grid[0] * grid[1]).div_ceil(32);
@@ -86,6 +93,7 @@ impl Canvas {
         let canvas = Self {
             acc_rg,
             acc_ba,
+            stroke,
             stats,
             stats_size: nl * stats_stride as u64 * 4,
             stats_stride,

@@ -11,6 +11,7 @@ use super::engine::{Engine, LoadedMesh};
 use super::images::Images;
 use super::maps::{LayerMaps, Slots};
 use super::params::{params_buffer, pbind, Params, PARAMS_STRIDE};
+use super::place::Placed;
 use super::plan::{pack_atlas, plan_cells, Batch, TILE_TARGET};
 use super::stage::{Cx, Log};
 use crate::error::Result;
@@ -59,7 +60,49 @@ pub fn raster_jobs(
     jobs
 }
 
-/// Rasterizes and composes the chunk's layers into the canvas; returns each layer's distortion.
+/// Where a finished stroke is applied: before raster job `at` of the chunk (`jobs.len()`: after
+/// the last), with `Params` entry `params` of the chunk's uniform buffer.
+#[derive(Debug, Clone, Copy)]
+struct Flush {
+    at: usize,
+    params: usize,
+}
+
+/// The strokes whose last unit is in this chunk, applied once their units' raster jobs are composed:
+/// their flush points and `Params` (the whole texture, the stroke's blend and opacity, the row of its
+/// last unit for the texel count).
+fn flushes(
+    placed: &Placed,
+    maps: &LayerMaps,
+    jobs: &[(usize, Params)],
+    global: &Params,
+) -> (Vec<Flush>, Vec<Params>) {
+    let mut out = Vec::new();
+    let mut params = Vec::new();
+    for s in &placed.strokes {
+        let last = s.units.end - 1;
+        if s.units.is_empty() || !maps.range.contains(&last) {
+            continue;
+        }
+        out.push(Flush {
+            at: jobs.iter().filter(|(u, _)| *u <= last).count(),
+            params: jobs.len() + params.len(),
+        });
+        params.push(Params {
+            rect_origin: [0, 0],
+            rect_size: global.tex_size,
+            blend: s.blend as u32,
+            opacity: s.opacity,
+            aux: last as u32,
+            ..*global
+        });
+    }
+    (out, params)
+}
+
+/// Rasterizes and composes the chunk's layers into the canvas (a stroke's stamps into the stroke
+/// buffer, applied to the canvas after its last stamp); returns each layer's distortion.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn compose(
     cx: Cx<'_>,
     images: &Images,
@@ -67,6 +110,7 @@ pub(crate) fn compose(
     slots: &Slots,
     maps: &LayerMaps,
     stats: &[i32],
+    placed: &Placed,
     log: &mut Log,
 ) -> Result<Vec<Distortion>> {
     let Cx { engine, mesh, job } = cx;
@@ -85,7 +129,8 @@ pub(crate) fn compose(
             batches.len()
         );
     }
-    let jp: Vec<Params> = jobs.iter().map(|(_, p)| *p).collect();
+    let (flush, flush_params) = flushes(placed, maps, &jobs, &canvas.global);
+    let jp: Vec<Params> = jobs.iter().map(|(_, p)| *p).chain(flush_params).collect();
     let job_params = params_buffer(dev, "bake.raster_params", &jp);
     let n_chunk = maps.range.len() as u64;
     let partials_size = n_chunk * DIST_GROUPS as u64 * 32;
@@ -105,6 +150,8 @@ pub(crate) fn compose(
         stats,
         jobs: &jobs,
         job_params: &job_params,
+        placed,
+        flush: &flush,
     };
     engine.ctx.scoped("raster and compose", || {
         let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -112,9 +159,16 @@ pub(crate) fn compose(
         });
         log.commands += record_distortion(engine, mesh, canvas, slots, maps, &partials, &mut enc);
         let mut layer_bgs = HashMap::new();
+        let mut flushed = 0;
         for batch in &batches {
-            log.commands += cx.record_batch(batch, &mut layer_bgs, &mut enc);
+            log.commands += cx.record_batch(batch, &mut layer_bgs, &mut flushed, &mut enc);
         }
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("bake.stroke_apply"),
+            timestamp_writes: None,
+        });
+        log.commands += cx.record_flushes(usize::MAX, &mut flushed, &mut pass);
+        drop(pass);
         engine.ctx.queue.submit([enc.finish()]);
     })?;
     let pb = engine
@@ -175,16 +229,20 @@ struct Recording<'a> {
     stats: &'a [i32],
     jobs: &'a [(usize, Params)],
     job_params: &'a wgpu::Buffer,
+    placed: &'a Placed,
+    flush: &'a [Flush],
 }
 
 impl Recording<'_> {
     /// One atlas batch: a render pass drawing each raster job into its region of the target, then
-    /// one compose dispatch per job, in job order (so overlapping layers still apply in order).
-    /// Returns the draws and dispatches recorded.
+    /// one compose dispatch per job, in job order (so overlapping layers still apply in order; a
+    /// stroke's stamps into the stroke buffer, the stroke applied where [`Flush`] says). `flushed`
+    /// counts the flushes recorded so far. Returns the draws and dispatches recorded.
     fn record_batch(
         &self,
         (batch, used_h): &Batch,
         layer_bgs: &mut HashMap<usize, wgpu::BindGroup>,
+        flushed: &mut usize,
         enc: &mut wgpu::CommandEncoder,
     ) -> u32 {
         let (engine, pipes) = (self.engine, &self.engine.pipes);
@@ -233,29 +291,73 @@ impl Recording<'_> {
                 pass.draw(0..3 * count, 0..1);
             }
         }
-        let bg_compose = pipes.compose.bind(
-            &engine.ctx.device,
-            "bake.compose",
-            &[
-                (0, pbind(self.job_params)),
-                (1, wgpu::BindingResource::TextureView(&tg.color_view)),
-                (2, wgpu::BindingResource::TextureView(&tg.cov_view)),
-                (3, self.canvas.stats.as_entire_binding()),
-                (10, self.canvas.acc_rg.as_entire_binding()),
-                (11, self.canvas.acc_ba.as_entire_binding()),
-            ],
-        );
+        let bind_compose = |planes: &[wgpu::Buffer; 2]| {
+            pipes.compose.bind(
+                &engine.ctx.device,
+                "bake.compose",
+                &[
+                    (0, pbind(self.job_params)),
+                    (1, wgpu::BindingResource::TextureView(&tg.color_view)),
+                    (2, wgpu::BindingResource::TextureView(&tg.cov_view)),
+                    (3, self.canvas.stats.as_entire_binding()),
+                    (10, planes[0].as_entire_binding()),
+                    (11, planes[1].as_entire_binding()),
+                ],
+            )
+        };
+        let acc = [self.canvas.acc_rg.clone(), self.canvas.acc_ba.clone()];
+        let bg_canvas = bind_compose(&acc);
+        let bg_stroke = self.canvas.stroke.as_ref().map(bind_compose);
+        let mut n = 2 * batch.len() as u32;
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("bake.compose"),
             timestamp_writes: None,
         });
-        pass.set_pipeline(&pipes.compose.pipeline);
         for &(k, _) in batch {
-            let p = &self.jobs[k].1;
-            pass.set_bind_group(0, &bg_compose, &[(k as u64 * PARAMS_STRIDE) as u32]);
+            n += self.record_flushes(k, flushed, &mut pass);
+            let (unit, p) = &self.jobs[k];
+            let bg = match (self.placed.stroke_of(*unit), &bg_stroke) {
+                (Some(_), Some(bg)) => bg,
+                _ => &bg_canvas,
+            };
+            pass.set_pipeline(&pipes.compose.pipeline);
+            pass.set_bind_group(0, bg, &[(k as u64 * PARAMS_STRIDE) as u32]);
             pass.dispatch_workgroups(p.rect_size[0].div_ceil(8), p.rect_size[1].div_ceil(8), 1);
         }
-        2 * batch.len() as u32
+        n
+    }
+
+    /// `stroke_apply` for every stroke due before raster job `k` (`usize::MAX`: all that are left).
+    /// Returns the dispatches recorded.
+    fn record_flushes(&self, k: usize, flushed: &mut usize, pass: &mut wgpu::ComputePass) -> u32 {
+        let (engine, pipes) = (self.engine, &self.engine.pipes);
+        let mut n = 0;
+        while let Some(f) = self.flush.get(*flushed).filter(|f| f.at <= k) {
+            let planes = self
+                .canvas
+                .stroke
+                .as_ref()
+                .expect("a job with strokes has a stroke buffer");
+            let bg = pipes.stroke_apply.bind(
+                &engine.ctx.device,
+                "bake.stroke_apply",
+                &[
+                    (0, pbind(self.job_params)),
+                    (3, self.canvas.stats.as_entire_binding()),
+                    (10, self.canvas.acc_rg.as_entire_binding()),
+                    (11, self.canvas.acc_ba.as_entire_binding()),
+                    (12, planes[0].as_entire_binding()),
+                    (13, planes[1].as_entire_binding()),
+                ],
+            );
+            let p = &self.canvas.global;
+            pass.set_pipeline(&pipes.stroke_apply.pipeline);
+            pass.set_bind_group(0, &bg, &[(f.params as u64 * PARAMS_STRIDE) as u32]);
+            pass.dispatch_workgroups(p.tex_size[0].div_ceil(8), p.tex_size[1].div_ceil(8), 1);
+            *flushed += 1;
+            n += 1;
+        }
+        n
     }
 
     /// Layer `i`'s raster bind group: its triangle list, UVs, coords, image and mask.

@@ -64,12 +64,45 @@ pub struct CpuBake {
 }
 
 /// Bakes `job` on the CPU. `images[i]` is layer i's (decal, mask) as loaded (straight alpha, mask
-/// already raw), `base` the base image, `placements` the layers' placements.
+/// already raw), `base` the base image, `placements` the layers' placements. Decal layers only; a
+/// job with strokes goes through [`bake_units_cpu`] with its units ([`crate::Engine::units`]).
 pub fn bake_cpu(
     mesh: &Mesh,
     topo: &Topology,
     job: &Job,
     placements: &[Placement],
+    base: &LinearImage,
+    images: &[(LinearImage, Option<LinearImage>)],
+) -> CpuBake {
+    let frames: Vec<Frame> = job
+        .layers
+        .iter()
+        .zip(placements)
+        .map(|(l, p)| Frame::new(p, l))
+        .collect();
+    bake_units_cpu(mesh, topo, (job, placements, &frames), &[], base, images)
+}
+
+/// A stroke as the CPU twin composes it: its units, opacity and blend mode.
+#[derive(Debug, Clone)]
+pub struct StrokeCpu {
+    /// The stroke's units (indices into the unit job).
+    pub units: std::ops::Range<usize>,
+    /// The stroke's opacity.
+    pub opacity: f32,
+    /// Its blend mode onto the layers below.
+    pub blend: crate::io::job::BlendMode,
+}
+
+/// The CPU twin of the bake's stages after placement, on units (`job.layers[u]` at `placements[u]`
+/// with frame `frames[u]`, image `images[u]`): each unit composed in order into the canvas, or,
+/// for the units of a stroke, into the stroke buffer, which [`apply_stroke`] composes onto the
+/// canvas after the stroke's last unit.
+pub fn bake_units_cpu(
+    mesh: &Mesh,
+    topo: &Topology,
+    (job, placements, frames): (&Job, &[Placement], &[Frame]),
+    strokes: &[StrokeCpu],
     base: &LinearImage,
     images: &[(LinearImage, Option<LinearImage>)],
 ) -> CpuBake {
@@ -84,14 +117,21 @@ pub fn bake_cpu(
     }
     let island = islands_cpu(mesh, topo, job);
     let mut selected = Vec::new();
+    let mut buffer = LinearImage::solid(w, h, [0.0; 4]);
     let surface = crate::mesh::SurfaceData::new(topo);
     for (li, layer) in job.layers.iter().enumerate() {
-        let frame = Frame::new(&placements[li], layer);
+        let frame = frames[li];
         let coords = layer_coords_cpu(topo, &surface, layer, &frame, &placements[li]);
         let m = crate::maps::method(layer.method);
         let uvs = &mesh.uv_sets[job.uv_set as usize];
         let sel = select_triangles(mesh, topo, uvs, &coords, &frame, m.front_facing(), [w, h]);
         let raster = LayerRaster::new(mesh, topo, job, layer, &coords, &images[li]);
+        let stroke = strokes.iter().find(|s| s.units.contains(&li));
+        let target = if stroke.is_some() {
+            &mut buffer
+        } else {
+            &mut composed
+        };
         let b = sel.texel_box;
         for y in b[1].max(0)..b[3].min(h as i32) {
             for x in b[0].max(0)..b[2].min(w as i32) {
@@ -100,8 +140,11 @@ pub fn bake_cpu(
                     continue;
                 };
                 let idx = (y * w + x) as usize;
-                composed.pixels[idx] = layer.blend.blend(composed.pixels[idx], src);
+                target.pixels[idx] = layer.blend.blend(target.pixels[idx], src);
             }
+        }
+        if let Some(s) = stroke.filter(|s| s.units.end == li + 1) {
+            apply_stroke(&mut composed, &mut buffer, s.blend, s.opacity);
         }
         selected.push(sel.triangles);
     }
@@ -109,6 +152,29 @@ pub fn bake_cpu(
         composed,
         island,
         selected,
+    }
+}
+
+/// Twin of `stroke_apply`: the stroke buffer (straight alpha) at `opacity` × its alpha blended onto
+/// the canvas with `blend`, and cleared.
+pub fn apply_stroke(
+    canvas: &mut LinearImage,
+    buffer: &mut LinearImage,
+    blend: crate::io::job::BlendMode,
+    opacity: f32,
+) {
+    for (c, s) in canvas.pixels.iter_mut().zip(buffer.pixels.iter_mut()) {
+        if s[3] <= 0.0 {
+            continue;
+        }
+        let src = [
+            s[0] * s[3] * opacity,
+            s[1] * s[3] * opacity,
+            s[2] * s[3] * opacity,
+            s[3] * opacity,
+        ];
+        *c = blend.blend(*c, src);
+        *s = [0.0; 4];
     }
 }
 

@@ -21,6 +21,19 @@ pub struct Images {
     pub dummy: GpuImage,
 }
 
+impl Images {
+    /// The images per unit: unit u draws the image of job layer `origin[u].0` (shared, not copied).
+    pub fn for_units(self, origin: &[(usize, usize)]) -> Images {
+        Images {
+            layers: origin
+                .iter()
+                .map(|&(l, _)| self.layers[l].clone())
+                .collect(),
+            ..self
+        }
+    }
+}
+
 /// Loads and uploads the base and every layer's image and mask.
 pub fn load(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Images> {
     let base = load_base(engine, mesh, job)?;

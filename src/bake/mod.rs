@@ -29,11 +29,11 @@ mod engine;
 mod finish;
 mod images;
 mod islands;
-mod kinds;
+pub mod kinds;
 mod maps;
 mod param;
 pub mod params;
-mod place;
+pub mod place;
 pub mod plan;
 pub mod report;
 pub mod select;
@@ -42,6 +42,7 @@ mod stage;
 pub use engine::{Baked, Engine, LoadedMesh};
 pub use images::f32_to_f16;
 pub use param::{size_figures, ParamRow, SizeFigures};
+pub use place::Units;
 
 use crate::error::Result;
 use crate::io::job::Job;
@@ -75,25 +76,17 @@ pub(crate) fn run(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Run> 
     let t = Instant::now();
     let placed = place::place(cx, &mut log)?;
     log.timings.placement_ms = ms(t);
-
+    // From here on the stages work on units (a decal is one, a stroke one per stamp).
+    let images = images.for_units(&placed.origin);
+    let ucx = Cx {
+        engine,
+        mesh,
+        job: &placed.job,
+    };
     let t = Instant::now();
-    let canvas = canvas::Canvas::new(cx, &images, &mut log)?;
-    let slots = maps::Slots::new(engine, mesh, job);
-    let mut layers: Vec<LayerReport> = Vec::with_capacity(job.layers.len());
-    for range in slots.chunks(job.layers.len()) {
-        let maps = maps::compute(cx, &placed, &slots, range.clone(), &canvas.global, &mut log)?;
-        let stats = select::select(cx, &canvas, &slots, &maps, &mut log)?;
-        let first = layers.len();
-        for i in range {
-            let row = canvas.row(&stats, i);
-            let r = layer_report(job, i, &placed, &maps, row, &mut log.warnings);
-            layers.push(r);
-        }
-        let d = compose::compose(cx, &images, &canvas, &slots, &maps, &stats, &mut log)?;
-        for (l, d) in layers[first..].iter_mut().zip(d) {
-            l.distortion = d;
-        }
-    }
+    let canvas = canvas::Canvas::new(ucx, &images, !placed.strokes.is_empty(), &mut log)?;
+    let units =
+        compose_units(ucx, &placed, &images, &canvas, &mut log).map_err(|e| placed.rename(e))?;
     engine.ctx.wait("compose")?;
     log.timings.compose_ms = ms(t);
 
@@ -101,9 +94,7 @@ pub(crate) fn run(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Run> 
     let encoded = finish::pad_and_encode(cx, &canvas, &mut log)?;
     log.timings.padding_ms = ms(t);
     let stats = canvas.read_stats(engine, "stats read-back")?;
-    for l in &mut layers {
-        l.texels_covered = canvas.row(&stats, l.index)[5].max(0) as u32;
-    }
+    let layers = fold_reports(&placed, units, |u| canvas.row(&stats, u));
     let report = Report {
         version: env!("CARGO_PKG_VERSION"),
         adapter: engine.ctx.adapter.clone(),
@@ -120,6 +111,83 @@ pub(crate) fn run(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Run> 
         gpu_commands: log.commands,
     };
     Ok(Run { encoded, report })
+}
+
+/// Stages 4 to 6 for every chunk of units: maps, selection, raster and compose. Returns each unit's
+/// report (texels covered not yet read back).
+fn compose_units(
+    cx: Cx<'_>,
+    placed: &place::Placed,
+    images: &images::Images,
+    canvas: &canvas::Canvas,
+    log: &mut Log,
+) -> Result<Vec<LayerReport>> {
+    let job = cx.job;
+    let slots = maps::Slots::new(cx.engine, cx.mesh, job);
+    let mut units: Vec<LayerReport> = Vec::with_capacity(job.layers.len());
+    for range in slots.chunks(job.layers.len()) {
+        let maps = maps::compute(cx, placed, &slots, range.clone(), &canvas.global, log)?;
+        let stats = select::select(cx, canvas, &slots, &maps, log)?;
+        let first = units.len();
+        for i in range {
+            let row = canvas.row(&stats, i);
+            let r = layer_report(job, i, placed, &maps, row, &mut log.warnings);
+            units.push(r);
+        }
+        let d = compose::compose(cx, images, canvas, &slots, &maps, &stats, placed, log)?;
+        for (l, d) in units[first..].iter_mut().zip(d) {
+            l.distortion = d;
+        }
+    }
+    Ok(units)
+}
+
+/// The job layers' reports from their units' (`row(u)`: unit u's stats row after the bake): a
+/// decal's is its unit's; a stroke's adds up its stamps (triangles, texel box, distortion weighted
+/// by triangles) and reports the texels the stroke changed, counted when it was applied.
+fn fold_reports<'a>(
+    placed: &place::Placed,
+    units: Vec<LayerReport>,
+    row: impl Fn(usize) -> &'a [i32],
+) -> Vec<LayerReport> {
+    let mut out = Vec::with_capacity(placed.units_of.len());
+    for (i, r) in placed.units_of.iter().enumerate() {
+        let Some(stroke) = placed.strokes.iter().find(|s| s.layer == i) else {
+            let mut l = units[r.start].clone();
+            l.index = i;
+            l.texels_covered = row(r.start)[5].max(0) as u32;
+            out.push(l);
+            continue;
+        };
+        let stamps = &units[r.clone()];
+        let Some(first) = stamps.first() else {
+            continue;
+        };
+        let mut l = first.clone();
+        l.index = i;
+        l.blend = stroke.blend;
+        l.kind = crate::io::job::LayerKind::Stroke;
+        l.triangles_covered = stamps.iter().map(|s| s.triangles_covered).sum();
+        l.texels_covered = row(r.end - 1)[7].max(0) as u32;
+        l.texel_box = stamps
+            .iter()
+            .fold([i32::MAX, i32::MAX, i32::MIN, i32::MIN], |b, s| {
+                [
+                    b[0].min(s.texel_box[0]),
+                    b[1].min(s.texel_box[1]),
+                    b[2].max(s.texel_box[2]),
+                    b[3].max(s.texel_box[3]),
+                ]
+            });
+        l.distortion = crate::maps::distortion::Distortion::combine(
+            stamps.iter().map(|s| (s.distortion, s.triangles_covered)),
+        );
+        l.chart = None;
+        l.expmap = None;
+        l.stroke = Some(stroke.report.clone());
+        out.push(l);
+    }
+    out
 }
 
 /// Layer `i`'s report from its placement, map and selection (stats row `row`); the distortion and
@@ -148,6 +216,7 @@ fn layer_report(
     }
     LayerReport {
         index: i,
+        kind: l.kind,
         image: l.image.display().to_string(),
         method: l.method,
         blend: l.blend,
@@ -160,5 +229,6 @@ fn layer_report(
         distortion: Default::default(),
         expmap,
         chart: maps.chart[k],
+        stroke: None,
     }
 }

@@ -39,6 +39,13 @@ impl Engine {
                 ),
             )
         })?;
+        if layer.kind != crate::io::job::LayerKind::Decal {
+            return Err(Error::job(
+                &job.source,
+                format!("layers[{index}].kind"),
+                "`decalbake param` exports a decal's map; this layer is a stroke (its stamps' charts are in the bake report)",
+            ));
+        }
         let query = match &layer.at {
             crate::io::job::AtSpec::Point(p) => Query::Point(Vec3::from(*p)),
             crate::io::job::AtSpec::Ray { ray } => {

@@ -1,31 +1,173 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-//! Stage 2, placement: every layer's query placed on the mesh in one GPU submission
-//! ([`crate::place::place_gpu`]: `wgsl/place/place_candidates.wgsl` + `place_reduce.wgsl`, CPU twin
-//! [`crate::place::place_cpu`]), then each layer's kind turns its placement into a frame.
+//! Stage 2, placement: every surface point the layers name (a decal's `at`, a stroke's path) placed
+//! on the mesh in one GPU submission ([`crate::place::place_gpu`]: `place_candidates` and
+//! `place_reduce` in `wgsl/place/`, CPU twin [`crate::place::place_cpu`]), then each layer's kind
+//! turns its placements into **units** (one map, one image, one blend each: a decal is one, a stroke one per
+//! stamp). The stages after this one work on the units ([`Placed::job`]).
 
-use super::kinds::kind;
+use super::kinds::{kind, stroke::StrokeReport};
 use super::stage::{Cx, Log};
-use crate::error::Result;
+use crate::error::{Error, Result};
+use crate::io::job::{BlendMode, Job};
 use crate::maps::Frame;
 use crate::place::{place_gpu, Placement};
+use std::ops::Range;
 
-/// Where every layer landed, and its frame there.
+/// Where every unit landed, and its frame there.
 pub struct Placed {
-    /// Per layer.
+    /// Per unit.
     pub placements: Vec<Placement>,
-    /// Per layer.
+    /// Per unit.
     pub frames: Vec<Frame>,
+    /// The job as units: the job's fields, with one layer per unit.
+    pub job: Job,
+    /// Per unit: (job layer, index of the unit within its layer).
+    pub origin: Vec<(usize, usize)>,
+    /// Per job layer: its units.
+    pub units_of: Vec<Range<usize>>,
+    /// The strokes, in job order.
+    pub strokes: Vec<StrokeGroup>,
 }
 
-/// Places every layer of `job` on `mesh`.
+/// A stroke's units, composed through the stroke buffer and then onto the canvas.
+#[derive(Debug, Clone)]
+pub struct StrokeGroup {
+    /// The job layer.
+    pub layer: usize,
+    /// Its units.
+    pub units: Range<usize>,
+    /// What the whole stroke may reach.
+    pub opacity: f32,
+    /// How it composes onto the layers below.
+    pub blend: BlendMode,
+    /// Its report block.
+    pub report: StrokeReport,
+}
+
+/// Places every layer of `job` on `mesh` and expands the layers into units.
 pub(crate) fn place(cx: Cx<'_>, log: &mut Log) -> Result<Placed> {
     let Cx { engine, mesh, job } = cx;
-    let queries: Vec<_> = job.layers.iter().map(|l| kind(l.kind).query(l)).collect();
-    let placements = place_gpu(&engine.ctx, &engine.pipes, &mesh.gpu, &queries)?;
+    let per_layer: Vec<_> = job.layers.iter().map(|l| kind(l.kind).queries(l)).collect();
+    let queries: Vec<_> = per_layer.iter().flatten().copied().collect();
+    let all = place_gpu(&engine.ctx, &engine.pipes, &mesh.gpu, &queries)?;
     log.commands += 2;
-    let mut frames = Vec::with_capacity(placements.len());
-    for (i, (l, p)) in job.layers.iter().zip(&placements).enumerate() {
-        frames.push(kind(l.kind).frame(job, i, p, &mut log.warnings)?);
+    let mut placed = Placed {
+        placements: Vec::new(),
+        frames: Vec::new(),
+        job: Job {
+            layers: Vec::new(),
+            ..job.clone()
+        },
+        origin: Vec::new(),
+        units_of: Vec::new(),
+        strokes: Vec::new(),
+    };
+    let mut at = 0;
+    for (i, (l, q)) in job.layers.iter().zip(&per_layer).enumerate() {
+        let e = kind(l.kind).expand(cx, i, &all[at..at + q.len()], &mut log.warnings)?;
+        at += q.len();
+        let first = placed.placements.len();
+        for (k, u) in e.units.into_iter().enumerate() {
+            placed.placements.push(u.placement);
+            placed.frames.push(u.frame);
+            placed.job.layers.push(u.layer);
+            placed.origin.push((i, k));
+        }
+        let units = first..placed.placements.len();
+        if let Some(report) = e.stroke {
+            placed.strokes.push(StrokeGroup {
+                layer: i,
+                units: units.clone(),
+                opacity: l.opacity,
+                blend: l.blend,
+                report,
+            });
+        }
+        placed.units_of.push(units);
     }
-    Ok(Placed { placements, frames })
+    Ok(placed)
+}
+
+impl Placed {
+    /// An error of a later stage that names a unit, renamed to name its job layer (and the stamp).
+    pub fn rename(&self, e: Error) -> Error {
+        match e {
+            Error::Placement {
+                path,
+                layer,
+                detail,
+            } if layer < self.origin.len() => {
+                let (l, k) = self.origin[layer];
+                let detail = if self.strokes.iter().any(|s| s.layer == l) {
+                    format!("stamp {k} of the stroke: {detail}")
+                } else {
+                    detail
+                };
+                Error::Placement {
+                    path,
+                    layer: l,
+                    detail,
+                }
+            }
+            other => other,
+        }
+    }
+
+    /// The stroke a unit belongs to, if any.
+    pub fn stroke_of(&self, unit: usize) -> Option<&StrokeGroup> {
+        let l = self.origin[unit].0;
+        self.strokes.iter().find(|s| s.layer == l)
+    }
+}
+
+/// A job as the stages after placement see it: one layer per unit (a decal, or one stamp of a
+/// stroke), for the CPU twin ([`crate::bake::cpu::bake_units_cpu`]), tests and tools.
+#[derive(Debug, Clone)]
+pub struct Units {
+    /// The job's fields with one layer per unit.
+    pub job: Job,
+    /// Per unit.
+    pub placements: Vec<Placement>,
+    /// Per unit.
+    pub frames: Vec<Frame>,
+    /// Per unit: (job layer, index of the unit within its layer).
+    pub origin: Vec<(usize, usize)>,
+    /// The strokes, in job order.
+    pub strokes: Vec<crate::bake::cpu::StrokeCpu>,
+}
+
+impl crate::bake::Engine {
+    /// Places `job`'s layers on `mesh` and expands them into units, as a bake does before its map
+    /// stage.
+    pub fn units(&self, mesh: &crate::bake::LoadedMesh, job: &Job) -> Result<Units> {
+        super::check::check_job(self, mesh, job)?;
+        let mut log = Log {
+            timings: Default::default(),
+            warnings: Vec::new(),
+            commands: 0,
+        };
+        let p = place(
+            Cx {
+                engine: self,
+                mesh,
+                job,
+            },
+            &mut log,
+        )?;
+        Ok(Units {
+            strokes: p
+                .strokes
+                .iter()
+                .map(|s| crate::bake::cpu::StrokeCpu {
+                    units: s.units.clone(),
+                    opacity: s.opacity,
+                    blend: s.blend,
+                })
+                .collect(),
+            job: p.job,
+            placements: p.placements,
+            frames: p.frames,
+            origin: p.origin,
+        })
+    }
 }

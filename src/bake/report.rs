@@ -43,6 +43,8 @@ pub struct MeshStats {
 pub struct LayerReport {
     /// Index in the job.
     pub index: usize,
+    /// The layer's kind.
+    pub kind: crate::io::job::LayerKind,
     /// Image path.
     pub image: String,
     /// Method.
@@ -68,6 +70,11 @@ pub struct LayerReport {
     pub expmap: Option<crate::maps::expmap::gpu::GeoResult>,
     /// LSCM / hybrid: the conformal chart's solve (triangles, rounds, CG iterations, residual, status).
     pub chart: Option<crate::maps::chart::ChartReport>,
+    /// Strokes: the path, stamps and charts (the fields above then add up the stamps: the
+    /// placement and frame are the first stamp's; `triangles_covered` counts a triangle once per
+    /// stamp; `texels_covered` counts the texels the whole stroke changed).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stroke: Option<StrokeReport>,
 }
 
 /// Time per stage, milliseconds.
@@ -124,4 +131,30 @@ pub struct Report {
     pub timings: Timings,
     /// GPU dispatches and draws issued.
     pub gpu_commands: u32,
+}
+
+/// What a stroke reports (the layer's `stroke` block).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct StrokeReport {
+    /// The tool.
+    #[serde(flatten)]
+    pub tool: crate::io::job::Tool,
+    /// Path points given.
+    pub path_points: usize,
+    /// Length of the path on the surface (model units).
+    pub path_length: f32,
+    /// The 3D chord lengths added up (the path's length if it cut through the model).
+    pub chord_length: f32,
+    /// Polyline points of the path on the surface (path points and mesh-edge crossings).
+    pub path_vertices: usize,
+    /// Stamps drawn.
+    pub stamps: usize,
+    /// Stamp distance at full pressure (model units).
+    pub spacing: f32,
+    /// Charts computed for the stamps (one per stamp in this build).
+    pub charts: usize,
+    /// Whether per-vertex interpolated charts were used.
+    pub continuity: bool,
+    /// The stroke's opacity cap.
+    pub opacity: f32,
 }

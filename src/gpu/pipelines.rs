@@ -179,6 +179,8 @@ pub struct Pipelines {
     pub island_mask: Kernel,
     /// Layer composition.
     pub compose: Kernel,
+    /// A finished stroke onto the canvas.
+    pub stroke_apply: Kernel,
     /// Base fill.
     pub base_init: Kernel,
     /// EDT pass 1.
@@ -411,6 +413,11 @@ impl Pipelines {
                     (10, Rw),
                     (11, Rw),
                 ],
+            ),
+            stroke_apply: Kernel::new(
+                device,
+                "stroke_apply",
+                &[(0, Params), (3, Rw), (10, Rw), (11, Rw), (12, Rw), (13, Rw)],
             ),
             base_init: Kernel::new(
                 device,

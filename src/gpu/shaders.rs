@@ -36,6 +36,10 @@ pub const KERNELS: &[(&str, &str)] = &[
         include_str!("../../wgsl/bake/island_mask.wgsl"),
     ),
     ("compose", include_str!("../../wgsl/bake/compose.wgsl")),
+    (
+        "stroke_apply",
+        include_str!("../../wgsl/bake/stroke_apply.wgsl"),
+    ),
     ("base_init", include_str!("../../wgsl/bake/base_init.wgsl")),
     (
         "edt_columns",

@@ -15,7 +15,7 @@
 //! | layer `mask` | none |
 //! | layer `angle` | `0` degrees |
 //! | layer `up` | `[0, 1, 0]` |
-//! | layer `method` | `"planar"` |
+//! | layer `method` | `"expmap"` (decals), `"lscm"` (strokes) |
 //! | layer `blend` | `"normal"` |
 //! | layer `opacity` | `1.0` |
 //! | layer `depth` (planar) | half the larger of the two sizes |
@@ -25,6 +25,9 @@
 //! | `output.glb`, `output.preview` | none |
 
 use crate::error::{Error, Result};
+use crate::io::at::check_at;
+pub use crate::io::at::{AtSpec, RaySpec};
+pub use crate::io::stroke::{Orient, Stroke, Tool};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -120,29 +123,6 @@ impl Default for PaddingSpec {
     }
 }
 
-/// Where a layer goes.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
-#[serde(untagged)]
-pub enum AtSpec {
-    /// A point, snapped to the closest surface point.
-    Point([f32; 3]),
-    /// A ray; the first hit is used.
-    Ray {
-        /// The ray.
-        ray: RaySpec,
-    },
-}
-
-/// A ray.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct RaySpec {
-    /// Origin.
-    pub origin: [f32; 3],
-    /// Direction (need not be unit length).
-    pub dir: [f32; 3],
-}
-
 /// One layer.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -155,9 +135,10 @@ pub struct LayerSpec {
     /// Optional mask image (red × alpha, read without sRGB decoding).
     #[serde(default)]
     pub mask: Option<PathBuf>,
-    /// Placement.
-    pub at: AtSpec,
-    /// Width and height on the surface, model units.
+    /// Placement (decals; strokes use `path`).
+    #[serde(default)]
+    pub at: Option<AtSpec>,
+    /// Width and height on the surface, model units (a stroke's stamp at full pressure).
     pub size: [f32; 2],
     /// Degrees, counter-clockwise seen from outside.
     #[serde(default)]
@@ -165,9 +146,9 @@ pub struct LayerSpec {
     /// Image up direction before `angle`.
     #[serde(default = "default_up")]
     pub up: [f32; 3],
-    /// Placement method.
-    #[serde(default = "default_method")]
-    pub method: String,
+    /// Placement method (default: `"expmap"` for decals, `"lscm"` for strokes).
+    #[serde(default)]
+    pub method: Option<String>,
     /// Blend mode name.
     #[serde(default = "default_blend")]
     pub blend: String,
@@ -192,6 +173,42 @@ pub struct LayerSpec {
     /// chart: 50 sqrt(unknowns) + 500).
     #[serde(default)]
     pub cg_max_iterations: Option<u32>,
+    /// Stroke: `"paint"` (default), `"blur"`, `"smear"` or `"clone"`.
+    #[serde(default)]
+    pub tool: Option<String>,
+    /// Stroke: surface points (like `at`), joined along the surface.
+    #[serde(default)]
+    pub path: Option<Vec<AtSpec>>,
+    /// Stroke: pressure in [0, 1] per path point.
+    #[serde(default)]
+    pub pressure: Option<Vec<f32>>,
+    /// Stroke: stamp distance as a fraction of the stamp width (default 0.1).
+    #[serde(default)]
+    pub spacing: Option<f32>,
+    /// Stroke: each stamp's alpha (default 1).
+    #[serde(default)]
+    pub flow: Option<f32>,
+    /// Stroke: how much pressure scales the size (default 1).
+    #[serde(default)]
+    pub pressure_size: Option<f32>,
+    /// Stroke: how much pressure scales the flow (default 0).
+    #[serde(default)]
+    pub pressure_flow: Option<f32>,
+    /// Stroke: `"path"` (default) or `"fixed"`.
+    #[serde(default)]
+    pub orient: Option<String>,
+    /// Stroke: per-vertex charts interpolated (Maillot section 7).
+    #[serde(default)]
+    pub continuity: Option<bool>,
+    /// Blur stroke: blur radius on the surface, model units.
+    #[serde(default)]
+    pub radius: Option<f32>,
+    /// Smear stroke: how much colour each stamp carries, in [0, 1].
+    #[serde(default)]
+    pub strength: Option<f32>,
+    /// Clone stroke: the source point (like `at`).
+    #[serde(default)]
+    pub source: Option<AtSpec>,
 }
 
 fn default_kind() -> String {
@@ -199,9 +216,6 @@ fn default_kind() -> String {
 }
 fn default_up() -> [f32; 3] {
     [0.0, 1.0, 0.0]
-}
-fn default_method() -> String {
-    "expmap".into()
 }
 fn default_blend() -> String {
     "normal".into()
@@ -292,14 +306,17 @@ pub enum LayerKind {
     /// An image placed at one surface point.
     #[default]
     Decal,
+    /// Stamps of an image along a surface path (Maillot 3D paint).
+    Stroke,
 }
 
 impl LayerKind {
     fn parse(s: &str) -> std::result::Result<Self, String> {
         match s {
             "decal" => Ok(LayerKind::Decal),
+            "stroke" => Ok(LayerKind::Stroke),
             other => Err(format!(
-                "\"{other}\" is not a layer kind this build knows; use \"decal\""
+                "\"{other}\" is not a layer kind this build knows; use \"decal\" or \"stroke\""
             )),
         }
     }
@@ -314,7 +331,7 @@ pub struct Layer {
     pub image: PathBuf,
     /// Mask image path.
     pub mask: Option<PathBuf>,
-    /// Placement.
+    /// Placement (a stroke: its first path point).
     pub at: AtSpec,
     /// Width, height (model units).
     pub size: [f32; 2],
@@ -338,6 +355,8 @@ pub struct Layer {
     pub hybrid_threshold: f32,
     /// LSCM / hybrid final-solve iteration budget (`None` = automatic).
     pub cg_max_iterations: Option<u32>,
+    /// The stroke of a `"stroke"` layer (`None` for decals).
+    pub stroke: Option<Box<super::stroke::Stroke>>,
 }
 
 /// Texture base after validation.
@@ -614,26 +633,49 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
         }
     }
     let finite3 = |v: &[f32; 3]| v.iter().all(|x| x.is_finite() && x.abs() <= 1e30);
-    match &l.at {
-        AtSpec::Point(p) if !finite3(p) => {
-            return Err(err(&field("at"), format!("point {p:?} is not finite")))
-        }
-        AtSpec::Ray { ray } => {
-            if !finite3(&ray.origin) || !finite3(&ray.dir) {
+    let fields = super::stroke::Fields {
+        tool: &l.tool,
+        path: &l.path,
+        pressure: &l.pressure,
+        spacing: l.spacing,
+        flow: l.flow,
+        pressure_size: l.pressure_size,
+        pressure_flow: l.pressure_flow,
+        orient: &l.orient,
+        continuity: l.continuity,
+        radius: l.radius,
+        strength: l.strength,
+        source: &l.source,
+    };
+    let stroke = match kind {
+        LayerKind::Stroke => Some(Box::new(super::stroke::validate(&fields, i, src)?)),
+        LayerKind::Decal => {
+            if let Some(name) = fields.given() {
                 return Err(err(
-                    &field("at.ray"),
-                    "origin and dir must be finite".into(),
+                    &field(name),
+                    "applies to strokes only; set \"kind\": \"stroke\" or remove it".into(),
                 ));
             }
-            if ray.dir.iter().map(|x| x * x).sum::<f32>() <= 1e-20 {
-                return Err(err(
-                    &field("at.ray.dir"),
-                    "the ray direction is zero".into(),
-                ));
-            }
+            None
         }
-        _ => {}
-    }
+    };
+    let at = match (&l.at, &stroke) {
+        (Some(_), Some(_)) => {
+            return Err(err(
+                &field("at"),
+                "a stroke is placed by its `path`; remove `at`".into(),
+            ))
+        }
+        (None, Some(s)) => s.path[0].clone(),
+        (Some(at), None) => at.clone(),
+        (None, None) => {
+            return Err(err(
+                &field("at"),
+                "missing: a decal needs `at` (a point [x, y, z] or {\"ray\": {\"origin\": …, \"dir\": …}})".into(),
+            ))
+        }
+    };
+    check_at(&at, &field("at"), src)?;
     if !finite3(&l.up) || l.up.iter().map(|x| x * x).sum::<f32>() <= 1e-20 {
         return Err(err(
             &field("up"),
@@ -649,7 +691,12 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
             format!("{} must be in [0, 1]", l.opacity),
         ));
     }
-    let method = Method::parse(&l.method).map_err(|d| err(&field("method"), d))?;
+    let method_name = match (&l.method, kind) {
+        (Some(m), _) => m.as_str(),
+        (None, LayerKind::Stroke) => "lscm",
+        (None, LayerKind::Decal) => "expmap",
+    };
+    let method = Method::parse(method_name).map_err(|d| err(&field("method"), d))?;
     let blend = BlendMode::parse(&l.blend).map_err(|d| err(&field("blend"), d))?;
     let curvature_stop = match l.curvature_stop {
         Some(k) if !k.is_finite() || k < 0.0 => {
@@ -701,7 +748,7 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
         kind,
         image: input_dir.join(&l.image),
         mask: l.mask.as_ref().map(|m| input_dir.join(m)),
-        at: l.at.clone(),
+        at,
         size: l.size,
         angle: l.angle,
         up: l.up,
@@ -713,5 +760,6 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
         accuracy,
         hybrid_threshold,
         cg_max_iterations: l.cg_max_iterations,
+        stroke,
     })
 }

@@ -1,5 +1,7 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! Inputs: the job file ([`job`], whose types are the schema the rest of the engine reads) and image
 //! decoding and encoding ([`image`], also the atomic file writer every output goes through).
+pub mod at;
 pub mod image;
 pub mod job;
+pub mod stroke;

@@ -51,6 +51,35 @@ impl Distortion {
     }
 }
 
+impl Distortion {
+    /// Several maps' distortion as one: means weighted by the triangle counts given, extremes and
+    /// flips over all (a stroke's stamps).
+    pub fn combine(parts: impl Iterator<Item = (Distortion, u32)>) -> Self {
+        let mut out = Distortion {
+            area_ratio_min: f32::MAX,
+            area_ratio_max: f32::MIN,
+            ..Default::default()
+        };
+        let mut w = 0.0f64;
+        let (mut area, mut angle) = (0.0f64, 0.0f64);
+        for (d, n) in parts.filter(|(_, n)| *n > 0) {
+            w += n as f64;
+            area += d.area_ratio_mean as f64 * n as f64;
+            angle += d.angle_distortion_mean as f64 * n as f64;
+            out.area_ratio_min = out.area_ratio_min.min(d.area_ratio_min);
+            out.area_ratio_max = out.area_ratio_max.max(d.area_ratio_max);
+            out.angle_distortion_max = out.angle_distortion_max.max(d.angle_distortion_max);
+            out.flipped += d.flipped;
+        }
+        if w == 0.0 {
+            return Distortion::default();
+        }
+        out.area_ratio_mean = (area / w) as f32;
+        out.angle_distortion_mean = (angle / w) as f32;
+        out
+    }
+}
+
 /// CPU twin of `distortion.wgsl` for one layer.
 pub fn distortion(topo: &Topology, coords: &[[f32; 4]], triangles: &[u32]) -> Distortion {
     let mut partial = [[0.0f32; 4], [0.0, f32::MIN, f32::MAX, 0.0]];

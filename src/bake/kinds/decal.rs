@@ -2,32 +2,30 @@
 //! `"kind": "decal"`: one image placed at one surface point (`at`: a point snapped to the surface,
 //! or the first hit of a ray), `size` wide and high, turned by `up` and `angle`.
 
-use super::Kind;
+use super::{query_of, Expansion, Kind, Unit};
+use crate::bake::stage::Cx;
 use crate::error::{Error, Result};
-use crate::io::job::{AtSpec, Job, Layer};
+use crate::io::job::{AtSpec, Layer};
 use crate::maps::Frame;
 use crate::place::{Placement, Query};
-use glam::Vec3;
 
 /// `"kind": "decal"`.
 pub struct Decal;
 
 impl Kind for Decal {
-    fn query(&self, layer: &Layer) -> Query {
-        match &layer.at {
-            AtSpec::Point(p) => Query::Point(Vec3::from(*p)),
-            AtSpec::Ray { ray } => Query::Ray(Vec3::from(ray.origin), Vec3::from(ray.dir)),
-        }
+    fn queries(&self, layer: &Layer) -> Vec<Query> {
+        vec![query_of(&layer.at)]
     }
 
-    fn frame(
+    fn expand(
         &self,
-        job: &Job,
+        cx: Cx<'_>,
         index: usize,
-        p: &Placement,
+        placements: &[Placement],
         warnings: &mut Vec<String>,
-    ) -> Result<Frame> {
-        let l = &job.layers[index];
+    ) -> Result<Expansion> {
+        let job = cx.job;
+        let (l, p) = (&job.layers[index], &placements[0]);
         if p.found == 0 {
             return Err(Error::Placement {
                 path: job.source.clone(),
@@ -54,6 +52,13 @@ impl Kind for Decal {
                 "layer {index}: `up` is parallel to the surface normal there; used a world axis instead"
             ));
         }
-        Ok(f)
+        Ok(Expansion {
+            units: vec![Unit {
+                layer: l.clone(),
+                placement: *p,
+                frame: f,
+            }],
+            stroke: None,
+        })
     }
 }

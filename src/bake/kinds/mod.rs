@@ -2,38 +2,70 @@
 //! Layer kinds: what each kind of job layer (`"kind"` in the job) contributes to the bake's stages,
 //! one module per kind behind [`Kind`], dispatched in one place ([`kind`]).
 //!
-//! Today a kind says where its layer lands (the placement query) and turns the placement into the
-//! layer's [`Frame`], refusing placements it cannot use; the map, selection, raster and compose
-//! stages then treat every layer alike (one map, one image, one blend). A kind that expands into
-//! several maps (a stroke's stamps, a ribbon's curve) extends this trait with the hook it needs and
-//! the stage that calls it; see `ARCHITECTURE.md`, "Adding a layer kind".
+//! A kind names the surface points its layer needs placed ([`Kind::queries`]: a decal one, a stroke
+//! one per path point) and turns their placements into **units** ([`Kind::expand`]): each unit is
+//! one map, one image and one blend, which the map, selection, raster and compose stages treat
+//! alike. A decal is one unit; a stroke is one unit per stamp, composed through the stroke's own
+//! buffer ([`Expansion::stroke`], `bake/compose.rs`). See `ARCHITECTURE.md`, "Layer kinds".
 
 mod decal;
+pub mod stroke;
 
+use super::stage::Cx;
 use crate::error::Result;
-use crate::io::job::{Job, Layer, LayerKind};
+use crate::io::job::{Layer, LayerKind};
 use crate::maps::Frame;
 use crate::place::{Placement, Query};
 
-/// What a layer kind does in the bake's stages.
-pub trait Kind: Sync {
-    /// Where the layer is placed.
-    fn query(&self, layer: &Layer) -> Query;
+/// One map, one image and one blend: what the stages after placement draw.
+#[derive(Debug, Clone)]
+pub struct Unit {
+    /// The unit as a decal layer (its size, method, opacity and blend are what is drawn).
+    pub layer: Layer,
+    /// Where it sits.
+    pub placement: Placement,
+    /// Its frame there.
+    pub frame: Frame,
+}
 
-    /// The layer's frame at its placement, or an error naming the layer when the placement cannot be
-    /// used. Warnings (recoverable oddities) go to `warnings`.
-    fn frame(
+/// A layer as units, with what its kind reports.
+pub struct Expansion {
+    /// The units, in drawing order.
+    pub units: Vec<Unit>,
+    /// A stroke's report block (and the sign that its units compose through the stroke buffer).
+    pub stroke: Option<stroke::StrokeReport>,
+}
+
+/// What a layer kind does in the bake's stages.
+pub(crate) trait Kind: Sync {
+    /// The surface points the layer needs placed, in the order [`Kind::expand`] receives them.
+    fn queries(&self, layer: &Layer) -> Vec<Query>;
+
+    /// The layer's units from its placements, or an error naming the layer (and the field or path
+    /// index) when the placements cannot be used. Warnings (recoverable oddities) go to `warnings`.
+    fn expand(
         &self,
-        job: &Job,
+        cx: Cx<'_>,
         index: usize,
-        placement: &Placement,
+        placements: &[Placement],
         warnings: &mut Vec<String>,
-    ) -> Result<Frame>;
+    ) -> Result<Expansion>;
 }
 
 /// The one place where a job layer's `kind` becomes its implementation.
-pub fn kind(k: LayerKind) -> &'static dyn Kind {
+pub(crate) fn kind(k: LayerKind) -> &'static dyn Kind {
     match k {
         LayerKind::Decal => &decal::Decal,
+        LayerKind::Stroke => &stroke::StrokeKind,
+    }
+}
+
+/// The query of a decal's `at` or a stroke's path point.
+pub fn query_of(at: &crate::io::job::AtSpec) -> Query {
+    use crate::io::job::AtSpec;
+    use glam::Vec3;
+    match at {
+        AtSpec::Point(p) => Query::Point(Vec3::from(*p)),
+        AtSpec::Ray { ray } => Query::Ray(Vec3::from(ray.origin), Vec3::from(ray.dir)),
     }
 }

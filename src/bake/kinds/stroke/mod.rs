@@ -1,0 +1,131 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! `"kind": "stroke"`: stamps of an image along a path on the surface (Maillot, "Continuous Local
+//! Parameterization of Polygons", sections 7 to 9). Each stamp is a small decal with its own chart
+//! at its point (the layer's `method`, LSCM by default as in Maillot), so its width on the surface
+//! is the size asked for wherever the UV layout stretches, and it continues across UV seams because
+//! it is drawn through the mesh's own UVs.
+//!
+//! The stroke's path follows the surface between its points ([`path`]); stamps go every `spacing`
+//! × stamp width of arc length with pressure ([`stamps`]). They build up in the stroke's own
+//! buffer, each with alpha `flow` (source-over), and the buffer is composed onto the layers below
+//! with the stroke's `blend` at `opacity` × its alpha, so overlapping stamps of one stroke never
+//! exceed `opacity` (a painter's stroke; `bake/compose.rs`, kernel `stroke_apply`).
+
+pub mod path;
+pub mod stamps;
+
+use super::{query_of, Expansion, Kind};
+pub use crate::bake::report::StrokeReport;
+use crate::bake::stage::Cx;
+use crate::error::{Error, Result};
+use crate::io::job::{AtSpec, Layer};
+use crate::maps::expmap::cpu::{Options, Seed};
+use crate::place::{Placement, Query};
+use glam::Vec3;
+
+/// `"kind": "stroke"`.
+pub struct StrokeKind;
+
+impl Kind for StrokeKind {
+    fn queries(&self, layer: &Layer) -> Vec<Query> {
+        let stroke = layer
+            .stroke
+            .as_ref()
+            .expect("a stroke layer has its stroke");
+        stroke.path.iter().map(query_of).collect()
+    }
+
+    fn expand(
+        &self,
+        cx: Cx<'_>,
+        index: usize,
+        placements: &[Placement],
+        _warnings: &mut Vec<String>,
+    ) -> Result<Expansion> {
+        let Cx { engine, mesh, job } = cx;
+        let layer = &job.layers[index];
+        let stroke = layer
+            .stroke
+            .as_ref()
+            .expect("a stroke layer has its stroke");
+        let err = |detail: String| Error::Placement {
+            path: job.source.clone(),
+            layer: index,
+            detail,
+        };
+        check_points(layer, placements, &err)?;
+        let topo = &mesh.topo;
+        let edge = path::mean_edge(topo);
+        let (lo, hi) = (mesh.stats.bbox_min, mesh.stats.bbox_max);
+        let diag = (Vec3::from(hi) - Vec3::from(lo)).length();
+        let limit = path::MAX_SEGMENT_FRACTION * diag;
+        let mut wanted: Vec<(Seed, Options)> = Vec::new();
+        let mut which = Vec::new();
+        let mut chord_length = 0.0;
+        for (k, w) in placements.windows(2).enumerate() {
+            let chord = (Vec3::from(w[1].point) - Vec3::from(w[0].point)).length();
+            chord_length += chord;
+            if chord > limit {
+                return Err(err(format!(
+                    "path[{k}] and path[{}] are {chord:.4} apart, more than one chart can join ({limit:.4}, a quarter of the model's size); add points in between",
+                    k + 1
+                )));
+            }
+            which.push((chord > 0.0).then_some(wanted.len()));
+            if chord > 0.0 {
+                wanted.push(path::segment_map(topo, &w[0], &w[1], edge));
+            }
+        }
+        let mut charts = engine.expmaps(mesh, &wanted)?;
+        let maps: Vec<Option<Vec<[f32; 4]>>> = which
+            .iter()
+            .map(|w| w.map(|i| std::mem::take(&mut charts[i].0)))
+            .collect();
+        let surface_path = path::build(topo, placements, &maps, &err)?;
+        let units = stamps::stamps(topo, layer, stroke, &surface_path, &placements[0], &err)?;
+        Ok(Expansion {
+            stroke: Some(StrokeReport {
+                tool: stroke.tool.clone(),
+                path_points: stroke.path.len(),
+                path_length: surface_path.length(),
+                chord_length,
+                path_vertices: surface_path.points.len(),
+                stamps: units.len(),
+                spacing: stroke.spacing * layer.size[0],
+                charts: units.len(),
+                continuity: stroke.continuity,
+                opacity: layer.opacity,
+            }),
+            units,
+        })
+    }
+}
+
+/// Every path point was placed, and points given as points lie near the surface.
+fn check_points(
+    layer: &Layer,
+    placements: &[Placement],
+    err: &dyn Fn(String) -> Error,
+) -> Result<()> {
+    let stroke = layer
+        .stroke
+        .as_ref()
+        .expect("a stroke layer has its stroke");
+    let reach = layer.size[0].max(layer.size[1]);
+    for (k, (at, p)) in stroke.path.iter().zip(placements).enumerate() {
+        if p.found == 0 {
+            return Err(err(format!(
+                "path[{k}]: the ray misses the mesh; aim it at the model"
+            )));
+        }
+        if let AtSpec::Point(q) = at {
+            if p.distance > reach {
+                return Err(err(format!(
+                    "path[{k}]: the point {q:?} is {:.4} from the surface, farther than the stamp size {reach:.4}; put the path on the mesh (its bounding box is in `decalbake info`)",
+                    p.distance
+                )));
+            }
+        }
+    }
+    Ok(())
+}

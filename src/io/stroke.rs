@@ -1,0 +1,232 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The stroke fields of a job layer (`"kind": "stroke"`): the path, pressure, spacing, flow and the
+//! tool, validated. Defaults (also in the README):
+//!
+//! | field | default |
+//! |---|---|
+//! | `tool` | `"paint"` |
+//! | `pressure` | 1 at every path point |
+//! | `spacing` | `0.1` (stamp distance / stamp width) |
+//! | `flow` | `1.0` |
+//! | `pressure_size` | `1.0` |
+//! | `pressure_flow` | `0.0` |
+//! | `orient` | `"path"` |
+//! | `method` | `"lscm"` for strokes (Maillot) |
+//! | `continuity` | `false` in this build (see [`Stroke::continuity`]) |
+
+use super::at::{check_at, AtSpec};
+use crate::error::{Error, Result};
+use std::path::Path;
+
+/// What a stroke's stamps do.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[serde(rename_all = "lowercase", tag = "tool")]
+pub enum Tool {
+    /// Paint the stamp image.
+    Paint,
+}
+
+/// How each stamp's image is turned on the surface.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Orient {
+    /// The image's x axis along the path's tangent (Maillot section 7).
+    Path,
+    /// `up` and `angle`, like a decal.
+    Fixed,
+}
+
+/// A validated stroke.
+#[derive(Debug, Clone)]
+pub struct Stroke {
+    /// The tool.
+    pub tool: Tool,
+    /// Surface points, joined along the surface.
+    pub path: Vec<AtSpec>,
+    /// Pressure per path point (1 everywhere when not given).
+    pub pressure: Vec<f32>,
+    /// Stamp distance as a fraction of the (pressure-scaled) stamp width.
+    pub spacing: f32,
+    /// Each stamp's alpha.
+    pub flow: f32,
+    /// Size factor at pressure p: `1 - pressure_size (1 - p)`.
+    pub pressure_size: f32,
+    /// Flow factor at pressure p: `1 - pressure_flow (1 - p)`.
+    pub pressure_flow: f32,
+    /// Stamp orientation.
+    pub orient: Orient,
+    /// Per-vertex charts interpolated (Maillot section 7). Not in this build: `true` is refused
+    /// with a message, and the default is `false` (one chart per stamp at its point) until it is.
+    pub continuity: bool,
+}
+
+/// A job layer's stroke fields as given (see `LayerSpec` in [`super::job`] for each one's meaning).
+pub(crate) struct Fields<'a> {
+    pub tool: &'a Option<String>,
+    pub path: &'a Option<Vec<AtSpec>>,
+    pub pressure: &'a Option<Vec<f32>>,
+    pub spacing: Option<f32>,
+    pub flow: Option<f32>,
+    pub pressure_size: Option<f32>,
+    pub pressure_flow: Option<f32>,
+    pub orient: &'a Option<String>,
+    pub continuity: Option<bool>,
+    pub radius: Option<f32>,
+    pub strength: Option<f32>,
+    pub source: &'a Option<AtSpec>,
+}
+
+impl Fields<'_> {
+    /// The first stroke field given (for layers that are not strokes, which must not carry them).
+    pub fn given(&self) -> Option<&'static str> {
+        [
+            ("tool", self.tool.is_some()),
+            ("path", self.path.is_some()),
+            ("pressure", self.pressure.is_some()),
+            ("spacing", self.spacing.is_some()),
+            ("flow", self.flow.is_some()),
+            ("pressure_size", self.pressure_size.is_some()),
+            ("pressure_flow", self.pressure_flow.is_some()),
+            ("orient", self.orient.is_some()),
+            ("continuity", self.continuity.is_some()),
+            ("radius", self.radius.is_some()),
+            ("strength", self.strength.is_some()),
+            ("source", self.source.is_some()),
+        ]
+        .into_iter()
+        .find(|(_, g)| *g)
+        .map(|(n, _)| n)
+    }
+}
+
+/// Validates the stroke fields of layer `i` (a stroke); `src` names the job file in messages.
+pub(crate) fn validate(l: &Fields<'_>, i: usize, src: &Path) -> Result<Stroke> {
+    let field = |name: &str| format!("layers[{i}].{name}");
+    let err = |name: &str, detail: String| Error::job(src, field(name), detail);
+    let path = match &l.path {
+        None => {
+            return Err(err(
+                "path",
+                "missing: a stroke needs a `path` of surface points".into(),
+            ))
+        }
+        Some(p) if p.is_empty() => {
+            return Err(err(
+                "path",
+                "is empty: give at least one surface point".into(),
+            ))
+        }
+        Some(p) => p.clone(),
+    };
+    for (k, at) in path.iter().enumerate() {
+        check_at(at, &field(&format!("path[{k}]")), src)?;
+    }
+    let pressure = match &l.pressure {
+        None => vec![1.0; path.len()],
+        Some(p) if p.len() != path.len() => {
+            return Err(err(
+                "pressure",
+                format!(
+                    "has {} values for {} path points; give one pressure per point",
+                    p.len(),
+                    path.len()
+                ),
+            ))
+        }
+        Some(p) => {
+            if let Some(k) = p
+                .iter()
+                .position(|v| !v.is_finite() || !(0.0..=1.0).contains(v))
+            {
+                return Err(err(
+                    &format!("pressure[{k}]"),
+                    format!("{} must be in [0, 1]", p[k]),
+                ));
+            }
+            p.clone()
+        }
+    };
+    let unit = |name: &str, v: Option<f32>, default: f32| -> Result<f32> {
+        match v {
+            Some(x) if !x.is_finite() || !(0.0..=1.0).contains(&x) => {
+                Err(err(name, format!("{x} must be in [0, 1]")))
+            }
+            Some(x) => Ok(x),
+            None => Ok(default),
+        }
+    };
+    let spacing = match l.spacing {
+        Some(s) if !s.is_finite() || s <= 0.0 => {
+            return Err(err(
+                "spacing",
+                format!("{s} must be positive (stamp distance as a fraction of the stamp width; 0.1 is dense, 1 puts stamps edge to edge)"),
+            ))
+        }
+        Some(s) => s,
+        None => 0.1,
+    };
+    let orient = match l.orient.as_deref() {
+        None | Some("path") => Orient::Path,
+        Some("fixed") => Orient::Fixed,
+        Some(other) => {
+            return Err(err(
+                "orient",
+                format!("unknown orientation \"{other}\"; use \"path\" or \"fixed\""),
+            ))
+        }
+    };
+    let tool = tool(l, &err)?;
+    if l.continuity == Some(true) {
+        return Err(err(
+            "continuity",
+            "per-vertex interpolated charts (Maillot section 7) are not in this build; use false (one chart per stamp) or leave it out".into(),
+        ));
+    }
+    Ok(Stroke {
+        tool,
+        path,
+        pressure,
+        spacing,
+        flow: unit("flow", l.flow, 1.0)?,
+        pressure_size: unit("pressure_size", l.pressure_size, 1.0)?,
+        pressure_flow: unit("pressure_flow", l.pressure_flow, 0.0)?,
+        orient,
+        continuity: false,
+    })
+}
+
+/// The stroke's tool and its fields.
+fn tool(l: &Fields<'_>, err: &dyn Fn(&str, String) -> Error) -> Result<Tool> {
+    let name = l.tool.as_deref().unwrap_or("paint");
+    let misplaced = |f: &str, belongs: &str| {
+        err(
+            f,
+            format!("applies to the \"{belongs}\" tool only (this stroke's tool is \"{name}\")"),
+        )
+    };
+    match name {
+        "paint" => {
+            if l.radius.is_some() {
+                return Err(misplaced("radius", "blur"));
+            }
+            if l.strength.is_some() {
+                return Err(misplaced("strength", "smear"));
+            }
+            if l.source.is_some() {
+                return Err(misplaced("source", "clone"));
+            }
+            Ok(Tool::Paint)
+        }
+        "blur" | "smear" | "clone" => Err(err(
+            "tool",
+            format!("the \"{name}\" tool (inverse rendering into stamp space, Maillot section 10) is not in this build; use \"paint\""),
+        )),
+        other => Err(err(
+            "tool",
+            format!("unknown tool \"{other}\"; use \"paint\", \"blur\", \"smear\" or \"clone\""),
+        )),
+    }
+}
+
+/// Stamps a stroke may place before it is refused (each stamp is a chart and a draw).
+pub const MAX_STAMPS: usize = 20_000;
