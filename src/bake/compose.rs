@@ -19,23 +19,72 @@ use crate::gpu::pipelines::make_bind_group;
 use crate::io::job::Job;
 use crate::maps::distortion::{Distortion, DIST_GROUPS};
 use std::collections::HashMap;
+use std::ops::Range;
 
-/// The raster jobs of the chunk's layers, in layer order: (layer, `Params` with the job's texel
-/// rectangle and UV tile), one per run of marked cells per UV tile the layer's texel box touches.
+/// One raster rectangle: the units drawn into it (one decal, or the run of a stroke's stamps in
+/// this chunk, blended per sample so that a stroke's edges are its stamps' union, not their
+/// texel-level compound) and the rectangle's `Params` (texel rectangle and UV tile, with the first
+/// unit's fields).
+pub struct RasterJob {
+    /// The units drawn, in order.
+    pub units: Range<usize>,
+    /// The rectangle.
+    pub params: Params,
+    /// Index of the first unit's entry in the chunk's uniform buffer (one entry per unit follows).
+    pub entry: usize,
+}
+
+/// The chunk's units in drawing groups: a decal alone, a stroke's consecutive stamps together when
+/// the raster targets blend (`blending`: the adapter blends f32 targets, or the f16 fallback is in
+/// use); without blending each stamp is its own group and stamps build up per texel.
+fn groups(placed: &Placed, range: Range<usize>, blending: bool) -> Vec<Range<usize>> {
+    let mut out: Vec<Range<usize>> = Vec::new();
+    for i in range {
+        let stroke = placed.stroke_of(i).map(|s| s.layer).filter(|_| blending);
+        match out.last_mut() {
+            Some(g) if stroke.is_some() && placed.stroke_of(g.start).map(|s| s.layer) == stroke => {
+                g.end = i + 1
+            }
+            _ => out.push(i..i + 1),
+        }
+    }
+    out
+}
+
+/// The raster jobs of the chunk, in unit order: one per run of marked cells (of the group's units
+/// together) per UV tile the group's texel box touches.
 pub fn raster_jobs(
     job: &Job,
     canvas: &Canvas,
     maps: &LayerMaps,
     stats: &[i32],
-) -> Vec<(usize, Params)> {
+    placed: &Placed,
+    blending: bool,
+) -> Vec<RasterJob> {
     let (w, h, ss) = (job.width, job.height, job.ss);
     let mut jobs = Vec::new();
-    for i in maps.range.clone() {
-        let row = canvas.row(stats, i);
-        let bx = [row[1], row[2], row[3], row[4]];
-        let base = maps.params[i - maps.range.start];
+    let mut entry = 0;
+    for g in groups(placed, maps.range.clone(), blending) {
+        let mut mask = vec![0i32; canvas.row(stats, g.start).len() - 8];
+        let mut bx = [i32::MAX, i32::MAX, i32::MIN, i32::MIN];
+        for i in g.clone() {
+            let row = canvas.row(stats, i);
+            for (m, r) in mask.iter_mut().zip(&row[8..]) {
+                *m |= *r;
+            }
+            bx = [
+                bx[0].min(row[1]),
+                bx[1].min(row[2]),
+                bx[2].max(row[3]),
+                bx[3].max(row[4]),
+            ];
+        }
+        if bx[0] > bx[2] {
+            continue;
+        }
+        let base = maps.params[g.start - maps.range.start];
         let rects = plan_cells(
-            &row[8..],
+            &mask,
             canvas.grid,
             super::plan::CELL,
             [w, h],
@@ -44,15 +93,17 @@ pub fn raster_jobs(
         for tj in bx[1].div_euclid(h as i32)..=(bx[3] - 1).max(bx[1]).div_euclid(h as i32) {
             for ti in bx[0].div_euclid(w as i32)..=(bx[2] - 1).max(bx[0]).div_euclid(w as i32) {
                 for r in &rects {
-                    jobs.push((
-                        i,
-                        Params {
+                    jobs.push(RasterJob {
+                        units: g.clone(),
+                        params: Params {
                             rect_origin: [r[0], r[1]],
                             rect_size: [r[2] as u32, r[3] as u32],
                             tile: [ti, tj],
                             ..base
                         },
-                    ));
+                        entry,
+                    });
+                    entry += g.len();
                 }
             }
         }
@@ -74,9 +125,10 @@ struct Flush {
 fn flushes(
     placed: &Placed,
     maps: &LayerMaps,
-    jobs: &[(usize, Params)],
+    jobs: &[RasterJob],
     global: &Params,
 ) -> (Vec<Flush>, Vec<Params>) {
+    let entries = jobs.last().map_or(0, |j| j.entry + j.units.len());
     let mut out = Vec::new();
     let mut params = Vec::new();
     for s in &placed.strokes {
@@ -85,8 +137,8 @@ fn flushes(
             continue;
         }
         out.push(Flush {
-            at: jobs.iter().filter(|(u, _)| *u <= last).count(),
-            params: jobs.len() + params.len(),
+            at: jobs.iter().filter(|j| j.units.start <= last).count(),
+            params: entries + params.len(),
         });
         params.push(Params {
             rect_origin: [0, 0],
@@ -115,11 +167,12 @@ pub(crate) fn compose(
 ) -> Result<Vec<Distortion>> {
     let Cx { engine, mesh, job } = cx;
     let dev = &engine.ctx.device;
-    let mut jobs = raster_jobs(job, canvas, maps, stats);
-    let sizes: Vec<[u32; 2]> = jobs.iter().map(|(_, p)| p.rect_size).collect();
+    let blending = engine.pipes.layer_blending;
+    let mut jobs = raster_jobs(job, canvas, maps, stats, placed, blending);
+    let sizes: Vec<[u32; 2]> = jobs.iter().map(|j| j.params.rect_size).collect();
     let (origins, batches) = pack_atlas(&sizes, job.ss);
-    for ((_, p), o) in jobs.iter_mut().zip(&origins) {
-        p.atlas_origin = *o;
+    for (j, o) in jobs.iter_mut().zip(&origins) {
+        j.params.atlas_origin = *o;
     }
     if std::env::var("DECALBAKE_DEBUG").is_ok() {
         let covered: u64 = sizes.iter().map(|s| s[0] as u64 * s[1] as u64).sum();
@@ -130,7 +183,21 @@ pub(crate) fn compose(
         );
     }
     let (flush, flush_params) = flushes(placed, maps, &jobs, &canvas.global);
-    let jp: Vec<Params> = jobs.iter().map(|(_, p)| *p).chain(flush_params).collect();
+    // One entry per (raster job, unit): the rectangle's fields with the unit's own.
+    let start = maps.range.start;
+    let jp: Vec<Params> = jobs
+        .iter()
+        .flat_map(|j| {
+            j.units.clone().map(move |u| Params {
+                rect_origin: j.params.rect_origin,
+                rect_size: j.params.rect_size,
+                tile: j.params.tile,
+                atlas_origin: j.params.atlas_origin,
+                ..maps.params[u - start]
+            })
+        })
+        .chain(flush_params)
+        .collect();
     let job_params = params_buffer(dev, "bake.raster_params", &jp);
     let n_chunk = maps.range.len() as u64;
     let partials_size = n_chunk * DIST_GROUPS as u64 * 32;
@@ -227,7 +294,7 @@ struct Recording<'a> {
     canvas: &'a Canvas,
     slots: &'a Slots,
     stats: &'a [i32],
-    jobs: &'a [(usize, Params)],
+    jobs: &'a [RasterJob],
     job_params: &'a wgpu::Buffer,
     placed: &'a Placed,
     flush: &'a [Flush],
@@ -271,14 +338,9 @@ impl Recording<'_> {
             });
             pass.set_pipeline(&pipes.layer_raster.pipeline);
             for &(k, origin) in batch {
-                let (i, p) = &self.jobs[k];
-                let bg = layer_bgs
-                    .entry(*i)
-                    .or_insert_with(|| self.layer_bind_group(*i));
-                let count = (self.canvas.row(self.stats, *i)[0].max(0) as u32)
-                    .min(self.mesh.gpu.triangle_count);
+                let rj = &self.jobs[k];
+                let p = &rj.params;
                 let (jw, jh) = (p.rect_size[0] * ss, p.rect_size[1] * ss);
-                pass.set_bind_group(0, &*bg, &[(k as u64 * PARAMS_STRIDE) as u32]);
                 pass.set_viewport(
                     origin[0] as f32,
                     origin[1] as f32,
@@ -288,7 +350,16 @@ impl Recording<'_> {
                     1.0,
                 );
                 pass.set_scissor_rect(origin[0], origin[1], jw, jh);
-                pass.draw(0..3 * count, 0..1);
+                for (e, i) in rj.units.clone().enumerate() {
+                    let bg = layer_bgs
+                        .entry(i)
+                        .or_insert_with(|| self.layer_bind_group(i));
+                    let count = (self.canvas.row(self.stats, i)[0].max(0) as u32)
+                        .min(self.mesh.gpu.triangle_count);
+                    let offset = (rj.entry + e) as u64 * PARAMS_STRIDE;
+                    pass.set_bind_group(0, &*bg, &[offset as u32]);
+                    pass.draw(0..3 * count, 0..1);
+                }
             }
         }
         let bind_compose = |planes: &[wgpu::Buffer; 2]| {
@@ -315,13 +386,14 @@ impl Recording<'_> {
         });
         for &(k, _) in batch {
             n += self.record_flushes(k, flushed, &mut pass);
-            let (unit, p) = &self.jobs[k];
-            let bg = match (self.placed.stroke_of(*unit), &bg_stroke) {
+            let rj = &self.jobs[k];
+            let p = &rj.params;
+            let bg = match (self.placed.stroke_of(rj.units.start), &bg_stroke) {
                 (Some(_), Some(bg)) => bg,
                 _ => &bg_canvas,
             };
             pass.set_pipeline(&pipes.compose.pipeline);
-            pass.set_bind_group(0, bg, &[(k as u64 * PARAMS_STRIDE) as u32]);
+            pass.set_bind_group(0, bg, &[(rj.entry as u64 * PARAMS_STRIDE) as u32]);
             pass.dispatch_workgroups(p.rect_size[0].div_ceil(8), p.rect_size[1].div_ceil(8), 1);
         }
         n

@@ -119,40 +119,99 @@ pub fn bake_units_cpu(
     let mut selected = Vec::new();
     let mut buffer = LinearImage::solid(w, h, [0.0; 4]);
     let surface = crate::mesh::SurfaceData::new(topo);
-    for (li, layer) in job.layers.iter().enumerate() {
-        let frame = frames[li];
-        let coords = layer_coords_cpu(topo, &surface, layer, &frame, &placements[li]);
-        let m = crate::maps::method(layer.method);
-        let uvs = &mesh.uv_sets[job.uv_set as usize];
-        let sel = select_triangles(mesh, topo, uvs, &coords, &frame, m.front_facing(), [w, h]);
-        let raster = LayerRaster::new(mesh, topo, job, layer, &coords, &images[li]);
+    let uvs = &mesh.uv_sets[job.uv_set as usize];
+    let mut li = 0;
+    while li < job.layers.len() {
+        // A decal alone; a stroke's stamps together, blended per sample as the GPU draws them.
         let stroke = strokes.iter().find(|s| s.units.contains(&li));
-        let target = if stroke.is_some() {
-            &mut buffer
-        } else {
-            &mut composed
+        let group = stroke.map_or(li..li + 1, |s| li..s.units.end);
+        let mut coords = Vec::new();
+        let mut sels = Vec::new();
+        for u in group.clone() {
+            let (layer, frame) = (&job.layers[u], &frames[u]);
+            let c = layer_coords_cpu(topo, &surface, layer, frame, &placements[u]);
+            let m = crate::maps::method(layer.method);
+            sels.push(select_triangles(
+                mesh,
+                topo,
+                uvs,
+                &c,
+                frame,
+                m.front_facing(),
+                [w, h],
+            ));
+            coords.push(c);
+        }
+        let rasters: Vec<LayerRaster> = group
+            .clone()
+            .zip(&coords)
+            .map(|(u, c)| LayerRaster::new(mesh, topo, job, &job.layers[u], c, &images[u]))
+            .collect();
+        let b = sels
+            .iter()
+            .fold([i32::MAX, i32::MAX, i32::MIN, i32::MIN], |b, s| {
+                let t = s.texel_box;
+                [
+                    b[0].min(t[0]),
+                    b[1].min(t[1]),
+                    b[2].max(t[2]),
+                    b[3].max(t[3]),
+                ]
+            });
+        let (target, mode) = match stroke {
+            Some(_) => (&mut buffer, crate::io::job::BlendMode::Normal),
+            None => (&mut composed, job.layers[li].blend),
         };
-        let b = sel.texel_box;
         for y in b[1].max(0)..b[3].min(h as i32) {
             for x in b[0].max(0)..b[2].min(w as i32) {
                 let (x, y) = (x as u32, y as u32);
-                let Some(src) = raster.texel(x, y, &sel.triangles) else {
+                let Some(src) = group_texel(&rasters, &sels, x, y) else {
                     continue;
                 };
                 let idx = (y * w + x) as usize;
-                target.pixels[idx] = layer.blend.blend(target.pixels[idx], src);
+                target.pixels[idx] = mode.blend(target.pixels[idx], src);
             }
         }
-        if let Some(s) = stroke.filter(|s| s.units.end == li + 1) {
+        if let Some(s) = stroke {
             apply_stroke(&mut composed, &mut buffer, s.blend, s.opacity);
         }
-        selected.push(sel.triangles);
+        selected.extend(sels.into_iter().map(|s| s.triangles));
+        li = group.end;
     }
     CpuBake {
         composed,
         island,
         selected,
     }
+}
+
+/// A group's premultiplied colour at texel (x, y): per sample, the units covering it composed
+/// source-over in order; averaged over the samples some unit covers. `None` when none is covered or
+/// the result is transparent.
+fn group_texel(rasters: &[LayerRaster], sels: &[Selection], x: u32, y: u32) -> Option<[f32; 4]> {
+    let job = rasters.first()?.job;
+    let (ss, size) = (job.ss, Vec2::new(job.width as f32, job.height as f32));
+    let (mut sum, mut n) = ([0.0f32; 4], 0u32);
+    for j in 0..ss {
+        for i in 0..ss {
+            let p = sample_pos(x, y, i, j, ss, size);
+            let mut acc: Option<[f32; 4]> = None;
+            for (r, sel) in rasters.iter().zip(sels) {
+                if let Some(s) = r.sample(p, &sel.triangles) {
+                    let d = acc.unwrap_or([0.0; 4]);
+                    acc = Some(std::array::from_fn(|k| s[k] + d[k] * (1.0 - s[3])));
+                }
+            }
+            if let Some(a) = acc {
+                n += 1;
+                for k in 0..4 {
+                    sum[k] += a[k];
+                }
+            }
+        }
+    }
+    let src = sum.map(|v| v / n.max(1) as f32);
+    (n > 0 && src[3] > 0.0).then_some(src)
 }
 
 /// Twin of `stroke_apply`: the stroke buffer (straight alpha) at `opacity` × its alpha blended onto
@@ -281,30 +340,6 @@ impl<'a> LayerRaster<'a> {
             premult,
             mask: mask.as_ref(),
         }
-    }
-
-    /// The layer's premultiplied colour at texel (x, y): the average over the samples that some
-    /// selected triangle covers; `None` when no sample is covered or the result is transparent.
-    fn texel(&self, x: u32, y: u32, triangles: &[u32]) -> Option<[f32; 4]> {
-        let ss = self.job.ss;
-        let size = Vec2::new(self.job.width as f32, self.job.height as f32);
-        let mut sum = [0.0f32; 4];
-        let mut n = 0u32;
-        for j in 0..ss {
-            for i in 0..ss {
-                if let Some(acc) = self.sample(sample_pos(x, y, i, j, ss, size), triangles) {
-                    n += 1;
-                    for k in 0..4 {
-                        sum[k] += acc[k];
-                    }
-                }
-            }
-        }
-        if n == 0 {
-            return None;
-        }
-        let src = sum.map(|v| v / n as f32);
-        (src[3] > 0.0).then_some(src)
     }
 
     /// One sample: every selected triangle covering `p` composed source-over in list order; `None`

@@ -67,7 +67,7 @@ impl Kind for StrokeKind {
             chord_length += chord;
             if chord > limit {
                 return Err(err(format!(
-                    "path[{k}] and path[{}] are {chord:.4} apart, more than one chart can join ({limit:.4}, a quarter of the model's size); add points in between",
+                    "path[{k}] and path[{}] are {chord:.4} apart, more than one chart can join ({limit:.4}, half the model's size); add points in between",
                     k + 1
                 )));
             }
@@ -81,7 +81,7 @@ impl Kind for StrokeKind {
             .iter()
             .map(|w| w.map(|i| std::mem::take(&mut charts[i].0)))
             .collect();
-        let surface_path = path::build(topo, placements, &maps, &err)?;
+        let surface_path = path::build(topo, placements, &maps, 0.25 * edge, &err)?;
         let units = stamps::stamps(topo, layer, stroke, &surface_path, &placements[0], &err)?;
         Ok(Expansion {
             stroke: Some(StrokeReport {

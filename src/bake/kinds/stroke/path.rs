@@ -7,8 +7,8 @@
 //!
 //! The maps are computed on the GPU, one per segment, all in one batch
 //! ([`crate::maps::expmap::gpu::expmaps_gpu`]); the walk back to the surface is CPU set-up: the
-//! segment is followed triangle by triangle through the chart ([`walk`]), and each piece, straight
-//! inside one triangle of the chart, is straight inside the same triangle on the surface.
+//! segment is sampled every quarter of the mean edge length and each sample located in the chart
+//! ([`walk`]) and mapped back through its triangle (the chart is linear on each triangle).
 
 use crate::error::{Error, Result};
 use crate::maps::expmap::cpu::{Options, Seed};
@@ -60,7 +60,7 @@ impl SurfacePath {
 /// diagonal: one exponential map joins them, and a map that spans much of a curved model stops being
 /// one-to-one (its far side folds over itself), so the straight segment would no longer be a
 /// geodesic.
-pub const MAX_SEGMENT_FRACTION: f32 = 0.25;
+pub const MAX_SEGMENT_FRACTION: f32 = 0.5;
 
 /// The exponential map that joins path point `a` to the next point `b`: seeded at `a`, reaching a
 /// little beyond `b` (graph distances overestimate geodesics; the path may bend over a bump).
@@ -86,14 +86,18 @@ pub fn segment_map(topo: &Topology, a: &Placement, b: &Placement, edge: f32) -> 
     )
 }
 
-/// Follows the straight chart segment from `a` to `b` across the triangles of `topo`, given the
-/// chart `coords` (per welded vertex: x, y, distance, state; state 0 = not reached). Appends the
-/// pieces to `path` (whose last point is `a`). `Err` says why the chart could not be followed.
+/// Follows the straight chart segment from `a` to `b` over the triangles of `topo`, given the
+/// chart `coords` (per welded vertex: x, y, distance, state; state 0 = not reached), sampling it
+/// every `step` (chart units = model units) and locating each sample by a visibility walk from the
+/// previous one (Devillers et al.: step into the neighbour across the edge whose barycentric
+/// coordinate is most negative), which is indifferent to samples on edges and vertices. Appends the
+/// samples, mapped back to the surface, to `path` (whose last point is `a`). `Err` says why the
+/// chart could not be followed.
 pub fn walk(
     topo: &Topology,
     coords: &[[f32; 4]],
-    a: &Placement,
-    b: &Placement,
+    (a, b): (&Placement, &Placement),
+    step: f32,
     path: &mut SurfacePath,
 ) -> std::result::Result<(), String> {
     let chart = |t: u32| -> Option<[Vec2; 3]> {
@@ -109,72 +113,48 @@ pub fn walk(
     };
     let start = at(a).ok_or("the chart does not cover the first point")?;
     let end = at(b).ok_or("the next point lies beyond the chart's reach")?;
-    let dir = end - start;
+    let n = ((end - start).length() / step).ceil().max(1.0) as usize;
     let mut t = a.triangle;
-    let mut s_cur = 0.0f32;
-    let mut entered_by = usize::MAX;
-    let budget = 4 * topo.triangles.len().min(1 << 20) + 16;
-    for _ in 0..budget {
-        if t == b.triangle {
-            push(path, Vec3::from(b.point), t);
-            return Ok(());
-        }
-        let c = chart(t).ok_or("the path leaves the chart's reach")?;
-        // The exit: the edge the segment crosses next, past where it entered.
-        let mut best: Option<(f32, usize, f32)> = None;
-        for k in 0..3 {
-            if k == entered_by {
-                continue;
-            }
-            let (p, q) = (c[k], c[(k + 1) % 3]);
-            let e = q - p;
-            let den = dir.perp_dot(e);
-            if den.abs() < 1e-20 {
-                continue;
-            }
-            let w = p - start;
-            let s = w.perp_dot(e) / den;
-            let r = w.perp_dot(dir) / den;
-            if s > s_cur - 1e-6 && (-1e-5..=1.0 + 1e-5).contains(&r) && best.is_none_or(|b| s < b.0)
-            {
-                best = Some((s, k, r.clamp(0.0, 1.0)));
-            }
-        }
+    for j in 1..n {
+        let p = start.lerp(end, j as f32 / n as f32);
+        let (found, l) = locate(topo, &chart, t, p)?;
+        t = found;
         let tri = topo.triangles[t as usize];
-        let Some((s, k, r)) = best.filter(|b| b.0 < 1.0) else {
-            // The end lies in this triangle of the chart. Where the next point sits on one of its
-            // edges or corners (placed in the neighbour), that is the end; anywhere else the chart
-            // overlaps itself there, and the path cannot be trusted.
-            let l = barycentric(end, c);
-            let p3: Vec3 = (0..3).map(|j| topo.positions[tri[j] as usize] * l[j]).sum();
-            let span = (0..3)
-                .map(|j| {
-                    (topo.positions[tri[j] as usize] - topo.positions[tri[(j + 1) % 3] as usize])
-                        .length()
-                })
-                .fold(0.0f32, f32::max);
-            if (p3 - Vec3::from(b.point)).length() <= 0.05 * span {
-                push(path, Vec3::from(b.point), t);
-                return Ok(());
-            }
-            return Err("the chart folds over itself between the points".into());
-        };
-        let (p, q) = (
-            topo.positions[tri[k] as usize],
-            topo.positions[tri[(k + 1) % 3] as usize],
-        );
-        push(path, p.lerp(q, r), t);
-        let next = topo.triangle_neighbors[t as usize][k];
+        let q: Vec3 = (0..3).map(|k| topo.positions[tri[k] as usize] * l[k]).sum();
+        push(path, q, t);
+    }
+    push(path, Vec3::from(b.point), b.triangle);
+    Ok(())
+}
+
+/// The triangle of the chart containing `p`, found by walking from `t`, and `p`'s barycentric
+/// coordinates there (clamped to the triangle).
+fn locate(
+    topo: &Topology,
+    chart: &dyn Fn(u32) -> Option<[Vec2; 3]>,
+    mut t: u32,
+    p: Vec2,
+) -> std::result::Result<(u32, [f32; 3]), String> {
+    for _ in 0..4096 {
+        let c = chart(t).ok_or("the path leaves the chart's reach")?;
+        let l = barycentric(p, c);
+        let (k, worst) =
+            (0..3)
+                .map(|k| (k, l[k]))
+                .fold((0, f32::MAX), |m, x| if x.1 < m.1 { x } else { m });
+        if worst >= -1e-5 {
+            let l = l.map(|x| x.max(0.0));
+            let sum = l[0] + l[1] + l[2];
+            return Ok((t, l.map(|x| x / sum)));
+        }
+        // The edge opposite corner k is edge (k + 1, k + 2), index (k + 1) % 3.
+        let next = topo.triangle_neighbors[t as usize][(k + 1) % 3];
         if next == NO_NEIGHBOR {
             return Err("the path runs off the mesh's boundary".into());
         }
-        entered_by = (0..3)
-            .find(|&j| topo.triangle_neighbors[next as usize][j] == t)
-            .unwrap_or(usize::MAX);
         t = next;
-        s_cur = s;
     }
-    Err("the path does not reach the next point".into())
+    Err("the chart folds over itself between the points".into())
 }
 
 /// Barycentric coordinates of `p` in the 2D triangle `c` (not clamped).
@@ -205,11 +185,13 @@ fn push(path: &mut SurfacePath, p: Vec3, t: u32) {
 }
 
 /// The whole path through `placements`: `maps[k]` is the chart of segment k (from point k to
-/// k + 1), `None` for a segment of zero length. `field` names the path in messages.
+/// k + 1), `None` for a segment of zero length; samples every `step`. `err` makes an error naming
+/// the layer.
 pub fn build(
     topo: &Topology,
     placements: &[Placement],
     maps: &[Option<Vec<[f32; 4]>>],
+    step: f32,
     err: &dyn Fn(String) -> Error,
 ) -> Result<SurfacePath> {
     let mut path = SurfacePath {
@@ -220,7 +202,7 @@ pub fn build(
     };
     for (k, w) in placements.windows(2).enumerate() {
         if let Some(coords) = &maps[k] {
-            walk(topo, coords, &w[0], &w[1], &mut path).map_err(|why| {
+            walk(topo, coords, (&w[0], &w[1]), step, &mut path).map_err(|why| {
                 err(format!(
                     "path[{k}] to path[{}]: {why}; add points in between so that each step stays within one chart",
                     k + 1
