@@ -266,3 +266,138 @@ fn degenerate_triangles_are_skipped_and_counted() {
     assert_eq!(report["mesh"]["degenerate_triangles"], 2, "{report}");
     assert!(report["layers"][0]["texels_covered"].as_u64().unwrap() > 50);
 }
+
+/// A valid stroke job on the book: one stroke crossing the seam at x = 0.5.
+fn stroke_job() -> serde_json::Value {
+    let mut j = good_job();
+    j["layers"] = serde_json::json!([{ "kind": "stroke", "image": "decal.png",
+        "path": [[0.3, 0.5, 0.0], [0.6, 0.5, 0.05]], "size": [0.1, 0.1], "method": "expmap" }]);
+    j
+}
+
+#[test]
+fn bad_strokes() {
+    // The valid job bakes (so each case below fails for its own reason).
+    let dir = scratch("good-stroke");
+    setup(&dir);
+    std::fs::write(
+        dir.join("job.json"),
+        serde_json::to_vec(&stroke_job()).unwrap(),
+    )
+    .unwrap();
+    let (code, _, err) = cli(&["bake", dir.join("job.json").to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+
+    let far = serde_json::json!([[0.02, 0.02, 0.0], [0.98, 0.98, 0.24]]);
+    let off = serde_json::json!([[0.3, 0.5, 0.0], [0.6, 0.5, 3.0]]);
+    let miss =
+        serde_json::json!([[0.3, 0.5, 0.0], {"ray": {"origin": [5, 5, 5], "dir": [1, 0, 0]}}]);
+    for (name, field, value, needles) in [
+        (
+            "stroke-empty-path",
+            "path",
+            serde_json::json!([]),
+            vec!["layers[0].path", "empty"],
+        ),
+        (
+            "stroke-no-path",
+            "path",
+            serde_json::Value::Null,
+            vec!["layers[0].path", "missing"],
+        ),
+        (
+            "stroke-off-mesh",
+            "path",
+            off,
+            vec!["layers[0]", "path[1]", "from the surface"],
+        ),
+        (
+            "stroke-ray-misses",
+            "path",
+            miss,
+            vec!["layers[0]", "path[1]", "misses"],
+        ),
+        (
+            "stroke-too-far",
+            "path",
+            far,
+            vec!["layers[0]", "path[0] and path[1]", "add points in between"],
+        ),
+        (
+            "stroke-zero-spacing",
+            "spacing",
+            serde_json::json!(0.0),
+            vec!["layers[0].spacing", "positive"],
+        ),
+        (
+            "stroke-too-many",
+            "spacing",
+            serde_json::json!(1e-4),
+            vec!["layers[0]", "stamps", "20000"],
+        ),
+        (
+            "stroke-pressure-length",
+            "pressure",
+            serde_json::json!([1.0]),
+            vec!["layers[0].pressure", "one pressure per point"],
+        ),
+        (
+            "stroke-pressure-range",
+            "pressure",
+            serde_json::json!([1.0, 1.5]),
+            vec!["layers[0].pressure[1]", "[0, 1]"],
+        ),
+        (
+            "stroke-bad-flow",
+            "flow",
+            serde_json::json!(-0.5),
+            vec!["layers[0].flow", "[0, 1]"],
+        ),
+        (
+            "stroke-bad-orient",
+            "orient",
+            serde_json::json!("sideways"),
+            vec!["layers[0].orient", "fixed"],
+        ),
+        (
+            "stroke-bad-tool",
+            "tool",
+            serde_json::json!("spray"),
+            vec!["layers[0].tool", "paint"],
+        ),
+        (
+            "stroke-at",
+            "at",
+            serde_json::json!([0.3, 0.5, 0.0]),
+            vec!["layers[0].at", "path"],
+        ),
+        (
+            "stroke-radius-on-paint",
+            "radius",
+            serde_json::json!(0.1),
+            vec!["layers[0].radius", "blur"],
+        ),
+    ] {
+        let mut j = stroke_job();
+        if value.is_null() {
+            j["layers"][0].as_object_mut().unwrap().remove(field);
+        } else {
+            j["layers"][0][field] = value;
+        }
+        let e = run_case(name, &j, |_| {});
+        expect(&e, name, &needles);
+    }
+    // Stroke fields on a decal, and a decal without `at`.
+    let mut j = good_job();
+    j["layers"][0]["spacing"] = serde_json::json!(0.2);
+    let e = run_case("decal-with-spacing", &j, |_| {});
+    expect(
+        &e,
+        "decal-with-spacing",
+        &["layers[0].spacing", "strokes only"],
+    );
+    let mut j = good_job();
+    j["layers"][0].as_object_mut().unwrap().remove("at");
+    let e = run_case("decal-without-at", &j, |_| {});
+    expect(&e, "decal-without-at", &["layers[0].at", "missing"]);
+}

@@ -56,7 +56,7 @@ pub fn stamps(
     let estimate = path.length() / (stroke.spacing * width * min_factor) + 1.0;
     if estimate > MAX_STAMPS as f32 {
         return Err(err(format!(
-            "`spacing`: the stroke would need about {estimate:.0} stamps ({:.4} long, stamps {width:.4} wide every {:.3} widths), more than the limit of {MAX_STAMPS}; raise `spacing`, enlarge `size` or split the stroke",
+            "`spacing`: the stroke would need about {estimate:.0} stamps ({:.4} long, stamps {width:.4} wide every {} widths), more than the limit of {MAX_STAMPS}; raise `spacing`, enlarge `size` or split the stroke",
             path.length(),
             stroke.spacing
         )));
