@@ -35,11 +35,13 @@ fn demo_writes_decodable_outputs_and_a_glb_that_loads_back() {
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
     let layers = report["layers"].as_array().unwrap();
-    assert_eq!(layers.len(), 4);
+    assert_eq!(layers.len(), 5);
+    assert_eq!(layers[4]["kind"], "stroke");
+    assert!(layers[4]["stroke"]["stamps"].as_u64().unwrap() > 50);
     for l in layers {
         assert!(
             l["texels_covered"].as_u64().unwrap() > 500,
-            "every demo decal lands: {l}"
+            "every demo layer lands: {l}"
         );
         assert!(l["triangles_covered"].as_u64().unwrap() > 10);
     }

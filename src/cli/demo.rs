@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! The built-in demo scene: Keenan Crane's "Spot" (public domain, bundled in `assets/`) with four
-//! decals generated in code, one per blend style. `decalbake demo` writes the scene's files (mesh,
+//! decals generated in code, one per blend style, and a painted stroke over the UV seam along its
+//! back. `decalbake demo` writes the scene's files (mesh,
 //! decal PNGs, job file) next to its outputs, so the job can be edited and re-run with `decalbake bake`.
 
 use decalbake::io::image::{srgb_to_linear, LinearImage};
@@ -99,8 +100,32 @@ pub fn glow(side: u32) -> LinearImage {
     })
 }
 
+/// A round brush tip: an opaque core with a soft rim (used by the stroke).
+pub fn brush(side: u32) -> LinearImage {
+    img(side, |u, v| {
+        let r = (u * u + v * v).sqrt();
+        let a = ((1.0 - r) / 0.35).clamp(0.0, 1.0);
+        [0.1, 0.55, 0.25, a * a * (3.0 - 2.0 * a)]
+    })
+}
+
+/// The demo stroke's path: rays from above, a wave across Spot's back (over the UV seam along the
+/// spine), with pressure rising and falling.
+fn stroke_path() -> (Vec<serde_json::Value>, Vec<f32>) {
+    (0..9)
+        .map(|k| {
+            let t = k as f32 / 8.0;
+            let x = -0.3 + 0.6 * t;
+            let z = 0.22 + 0.09 * (t * 2.0 * PI).sin();
+            let ray = serde_json::json!({ "ray": { "origin": [x, 1.5, z], "dir": [0, -1, 0] } });
+            (ray, 0.4 + 0.6 * (t * PI).sin())
+        })
+        .unzip()
+}
+
 /// The demo job (paths relative to the demo directory).
 pub fn job_json() -> String {
+    let (path, pressure) = stroke_path();
     serde_json::to_string_pretty(&serde_json::json!({
         "mesh": "spot.glb",
         "uv_set": 0,
@@ -113,7 +138,9 @@ pub fn job_json() -> String {
             { "kind": "decal", "image": "decals/rings.png", "at": { "ray": { "origin": [-1.5, 0.0, 0.45], "dir": [1, 0, 0] } },
               "size": [0.35, 0.35], "up": [0, 1, 0], "method": "lscm", "blend": "multiply" },
             { "kind": "decal", "image": "decals/glow.png", "at": { "ray": { "origin": [0.0, 0.55, -1.5], "dir": [0, 0, 1] } },
-              "size": [0.3, 0.3], "method": "planar", "blend": "screen", "opacity": 0.8 }
+              "size": [0.3, 0.3], "method": "planar", "blend": "screen", "opacity": 0.8 },
+            { "kind": "stroke", "image": "decals/brush.png", "path": path, "pressure": pressure,
+              "size": [0.1, 0.1], "spacing": 0.15, "flow": 0.8, "opacity": 0.95, "method": "lscm" }
         ],
         "output": { "texture": "baked.png", "bit_depth": 8, "glb": "baked.glb", "report": "report.json", "preview": "preview.png" }
     }))
@@ -127,5 +154,6 @@ pub fn decals() -> Vec<(&'static str, LinearImage)> {
         ("stripes.png", stripes(256)),
         ("rings.png", rings(256)),
         ("glow.png", glow(256)),
+        ("brush.png", brush(64)),
     ]
 }
