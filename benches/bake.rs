@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! Criterion benchmarks of the bake on the bundled Spot (or the mesh in `DECALBAKE_BENCH_MESH`):
 //! whole bakes of 1, 16 and 256 planar decals at 1024² with the mesh's islands cached (the steady
-//! state of "load once, bake many"), and batched GPU placement. The `decalbake bench` subcommand
+//! state of "load once, bake many"), batched GPU placement, and the demo's stroke per stamp method. The `decalbake bench` subcommand
 //! gives the per-stage split and the larger sizes.
 //!
 //! Run: `cargo bench --bench bake` (set `WGPU_BACKEND=vulkan` for lavapipe).
@@ -69,5 +69,38 @@ fn placement(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bake, placement);
+/// The demo's stroke (a wave of about a hundred stamps over Spot's back) alone at 1024², per stamp
+/// method; `decalbake bench --strokes` gives the large case and its baselines.
+fn stroke(c: &mut Criterion) {
+    let (engine, mesh) = setup();
+    let dir =
+        std::env::temp_dir().join(format!("decalbake-criterion-stroke-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("brush.png"), demo::brush(64).encode_png(8)).unwrap();
+    let demo: serde_json::Value = serde_json::from_str(&demo::job_json()).unwrap();
+    let mut group = c.benchmark_group("stroke_1024");
+    group.sample_size(10);
+    for method in ["lscm", "expmap"] {
+        let mut layer = demo["layers"][4].clone();
+        layer["image"] = "brush.png".into();
+        layer["method"] = method.into();
+        let job = serde_json::json!({ "mesh": "spot.glb", "texture": { "width": 1024, "height": 1024 },
+            "layers": [layer], "output": { "texture": null, "report": null } });
+        let job =
+            decalbake::Job::parse(&job.to_string(), &dir.join("job.json"), &dir, &dir).unwrap();
+        let stamps = engine.bake(&mesh, &job).unwrap().report.layers[0]
+            .stroke
+            .as_ref()
+            .unwrap()
+            .stamps;
+        group.throughput(Throughput::Elements(stamps as u64));
+        group.bench_with_input(BenchmarkId::new("stamps", method), &job, |b, job| {
+            b.iter(|| engine.bake(&mesh, job).unwrap())
+        });
+    }
+    group.finish();
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+criterion_group!(benches, bake, placement, stroke);
 criterion_main!(benches);

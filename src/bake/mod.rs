@@ -182,9 +182,15 @@ fn fold_reports<'a>(
         l.distortion = crate::maps::distortion::Distortion::combine(
             stamps.iter().map(|s| (s.distortion, s.triangles_covered)),
         );
+        let mut report = stroke.report.clone();
+        report.cg_iterations = stamps
+            .iter()
+            .filter_map(|s| s.chart.as_ref())
+            .map(|c| c.cg_iterations_total as u64)
+            .sum();
         l.chart = None;
         l.expmap = None;
-        l.stroke = Some(stroke.report.clone());
+        l.stroke = Some(report);
         out.push(l);
     }
     out

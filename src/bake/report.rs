@@ -153,6 +153,8 @@ pub struct StrokeReport {
     pub spacing: f32,
     /// Charts computed for the stamps (one per stamp in this build).
     pub charts: usize,
+    /// Conjugate-gradient iterations of the stamps' conformal charts, all rounds, added up.
+    pub cg_iterations: u64,
     /// Whether per-vertex interpolated charts were used.
     pub continuity: bool,
     /// The stroke's opacity cap.

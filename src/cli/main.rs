@@ -98,6 +98,14 @@ enum Cmd {
         /// (expmap, lscm, hybrid); `--mesh` or the shared spot, fandisk, bob and Duck.
         #[arg(long)]
         scale: bool,
+        /// Benchmark strokes: a stroke of `--stamps` stamps over `--mesh` (default the bundled bob,
+        /// subdivided twice unless `--subdivide` says otherwise) at the first of `--sizes`, per stamp
+        /// method, against as many separate decals and the CPU twin.
+        #[arg(long)]
+        strokes: bool,
+        /// With `--strokes`: stamps in the stroke.
+        #[arg(long, default_value_t = 1000)]
+        stamps: usize,
         /// Measure the adapter itself: copy bandwidth, dispatch, submit + wait, workgroup barrier,
         /// atomics, small dense systems per invocation against per workgroup.
         #[arg(long)]
@@ -163,11 +171,25 @@ fn run(cli: Cli) -> Result<()> {
             batch,
             linalg,
             scale,
+            strokes,
+            stamps,
             device,
             peers,
             charts,
         } => {
             let engine = engine(cli.backend.as_deref())?;
+            if strokes {
+                let opts = bench::strokes::StrokeBenchOptions {
+                    mesh,
+                    subdivide: if subdivide == 0 { 2 } else { subdivide },
+                    side: sizes.first().copied().unwrap_or(2048),
+                    stamps,
+                    reps,
+                    cpu_budget,
+                };
+                bench::strokes::run(&engine, &opts, |v| println!("{v}"))?;
+                return Ok(());
+            }
             if device {
                 bench::device::run(&engine, |v| println!("{v}"))?;
                 return Ok(());

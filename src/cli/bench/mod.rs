@@ -7,3 +7,4 @@ pub mod device;
 pub mod geodesic;
 pub mod linalg;
 pub mod scale;
+pub mod strokes;

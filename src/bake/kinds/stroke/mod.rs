@@ -93,6 +93,7 @@ impl Kind for StrokeKind {
                 stamps: units.len(),
                 spacing: stroke.spacing * layer.size[0],
                 charts: units.len(),
+                cg_iterations: 0,
                 continuity: stroke.continuity,
                 opacity: layer.opacity,
             }),
