@@ -90,14 +90,14 @@ fn stroke_width_is_constant_on_the_surface_where_uvs_stretch() {
     let side = 512u32;
     let engine = engine();
     let loaded = engine.load_mesh(&mesh).unwrap();
-    for method in ["lscm", "expmap"] {
+    for (method, continuity) in [("lscm", false), ("expmap", false), ("lscm", true)] {
         let j = job(
             &dir,
             &mesh,
             side,
             serde_json::json!([{ "kind": "stroke", "image": "white.png",
                 "path": [[0.2, 0.2, 0.0], [0.5, 0.5, 0.0], [0.85, 0.85, 0.0]], "size": [0.1, 0.1], "spacing": 0.1,
-                "method": method }]),
+                "method": method, "continuity": continuity }]),
         );
         let baked = engine.bake(&loaded, &j).unwrap();
         let s = baked.report.layers[0].stroke.clone().unwrap();
@@ -147,6 +147,7 @@ fn stroke_width_is_constant_on_the_surface_where_uvs_stretch() {
         let (tmin, tmax) = texels
             .iter()
             .fold((f32::MAX, 0.0f32), |(a, b), t| (a.min(*t), b.max(*t)));
+        let method = format!("{method} (continuity {continuity})");
         eprintln!(
             "{method}: {} rows, surface width {:.4}..{:.4} (worst deviation {:.2} %), texel width {tmin}..{tmax}",
             widths.len(),
@@ -182,7 +183,14 @@ fn stroke_width_is_constant_on_the_surface_where_uvs_stretch() {
 /// Forty overlapping stamps at flow 0.5 would reach 1 − 0.5⁴⁰ ≈ 1 without the cap.
 #[test]
 fn stroke_builds_up_to_its_opacity_and_matches_the_cpu_twin() {
-    let dir = scratch("stroke-opacity");
+    opacity_case(false);
+    opacity_case(true);
+}
+
+/// One case of the test above: one chart per stamp, or continuous charts with pressure (size
+/// levels: six charts a stamp).
+fn opacity_case(continuity: bool) {
+    let dir = scratch(&format!("stroke-opacity-{continuity}"));
     let mesh_path = sheet(&dir, "flat.glb", |x, y| [x, y]);
     brush(&dir, "white.png", 8, false);
     let side = 128u32;
@@ -195,14 +203,15 @@ fn stroke_builds_up_to_its_opacity_and_matches_the_cpu_twin() {
         serde_json::json!([
             { "kind": "decal", "image": "white.png", "at": [0.3, 0.15, 0.0], "size": [0.1, 0.1], "method": "planar", "opacity": 0.25 },
             { "kind": "stroke", "image": "white.png", "path": [[0.2, 0.5, 0.0], [0.8, 0.45, 0.0]],
-              "size": [0.15, 0.15], "spacing": 0.05, "flow": 0.5, "opacity": 0.6, "method": "expmap", "blend": "add" }
+              "size": [0.15, 0.15], "spacing": 0.05, "flow": 0.5, "opacity": 0.6, "method": "expmap", "blend": "add",
+              "continuity": continuity, "pressure": if continuity { [0.7, 1.0] } else { [1.0, 1.0] } }
         ]),
     );
     let baked = engine.bake(&loaded, &j).unwrap();
     let r = red(&baked, side);
     let max = r.iter().cloned().fold(0.0f32, f32::max);
     let centre = r[((side / 2) * side + side / 2) as usize];
-    eprintln!("max {max}, centre {centre}");
+    eprintln!("continuity {continuity}: max {max}, centre {centre}");
     assert!(max <= 0.6 + 1e-3, "the stroke exceeds its opacity: {max}");
     assert!(
         centre >= 0.59,
@@ -212,6 +221,20 @@ fn stroke_builds_up_to_its_opacity_and_matches_the_cpu_twin() {
     let units = engine.units(&loaded, &j).unwrap();
     assert_eq!(units.strokes.len(), 1);
     assert!(units.strokes[0].units.len() > 40);
+    let blended = units.strokes[0]
+        .blends
+        .iter()
+        .filter(|b| b.is_some())
+        .count();
+    let six = units.strokes[0]
+        .blends
+        .iter()
+        .flatten()
+        .filter(|b| b.charts.len() == 6)
+        .count();
+    eprintln!("blended stamps {blended}, with six charts {six}");
+    assert_eq!(blended > 0, continuity);
+    assert_eq!(six > 0, continuity, "pressure should blend two size levels");
     let mesh = Mesh::load(&mesh_path).unwrap();
     let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
     let white = LinearImage::load(&dir.join("white.png")).unwrap();
@@ -235,6 +258,28 @@ fn stroke_builds_up_to_its_opacity_and_matches_the_cpu_twin() {
         }
     }
     let mean = sum / painted.max(1) as f32;
+    let gpu_painted = r.iter().filter(|v| **v > 0.0).count();
+    let cpu_painted = cpu.composed.pixels.iter().filter(|c| c[0] > 0.0).count();
+    eprintln!("painted: GPU {gpu_painted}, CPU {cpu_painted}");
+    if std::env::var("STROKE_DEBUG").is_ok() {
+        let img = |f: &dyn Fn(usize) -> f32| LinearImage {
+            width: side,
+            height: side,
+            pixels: (0..(side * side) as usize)
+                .map(|i| {
+                    let v = f(i);
+                    [v, v, v, 1.0]
+                })
+                .collect(),
+        };
+        std::fs::write(dir.join("gpu.png"), img(&|i| r[i]).encode_png(8)).unwrap();
+        std::fs::write(
+            dir.join("cpu.png"),
+            img(&|i| cpu.composed.pixels[i][0]).encode_png(8),
+        )
+        .unwrap();
+        eprintln!("wrote {}", dir.display());
+    }
     eprintln!("max |GPU - CPU| = {worst:.2e}, mean {mean:.2e} over {painted} painted texels");
     assert!(painted > 500);
     assert!(
@@ -318,4 +363,151 @@ fn pressure_scales_the_width_and_spacing_barely_matters() {
         mean <= 0.01,
         "halving spacing changed the stroke by {mean} on average"
     );
+}
+
+/// Continuity (Maillot section 7): a one-stamp stroke moved in 40 equal steps of 0.005 across
+/// Spot's flank (through a vertex and over edges), baked at every step (L1 change of the texture per
+/// step). With `continuity: true` no step changes the texture by more than 3× the median step. The
+/// metric sees a discontinuous stamp: the same stamp snapped to the nearest vertex (a scheme that
+/// jumps where the nearest vertex changes) makes a step above 3× the continuous median. One chart
+/// per stamp (`false`) is measured too and printed: on Spot its charts, normalised at the stamp's
+/// point and grown from it, show no jump either (README, "Strokes").
+#[test]
+fn a_moving_stamp_changes_continuously() {
+    let dir = scratch("stroke-continuity");
+    let spot = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
+    let engine = engine();
+    let loaded = engine.load_mesh(&spot).unwrap();
+    std::fs::write(
+        dir.join("tex.png"),
+        test_image(32, 32, 3, false).encode_png(8),
+    )
+    .unwrap();
+    let topo = &loaded.topo;
+    let nearest = |q: glam::Vec3| {
+        (0..topo.positions.len())
+            .min_by(|&a, &b| {
+                (topo.positions[a] - q)
+                    .length()
+                    .total_cmp(&(topo.positions[b] - q).length())
+            })
+            .unwrap()
+    };
+    let v = nearest(glam::Vec3::new(0.4, 0.05, 0.3));
+    let (p, n) = (topo.positions[v], topo.normals[v].normalize());
+    let along = glam::Vec3::new(0.0, 0.3, 1.0);
+    let d = (along - n * along.dot(n)).normalize();
+    let side = 128u32;
+    let steps = |continuity: bool, snap: bool| -> Vec<f32> {
+        let bakes: Vec<Vec<[f32; 4]>> = (0..=40)
+            .map(|k| {
+                let mut at = p + d * (0.005 * (k as f32 - 20.0));
+                if snap {
+                    at = topo.positions[nearest(at)];
+                }
+                let j = serde_json::json!({
+                    "mesh": spot, "texture": { "width": side, "height": side, "samples": 4, "padding": 0 },
+                    "layers": [{ "kind": "stroke", "image": "tex.png", "path": [at.to_array()],
+                        "size": [0.1, 0.1], "method": "lscm", "continuity": continuity }],
+                    "output": { "texture": null, "bit_depth": 16, "report": null } });
+                let job = Job::parse(&j.to_string(), &dir.join("job.json"), &dir, &dir).unwrap();
+                let b = engine.bake(&loaded, &job).unwrap();
+                (0..side * side).map(|i| b.linear(i % side, i / side)).collect()
+            })
+            .collect();
+        bakes
+            .windows(2)
+            .map(|w| {
+                w[0].iter()
+                    .zip(&w[1])
+                    .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).sum::<f32>())
+                    .sum::<f32>()
+            })
+            .collect()
+    };
+    let stats = |s: &[f32]| {
+        let mut sorted = s.to_vec();
+        sorted.sort_by(f32::total_cmp);
+        (sorted[sorted.len() - 1], sorted[sorted.len() / 2])
+    };
+    let (largest, median) = stats(&steps(true, false));
+    let (lo, mo) = stats(&steps(false, false));
+    let (ls, _) = stats(&steps(true, true));
+    eprintln!(
+        "continuity: largest step / median = {:.2} (median {median:.3}); one chart per stamp: {:.2}; snapped to vertices: largest step {ls:.3} = {:.1}× the continuous median",
+        largest / median,
+        lo / mo,
+        ls / median
+    );
+    assert!(
+        largest <= 3.0 * median,
+        "a step changed the texture {:.2}× the median step",
+        largest / median
+    );
+    assert!(
+        ls > 3.0 * median,
+        "the metric should see the snapped stamp's jump ({ls} against median {median})"
+    );
+}
+
+/// On a flat sheet every chart is exact, so a stamp blended from its corners' charts
+/// (`maps::stamp::blend_cpu`) equals the chart solved at its point, to f32 rounding.
+#[test]
+fn blended_stamp_equals_the_direct_chart_on_a_plane() {
+    let dir = scratch("stroke-blend-plane");
+    let mesh_path = sheet(&dir, "flat.glb", |x, y| [x, y]);
+    brush(&dir, "white.png", 8, false);
+    let engine = engine();
+    let loaded = engine.load_mesh(&mesh_path).unwrap();
+    let j = job(
+        &dir,
+        &mesh_path,
+        64,
+        serde_json::json!([{ "kind": "stroke", "image": "white.png", "path": [[0.31, 0.52, 0.0], [0.6, 0.45, 0.0]],
+            "size": [0.15, 0.1], "spacing": 0.5, "method": "expmap", "continuity": true, "pressure": [0.7, 1.0] }]),
+    );
+    let units = engine.units(&loaded, &j).unwrap();
+    let topo = &loaded.topo;
+    let surface = decalbake::mesh::SurfaceData::new(topo);
+    let coords = |u: usize| {
+        decalbake::bake::cpu::layer_coords_cpu(
+            topo,
+            &surface,
+            &units.job.layers[u],
+            &units.frames[u],
+            &units.placements[u],
+        )
+    };
+    let s = &units.strokes[0];
+    let mut checked = 0;
+    for (k, b) in s.blends.iter().enumerate() {
+        let Some(b) = b else { continue };
+        let u = s.units.start + k;
+        let charts: Vec<Vec<[f32; 4]>> = b.charts.iter().map(|c| coords(c.0)).collect();
+        let refs: Vec<&[[f32; 4]]> = charts.iter().map(|c| &c[..]).collect();
+        let blended = decalbake::maps::stamp::blend_cpu(b, &refs);
+        let direct = coords(u);
+        let mut worst = 0.0f32;
+        for (x, (a, d)) in blended.iter().zip(&direct).enumerate() {
+            if a[3] > 0.5 && d[3] > 0.5 && (a[0].abs() < 0.1 && a[1].abs() < 0.1) {
+                worst = worst.max((a[0] - d[0]).abs().max((a[1] - d[1]).abs()));
+                let _ = x;
+            }
+        }
+        eprintln!(
+            "stamp {k}: {} charts {:?}, bary {:?}, corners {:?}, worst {worst:.2e}, point {:?} tri {}",
+            b.charts.len(),
+            b.charts,
+            b.bary,
+            b.corners,
+            units.placements[u].point,
+            units.placements[u].triangle
+        );
+        assert!(
+            worst < 1e-4,
+            "stamp {k}: blended differs from direct by {worst}"
+        );
+        checked += 1;
+    }
+    assert!(checked > 2);
 }

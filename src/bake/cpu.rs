@@ -92,6 +92,10 @@ pub struct StrokeCpu {
     pub opacity: f32,
     /// Its blend mode onto the layers below.
     pub blend: crate::io::job::BlendMode,
+    /// Per unit of the stroke (`units.start + k`): a hidden chart (continuous strokes).
+    pub hidden: Vec<bool>,
+    /// Per unit of the stroke: coordinates blended from charts (unit indices of the bake).
+    pub blends: Vec<Option<crate::maps::stamp::StampBlend>>,
 }
 
 /// The CPU twin of the bake's stages after placement, on units (`job.layers[u]` at `placements[u]`
@@ -125,23 +129,40 @@ pub fn bake_units_cpu(
         // A decal alone; a stroke's stamps together, blended per sample as the GPU draws them.
         let stroke = strokes.iter().find(|s| s.units.contains(&li));
         let group = stroke.map_or(li..li + 1, |s| li..s.units.end);
-        let mut coords = Vec::new();
-        let mut sels = Vec::new();
+        let blend_of = |u: usize| stroke.and_then(|s| s.blends[u - s.units.start].as_ref());
+        let hidden = |u: usize| stroke.is_some_and(|s| s.hidden[u - s.units.start]);
+        let mut coords: Vec<Vec<[f32; 4]>> = group
+            .clone()
+            .map(|u| match blend_of(u) {
+                Some(_) => Vec::new(),
+                None => {
+                    layer_coords_cpu(topo, &surface, &job.layers[u], &frames[u], &placements[u])
+                }
+            })
+            .collect();
         for u in group.clone() {
-            let (layer, frame) = (&job.layers[u], &frames[u]);
-            let c = layer_coords_cpu(topo, &surface, layer, frame, &placements[u]);
-            let m = crate::maps::method(layer.method);
-            sels.push(select_triangles(
-                mesh,
-                topo,
-                uvs,
-                &c,
-                frame,
-                m.front_facing(),
-                [w, h],
-            ));
-            coords.push(c);
+            if let Some(b) = blend_of(u) {
+                let charts: Vec<&[[f32; 4]]> = b
+                    .charts
+                    .iter()
+                    .map(|c| &coords[c.0 - group.start][..])
+                    .collect();
+                coords[u - group.start] = crate::maps::stamp::blend_cpu(b, &charts);
+            }
         }
+        let sels: Vec<Selection> = group
+            .clone()
+            .zip(&coords)
+            .map(|(u, c)| {
+                let (layer, frame) = (&job.layers[u], &frames[u]);
+                let facing = crate::maps::method(layer.method).front_facing();
+                if hidden(u) {
+                    Selection::default()
+                } else {
+                    select_triangles(mesh, topo, uvs, c, frame, facing, [w, h])
+                }
+            })
+            .collect();
         let rasters: Vec<LayerRaster> = group
             .clone()
             .zip(&coords)
@@ -503,6 +524,16 @@ pub struct Selection {
     pub triangles: Vec<u32>,
     /// Texel box (min x, min y, max x, max y), before UV wrapping.
     pub texel_box: [i32; 4],
+}
+
+impl Default for Selection {
+    /// Nothing selected (a hidden chart).
+    fn default() -> Self {
+        Self {
+            triangles: Vec::new(),
+            texel_box: [i32::MAX, i32::MAX, i32::MIN, i32::MIN],
+        }
+    }
 }
 
 /// CPU twin of `select_triangles.wgsl`.

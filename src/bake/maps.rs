@@ -21,9 +21,6 @@ use std::ops::Range;
 use std::time::Instant;
 use wgpu::util::DeviceExt;
 
-/// Memory budget for one chunk's per-layer coordinates and triangle lists.
-const CHUNK_BUDGET: u64 = 64 << 20;
-
 /// The per-chunk buffers: one coords slot (a vec4 per welded vertex) and one triangle list per
 /// layer of a chunk. Owned by the bake, reused by every chunk.
 pub struct Slots {
@@ -36,12 +33,10 @@ pub struct Slots {
 }
 
 impl Slots {
-    /// Slots for as many layers as fit [`CHUNK_BUDGET`] (at least one).
+    /// Slots for as many layers as fit the chunk budget ([`super::stage::unit_capacity`]).
     pub(crate) fn new(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Self {
         let (dev, g) = (&engine.ctx.device, &mesh.gpu);
-        let per_layer = g.vertex_count as u64 * 16 + g.triangle_count as u64 * 4;
-        let chunk =
-            ((CHUNK_BUDGET / per_layer.max(1)).max(1) as usize).min(job.layers.len().max(1));
+        let chunk = super::stage::unit_capacity(mesh).min(job.layers.len().max(1));
         let coords = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("bake.coords"),
             size: (chunk as u64 * g.vertex_count as u64 * 16).max(16),
@@ -63,12 +58,17 @@ impl Slots {
         }
     }
 
-    /// The job's layers in chunks.
-    pub fn chunks(&self, layers: usize) -> impl Iterator<Item = Range<usize>> {
-        let chunk = self.chunk;
-        (0..layers)
-            .step_by(chunk)
-            .map(move |s| s..(s + chunk).min(layers))
+    /// The units in chunks of at most [`Slots::chunk`], never splitting a block (a continuous
+    /// stroke's stamps with the charts they blend; every other unit is a block of its own).
+    pub fn chunks(&self, blocks: &[Range<usize>]) -> Vec<Range<usize>> {
+        let mut out: Vec<Range<usize>> = Vec::new();
+        for b in blocks {
+            match out.last_mut() {
+                Some(c) if b.end - c.start <= self.chunk => c.end = b.end,
+                _ => out.push(b.clone()),
+            }
+        }
+        out
     }
 }
 
@@ -84,6 +84,11 @@ pub struct LayerMaps {
     pub expmap: Vec<Option<GeoResult>>,
     /// Per layer of the chunk: the chart report, for layers that have one.
     pub chart: Vec<Option<ChartReport>>,
+    /// Per unit of the chunk: a chart other units blend from, not drawn (no selection).
+    pub hidden: Vec<bool>,
+    /// Per unit of the chunk: coordinates blended from other units' charts (`blend_pass`), not
+    /// solved by its method.
+    pub blended: Vec<bool>,
 }
 
 impl LayerMaps {
@@ -95,7 +100,7 @@ impl LayerMaps {
     ) -> Vec<usize> {
         self.range
             .clone()
-            .filter(|&i| f(method(job.layers[i].method)))
+            .filter(|&i| !self.blended[i - self.range.start] && f(method(job.layers[i].method)))
             .collect()
     }
 }
@@ -135,6 +140,8 @@ pub(crate) fn compute(
     let mut maps = LayerMaps {
         expmap: vec![None; range.len()],
         chart: vec![None; range.len()],
+        hidden: placed.hidden[range.clone()].to_vec(),
+        blended: range.clone().map(|i| placed.blends[i].is_some()).collect(),
         range,
         params,
         buffer,
@@ -142,6 +149,7 @@ pub(crate) fn compute(
     expmap_pass(cx, placed, slots, &mut maps, log)?;
     chart_pass(cx, placed, slots, &mut maps, log)?;
     direct_pass(cx, slots, &maps, log)?;
+    blend_pass(cx, placed, slots, &maps, log)?;
     Ok(maps)
 }
 
@@ -241,7 +249,19 @@ fn chart_pass(
     let charts = chart::build(&mesh.topo, &requests, &engine.solver(), &mut stats)?;
     log.commands += stats.dispatches;
     let mut items: Vec<[u32; 8]> = Vec::new();
-    for (&i, c) in layers.iter().zip(&charts) {
+    let mut kept = vec![true; charts.len()];
+    for (k, (&i, c)) in layers.iter().zip(&charts).enumerate() {
+        if maps.hidden[i - start] && chart_error(job, i, &c.report).is_some() {
+            // A continuous stroke's corner chart (larger than its stamps) that folds or does not
+            // converge keeps its exponential map: the stamps blending it stay continuous.
+            log.warnings.push(format!(
+                "layer {}: a corner chart of the continuous stroke ({} triangles) folded or did not converge as a conformal chart; its exponential map is used instead",
+                placed.origin[i].0, c.report.triangles
+            ));
+            kept[k] = false;
+            maps.chart[i - start] = Some(c.report);
+            continue;
+        }
         check_chart(job, i, &c.report, log)?;
         maps.chart[i - start] = Some(c.report);
         let base = (i - start) as u64 * nv;
@@ -256,8 +276,9 @@ fn chart_pass(
     let cleared: Vec<u64> = layers
         .iter()
         .zip(&charts)
-        .filter(|(_, c)| c.replaces_map)
-        .map(|(&i, _)| (i - start) as u64 * nv * 16)
+        .zip(&kept)
+        .filter(|((_, c), keep)| c.replaces_map && **keep)
+        .map(|((&i, _), _)| (i - start) as u64 * nv * 16)
         .collect();
     scatter(engine, slots, &items, &cleared, nv * 16)?;
     log.commands += 1;
@@ -353,7 +374,7 @@ fn direct_pass(cx: Cx<'_>, slots: &Slots, maps: &LayerMaps, log: &mut Log) -> Re
     // Group the chunk's layers by method (first appearance first): one bind group per method.
     let start = maps.range.start;
     let mut groups: Vec<(crate::io::job::Method, Vec<u32>)> = Vec::new();
-    for i in maps.range.clone() {
+    for i in maps.range.clone().filter(|&i| !maps.blended[i - start]) {
         let m = job.layers[i].method;
         let off = ((i - start) as u64 * PARAMS_STRIDE) as u32;
         match groups.iter_mut().find(|(g, _)| *g == m) {
@@ -389,6 +410,84 @@ fn direct_pass(cx: Cx<'_>, slots: &Slots, maps: &LayerMaps, log: &mut Log) -> Re
         }
     })?;
     log.commands += recorded;
+    Ok(())
+}
+
+/// `stamp_blend`: the chunk's blended stamps' coordinates from their corners' charts (in the same
+/// chunk: [`Slots::chunks`] keeps them together), one dispatch for all of them.
+fn blend_pass(
+    cx: Cx<'_>,
+    placed: &Placed,
+    slots: &Slots,
+    maps: &LayerMaps,
+    log: &mut Log,
+) -> Result<()> {
+    let Cx { engine, mesh, .. } = cx;
+    let start = maps.range.start;
+    let slot = |u: usize| (u - start) as u32;
+    let mut records: Vec<[u32; 4]> = Vec::new();
+    for i in maps.range.clone() {
+        let Some(b) = &placed.blends[i] else {
+            continue;
+        };
+        let c = b.corners;
+        records.push([slot(i), b.charts.len() as u32, 0, 0]);
+        records.push([c[0], c[1], c[2], 0]);
+        records.push([
+            b.bary[0].to_bits(),
+            b.bary[1].to_bits(),
+            b.bary[2].to_bits(),
+            0,
+        ]);
+        for k in 0..crate::maps::stamp::MAX_CHARTS {
+            records.push(match b.charts.get(k) {
+                Some(&(u, w, theta)) => {
+                    let (s, co) = theta.sin_cos();
+                    [slot(u), w.to_bits(), co.to_bits(), s.to_bits()]
+                }
+                None => [0; 4],
+            });
+        }
+    }
+    if records.is_empty() {
+        return Ok(());
+    }
+    let stamps = (records.len() / 9) as u32;
+    let (dev, pipes) = (&engine.ctx.device, &engine.pipes);
+    let nv = mesh.gpu.vertex_count;
+    engine.ctx.scoped("stamp charts", || {
+        let recs = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("bake.stamp_records"),
+            contents: bytemuck::cast_slice(&records),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let dims = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("bake.stamp_dims"),
+            contents: bytemuck::cast_slice(&[nv, stamps, 0, 0]),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let bg = pipes.stamp_blend.bind(
+            dev,
+            "bake.stamp_blend",
+            &[
+                (0, dims.as_entire_binding()),
+                (1, recs.as_entire_binding()),
+                (2, slots.coords.as_entire_binding()),
+            ],
+        );
+        let mut enc = dev.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("bake.stamp_blend"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&pipes.stamp_blend.pipeline);
+            pass.set_bind_group(0, &bg, &[]);
+            pass.dispatch_workgroups(nv.div_ceil(64), stamps, 1);
+        }
+        engine.ctx.queue.submit([enc.finish()]);
+    })?;
+    log.commands += 1;
     Ok(())
 }
 

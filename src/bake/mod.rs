@@ -125,7 +125,7 @@ fn compose_units(
     let job = cx.job;
     let slots = maps::Slots::new(cx.engine, cx.mesh, job);
     let mut units: Vec<LayerReport> = Vec::with_capacity(job.layers.len());
-    for range in slots.chunks(job.layers.len()) {
+    for range in slots.chunks(&placed.blocks) {
         let maps = maps::compute(cx, placed, &slots, range.clone(), &canvas.global, log)?;
         let stats = select::select(cx, canvas, &slots, &maps, log)?;
         let first = units.len();

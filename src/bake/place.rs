@@ -25,6 +25,12 @@ pub struct Placed {
     pub origin: Vec<(usize, usize)>,
     /// Per job layer: its units.
     pub units_of: Vec<Range<usize>>,
+    /// Per unit: a chart other units blend from, not drawn.
+    pub hidden: Vec<bool>,
+    /// Per unit: its coordinates blended from other units' charts (unit indices of the bake).
+    pub blends: Vec<Option<crate::maps::stamp::StampBlend>>,
+    /// The units in blocks the map stage keeps in one chunk, in order, covering every unit.
+    pub blocks: Vec<Range<usize>>,
     /// The strokes, in job order.
     pub strokes: Vec<StrokeGroup>,
 }
@@ -60,6 +66,9 @@ pub(crate) fn place(cx: Cx<'_>, log: &mut Log) -> Result<Placed> {
         },
         origin: Vec::new(),
         units_of: Vec::new(),
+        hidden: Vec::new(),
+        blends: Vec::new(),
+        blocks: Vec::new(),
         strokes: Vec::new(),
     };
     let mut at = 0;
@@ -67,11 +76,28 @@ pub(crate) fn place(cx: Cx<'_>, log: &mut Log) -> Result<Placed> {
         let e = kind(l.kind).expand(cx, i, &all[at..at + q.len()], &mut log.warnings)?;
         at += q.len();
         let first = placed.placements.len();
+        let mut covered = first;
+        for b in &e.blocks {
+            placed
+                .blocks
+                .extend((covered..first + b.start).map(|u| u..u + 1));
+            placed.blocks.push(first + b.start..first + b.end);
+            covered = first + b.end;
+        }
+        let n = e.units.len();
+        placed.blocks.extend((covered..first + n).map(|u| u..u + 1));
         for (k, u) in e.units.into_iter().enumerate() {
             placed.placements.push(u.placement);
             placed.frames.push(u.frame);
             placed.job.layers.push(u.layer);
             placed.origin.push((i, k));
+            placed.hidden.push(u.hidden);
+            placed.blends.push(u.blend.map(|mut b| {
+                for c in &mut b.charts {
+                    c.0 += first;
+                }
+                b
+            }));
         }
         let units = first..placed.placements.len();
         if let Some(report) = e.stroke {
@@ -98,8 +124,14 @@ impl Placed {
                 detail,
             } if layer < self.origin.len() => {
                 let (l, k) = self.origin[layer];
-                let detail = if self.strokes.iter().any(|s| s.layer == l) {
-                    format!("stamp {k} of the stroke: {detail}")
+                let detail = if self.hidden[layer] {
+                    format!("corner chart {k} of the stroke (`continuity`): {detail}")
+                } else if self.strokes.iter().any(|s| s.layer == l) {
+                    let stamp = self.units_of[l]
+                        .clone()
+                        .filter(|&u| u < layer && !self.hidden[u])
+                        .count();
+                    format!("stamp {stamp} of the stroke: {detail}")
                 } else {
                     detail
                 };
@@ -162,6 +194,8 @@ impl crate::bake::Engine {
                     units: s.units.clone(),
                     opacity: s.opacity,
                     blend: s.blend,
+                    hidden: p.hidden[s.units.clone()].to_vec(),
+                    blends: p.blends[s.units.clone()].to_vec(),
                 })
                 .collect(),
             job: p.job,

@@ -151,7 +151,8 @@ pub struct StrokeReport {
     pub stamps: usize,
     /// Stamp distance at full pressure (model units).
     pub spacing: f32,
-    /// Charts computed for the stamps (one per stamp in this build).
+    /// Charts solved: one per stamp, or with `continuity` the corner charts (each solved once per
+    /// chunk of units and shared by the stamps that blend it).
     pub charts: usize,
     /// Conjugate-gradient iterations of the stamps' conformal charts, all rounds, added up.
     pub cg_iterations: u64,

@@ -47,7 +47,7 @@ pub(crate) fn select(
                 timestamp_writes: None,
             });
             pass.set_pipeline(&pipes.select_triangles.pipeline);
-            for k in 0..maps.range.len() {
+            for k in (0..maps.range.len()).filter(|&k| !maps.hidden[k]) {
                 pass.set_bind_group(0, &bg, &[(k as u64 * PARAMS_STRIDE) as u32]);
                 pass.dispatch_workgroups(g.triangle_count.div_ceil(64), 1, 1);
                 log.commands += 1;
@@ -57,7 +57,7 @@ pub(crate) fn select(
     })?;
     let stats = canvas.read_stats(engine, "layer selection read-back")?;
     for i in maps.range.clone() {
-        if canvas.row(&stats, i)[0] <= 0 {
+        if !maps.hidden[i - maps.range.start] && canvas.row(&stats, i)[0] <= 0 {
             return Err(Error::Placement {
                 path: job.source.clone(),
                 layer: i,

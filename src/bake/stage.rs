@@ -29,3 +29,14 @@ pub(crate) struct Log {
 pub(crate) fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1000.0
 }
+
+/// Memory budget for one chunk's per-unit coordinates and triangle lists.
+pub(crate) const CHUNK_BUDGET: u64 = 64 << 20;
+
+/// How many units' coordinate slots and triangle lists fit [`CHUNK_BUDGET`] on `mesh` (at least
+/// one): the most units one chunk of the map stage holds.
+pub(crate) fn unit_capacity(mesh: &LoadedMesh) -> usize {
+    let g = &mesh.gpu;
+    let per_unit = g.vertex_count as u64 * 16 + g.triangle_count as u64 * 4;
+    (CHUNK_BUDGET / per_unit.max(1)).max(1) as usize
+}

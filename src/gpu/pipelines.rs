@@ -205,6 +205,8 @@ pub struct Pipelines {
     pub copy: Kernel,
     /// Chart coordinates into coords slots.
     pub chart_scatter: Kernel,
+    /// Continuous stamp charts from their corners' charts.
+    pub stamp_blend: Kernel,
     /// Preview.
     pub preview: Raster,
     /// Whether the layer target blends premultiplied source-over within a layer
@@ -469,6 +471,7 @@ impl Pipelines {
             dot_batched: Kernel::new(device, "dot_batched", &[(0, Ro), (1, Ro), (2, Ro), (3, Rw)]),
             copy: Kernel::new(device, "copy", &[(0, Uniform), (1, Ro), (2, Rw)]),
             chart_scatter: Kernel::new(device, "chart_scatter", &[(0, Uniform), (1, Ro), (2, Rw)]),
+            stamp_blend: Kernel::new(device, "stamp_blend", &[(0, Uniform), (1, Ro), (2, Rw)]),
             expmap_relax: Kernel::new(
                 device,
                 "expmap_relax",

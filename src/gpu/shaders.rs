@@ -71,6 +71,10 @@ pub const KERNELS: &[(&str, &str)] = &[
         include_str!("../../wgsl/maps/chart_scatter.wgsl"),
     ),
     (
+        "stamp_blend",
+        include_str!("../../wgsl/maps/stamp_blend.wgsl"),
+    ),
+    (
         "device_probe",
         include_str!("../../wgsl/gpu/device_probe.wgsl"),
     ),

@@ -12,7 +12,7 @@
 //! | `pressure_flow` | `0.0` |
 //! | `orient` | `"path"` |
 //! | `method` | `"lscm"` for strokes (Maillot) |
-//! | `continuity` | `false` in this build (see [`Stroke::continuity`]) |
+//! | `continuity` | `true` (Maillot section 7; see [`crate::maps::stamp`]) |
 
 use super::at::{check_at, AtSpec};
 use crate::error::{Error, Result};
@@ -55,8 +55,8 @@ pub struct Stroke {
     pub pressure_flow: f32,
     /// Stamp orientation.
     pub orient: Orient,
-    /// Per-vertex charts interpolated (Maillot section 7). Not in this build: `true` is refused
-    /// with a message, and the default is `false` (one chart per stamp at its point) until it is.
+    /// Per-vertex charts interpolated (Maillot section 7, [`crate::maps::stamp`]); `false`: one
+    /// chart per stamp at its point.
     pub continuity: bool,
 }
 
@@ -176,12 +176,6 @@ pub(crate) fn validate(l: &Fields<'_>, i: usize, src: &Path) -> Result<Stroke> {
         }
     };
     let tool = tool(l, &err)?;
-    if l.continuity == Some(true) {
-        return Err(err(
-            "continuity",
-            "per-vertex interpolated charts (Maillot section 7) are not in this build; use false (one chart per stamp) or leave it out".into(),
-        ));
-    }
     Ok(Stroke {
         tool,
         path,
@@ -191,7 +185,7 @@ pub(crate) fn validate(l: &Fields<'_>, i: usize, src: &Path) -> Result<Stroke> {
         pressure_size: unit("pressure_size", l.pressure_size, 1.0)?,
         pressure_flow: unit("pressure_flow", l.pressure_flow, 0.0)?,
         orient,
-        continuity: false,
+        continuity: l.continuity.unwrap_or(true),
     })
 }
 

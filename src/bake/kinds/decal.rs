@@ -53,12 +53,9 @@ impl Kind for Decal {
             ));
         }
         Ok(Expansion {
-            units: vec![Unit {
-                layer: l.clone(),
-                placement: *p,
-                frame: f,
-            }],
+            units: vec![Unit::drawn(l.clone(), *p, f)],
             stroke: None,
+            blocks: Vec::new(),
         })
     }
 }

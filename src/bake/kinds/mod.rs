@@ -26,6 +26,24 @@ pub struct Unit {
     pub placement: Placement,
     /// Its frame there.
     pub frame: Frame,
+    /// A chart other units blend from, not drawn itself (continuous strokes).
+    pub hidden: bool,
+    /// Coordinates blended from other units' charts instead of solved (continuous strokes; chart
+    /// unit indices are within the layer's units).
+    pub blend: Option<crate::maps::stamp::StampBlend>,
+}
+
+impl Unit {
+    /// A drawn unit whose map its method solves.
+    pub fn drawn(layer: Layer, placement: Placement, frame: Frame) -> Self {
+        Self {
+            layer,
+            placement,
+            frame,
+            hidden: false,
+            blend: None,
+        }
+    }
 }
 
 /// A layer as units, with what its kind reports.
@@ -34,6 +52,9 @@ pub struct Expansion {
     pub units: Vec<Unit>,
     /// A stroke's report block (and the sign that its units compose through the stroke buffer).
     pub stroke: Option<stroke::StrokeReport>,
+    /// Ranges of `units` the map stage must keep in one chunk (a blended stamp with its charts);
+    /// units outside them are blocks of their own. Each at most [`crate::bake::stage::unit_capacity`].
+    pub blocks: Vec<std::ops::Range<usize>>,
 }
 
 /// What a layer kind does in the bake's stages.

@@ -11,6 +11,7 @@
 //! with the stroke's `blend` at `opacity` × its alpha, so overlapping stamps of one stroke never
 //! exceed `opacity` (a painter's stroke; `bake/compose.rs`, kernel `stroke_apply`).
 
+pub mod continuity;
 pub mod path;
 pub mod stamps;
 
@@ -83,16 +84,25 @@ impl Kind for StrokeKind {
             .collect();
         let surface_path = path::build(topo, placements, &maps, 0.25 * edge, &err)?;
         let units = stamps::stamps(topo, layer, stroke, &surface_path, &placements[0], &err)?;
+        let stamps = units.len();
+        let (units, blocks, charts) = if stroke.continuity {
+            let capacity = crate::bake::stage::unit_capacity(mesh);
+            let c = continuity::interpolate(topo, layer, units, capacity, edge, &err)?;
+            (c.units, c.blocks, c.charts)
+        } else {
+            (units, Vec::new(), stamps)
+        };
         Ok(Expansion {
+            blocks,
             stroke: Some(StrokeReport {
                 tool: stroke.tool.clone(),
                 path_points: stroke.path.len(),
                 path_length: surface_path.length(),
                 chord_length,
                 path_vertices: surface_path.points.len(),
-                stamps: units.len(),
+                stamps,
                 spacing: stroke.spacing * layer.size[0],
-                charts: units.len(),
+                charts,
                 cg_iterations: 0,
                 continuity: stroke.continuity,
                 opacity: layer.opacity,

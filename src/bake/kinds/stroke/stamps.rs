@@ -100,13 +100,19 @@ fn stamp(
     s: f32,
     [f, g]: [f32; 2],
 ) -> Unit {
-    let (k, point) = path.at(s);
-    let (triangle, tangent) = if k == usize::MAX {
-        (u32::MAX, None)
+    let (k, on_path) = path.at(s);
+    let (placement, tangent) = if k == usize::MAX {
+        let p = Placement {
+            distance: 0.0,
+            ..*first
+        };
+        (p, None)
     } else {
         let d = path.points[k + 1] - path.points[k];
-        (path.triangles[k], Some(d.normalize_or_zero()))
+        let p = placement_at(topo, path.triangles[k], on_path);
+        (p, Some(d.normalize_or_zero()))
     };
+    let point = Vec3::from(placement.point);
     let unit_layer = Layer {
         kind: LayerKind::Decal,
         at: AtSpec::Point(point.to_array()),
@@ -116,14 +122,6 @@ fn stamp(
         blend: BlendMode::Normal,
         stroke: None,
         ..layer.clone()
-    };
-    let placement = if triangle == u32::MAX {
-        Placement {
-            distance: 0.0,
-            ..*first
-        }
-    } else {
-        placement_at(topo, triangle, point)
     };
     let n = Vec3::from(placement.normal);
     let along = tangent
@@ -146,39 +144,68 @@ fn stamp(
         }
         None => Frame::new(&placement, &unit_layer),
     };
-    Unit {
-        layer: unit_layer,
-        placement,
-        frame,
-    }
+    Unit::drawn(unit_layer, placement, frame)
 }
 
-/// The placement of a point on the path in triangle `t`: barycentric coordinates and the
-/// interpolated normal.
-fn placement_at(topo: &Topology, t: u32, p: Vec3) -> Placement {
+/// The placement of a point of the path near triangle `t` (the path's piece there; a point between
+/// two samples can lie just across an edge, so the triangle containing it is found by a short walk
+/// over neighbours): the point projected into that triangle, its barycentric coordinates there and
+/// the interpolated normal. The point returned is the one the barycentric coordinates give, so the
+/// stamp's point and its triangle agree exactly.
+pub fn placement_at(topo: &Topology, mut t: u32, p: Vec3) -> Placement {
+    let mut bary = barycentric(topo, t, p);
+    for _ in 0..8 {
+        let (k, worst) =
+            (0..3)
+                .map(|k| (k, bary[k]))
+                .fold((0, f32::MAX), |m, x| if x.1 < m.1 { x } else { m });
+        if worst >= -1e-5 {
+            break;
+        }
+        let next = topo.triangle_neighbors[t as usize][(k + 1) % 3];
+        if next == crate::mesh::NO_NEIGHBOR {
+            break;
+        }
+        let b = barycentric(topo, next, p);
+        if b.iter().fold(f32::MAX, |m, x| m.min(*x)) <= worst {
+            break;
+        }
+        (t, bary) = (next, b);
+    }
+    let l = bary.map(|x| x.max(0.0));
+    let sum = l[0] + l[1] + l[2];
+    let bary = l.map(|x| x / sum);
     let tri = topo.triangles[t as usize];
-    let [a, b, c] = tri.map(|v| topo.positions[v as usize]);
-    let (e0, e1, ep) = (b - a, c - a, p - a);
-    let (d00, d01, d11) = (e0.dot(e0), e0.dot(e1), e1.dot(e1));
-    let (d20, d21) = (ep.dot(e0), ep.dot(e1));
-    let den = (d00 * d11 - d01 * d01).max(1e-30);
-    let l1 = ((d11 * d20 - d01 * d21) / den).clamp(0.0, 1.0);
-    let l2 = ((d00 * d21 - d01 * d20) / den).clamp(0.0, 1.0 - l1);
-    let bary = [1.0 - l1 - l2, l1, l2];
+    let q: Vec3 = (0..3)
+        .map(|k| topo.positions[tri[k] as usize] * bary[k])
+        .sum();
     let n: Vec3 = (0..3)
         .map(|k| topo.normals[tri[k] as usize] * bary[k])
         .sum();
+    let [a, b, c] = tri.map(|v| topo.positions[v as usize]);
     let n = if n.length() > 1e-12 {
         n.normalize()
     } else {
-        e0.cross(e1).normalize_or_zero()
+        (b - a).cross(c - a).normalize_or_zero()
     };
     Placement {
-        point: p.to_array(),
+        point: q.to_array(),
         triangle: t,
         bary,
         distance: 0.0,
         normal: n.to_array(),
         found: 1,
     }
+}
+
+/// Barycentric coordinates of `p` projected into triangle `t`'s plane (not clamped).
+fn barycentric(topo: &Topology, t: u32, p: Vec3) -> [f32; 3] {
+    let [a, b, c] = topo.triangles[t as usize].map(|v| topo.positions[v as usize]);
+    let (e0, e1, ep) = (b - a, c - a, p - a);
+    let (d00, d01, d11) = (e0.dot(e0), e0.dot(e1), e1.dot(e1));
+    let (d20, d21) = (ep.dot(e0), ep.dot(e1));
+    let den = (d00 * d11 - d01 * d01).max(1e-30);
+    let l1 = (d11 * d20 - d01 * d21) / den;
+    let l2 = (d00 * d21 - d01 * d20) / den;
+    [1.0 - l1 - l2, l1, l2]
 }

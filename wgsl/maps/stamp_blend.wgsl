@@ -1,0 +1,45 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+// Continuous stamp charts (Maillot section 7): each stamp's coordinates interpolated from the charts
+// of its triangle's corners, each moved so the stamp's point is the origin and turned by the angle of
+// the stamp's x axis in the corner's frame: C(x) = sum_k w_k R(-theta_k) (C_k(x) - sum_j b_j C_k(corner_j)).
+// Valid where every chart is. One record of 9 vec4 per stamp (see `blend_pass` in src/bake/maps.rs):
+// [0] = (destination slot, charts, -, -), [1] = corners, [2] = barycentric (f32 bits),
+// [3 + k] = (chart slot, weight, cos theta, sin theta) (f32 bits but the slot).
+// Dispatch: (ceil(vertices / 64), stamps, 1). CPU twin: `maps::stamp::blend_cpu`.
+
+struct Dims {
+    vertex_count: u32,
+    stamps: u32,
+    _pad: vec2<u32>,
+}
+
+@group(0) @binding(0) var<uniform> dims: Dims;
+@group(0) @binding(1) var<storage, read> records: array<vec4<u32>>;
+@group(0) @binding(2) var<storage, read_write> coords: array<vec4<f32>>;
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let x = gid.x;
+    if (x >= dims.vertex_count || gid.y >= dims.stamps) { return; }
+    let r = gid.y * 9u;
+    let head = records[r];
+    let corners = records[r + 1u].xyz;
+    let bary = bitcast<vec3<f32>>(records[r + 2u].xyz);
+    let nv = dims.vertex_count;
+    var acc = vec2<f32>(0.0);
+    var valid = true;
+    for (var k = 0u; k < head.y; k++) {
+        let e = records[r + 3u + k];
+        let base = e.x * nv;
+        let c = coords[base + x];
+        if (c.w < 0.5) { valid = false; }
+        let centre = bary.x * coords[base + corners.x].xy + bary.y * coords[base + corners.y].xy
+            + bary.z * coords[base + corners.z].xy;
+        let w = bitcast<f32>(e.y);
+        let co = bitcast<f32>(e.z);
+        let s = bitcast<f32>(e.w);
+        let d = c.xy - centre;
+        acc += w * vec2<f32>(co * d.x + s * d.y, -s * d.x + co * d.y);
+    }
+    coords[head.x * nv + x] = select(vec4<f32>(0.0), vec4<f32>(acc, 0.0, 1.0), valid);
+}
