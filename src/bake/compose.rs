@@ -82,7 +82,12 @@ pub fn raster_jobs(
         if bx[0] > bx[2] {
             continue;
         }
-        let base = maps.params[g.start - maps.range.start];
+        // The group's compose reads its first drawn unit's fields (a stroke's stamps: Normal).
+        let shown = g
+            .clone()
+            .find(|&u| !maps.hidden[u - maps.range.start])
+            .unwrap_or(g.start);
+        let base = maps.params[shown - maps.range.start];
         let rects = plan_cells(
             &mask,
             canvas.grid,

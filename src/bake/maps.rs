@@ -262,7 +262,7 @@ fn chart_pass(
             maps.chart[i - start] = Some(c.report);
             continue;
         }
-        check_chart(job, i, &c.report, log)?;
+        check_chart(job, (i, placed.origin[i].0), &c.report, log)?;
         maps.chart[i - start] = Some(c.report);
         let base = (i - start) as u64 * nv;
         for &(v, uv) in &c.coords {
@@ -287,28 +287,34 @@ fn chart_pass(
 }
 
 /// A chart that did not converge stops the bake; one that kept growing is a warning.
-fn check_chart(job: &Job, i: usize, r: &ChartReport, log: &mut Log) -> Result<()> {
+/// `(i, layer)`: the unit and its job layer (warnings name the layer).
+fn check_chart(
+    job: &Job,
+    (i, layer): (usize, usize),
+    r: &ChartReport,
+    log: &mut Log,
+) -> Result<()> {
     if let Some(e) = chart_error(job, i, r) {
         return Err(e);
     }
     if r.region.fix == chart::region::RegionFix::ShrunkToDisc {
         log.warnings.push(format!(
-            "layer {i}: the conformal chart's region was not a disc (Euler characteristic {}, {} boundary loop(s)); it was shrunk to a disc grown from the placed point, leaving the handle open",
+            "layer {layer}: the conformal chart's region was not a disc (Euler characteristic {}, {} boundary loop(s)); it was shrunk to a disc grown from the placed point, leaving the handle open",
             r.region.euler_characteristic, r.region.boundary_loops
         ));
     }
     match r.fallback {
         chart::Fallback::SmallerRegion => log.warnings.push(format!(
-            "layer {i}: the conformal chart folded inside the decal; it was re-solved on a smaller region"
+            "layer {layer}: the conformal chart folded inside the decal; it was re-solved on a smaller region"
         )),
         chart::Fallback::Lscm => log.warnings.push(format!(
-            "layer {i}: the hybrid re-solve folded inside the decal; it was re-solved as a free conformal chart"
+            "layer {layer}: the hybrid re-solve folded inside the decal; it was re-solved as a free conformal chart"
         )),
         _ => {}
     }
     if !r.settled {
         log.warnings.push(format!(
-            "layer {i}: the conformal chart was still growing after {} refinement rounds (the decal wraps around a rounded feature); it is conformal but its size varies: make the decal smaller, or use \"expmap\" or \"hybrid\"",
+            "layer {layer}: the conformal chart was still growing after {} refinement rounds (the decal wraps around a rounded feature); it is conformal but its size varies: make the decal smaller, or use \"expmap\" or \"hybrid\"",
             chart::MAX_ROUNDS
         ));
     }
@@ -461,29 +467,29 @@ fn blend_pass(
             contents: bytemuck::cast_slice(&records),
             usage: wgpu::BufferUsages::STORAGE,
         });
-        let dims = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("bake.stamp_dims"),
-            contents: bytemuck::cast_slice(&[nv, stamps, 0, 0]),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
-        let bg = pipes.stamp_blend.bind(
-            dev,
-            "bake.stamp_blend",
-            &[
-                (0, dims.as_entire_binding()),
-                (1, recs.as_entire_binding()),
-                (2, slots.coords.as_entire_binding()),
-            ],
-        );
         let mut enc = dev.create_command_encoder(&Default::default());
-        {
+        for first in (0..stamps).step_by(65_535) {
+            let dims = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("bake.stamp_dims"),
+                contents: bytemuck::cast_slice(&[nv, stamps, first, 0]),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            let bg = pipes.stamp_blend.bind(
+                dev,
+                "bake.stamp_blend",
+                &[
+                    (0, dims.as_entire_binding()),
+                    (1, recs.as_entire_binding()),
+                    (2, slots.coords.as_entire_binding()),
+                ],
+            );
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("bake.stamp_blend"),
                 timestamp_writes: None,
             });
             pass.set_pipeline(&pipes.stamp_blend.pipeline);
             pass.set_bind_group(0, &bg, &[]);
-            pass.dispatch_workgroups(nv.div_ceil(64), stamps, 1);
+            pass.dispatch_workgroups(nv.div_ceil(64), (stamps - first).min(65_535), 1);
         }
         engine.ctx.queue.submit([enc.finish()]);
     })?;

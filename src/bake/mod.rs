@@ -95,6 +95,9 @@ pub(crate) fn run(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Run> 
     log.timings.padding_ms = ms(t);
     let stats = canvas.read_stats(engine, "stats read-back")?;
     let layers = fold_reports(&placed, units, |u| canvas.row(&stats, u));
+    // A stroke's stamps can raise the same warning many times: keep each once, in order.
+    let mut seen = std::collections::HashSet::new();
+    log.warnings.retain(|w| seen.insert(w.clone()));
     let report = Report {
         version: env!("CARGO_PKG_VERSION"),
         adapter: engine.ctx.adapter.clone(),
@@ -160,7 +163,7 @@ fn fold_reports<'a>(
             continue;
         };
         let stamps = &units[r.clone()];
-        let Some(first) = stamps.first() else {
+        let Some(first) = r.clone().find(|&u| !placed.hidden[u]).map(|u| &units[u]) else {
             continue;
         };
         let mut l = first.clone();
@@ -215,7 +218,8 @@ fn layer_report(
     if let Some(g) = maps.expmap[k] {
         if g.converged == 0 {
             warnings.push(format!(
-                "layer {i}: the exponential map did not converge in {} sweeps; the decal may be incomplete",
+                "layer {}: the exponential map did not converge in {} sweeps; the decal may be incomplete",
+                placed.origin[i].0,
                 g.sweeps
             ));
         }

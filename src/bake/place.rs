@@ -123,9 +123,18 @@ impl Placed {
                 layer,
                 detail,
             } if layer < self.origin.len() => {
-                let (l, k) = self.origin[layer];
+                let l = self.origin[layer].0;
+                let before = |hidden: bool| {
+                    self.units_of[l]
+                        .clone()
+                        .filter(|&u| u < layer && self.hidden[u] == hidden)
+                        .count()
+                };
                 let detail = if self.hidden[layer] {
-                    format!("corner chart {k} of the stroke (`continuity`): {detail}")
+                    format!(
+                        "corner chart {} of the stroke (`continuity`): {detail}",
+                        before(true)
+                    )
                 } else if self.strokes.iter().any(|s| s.layer == l) {
                     let stamp = self.units_of[l]
                         .clone()

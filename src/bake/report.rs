@@ -145,7 +145,8 @@ pub struct StrokeReport {
     pub path_length: f32,
     /// The 3D chord lengths added up (the path's length if it cut through the model).
     pub chord_length: f32,
-    /// Polyline points of the path on the surface (path points and mesh-edge crossings).
+    /// Polyline points of the path on the surface (path points and samples every quarter of the
+    /// mean edge length).
     pub path_vertices: usize,
     /// Stamps drawn.
     pub stamps: usize,

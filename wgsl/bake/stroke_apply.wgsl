@@ -3,7 +3,8 @@
 // composed into the stroke buffer (straight alpha, source-over, each at its flow) by `compose`; here
 // the buffer, scaled by the stroke's opacity, is blended onto the canvas with the stroke's blend
 // mode, so overlapping stamps of one stroke never exceed its opacity.
-// Dispatch: (ceil(rect w / 8), ceil(rect h / 8), 1) over the stroke's texel rectangle.
+// Dispatch: (ceil(rect w / 8), ceil(rect h / 8), 1); the rectangle is the whole texture (a stroke's
+// texels can be anywhere its stamps' UVs wrap to; a tighter box is left to the speed issue).
 // CPU twin: `apply_stroke` in src/bake/cpu.rs.
 #import params
 #import blend

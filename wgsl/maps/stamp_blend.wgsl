@@ -5,12 +5,14 @@
 // Valid where every chart is. One record of 9 vec4 per stamp (see `blend_pass` in src/bake/maps.rs):
 // [0] = (destination slot, charts, -, -), [1] = corners, [2] = barycentric (f32 bits),
 // [3 + k] = (chart slot, weight, cos theta, sin theta) (f32 bits but the slot).
-// Dispatch: (ceil(vertices / 64), stamps, 1). CPU twin: `maps::stamp::blend_cpu`.
+// Dispatch: (ceil(vertices / 64), stamps from `first`, at most 65,535, 1). CPU twin: `maps::stamp::blend_cpu`.
 
 struct Dims {
     vertex_count: u32,
     stamps: u32,
-    _pad: vec2<u32>,
+    // First stamp of this dispatch (dispatches hold at most 65,535 stamps).
+    first: u32,
+    _pad: u32,
 }
 
 @group(0) @binding(0) var<uniform> dims: Dims;
@@ -20,19 +22,25 @@ struct Dims {
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let x = gid.x;
-    if (x >= dims.vertex_count || gid.y >= dims.stamps) { return; }
-    let r = gid.y * 9u;
+    let stamp = dims.first + gid.y;
+    if (x >= dims.vertex_count || stamp >= dims.stamps) { return; }
+    let r = stamp * 9u;
     let head = records[r];
     let corners = records[r + 1u].xyz;
     let bary = bitcast<vec3<f32>>(records[r + 2u].xyz);
     let nv = dims.vertex_count;
+    // Most vertices lie outside the charts: one read each rejects them.
+    for (var k = 0u; k < head.y; k++) {
+        if (coords[records[r + 3u + k].x * nv + x].w < 0.5) {
+            coords[head.x * nv + x] = vec4<f32>(0.0);
+            return;
+        }
+    }
     var acc = vec2<f32>(0.0);
-    var valid = true;
     for (var k = 0u; k < head.y; k++) {
         let e = records[r + 3u + k];
         let base = e.x * nv;
         let c = coords[base + x];
-        if (c.w < 0.5) { valid = false; }
         let centre = bary.x * coords[base + corners.x].xy + bary.y * coords[base + corners.y].xy
             + bary.z * coords[base + corners.z].xy;
         let w = bitcast<f32>(e.y);
@@ -41,5 +49,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let d = c.xy - centre;
         acc += w * vec2<f32>(co * d.x + s * d.y, -s * d.x + co * d.y);
     }
-    coords[head.x * nv + x] = select(vec4<f32>(0.0), vec4<f32>(acc, 0.0, 1.0), valid);
+    coords[head.x * nv + x] = vec4<f32>(acc, 0.0, 1.0);
 }

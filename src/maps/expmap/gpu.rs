@@ -354,7 +354,15 @@ fn in_chunks(
             mapped_at_creation: false,
         })
     })?;
-    for chunk in maps.chunks(per_chunk) {
+    for (n, chunk) in maps.chunks(per_chunk).enumerate() {
+        if n > 0 {
+            // A map writes only its own disc: the previous chunk's maps must not stay valid.
+            ctx.scoped("exponential maps", || {
+                let mut enc = ctx.device.create_command_encoder(&Default::default());
+                enc.clear_buffer(&coords, 0, None);
+                ctx.queue.submit([enc.finish()]);
+            })?;
+        }
         let slots: Vec<(Seed, Options, u32)> = chunk
             .iter()
             .enumerate()

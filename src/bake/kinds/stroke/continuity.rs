@@ -11,7 +11,6 @@
 //! (six charts); a stroke whose stamps all have one size uses that size (three charts).
 
 use crate::bake::kinds::Unit;
-use crate::error::{Error, Result};
 use crate::io::job::Layer;
 use crate::maps::stamp::{StampBlend, MAX_CHARTS};
 use crate::maps::Frame;
@@ -34,21 +33,19 @@ pub struct Continuous {
 type Key = (u32, u32);
 
 /// Interleaves `stamps` (solved-at-their-point units) with the corner charts they blend, in blocks
-/// of at most `capacity` units; `step` is the size-level step (the mean edge length).
+/// of at most `capacity` units (more than [`MAX_CHARTS`]: the caller checks); `step` is the
+/// size-level step (the mean edge length).
 pub fn interpolate(
     topo: &Topology,
     layer: &Layer,
     stamps: Vec<Unit>,
     capacity: usize,
     step: f32,
-    err: &dyn Fn(String) -> Error,
-) -> Result<Continuous> {
-    if capacity < MAX_CHARTS + 1 {
-        return Err(err(format!(
-            "`continuity`: a stamp and its {MAX_CHARTS} corner charts need {} coordinate slots, but only {capacity} fit the memory budget on this mesh; use \"continuity\": false",
-            MAX_CHARTS + 1
-        )));
-    }
+) -> Continuous {
+    debug_assert!(
+        capacity > MAX_CHARTS,
+        "the caller checks that a stamp and its charts fit"
+    );
     let widths: Vec<f32> = stamps.iter().map(|u| u.frame.size[0]).collect();
     let varies = widths
         .iter()
@@ -82,10 +79,11 @@ pub fn interpolate(
             let index = match cache.get(&key) {
                 Some(&i) => i,
                 None => {
+                    // Level k serves stamps up to (k + 1) steps wide (it is blended with level k + 1).
                     let width = if key.1 == u32::MAX {
                         stamp.frame.size[0]
                     } else {
-                        key.1 as f32 * step
+                        (key.1 + 1) as f32 * step
                     };
                     out.units
                         .push(chart_unit(topo, layer, key.0, [width, width * aspect]));
@@ -110,7 +108,7 @@ pub fn interpolate(
         });
     }
     out.blocks.push(block_start..out.units.len());
-    Ok(out)
+    out
 }
 
 /// The size levels a stamp of width `w` blends, with their weights: the two quantised levels
@@ -151,7 +149,18 @@ fn chart_unit(topo: &Topology, layer: &Layer, v: u32, size: [f32; 2]) -> Unit {
         .expect("an incident triangle has the vertex");
     let mut bary = [0.0; 3];
     bary[corner] = 1.0;
-    let n = topo.normals[v as usize].normalize_or_zero();
+    let n = Some(topo.normals[v as usize])
+        .filter(|n| n.length() > 1e-12)
+        .or_else(|| {
+            tris.iter()
+                .map(|&t| {
+                    let [a, b, c] = topo.triangles[t as usize].map(|w| topo.positions[w as usize]);
+                    (b - a).cross(c - a)
+                })
+                .find(|n| n.length() > 1e-20)
+        })
+        .unwrap_or(glam::Vec3::Z)
+        .normalize();
     let placement = Placement {
         point: p.to_array(),
         triangle: t,
@@ -163,9 +172,12 @@ fn chart_unit(topo: &Topology, layer: &Layer, v: u32, size: [f32; 2]) -> Unit {
     let half_diagonal = 0.5 * (size[0] * size[0] + size[1] * size[1]).sqrt();
     let d = std::f32::consts::SQRT_2 * (longest + half_diagonal);
     let chart_layer = Layer {
+        kind: crate::io::job::LayerKind::Decal,
         size: [d, d],
         depth: d,
         angle: 0.0,
+        blend: crate::io::job::BlendMode::Normal,
+        opacity: 1.0,
         stroke: None,
         ..layer.clone()
     };

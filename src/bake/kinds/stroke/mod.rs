@@ -41,9 +41,9 @@ impl Kind for StrokeKind {
         cx: Cx<'_>,
         index: usize,
         placements: &[Placement],
-        _warnings: &mut Vec<String>,
+        warnings: &mut Vec<String>,
     ) -> Result<Expansion> {
-        let Cx { engine, mesh, job } = cx;
+        let Cx { mesh, job, .. } = cx;
         let layer = &job.layers[index];
         let stroke = layer
             .stroke
@@ -60,8 +60,6 @@ impl Kind for StrokeKind {
         let (lo, hi) = (mesh.stats.bbox_min, mesh.stats.bbox_max);
         let diag = (Vec3::from(hi) - Vec3::from(lo)).length();
         let limit = path::MAX_SEGMENT_FRACTION * diag;
-        let mut wanted: Vec<(Seed, Options)> = Vec::new();
-        let mut which = Vec::new();
         let mut chord_length = 0.0;
         for (k, w) in placements.windows(2).enumerate() {
             let chord = (Vec3::from(w[1].point) - Vec3::from(w[0].point)).length();
@@ -72,22 +70,21 @@ impl Kind for StrokeKind {
                     k + 1
                 )));
             }
-            which.push((chord > 0.0).then_some(wanted.len()));
-            if chord > 0.0 {
-                wanted.push(path::segment_map(topo, &w[0], &w[1], edge));
-            }
         }
-        let mut charts = engine.expmaps(mesh, &wanted)?;
-        let maps: Vec<Option<Vec<[f32; 4]>>> = which
-            .iter()
-            .map(|w| w.map(|i| std::mem::take(&mut charts[i].0)))
-            .collect();
-        let surface_path = path::build(topo, placements, &maps, 0.25 * edge, &err)?;
+        let surface_path = join_path(cx, placements, edge, &err)?;
         let units = stamps::stamps(topo, layer, stroke, &surface_path, &placements[0], &err)?;
         let stamps = units.len();
-        let (units, blocks, charts) = if stroke.continuity {
-            let capacity = crate::bake::stage::unit_capacity(mesh);
-            let c = continuity::interpolate(topo, layer, units, capacity, edge, &err)?;
+        let capacity = crate::bake::stage::unit_capacity(mesh);
+        let fits = capacity > crate::maps::stamp::MAX_CHARTS;
+        if stroke.continuity && !fits {
+            warnings.push(format!(
+                "layer {index}: a stamp and its {} corner charts do not fit one chunk on this mesh ({capacity} units); the stroke uses one chart per stamp (\"continuity\": false)",
+                crate::maps::stamp::MAX_CHARTS
+            ));
+        }
+        let continuity = stroke.continuity && fits;
+        let (units, blocks, charts) = if continuity {
+            let c = continuity::interpolate(topo, layer, units, capacity, edge);
             (c.units, c.blocks, c.charts)
         } else {
             (units, Vec::new(), stamps)
@@ -104,12 +101,51 @@ impl Kind for StrokeKind {
                 spacing: stroke.spacing * layer.size[0],
                 charts,
                 cg_iterations: 0,
-                continuity: stroke.continuity,
+                continuity,
                 opacity: layer.opacity,
             }),
             units,
         })
     }
+}
+
+/// Segments whose charts are computed in one GPU batch and walked before the next batch (a chart is
+/// a full-mesh slot when read back: the batch bounds the memory a long path holds).
+const SEGMENT_BATCH: usize = 16;
+
+/// The stroke's path on the surface: each segment's exponential map on the GPU (in batches of
+/// [`SEGMENT_BATCH`]), walked back to the surface ([`path::build`]).
+fn join_path(
+    cx: Cx<'_>,
+    placements: &[Placement],
+    edge: f32,
+    err: &dyn Fn(String) -> Error,
+) -> Result<path::SurfacePath> {
+    let (engine, mesh) = (cx.engine, cx.mesh);
+    let topo = &mesh.topo;
+    let mut surface_path = path::SurfacePath::start(&placements[0]);
+    let segments: Vec<usize> = (0..placements.len().saturating_sub(1)).collect();
+    for batch in segments.chunks(SEGMENT_BATCH) {
+        let wanted: Vec<(Seed, Options)> = batch
+            .iter()
+            .filter(|&&k| placements[k].point != placements[k + 1].point)
+            .map(|&k| path::segment_map(topo, &placements[k], &placements[k + 1], edge))
+            .collect();
+        let mut charts = engine.expmaps(mesh, &wanted)?.into_iter();
+        for &k in batch {
+            let chart = (placements[k].point != placements[k + 1].point)
+                .then(|| charts.next().expect("one chart per moving segment").0);
+            path::extend(
+                topo,
+                (k, &placements[k], &placements[k + 1]),
+                chart,
+                0.25 * edge,
+                &mut surface_path,
+                err,
+            )?;
+        }
+    }
+    Ok(surface_path)
 }
 
 /// Every path point was placed, and points given as points lie near the surface.

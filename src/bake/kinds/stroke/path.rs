@@ -20,7 +20,8 @@ use glam::{Vec2, Vec3};
 /// A path on the surface: a polyline whose pieces each lie in one triangle.
 #[derive(Debug, Clone, Default)]
 pub struct SurfacePath {
-    /// Polyline points (model units), at path points and where the path crosses mesh edges.
+    /// Polyline points (model units): the path points and samples every quarter of the mean edge
+    /// length between them.
     pub points: Vec<Vec3>,
     /// Per piece (`points[k]` to `points[k + 1]`): the welded triangle it crosses.
     pub triangles: Vec<u32>,
@@ -161,7 +162,8 @@ fn locate(
 fn barycentric(p: Vec2, c: [Vec2; 3]) -> [f32; 3] {
     let area = (c[1] - c[0]).perp_dot(c[2] - c[0]);
     if area.abs() < 1e-30 {
-        return [1.0, 0.0, 0.0];
+        // A collapsed triangle of the chart contains nothing: step on across its first edge.
+        return [-1.0, 1.0, 1.0];
     }
     let l0 = (c[1] - p).perp_dot(c[2] - p) / area;
     let l1 = (c[2] - p).perp_dot(c[0] - p) / area;
@@ -184,34 +186,39 @@ fn push(path: &mut SurfacePath, p: Vec3, t: u32) {
     path.arc.push(s);
 }
 
-/// The whole path through `placements`: `maps[k]` is the chart of segment k (from point k to
-/// k + 1), `None` for a segment of zero length; samples every `step`. `err` makes an error naming
-/// the layer.
-pub fn build(
-    topo: &Topology,
-    placements: &[Placement],
-    maps: &[Option<Vec<[f32; 4]>>],
-    step: f32,
-    err: &dyn Fn(String) -> Error,
-) -> Result<SurfacePath> {
-    let mut path = SurfacePath {
-        points: vec![Vec3::from(placements[0].point)],
-        triangles: Vec::new(),
-        arc: vec![0.0],
-        knots: vec![0.0],
-    };
-    for (k, w) in placements.windows(2).enumerate() {
-        if let Some(coords) = &maps[k] {
-            walk(topo, coords, (&w[0], &w[1]), step, &mut path).map_err(|why| {
-                err(format!(
-                    "path[{k}] to path[{}]: {why}; add points in between so that each step stays within one chart",
-                    k + 1
-                ))
-            })?;
+impl SurfacePath {
+    /// A path at its first point.
+    pub fn start(first: &Placement) -> Self {
+        Self {
+            points: vec![Vec3::from(first.point)],
+            triangles: Vec::new(),
+            arc: vec![0.0],
+            knots: vec![0.0],
         }
-        path.knots.push(path.length());
     }
-    Ok(path)
+}
+
+/// Extends `path` (which ends at path point k, `a`) to path point k + 1 (`b`) through the chart of
+/// segment k (`None` for a segment of zero length), sampling every `step`. `err` makes an error
+/// naming the layer.
+pub fn extend(
+    topo: &Topology,
+    (k, a, b): (usize, &Placement, &Placement),
+    chart: Option<Vec<[f32; 4]>>,
+    step: f32,
+    path: &mut SurfacePath,
+    err: &dyn Fn(String) -> Error,
+) -> Result<()> {
+    if let Some(coords) = chart {
+        walk(topo, &coords, (a, b), step, path).map_err(|why| {
+            err(format!(
+                "path[{k}] to path[{}]: {why}; add points in between so that each step stays within one chart",
+                k + 1
+            ))
+        })?;
+    }
+    path.knots.push(path.length());
+    Ok(())
 }
 
 /// Mean edge length of the mesh (the map reach's margin).
