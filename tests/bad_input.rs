@@ -387,6 +387,36 @@ fn bad_strokes() {
         let e = run_case(name, &j, |_| {});
         expect(&e, name, &needles);
     }
+    // Tools: a blur radius that is not positive, clone (not in this build), a mask on a blur.
+    for (name, fields, needles) in [
+        (
+            "stroke-blur-radius",
+            serde_json::json!({"tool": "blur", "radius": 0.0}),
+            vec!["layers[0].radius", "positive"],
+        ),
+        (
+            "stroke-clone",
+            serde_json::json!({"tool": "clone", "source": [0.3, 0.5, 0.0]}),
+            vec!["layers[0].tool", "clone"],
+        ),
+        (
+            "stroke-smear-strength",
+            serde_json::json!({"tool": "smear", "strength": 2.0}),
+            vec!["layers[0].strength", "[0, 1]"],
+        ),
+        (
+            "stroke-blur-mask",
+            serde_json::json!({"tool": "blur", "mask": "decal.png"}),
+            vec!["layers[0].mask", "alpha"],
+        ),
+    ] {
+        let mut j = stroke_job();
+        for (k, v) in fields.as_object().unwrap() {
+            j["layers"][0][k] = v.clone();
+        }
+        let e = run_case(name, &j, |_| {});
+        expect(&e, name, &needles);
+    }
     // Stroke fields on a decal, and a decal without `at`.
     let mut j = good_job();
     j["layers"][0]["spacing"] = serde_json::json!(0.2);

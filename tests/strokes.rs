@@ -511,3 +511,294 @@ fn blended_stamp_equals_the_direct_chart_on_a_plane() {
     }
     assert!(checked > 2);
 }
+
+/// The flat sheet with `base` as its texture, at `side`² (no padding, 16 samples), baking `layers`.
+fn bake_on_sheet(
+    dir: &Path,
+    side: u32,
+    base: &LinearImage,
+    layers: serde_json::Value,
+) -> Vec<[f32; 4]> {
+    std::fs::write(dir.join("base.png"), base.encode_png(16)).unwrap();
+    let mesh = sheet(dir, "flat.glb", |x, y| [x, y]);
+    let text = serde_json::json!({
+        "mesh": mesh, "texture": { "width": side, "height": side, "base": "base.png", "padding": 0, "samples": 16 },
+        "layers": layers, "output": { "texture": null, "bit_depth": 16, "report": null } });
+    let job = Job::parse(&text.to_string(), &dir.join("job.json"), dir, dir).unwrap();
+    let engine = engine();
+    let loaded = engine.load_mesh(&mesh).unwrap();
+    let b = engine.bake(&loaded, &job).unwrap();
+    (0..side * side)
+        .map(|i| b.linear(i % side, i / side))
+        .collect()
+}
+
+/// The CPU twin of a bake on the flat sheet (base texture `base`, stroke images from `dir`).
+fn cpu_on_sheet(
+    dir: &Path,
+    side: u32,
+    base: &LinearImage,
+    layers: serde_json::Value,
+) -> Vec<[f32; 4]> {
+    let mesh_path = dir.join("flat.glb");
+    let text = serde_json::json!({
+        "mesh": mesh_path, "texture": { "width": side, "height": side, "base": "base.png", "padding": 0, "samples": 16 },
+        "layers": layers, "output": { "texture": null, "report": null } });
+    let job = Job::parse(&text.to_string(), &dir.join("job.json"), dir, dir).unwrap();
+    let engine = engine();
+    let loaded = engine.load_mesh(&mesh_path).unwrap();
+    let units = engine.units(&loaded, &job).unwrap();
+    let mesh = Mesh::load(&mesh_path).unwrap();
+    let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
+    let images: Vec<_> = units
+        .job
+        .layers
+        .iter()
+        .map(|l| (LinearImage::load(&l.image).unwrap(), None))
+        .collect();
+    let cpu = bake_units_cpu(
+        &mesh,
+        &topo,
+        (&units.job, &units.placements, &units.frames),
+        &units.strokes,
+        base,
+        &images,
+    );
+    cpu.composed.pixels
+}
+
+/// A base texture of `side`² from `f(x, y)` (texel centres in [0, 1]²), opaque.
+fn base_of(side: u32, f: impl Fn(f32, f32) -> [f32; 3]) -> LinearImage {
+    let mut img = LinearImage::solid(side, side, [0.0; 4]);
+    for y in 0..side {
+        for x in 0..side {
+            let c = f(
+                (x as f32 + 0.5) / side as f32,
+                (y as f32 + 0.5) / side as f32,
+            );
+            img.pixels[(y * side + x) as usize] = [c[0], c[1], c[2], 1.0];
+        }
+    }
+    img
+}
+
+/// Blur (Maillot section 10): a blur stroke leaves a constant texture unchanged (to 16-bit
+/// rounding and the flat cells' f32), and over a pattern the GPU matches its CPU twin
+/// (`flatten_cpu`, `blur_cpu`): mean difference over the stroke ≤ 2e-3 (the twin locates flat
+/// texels by point location where the GPU rasterizes, and samples at stamp edges can fall either
+/// way: worst ≤ 0.1).
+#[test]
+fn blur_keeps_a_constant_and_matches_its_cpu_twin() {
+    let dir = scratch("stroke-blur");
+    brush(&dir, "disc.png", 64, true);
+    let side = 128u32;
+    let stroke = serde_json::json!([{ "kind": "stroke", "tool": "blur", "radius": 0.03, "image": "disc.png",
+        "path": [[0.2, 0.5, 0.0], [0.8, 0.55, 0.0]], "size": [0.2, 0.2], "spacing": 0.2, "method": "expmap" }]);
+    let flat = base_of(side, |_, _| [0.3, 0.5, 0.7]);
+    let g = bake_on_sheet(&dir, side, &flat, stroke.clone());
+    let worst = g
+        .iter()
+        .map(|c| {
+            (c[0] - 0.3)
+                .abs()
+                .max((c[1] - 0.5).abs())
+                .max((c[2] - 0.7).abs())
+        })
+        .fold(0.0f32, f32::max);
+    eprintln!("blur of a constant: worst change {worst:.2e}");
+    assert!(worst <= 2e-3, "blur changed a constant texture by {worst}");
+
+    let stripes = base_of(side, |x, y| {
+        let s = (0.5 + 0.5 * (x * 40.0).sin()) * (0.5 + 0.5 * (y * 23.0).cos());
+        [s, 1.0 - s, 0.5]
+    });
+    let g = bake_on_sheet(&dir, side, &stripes, stroke.clone());
+    let c = cpu_on_sheet(&dir, side, &stripes, stroke);
+    let (mut changed, mut sum, mut worst) = (0, 0.0f32, 0.0f32);
+    for (i, (a, b)) in g.iter().zip(&c).enumerate() {
+        let orig = stripes.pixels[i];
+        if (0..3).any(|k| (a[k] - orig[k]).abs() > 0.01 || (b[k] - orig[k]).abs() > 0.01) {
+            let d = (0..3).map(|k| (a[k] - b[k]).abs()).fold(0.0f32, f32::max);
+            sum += d;
+            worst = worst.max(d);
+            changed += 1;
+        }
+    }
+    let mean = sum / changed.max(1) as f32;
+    eprintln!(
+        "blur over stripes: {changed} texels changed, GPU - CPU mean {mean:.2e}, worst {worst:.2e}"
+    );
+    assert!(changed > 500, "the blur should change the stripes under it");
+    assert!(
+        mean <= 2e-3 && worst <= 0.1,
+        "GPU blur differs from its twin: mean {mean}, worst {worst}"
+    );
+}
+
+/// Smear moves colour along the stroke: on a sheet red left of x = 0.5 and blue right of it, a smear
+/// from left to right carries red past 0.5 (and one from right to left carries blue before it); the
+/// GPU matches its CPU twin (`smear_cpu`) on average to 2e-3.
+#[test]
+fn smear_moves_colour_along_the_stroke() {
+    let dir = scratch("stroke-smear");
+    brush(&dir, "disc.png", 64, true);
+    let side = 128u32;
+    let base = base_of(side, |x, _| {
+        if x < 0.5 {
+            [1.0, 0.0, 0.0]
+        } else {
+            [0.0, 0.0, 1.0]
+        }
+    });
+    // Where the red fraction of row y = 0.5 falls below one half, scanning from the left.
+    let edge = |img: &[[f32; 4]]| {
+        let y = side / 2;
+        (0..side)
+            .find(|&x| {
+                let c = img[(y * side + x) as usize];
+                c[0] < 0.5 * (c[0] + c[2])
+            })
+            .map_or(1.0, |x| (x as f32 + 0.5) / side as f32)
+    };
+    let smear = |from: f32, to: f32| {
+        serde_json::json!([{ "kind": "stroke", "tool": "smear", "strength": 0.8, "image": "disc.png",
+            "path": [[from, 0.5, 0.0], [to, 0.5, 0.0]], "size": [0.12, 0.12], "spacing": 0.1, "method": "expmap" }])
+    };
+    let right = bake_on_sheet(&dir, side, &base, smear(0.25, 0.75));
+    let left = bake_on_sheet(&dir, side, &base, smear(0.75, 0.25));
+    let (er, el) = (edge(&right), edge(&left));
+    eprintln!("red/blue edge: base 0.5, smeared right {er:.3}, smeared left {el:.3}");
+    // At strength 0.8 the carried colour halves in about three stamps (0.036 here): ask for two
+    // texels (0.016) each way.
+    let texel = 1.0 / side as f32;
+    assert!(
+        er > 0.5 + 2.0 * texel,
+        "a left-to-right smear should carry red right: {er}"
+    );
+    assert!(
+        el < 0.5 - 2.0 * texel,
+        "a right-to-left smear should carry blue left: {el}"
+    );
+    let cpu = cpu_on_sheet(&dir, side, &base, smear(0.25, 0.75));
+    let mean = right
+        .iter()
+        .zip(&cpu)
+        .map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).abs()).fold(0.0f32, f32::max))
+        .sum::<f32>()
+        / right.len() as f32;
+    eprintln!("smear GPU - CPU mean {mean:.2e}");
+    assert!(
+        mean <= 2e-3,
+        "GPU smear differs from its twin by {mean} on average"
+    );
+}
+
+/// Blur across a UV seam (the book: two panels at an angle, each its own UV island, meeting at
+/// x = 0.5): the blur stroke's result agrees on both sides of the seam, while a texture-space
+/// Gaussian of the same radius on the padded texture (what a UV-space painter does) tears there.
+/// Metric: mean |left − right| over 40 points along the seam under the stroke's middle, linear RGB
+/// max channel; both textures are written to the scratch directory (`blur_stroke.png`,
+/// `blur_texture.png`).
+#[test]
+fn blur_is_continuous_across_a_seam_where_a_texture_blur_tears() {
+    let dir = scratch("stroke-blur-seam");
+    let (pos, uv, idx) = book_mesh();
+    write_glb(&dir.join("book.glb"), &pos, Some(&uv), &idx);
+    brush(&dir, "disc.png", 64, true);
+    let side = 256u32;
+    // The base: a pattern continuous on the surface, drawn into each panel's island.
+    let base = base_of(side, |u, v| {
+        let (panel, u0) = match u {
+            u if (0.1..0.43).contains(&u) => (0.0, 0.1),
+            u if (0.55..0.88).contains(&u) => (1.0, 0.55),
+            _ => return [1.0, 0.0, 1.0],
+        };
+        let x = 0.5 * panel + 0.5 * (u - u0) / 0.33;
+        let y = 1.0 - (v - 0.12) / 0.72;
+        [
+            0.5 + 0.4 * (x * 15.0).sin(),
+            0.5 + 0.4 * (y * 9.0).cos(),
+            0.5,
+        ]
+    });
+    std::fs::write(dir.join("base.png"), base.encode_png(16)).unwrap();
+    let bake = |layers: serde_json::Value| {
+        let text = serde_json::json!({
+            "mesh": "book.glb", "texture": { "width": side, "height": side, "base": "base.png", "padding": 8, "samples": 4 },
+            "layers": layers, "output": { "texture": null, "bit_depth": 16, "report": null } });
+        let job = Job::parse(&text.to_string(), &dir.join("job.json"), &dir, &dir).unwrap();
+        let engine = engine();
+        let loaded = engine.load_mesh(&dir.join("book.glb")).unwrap();
+        let b = engine.bake(&loaded, &job).unwrap();
+        LinearImage {
+            width: side,
+            height: side,
+            pixels: (0..side * side)
+                .map(|i| b.linear(i % side, i / side))
+                .collect(),
+        }
+    };
+    let radius = 0.04f32;
+    let stroke = bake(
+        serde_json::json!([{ "kind": "stroke", "tool": "blur", "radius": radius, "image": "disc.png",
+        "path": [[0.35, 0.5, 0.0], [0.5, 0.5, 0.0], [0.65, 0.5, 0.075]], "size": [0.25, 0.25], "spacing": 0.2, "method": "expmap" }]),
+    );
+    // Texture-space blur of the same radius (two standard deviations) on the padded base: a panel
+    // is 0.5 model units across 0.33 of the texture.
+    let padded = bake(serde_json::json!([]));
+    let sigma = 0.5 * radius / (0.5 / (0.33 * side as f32));
+    let reach = (3.0 * sigma).ceil() as i32;
+    let blur1 = |img: &LinearImage, dx: i32, dy: i32| {
+        let mut out = img.clone();
+        for y in 0..side as i32 {
+            for x in 0..side as i32 {
+                let (mut sum, mut w) = ([0.0f32; 3], 0.0f32);
+                for d in -reach..=reach {
+                    let (xx, yy) = (
+                        (x + d * dx).clamp(0, side as i32 - 1),
+                        (y + d * dy).clamp(0, side as i32 - 1),
+                    );
+                    let k = (-0.5 * (d * d) as f32 / (sigma * sigma)).exp();
+                    let c = img.pixels[(yy * side as i32 + xx) as usize];
+                    for ch in 0..3 {
+                        sum[ch] += k * c[ch];
+                    }
+                    w += k;
+                }
+                out.pixels[(y * side as i32 + x) as usize] =
+                    [sum[0] / w, sum[1] / w, sum[2] / w, 1.0];
+            }
+        }
+        out
+    };
+    let texture = blur1(&blur1(&padded, 1, 0), 0, 1);
+    std::fs::write(dir.join("blur_stroke.png"), stroke.encode_png(8)).unwrap();
+    std::fs::write(dir.join("blur_texture.png"), texture.encode_png(8)).unwrap();
+    let seam = |img: &LinearImage| {
+        let n = 40;
+        (0..n)
+            .map(|k| {
+                let t = 0.45 + 0.1 * k as f32 / (n - 1) as f32;
+                let v = 0.12 + 0.72 * (1.0 - t);
+                // Half a texel inside each island (its border texels mix in padding).
+                let h = 0.5 / side as f32;
+                let a = decalbake::bake::cpu::sample_bilinear(img, glam::Vec2::new(0.43 - h, v));
+                let b = decalbake::bake::cpu::sample_bilinear(img, glam::Vec2::new(0.55 + h, v));
+                (0..3)
+                    .map(|ch| (a[ch] - b[ch]).abs())
+                    .fold(0.0f32, f32::max)
+            })
+            .sum::<f32>()
+            / n as f32
+    };
+    let (s, t, p) = (seam(&stroke), seam(&texture), seam(&padded));
+    eprintln!("seam mean |left - right|: blur stroke {s:.4}, texture-space blur {t:.4} (unblurred {p:.4}); pictures in {}", dir.display());
+    assert!(
+        s <= 0.02,
+        "the blur stroke should be continuous across the seam: {s}"
+    );
+    assert!(
+        t >= 3.0 * s && t >= 0.03,
+        "the texture-space blur should tear at the seam: {t} against {s}"
+    );
+}

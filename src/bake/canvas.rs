@@ -29,6 +29,9 @@ pub struct Canvas {
     /// Where a stroke's stamps build up before the stroke is composed (same layout as the
     /// accumulation planes, transparent between strokes); only when the job has strokes.
     pub stroke: Option<[wgpu::Buffer; 2]>,
+    /// The smear tool's carried colour (one flat cell, `bake/tools.rs`), kept across chunks; only
+    /// when the job has strokes.
+    pub carry: Option<wgpu::Buffer>,
     /// One row per layer: [`STATS_COUNTERS`] counters, then its cell mask.
     pub stats: wgpu::Buffer,
     /// Bytes of `stats`.
@@ -63,6 +66,14 @@ impl Canvas {
         let (acc_rg, acc_ba) = (plane("bake.acc_rg"), plane("bake.acc_ba"));
         // wgpu zero-fills new buffers: the stroke buffer starts transparent.
         let stroke = strokes.then(|| [plane("bake.stroke_rg"), plane("bake.stroke_ba")]);
+        let carry = strokes.then(|| {
+            dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("bake.smear_carry"),
+                size: (super::params::FLAT_RES * super::params::FLAT_RES) as u64 * 16,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        });
         let nl = job.layers.len().max(1) as u64;
         let grid = [w.div_ceil(CELL), h.div_ceil(CELL)];
         let mask_words = (grid[0] * grid[1]).div_ceil(32);
@@ -94,6 +105,7 @@ impl Canvas {
             acc_rg,
             acc_ba,
             stroke,
+            carry,
             stats,
             stats_size: nl * stats_stride as u64 * 4,
             stats_stride,

@@ -10,7 +10,7 @@ use super::canvas::Canvas;
 use super::engine::{Engine, LoadedMesh};
 use super::images::Images;
 use super::maps::{LayerMaps, Slots};
-use super::params::{params_buffer, pbind, Params, PARAMS_STRIDE};
+use super::params::{params_buffer, pbind, Params, FLAG_TOOL, PARAMS_STRIDE};
 use super::place::Placed;
 use super::plan::{pack_atlas, plan_cells, Batch, TILE_TARGET};
 use super::stage::{Cx, Log};
@@ -189,16 +189,32 @@ pub(crate) fn compose(
     }
     let (flush, flush_params) = flushes(placed, maps, &jobs, &canvas.global);
     // One entry per (raster job, unit): the rectangle's fields with the unit's own.
+    // Tool stamps read their cell of the chunk's flat images (`bake/tools.rs`).
     let start = maps.range.start;
+    let cells: HashMap<usize, u32> = super::tools::tool_units(maps, placed)
+        .into_iter()
+        .enumerate()
+        .map(|(k, u)| (u, k as u32))
+        .collect();
+    let cells = &cells;
     let jp: Vec<Params> = jobs
         .iter()
         .flat_map(|j| {
-            j.units.clone().map(move |u| Params {
-                rect_origin: j.params.rect_origin,
-                rect_size: j.params.rect_size,
-                tile: j.params.tile,
-                atlas_origin: j.params.atlas_origin,
-                ..maps.params[u - start]
+            j.units.clone().map(move |u| {
+                let p = maps.params[u - start];
+                let (flags, pad) = match cells.get(&u) {
+                    Some(&c) => (p.flags | FLAG_TOOL, [c, 0]),
+                    None => (p.flags, p.pad),
+                };
+                Params {
+                    rect_origin: j.params.rect_origin,
+                    rect_size: j.params.rect_size,
+                    tile: j.params.tile,
+                    atlas_origin: j.params.atlas_origin,
+                    flags,
+                    pad,
+                    ..p
+                }
             })
         })
         .chain(flush_params)
@@ -212,23 +228,38 @@ pub(crate) fn compose(
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         mapped_at_creation: false,
     });
-    let cx = Recording {
-        engine,
-        mesh,
-        job,
-        images,
-        canvas,
-        slots,
-        stats,
-        jobs: &jobs,
-        job_params: &job_params,
-        placed,
-        flush: &flush,
-    };
+    let no_flats = dev.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("bake.no_flats"),
+        size: 16,
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
     engine.ctx.scoped("raster and compose", || {
         let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("bake.compose"),
         });
+        let flats = super::tools::record(
+            Cx { engine, mesh, job },
+            canvas,
+            (&slots.coords, &slots.lists),
+            maps,
+            (stats, placed),
+            &mut enc,
+        );
+        let cx = Recording {
+            engine,
+            mesh,
+            job,
+            images,
+            canvas,
+            slots,
+            stats,
+            jobs: &jobs,
+            job_params: &job_params,
+            placed,
+            flush: &flush,
+            flats: flats.as_ref().map_or(&no_flats, |f| &f.buffer),
+        };
         log.commands += record_distortion(engine, mesh, canvas, slots, maps, &partials, &mut enc);
         let mut layer_bgs = HashMap::new();
         let mut flushed = 0;
@@ -303,6 +334,8 @@ struct Recording<'a> {
     job_params: &'a wgpu::Buffer,
     placed: &'a Placed,
     flush: &'a [Flush],
+    /// The chunk's filtered flat images (a 16-byte placeholder without tool stamps).
+    flats: &'a wgpu::Buffer,
 }
 
 impl Recording<'_> {
@@ -459,6 +492,7 @@ impl Recording<'_> {
                 (6, wgpu::BindingResource::TextureView(&img.view)),
                 (7, wgpu::BindingResource::TextureView(mview)),
                 (8, wgpu::BindingResource::Sampler(&engine.linear_sampler)),
+                (9, self.flats.as_entire_binding()),
             ],
         )
     }

@@ -96,6 +96,8 @@ pub struct StrokeCpu {
     pub hidden: Vec<bool>,
     /// Per unit of the stroke: coordinates blended from charts (unit indices of the bake).
     pub blends: Vec<Option<crate::maps::stamp::StampBlend>>,
+    /// The stroke's tool (blur and smear read the canvas: [`crate::bake::cpu_tools`]).
+    pub tool: crate::io::job::Tool,
 }
 
 /// The CPU twin of the bake's stages after placement, on units (`job.layers[u]` at `placements[u]`
@@ -163,10 +165,19 @@ pub fn bake_units_cpu(
                 }
             })
             .collect();
+        let mut flats = tool_flats(
+            (mesh, topo, job),
+            (group.clone(), stroke, &hidden),
+            (&coords, &sels),
+            &composed,
+        );
         let rasters: Vec<LayerRaster> = group
             .clone()
             .zip(&coords)
-            .map(|(u, c)| LayerRaster::new(mesh, topo, job, &job.layers[u], c, &images[u]))
+            .map(|(u, c)| LayerRaster {
+                flat: flats[u - group.start].take(),
+                ..LayerRaster::new(mesh, topo, job, &job.layers[u], c, &images[u])
+            })
             .collect();
         let b = sels
             .iter()
@@ -233,6 +244,63 @@ fn group_texel(rasters: &[LayerRaster], sels: &[Selection], x: u32, y: u32) -> O
     }
     let src = sum.map(|v| v / n.max(1) as f32);
     (n > 0 && src[3] > 0.0).then_some(src)
+}
+
+/// The filtered flat images of a blur or smear stroke's stamps (`None` for other units), from the
+/// canvas as the layers below left it: twins of `bake/tools.rs`.
+fn tool_flats(
+    (mesh, topo, job): (&Mesh, &Topology, &Job),
+    (group, stroke, hidden): (
+        std::ops::Range<usize>,
+        Option<&StrokeCpu>,
+        &dyn Fn(usize) -> bool,
+    ),
+    (coords, sels): (&[Vec<[f32; 4]>], &[Selection]),
+    canvas: &LinearImage,
+) -> Vec<Option<LinearImage>> {
+    use crate::bake::cpu_tools::{blur_cpu, flatten_cpu, smear_cpu};
+    use crate::io::job::Tool;
+    let mut out: Vec<Option<LinearImage>> = group.clone().map(|_| None).collect();
+    let Some(s) = stroke.filter(|s| s.tool.reads_canvas()) else {
+        return out;
+    };
+    let stamps: Vec<usize> = group.clone().filter(|&u| !hidden(u)).collect();
+    let mut flats: Vec<LinearImage> = stamps
+        .iter()
+        .map(|&u| {
+            let k = u - group.start;
+            let m = (mesh, topo, job.uv_set);
+            flatten_cpu(
+                m,
+                &coords[k],
+                job.layers[u].size,
+                &sels[k].triangles,
+                canvas,
+            )
+        })
+        .collect();
+    match s.tool {
+        Tool::Blur { radius } => {
+            for (f, &u) in flats.iter_mut().zip(&stamps) {
+                let sigma =
+                    0.5 * radius / job.layers[u].size[0] * crate::bake::params::FLAT_RES as f32;
+                *f = blur_cpu(f, sigma);
+            }
+        }
+        Tool::Smear { strength } => {
+            let r = crate::bake::params::FLAT_RES;
+            smear_cpu(
+                &mut flats,
+                strength,
+                &mut LinearImage::solid(r, r, [0.0; 4]),
+            );
+        }
+        Tool::Paint => {}
+    }
+    for (f, u) in flats.into_iter().zip(stamps) {
+        out[u - group.start] = Some(f);
+    }
+    out
 }
 
 /// Twin of `stroke_apply`: the stroke buffer (straight alpha) at `opacity` × its alpha blended onto
@@ -333,6 +401,8 @@ struct LayerRaster<'a> {
     coords: &'a [[f32; 4]],
     premult: LinearImage,
     mask: Option<&'a LinearImage>,
+    /// A blur or smear stamp's filtered flat image (colour; its image's alpha is the shape).
+    flat: Option<LinearImage>,
 }
 
 impl<'a> LayerRaster<'a> {
@@ -360,6 +430,7 @@ impl<'a> LayerRaster<'a> {
             coords,
             premult,
             mask: mask.as_ref(),
+            flat: None,
         }
     }
 
@@ -387,6 +458,12 @@ impl<'a> LayerRaster<'a> {
                     let mv = sample_bilinear(m, im);
                     let f = mv[0] * mv[3];
                     s = s.map(|v| v * f);
+                }
+                if let Some(f) = &self.flat {
+                    // Twin of `layer_raster`'s FLAG_TOOL: colour from the flat, shape = alpha.
+                    let c = sample_bilinear(f, im);
+                    let shape = if c[3] > 0.0 { s[3] } else { 0.0 };
+                    s = [c[0] * shape, c[1] * shape, c[2] * shape, shape];
                 }
                 s = s.map(|v| v * layer.opacity);
             }

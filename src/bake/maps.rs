@@ -60,11 +60,15 @@ impl Slots {
 
     /// The units in chunks of at most [`Slots::chunk`], never splitting a block (a continuous
     /// stroke's stamps with the charts they blend; every other unit is a block of its own).
-    pub fn chunks(&self, blocks: &[Range<usize>]) -> Vec<Range<usize>> {
+    /// A chunk also starts at every unit in `starts` (a blur or smear stroke, whose stamps read the
+    /// canvas as the chunks before left it).
+    pub fn chunks(&self, blocks: &[Range<usize>], starts: &[usize]) -> Vec<Range<usize>> {
         let mut out: Vec<Range<usize>> = Vec::new();
         for b in blocks {
             match out.last_mut() {
-                Some(c) if b.end - c.start <= self.chunk => c.end = b.end,
+                Some(c) if b.end - c.start <= self.chunk && !starts.contains(&b.start) => {
+                    c.end = b.end
+                }
                 _ => out.push(b.clone()),
             }
         }

@@ -25,6 +25,7 @@ mod canvas;
 mod check;
 mod compose;
 pub mod cpu;
+pub mod cpu_tools;
 mod engine;
 mod finish;
 mod images;
@@ -38,6 +39,7 @@ pub mod plan;
 pub mod report;
 pub mod select;
 mod stage;
+pub mod tools;
 
 pub use engine::{Baked, Engine, LoadedMesh};
 pub use images::f32_to_f16;
@@ -128,7 +130,8 @@ fn compose_units(
     let job = cx.job;
     let slots = maps::Slots::new(cx.engine, cx.mesh, job);
     let mut units: Vec<LayerReport> = Vec::with_capacity(job.layers.len());
-    for range in slots.chunks(&placed.blocks) {
+    let starts = tools::chunk_starts(placed);
+    for range in slots.chunks(&placed.blocks, &starts) {
         let maps = maps::compute(cx, placed, &slots, range.clone(), &canvas.global, log)?;
         let stats = select::select(cx, canvas, &slots, &maps, log)?;
         let first = units.len();

@@ -50,7 +50,7 @@ pub struct Params {
     pub grid: [u32; 2],
     /// Raster job: origin of its samples in the batch's atlas target.
     pub atlas_origin: [u32; 2],
-    /// Unused.
+    /// Tool stamps: x = their cell in the flat atlas; `stamp_flatten`: y = the atlas's rows.
     pub pad: [u32; 2],
 }
 
@@ -62,6 +62,14 @@ pub const FLAG_FACING: u32 = 1;
 pub const FLAG_MASK: u32 = 2;
 /// Encode at 16 bits.
 pub const FLAG_16BIT: u32 = 4;
+/// A blur or smear stamp: colour from its flat image, shape from its image's alpha.
+pub const FLAG_TOOL: u32 = 8;
+
+/// Texels per side of a tool stamp's flat cell (`bake/tools.rs`). Keep in sync with `FLAT_RES` in
+/// `wgsl/bake/stamp_flatten.wgsl`, `stamp_filter.wgsl` and `layer_raster.wgsl`.
+pub const FLAT_RES: u32 = 64;
+/// Cells per row of the flat atlas. Keep in sync with `FLAT_COLS` in the same WGSL files.
+pub const FLAT_COLS: u32 = 16;
 
 /// Stride of `Params` entries in the uniform buffers (dynamic offsets need 256-byte alignment).
 pub const PARAMS_STRIDE: u64 = 256;

@@ -46,6 +46,8 @@ pub struct StrokeGroup {
     pub opacity: f32,
     /// How it composes onto the layers below.
     pub blend: BlendMode,
+    /// Its tool.
+    pub tool: crate::io::job::Tool,
     /// Its report block.
     pub report: StrokeReport,
 }
@@ -106,6 +108,10 @@ pub(crate) fn place(cx: Cx<'_>, log: &mut Log) -> Result<Placed> {
                 units: units.clone(),
                 opacity: l.opacity,
                 blend: l.blend,
+                tool: l
+                    .stroke
+                    .as_ref()
+                    .map_or(crate::io::job::Tool::Paint, |s| s.tool.clone()),
                 report,
             });
         }
@@ -205,6 +211,7 @@ impl crate::bake::Engine {
                     blend: s.blend,
                     hidden: p.hidden[s.units.clone()].to_vec(),
                     blends: p.blends[s.units.clone()].to_vec(),
+                    tool: s.tool.clone(),
                 })
                 .collect(),
             job: p.job,

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! The built-in demo scene: Keenan Crane's "Spot" (public domain, bundled in `assets/`) with four
-//! decals generated in code, one per blend style, and a painted stroke over the UV seam along its
-//! back. `decalbake demo` writes the scene's files (mesh,
+//! decals generated in code, one per blend style, a painted stroke over the UV seam along its back,
+//! and a blur stroke across the edges of the badge and a black patch beside it. `decalbake demo` writes the scene's files (mesh,
 //! decal PNGs, job file) next to its outputs, so the job can be edited and re-run with `decalbake bake`.
 
 use decalbake::io::image::{srgb_to_linear, LinearImage};
@@ -126,6 +126,11 @@ fn stroke_path() -> (Vec<serde_json::Value>, Vec<f32>) {
 /// The demo job (paths relative to the demo directory).
 pub fn job_json() -> String {
     let (path, pressure) = stroke_path();
+    // Across the top of the badge on the flank and the black patch beside it.
+    let blur_path: Vec<serde_json::Value> = [0.28f32, 0.45, 0.62]
+        .iter()
+        .map(|z| serde_json::json!({ "ray": { "origin": [1.5, 0.15, z], "dir": [-1, 0, 0] } }))
+        .collect();
     serde_json::to_string_pretty(&serde_json::json!({
         "mesh": "spot.glb",
         "uv_set": 0,
@@ -140,7 +145,10 @@ pub fn job_json() -> String {
             { "kind": "decal", "image": "decals/glow.png", "at": { "ray": { "origin": [0.0, 0.55, -1.5], "dir": [0, 0, 1] } },
               "size": [0.3, 0.3], "method": "planar", "blend": "screen", "opacity": 0.8 },
             { "kind": "stroke", "image": "decals/brush.png", "path": path, "pressure": pressure,
-              "size": [0.1, 0.1], "spacing": 0.15, "flow": 0.8, "opacity": 0.95, "method": "lscm" }
+              "size": [0.1, 0.1], "spacing": 0.15, "flow": 0.8, "opacity": 0.95, "method": "lscm" },
+            { "kind": "stroke", "tool": "blur", "radius": 0.025, "image": "decals/brush.png",
+              "path": blur_path,
+              "size": [0.09, 0.09], "spacing": 0.2 }
         ],
         "output": { "texture": "baked.png", "bit_depth": 8, "glb": "baked.glb", "report": "report.json", "preview": "preview.png" }
     }))

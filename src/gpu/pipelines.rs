@@ -173,6 +173,10 @@ pub struct Pipelines {
     pub select_triangles: Kernel,
     /// Layer raster.
     pub layer_raster: Raster,
+    /// Inverse rendering of the canvas into tool stamps' flat space.
+    pub stamp_flatten: Raster,
+    /// The tools' filters on the flat atlas (blur, smear).
+    pub stamp_filter: Kernel,
     /// Island raster.
     pub island_raster: Raster,
     /// Island mask reduction.
@@ -248,6 +252,7 @@ impl Pipelines {
                 (6, Tex(true)),
                 (7, Tex(true)),
                 (8, Sampler),
+                (9, Ro),
             ],
             vf,
         );
@@ -292,6 +297,30 @@ impl Pipelines {
                 true,
             ),
         };
+        let flatten_layout = layout(
+            device,
+            "stamp_flatten",
+            &[
+                (0, Params),
+                (1, Ro),
+                (2, Ro),
+                (3, Ro),
+                (4, Ro),
+                (5, Ro),
+                (10, Ro),
+                (11, Ro),
+            ],
+            vf,
+        );
+        let stamp_flatten = raster(
+            device,
+            "stamp_flatten",
+            flatten_layout,
+            &[],
+            &[Some(layer_format.into())],
+            None,
+            1,
+        );
         let cg_binds = &[
             (0, Uniform),
             (1, Ro),
@@ -398,6 +427,19 @@ impl Pipelines {
                 ],
             ),
             layer_raster,
+            stamp_flatten,
+            stamp_filter: Kernel::new(
+                device,
+                "stamp_filter",
+                &[
+                    (0, Uniform),
+                    (1, Tex(false)),
+                    (2, Rw),
+                    (3, Rw),
+                    (4, Ro),
+                    (5, Rw),
+                ],
+            ),
             island_raster,
             island_mask: Kernel::new(
                 device,

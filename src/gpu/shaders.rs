@@ -37,6 +37,14 @@ pub const KERNELS: &[(&str, &str)] = &[
     ),
     ("compose", include_str!("../../wgsl/bake/compose.wgsl")),
     (
+        "stamp_flatten",
+        include_str!("../../wgsl/bake/stamp_flatten.wgsl"),
+    ),
+    (
+        "stamp_filter",
+        include_str!("../../wgsl/bake/stamp_filter.wgsl"),
+    ),
+    (
         "stroke_apply",
         include_str!("../../wgsl/bake/stroke_apply.wgsl"),
     ),

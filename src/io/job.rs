@@ -648,7 +648,12 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
         source: &l.source,
     };
     let stroke = match kind {
-        LayerKind::Stroke => Some(Box::new(super::stroke::validate(&fields, i, src)?)),
+        LayerKind::Stroke => Some(Box::new(super::stroke::validate(
+            &fields,
+            i,
+            src,
+            (l.size[0], l.mask.is_some()),
+        )?)),
         LayerKind::Decal => {
             if let Some(name) = fields.given() {
                 return Err(err(

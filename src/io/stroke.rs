@@ -24,6 +24,23 @@ use std::path::Path;
 pub enum Tool {
     /// Paint the stamp image.
     Paint,
+    /// Blur what is below under each stamp, in the stamp's flat space (Maillot section 10).
+    Blur {
+        /// Gaussian radius on the surface (model units): two standard deviations.
+        radius: f32,
+    },
+    /// Each stamp carries the colour the previous stamp picked up, mixed by `strength`.
+    Smear {
+        /// How much of the carried colour each stamp keeps, in [0, 1].
+        strength: f32,
+    },
+}
+
+impl Tool {
+    /// Whether the tool paints what is below (inverse rendering) instead of the stamp image.
+    pub fn reads_canvas(&self) -> bool {
+        !matches!(self, Tool::Paint)
+    }
 }
 
 /// How each stamp's image is turned on the surface.
@@ -100,7 +117,14 @@ impl Fields<'_> {
 }
 
 /// Validates the stroke fields of layer `i` (a stroke); `src` names the job file in messages.
-pub(crate) fn validate(l: &Fields<'_>, i: usize, src: &Path) -> Result<Stroke> {
+/// `size_x` is the stamp width (the default blur radius is a tenth of it); `mask`: whether the layer
+/// has a mask (tools that read the canvas use the stamp image's alpha as their shape instead).
+pub(crate) fn validate(
+    l: &Fields<'_>,
+    i: usize,
+    src: &Path,
+    (size_x, mask): (f32, bool),
+) -> Result<Stroke> {
     let field = |name: &str| format!("layers[{i}].{name}");
     let err = |name: &str, detail: String| Error::job(src, field(name), detail);
     let path = match &l.path {
@@ -175,7 +199,13 @@ pub(crate) fn validate(l: &Fields<'_>, i: usize, src: &Path) -> Result<Stroke> {
             ))
         }
     };
-    let tool = tool(l, &err)?;
+    let tool = tool(l, &err, size_x)?;
+    if tool.reads_canvas() && mask {
+        return Err(err(
+            "mask",
+            "a blur or smear stroke's shape is its image's alpha; remove `mask` (or bake it into the image's alpha)".into(),
+        ));
+    }
     Ok(Stroke {
         tool,
         path,
@@ -189,8 +219,8 @@ pub(crate) fn validate(l: &Fields<'_>, i: usize, src: &Path) -> Result<Stroke> {
     })
 }
 
-/// The stroke's tool and its fields.
-fn tool(l: &Fields<'_>, err: &dyn Fn(&str, String) -> Error) -> Result<Tool> {
+/// The stroke's tool and its fields (`size_x`: the stamp width, for the default blur radius).
+fn tool(l: &Fields<'_>, err: &dyn Fn(&str, String) -> Error, size_x: f32) -> Result<Tool> {
     let name = l.tool.as_deref().unwrap_or("paint");
     let misplaced = |f: &str, belongs: &str| {
         err(
@@ -198,22 +228,45 @@ fn tool(l: &Fields<'_>, err: &dyn Fn(&str, String) -> Error) -> Result<Tool> {
             format!("applies to the \"{belongs}\" tool only (this stroke's tool is \"{name}\")"),
         )
     };
+    let only = |allowed: &str| -> Result<()> {
+        for (field, given, belongs) in [
+            ("radius", l.radius.is_some(), "blur"),
+            ("strength", l.strength.is_some(), "smear"),
+            ("source", l.source.is_some(), "clone"),
+        ] {
+            if given && belongs != allowed {
+                return Err(misplaced(field, belongs));
+            }
+        }
+        Ok(())
+    };
     match name {
         "paint" => {
-            if l.radius.is_some() {
-                return Err(misplaced("radius", "blur"));
-            }
-            if l.strength.is_some() {
-                return Err(misplaced("strength", "smear"));
-            }
-            if l.source.is_some() {
-                return Err(misplaced("source", "clone"));
-            }
+            only("paint")?;
             Ok(Tool::Paint)
         }
-        "blur" | "smear" | "clone" => Err(err(
+        "blur" => {
+            only("blur")?;
+            let radius = l.radius.unwrap_or(0.1 * size_x);
+            if !radius.is_finite() || radius <= 0.0 {
+                return Err(err(
+                    "radius",
+                    format!("{radius} must be a positive distance on the surface (model units)"),
+                ));
+            }
+            Ok(Tool::Blur { radius })
+        }
+        "smear" => {
+            only("smear")?;
+            let strength = l.strength.unwrap_or(0.5);
+            if !strength.is_finite() || !(0.0..=1.0).contains(&strength) {
+                return Err(err("strength", format!("{strength} must be in [0, 1]")));
+            }
+            Ok(Tool::Smear { strength })
+        }
+        "clone" => Err(err(
             "tool",
-            format!("the \"{name}\" tool (inverse rendering into stamp space, Maillot section 10) is not in this build; use \"paint\""),
+            "the \"clone\" tool (a source stamp following the stroke, Maillot section 10) is not in this build; use \"paint\", \"blur\" or \"smear\"".into(),
         )),
         other => Err(err(
             "tool",

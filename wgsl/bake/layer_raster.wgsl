@@ -16,6 +16,28 @@
 @group(0) @binding(6) var image: texture_2d<f32>;
 @group(0) @binding(7) var mask: texture_2d<f32>;
 @group(0) @binding(8) var samp: sampler;
+// Blur and smear stamps (FLAG_TOOL): the filtered flat images, FLAT_RES^2 texels per cell (cell
+// params._pad.x), straight colour, alpha 0 = unknown; the stamp's shape is then the image's alpha.
+// Keep FLAT_RES in sync with src/bake/params.rs.
+@group(0) @binding(9) var<storage, read> flats: array<vec4<f32>>;
+const FLAT_RES: u32 = 64u;
+
+fn flat_texel(x: i32, y: i32) -> vec4<f32> {
+    let r = i32(FLAT_RES);
+    let p = vec2<u32>(vec2<i32>(clamp(x, 0, r - 1), clamp(y, 0, r - 1)));
+    return flats[(params._pad.x * FLAT_RES + p.y) * FLAT_RES + p.x];
+}
+
+// Bilinear within the stamp's cell (clamped at its edges), image coordinates in [0, 1].
+fn flat_at(img: vec2<f32>) -> vec4<f32> {
+    let p = clamp(img, vec2<f32>(0.0), vec2<f32>(1.0)) * f32(FLAT_RES) - 0.5;
+    let p0 = floor(p);
+    let f = p - p0;
+    let x = i32(p0.x);
+    let y = i32(p0.y);
+    return mix(mix(flat_texel(x, y), flat_texel(x + 1, y), f.x),
+               mix(flat_texel(x, y + 1), flat_texel(x + 1, y + 1), f.x), f.y);
+}
 
 struct VsOut {
     @builtin(position) pos: vec4<f32>,
@@ -49,6 +71,12 @@ fn fs_main(in: VsOut) -> FsOut {
     if ((params.flags & FLAG_MASK) != 0u) {
         // Mask images are premultiplied like decals: red * alpha is the mask value.
         c = c * m.r;
+    }
+    if ((params.flags & FLAG_TOOL) != 0u) {
+        // What is below, filtered in the stamp's flat space, with the stamp image's alpha as shape.
+        let f = flat_at(in.img);
+        let shape = select(0.0, c.a, f.a > 0.0);
+        c = vec4<f32>(f.rgb * shape, shape);
     }
     let inside = all(in.img >= vec2<f32>(0.0)) && all(in.img <= vec2<f32>(1.0));
     var o: FsOut;

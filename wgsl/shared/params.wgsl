@@ -24,6 +24,7 @@ struct Params {
     // Slot of the layer in the current chunk (index into coords / lists).
     slot: u32,
     // Bit 0: require front-facing triangles (planar projection). Bit 1: a mask image is bound.
+    // Bit 3: a tool stamp (flat image in `flats`, cell in _pad.x). (Bit 2 is encode's 16-bit flag.)
     flags: u32,
     opacity: f32,
     vertex_count: u32,
@@ -38,8 +39,11 @@ struct Params {
     grid: vec2<u32>,
     // Raster job: where its samples sit in the batch's atlas target.
     atlas_origin: vec2<u32>,
+    // Tool stamps: x = cell of the flat atlas; stamp_flatten: y = the atlas's rows of cells.
     _pad: vec2<u32>,
 }
 
 const FLAG_FACING: u32 = 1u;
 const FLAG_MASK: u32 = 2u;
+// Blur / smear stamps: colour from the stamp's flat image (`flats`), shape from the image's alpha.
+const FLAG_TOOL: u32 = 8u;

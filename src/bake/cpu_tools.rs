@@ -1,0 +1,130 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! CPU twins of the blur and smear tools (`bake/tools.rs`): inverse rendering of the canvas into a
+//! stamp's flat cell ([`flatten_cpu`], twin of `stamp_flatten.wgsl`) and the filters
+//! ([`blur_cpu`], [`smear_cpu`], twins of `stamp_filter.wgsl`), written plainly.
+
+use super::params::FLAT_RES;
+use crate::io::image::LinearImage;
+use crate::mesh::{Mesh, Topology};
+use glam::Vec2;
+
+/// Bilinear sample of `img` at `uv` with repeat (UVs outside [0, 1] wrap, as the bake draws them).
+pub fn sample_bilinear_wrap(img: &LinearImage, uv: Vec2) -> [f32; 4] {
+    let x = uv.x * img.width as f32 - 0.5;
+    let y = uv.y * img.height as f32 - 0.5;
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let at = |xi: f32, yi: f32| {
+        let xi = (xi as i64).rem_euclid(img.width as i64) as u32;
+        let yi = (yi as i64).rem_euclid(img.height as i64) as u32;
+        img.pixels[(yi * img.width + xi) as usize]
+    };
+    let (a, b, c, d) = (
+        at(x0, y0),
+        at(x0 + 1.0, y0),
+        at(x0, y0 + 1.0),
+        at(x0 + 1.0, y0 + 1.0),
+    );
+    std::array::from_fn(|k| {
+        (a[k] * (1.0 - fx) + b[k] * fx) * (1.0 - fy) + (c[k] * (1.0 - fx) + d[k] * fx) * fy
+    })
+}
+
+/// The canvas under a stamp in its flat space: `FLAT_RES`² texels over the stamp's rectangle
+/// (`size`), each the canvas at the UV of the stamp's point there, found among `triangles` (the
+/// stamp's selection) by their stamp coordinates `coords`; alpha 0 where no triangle is.
+pub fn flatten_cpu(
+    (mesh, topo, uv_set): (&Mesh, &Topology, u32),
+    coords: &[[f32; 4]],
+    size: [f32; 2],
+    triangles: &[u32],
+    canvas: &LinearImage,
+) -> LinearImage {
+    let r = FLAT_RES;
+    let uvs = &mesh.uv_sets[uv_set as usize];
+    let mut out = LinearImage::solid(r, r, [0.0; 4]);
+    for j in 0..r {
+        for i in 0..r {
+            let img = Vec2::new((i as f32 + 0.5) / r as f32, (j as f32 + 0.5) / r as f32);
+            let p = Vec2::new((img.x - 0.5) * size[0], (0.5 - img.y) * size[1]);
+            for &t in triangles {
+                let c = topo.triangles[t as usize].map(|v| coords[v as usize]);
+                let [a, b, cc] = c.map(|c| Vec2::new(c[0], c[1]));
+                let area = (b - a).perp_dot(cc - a);
+                if area.abs() < 1e-30 {
+                    continue;
+                }
+                let w0 = (b - p).perp_dot(cc - p) / area;
+                let w1 = (cc - p).perp_dot(a - p) / area;
+                let w2 = 1.0 - w0 - w1;
+                if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
+                    continue;
+                }
+                let [ua, ub, uc] = mesh.triangles[t as usize].map(|s| uvs[s as usize]);
+                let uv = ua * w0 + ub * w1 + uc * w2;
+                let s = sample_bilinear_wrap(canvas, uv);
+                out.pixels[(j * r + i) as usize] = [s[0], s[1], s[2], 1.0];
+                break;
+            }
+        }
+    }
+    out
+}
+
+/// Gaussian blur of a flat cell with standard deviation `sigma` texels, horizontal then vertical,
+/// weighted by alpha, cut at 3 σ and at the cell; unknown texels stay unknown.
+pub fn blur_cpu(flat: &LinearImage, sigma: f32) -> LinearImage {
+    let r = FLAT_RES as i32;
+    let sigma = sigma.max(1e-3);
+    let reach = (3.0 * sigma).ceil().min((r - 1) as f32) as i32;
+    let pass = |src: &LinearImage, horizontal: bool| {
+        let mut out = LinearImage::solid(r as u32, r as u32, [0.0; 4]);
+        for y in 0..r {
+            for x in 0..r {
+                let (mut sum, mut weight) = ([0.0f32; 3], 0.0f32);
+                for d in -reach..=reach {
+                    let (xx, yy) = if horizontal { (x + d, y) } else { (x, y + d) };
+                    if !(0..r).contains(&xx) || !(0..r).contains(&yy) {
+                        continue;
+                    }
+                    let w = (-0.5 * (d * d) as f32 / (sigma * sigma)).exp();
+                    let c = src.pixels[(yy * r + xx) as usize];
+                    for k in 0..3 {
+                        sum[k] += w * c[3] * c[k];
+                    }
+                    weight += w * c[3];
+                }
+                if weight > 0.0 {
+                    out.pixels[(y * r + x) as usize] =
+                        [sum[0] / weight, sum[1] / weight, sum[2] / weight, 1.0];
+                }
+            }
+        }
+        out
+    };
+    let mut out = pass(&pass(flat, true), false);
+    for (o, f) in out.pixels.iter_mut().zip(&flat.pixels) {
+        if f[3] <= 0.0 {
+            *o = [0.0; 4];
+        }
+    }
+    out
+}
+
+/// Smear: each flat in order becomes `strength` × the previous result + (1 − strength) × itself
+/// where both are known; `carry` is the previous stroke chunk's last result (alpha 0 at the start).
+pub fn smear_cpu(flats: &mut [LinearImage], strength: f32, carry: &mut LinearImage) {
+    for f in flats.iter_mut() {
+        for (c, p) in carry.pixels.iter_mut().zip(f.pixels.iter_mut()) {
+            if c[3] <= 0.0 {
+                *c = *p;
+            } else if p[3] > 0.0 {
+                for k in 0..3 {
+                    c[k] = p[k] + (c[k] - p[k]) * strength;
+                }
+                c[3] = 1.0;
+            }
+            *p = *c;
+        }
+    }
+}

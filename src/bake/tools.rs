@@ -1,0 +1,203 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The blur and smear tools (Maillot section 10), part of the compose stage: before a chunk's raster,
+//! each tool stamp's view of the canvas is rendered into its own flat R × R cell by inverse rendering
+//! (`wgsl/bake/stamp_flatten.wgsl`: the stamp's triangles drawn at their stamp coordinates, fetching
+//! the canvas at their UVs), then filtered in that flat space (`wgsl/bake/stamp_filter.wgsl`: a
+//! Gaussian blur per cell, or the smear's carried colour from stamp to stamp), and the stamps paint
+//! the result back with their image's alpha as the shape (`layer_raster`, `FLAG_TOOL`). Because the
+//! filter runs in the stamp's flat space, it does not see UV seams. CPU twins: `flatten_cpu`,
+//! `blur_cpu`, `smear_cpu` in [`crate::bake::cpu`].
+//!
+//! A tool stroke starts a chunk, and a new one every [`MAX_FLATS`] units, so the canvas it reads is
+//! the layers below it (its own stamps build up in the stroke buffer until it is applied) and one
+//! atlas of cells stays within texture limits.
+
+use super::canvas::Canvas;
+use super::maps::LayerMaps;
+use super::params::{params_buffer, pbind, Params, PARAMS_STRIDE};
+use super::place::Placed;
+use super::stage::Cx;
+use crate::io::job::Tool;
+use wgpu::util::DeviceExt;
+
+pub use super::params::{FLAT_COLS, FLAT_RES};
+/// Most tool units in one chunk (the atlas then has 64 rows of cells, 4096 texels high).
+pub const MAX_FLATS: usize = 1024;
+
+/// The chunk's filtered flat images: one cell per tool stamp.
+pub struct Flats {
+    /// `FLAT_RES`² straight-colour texels per cell, cell k for the k-th of [`tool_units`] (alpha
+    /// 0: nothing known there).
+    pub buffer: wgpu::Buffer,
+}
+
+/// The units that start a chunk because of tools: each blur or smear stroke's first unit, and every
+/// [`MAX_FLATS`]-th after it.
+pub fn chunk_starts(placed: &Placed) -> Vec<usize> {
+    placed
+        .strokes
+        .iter()
+        .filter(|s| s.tool.reads_canvas())
+        .flat_map(|s| s.units.clone().step_by(MAX_FLATS))
+        .collect()
+}
+
+/// The chunk's tool stamps, in order; the k-th has cell k.
+pub fn tool_units(maps: &LayerMaps, placed: &Placed) -> Vec<usize> {
+    let start = maps.range.start;
+    maps.range
+        .clone()
+        .filter(|&u| !maps.hidden[u - start])
+        .filter(|&u| placed.stroke_of(u).is_some_and(|s| s.tool.reads_canvas()))
+        .collect()
+}
+
+/// Records the inverse rendering and the filter of the chunk's tool stamps into `enc`; `None` when
+/// the chunk has none.
+pub(crate) fn record(
+    cx: Cx<'_>,
+    canvas: &Canvas,
+    (slots_coords, slots_lists): (&wgpu::Buffer, &wgpu::Buffer),
+    maps: &LayerMaps,
+    (stats, placed): (&[i32], &Placed),
+    enc: &mut wgpu::CommandEncoder,
+) -> Option<Flats> {
+    let Cx { engine, mesh, job } = cx;
+    let start = maps.range.start;
+    let units = tool_units(maps, placed);
+    let stroke = placed.stroke_of(*units.first()?)?;
+    let (dev, pipes) = (&engine.ctx.device, &engine.pipes);
+    let n = units.len() as u32;
+    let rows = n.div_ceil(FLAT_COLS);
+    let size = [FLAT_COLS * FLAT_RES, rows * FLAT_RES];
+    let atlas = dev.create_texture(&wgpu::TextureDescriptor {
+        label: Some("bake.flat_atlas"),
+        size: wgpu::Extent3d {
+            width: size[0],
+            height: size[1],
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: pipes.layer_format,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        view_formats: &[],
+    });
+    let view = atlas.create_view(&Default::default());
+    let entries: Vec<Params> = units
+        .iter()
+        .enumerate()
+        .map(|(k, &u)| Params {
+            pad: [k as u32, rows],
+            ..maps.params[u - start]
+        })
+        .collect();
+    let flat_params = params_buffer(dev, "bake.flat_params", &entries);
+    let g = &mesh.gpu;
+    let bg = crate::gpu::pipelines::make_bind_group(
+        dev,
+        &pipes.stamp_flatten.layout,
+        "bake.stamp_flatten",
+        &[
+            (0, pbind(&flat_params)),
+            (1, slots_lists.as_entire_binding()),
+            (2, g.split_tris.as_entire_binding()),
+            (3, g.uvs[job.uv_set as usize].as_entire_binding()),
+            (4, g.welded_of.as_entire_binding()),
+            (5, slots_coords.as_entire_binding()),
+            (10, canvas.acc_rg.as_entire_binding()),
+            (11, canvas.acc_ba.as_entire_binding()),
+        ],
+    );
+    {
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("bake.stamp_flatten"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&pipes.stamp_flatten.pipeline);
+        for (k, &u) in units.iter().enumerate() {
+            let k = k as u32;
+            let count = (canvas.row(stats, u)[0].max(0) as u32).min(g.triangle_count);
+            pass.set_bind_group(0, &bg, &[(k as u64 * PARAMS_STRIDE) as u32]);
+            let (cx0, cy0) = ((k % FLAT_COLS) * FLAT_RES, (k / FLAT_COLS) * FLAT_RES);
+            pass.set_scissor_rect(cx0, cy0, FLAT_RES, FLAT_RES);
+            pass.draw(0..3 * count, 0..1);
+        }
+    }
+    let cell_bytes = (FLAT_RES * FLAT_RES) as u64 * 16;
+    let storage = |label| {
+        dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: n as u64 * cell_bytes,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        })
+    };
+    let (tmp, out) = (storage("bake.flat_tmp"), storage("bake.flat_out"));
+    let sigmas: Vec<f32> = units
+        .iter()
+        .map(|&u| match stroke.tool {
+            // The radius is two standard deviations, on the surface; a cell spans the stamp's width.
+            Tool::Blur { radius } => 0.5 * radius / job.layers[u].size[0] * FLAT_RES as f32,
+            _ => 0.0,
+        })
+        .collect();
+    let sigmas = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("bake.flat_sigmas"),
+        contents: bytemuck::cast_slice(&sigmas),
+        usage: wgpu::BufferUsages::STORAGE,
+    });
+    let carry = canvas
+        .carry
+        .as_ref()
+        .expect("a job with strokes has a carry");
+    let fresh = u32::from(maps.range.contains(&stroke.units.start));
+    let modes: Vec<[u32; 4]> = match stroke.tool {
+        Tool::Blur { .. } => vec![[0, n, 0, 0], [1, n, 0, 0]],
+        Tool::Smear { strength } => vec![[2, n, strength.to_bits(), fresh]],
+        Tool::Paint => Vec::new(),
+    };
+    for m in modes {
+        let dims = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("bake.flat_dims"),
+            contents: bytemuck::cast_slice(&m),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let bg = pipes.stamp_filter.bind(
+            dev,
+            "bake.stamp_filter",
+            &[
+                (0, dims.as_entire_binding()),
+                (1, wgpu::BindingResource::TextureView(&view)),
+                (2, tmp.as_entire_binding()),
+                (3, out.as_entire_binding()),
+                (4, sigmas.as_entire_binding()),
+                (5, carry.as_entire_binding()),
+            ],
+        );
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("bake.stamp_filter"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&pipes.stamp_filter.pipeline);
+        pass.set_bind_group(0, &bg, &[]);
+        match m[0] {
+            2 => pass.dispatch_workgroups(FLAT_RES / 8, FLAT_RES / 8, 1),
+            _ => pass.dispatch_workgroups(size[0] / 8, size[1] / 8, 1),
+        }
+    }
+    Some(Flats { buffer: out })
+}
