@@ -387,7 +387,8 @@ fn bad_strokes() {
         let e = run_case(name, &j, |_| {});
         expect(&e, name, &needles);
     }
-    // Tools: a blur radius that is not positive, clone (not in this build), a mask on a blur.
+    // Tools: a blur radius that is not positive, a clone source off the mesh or missing, a smear
+    // strength out of range, a mask on a blur.
     for (name, fields, needles) in [
         (
             "stroke-blur-radius",
@@ -395,9 +396,14 @@ fn bad_strokes() {
             vec!["layers[0].radius", "positive"],
         ),
         (
-            "stroke-clone",
-            serde_json::json!({"tool": "clone", "source": [0.3, 0.5, 0.0]}),
-            vec!["layers[0].tool", "clone"],
+            "stroke-clone-off-mesh",
+            serde_json::json!({"tool": "clone", "source": [0.3, 0.5, 3.0]}),
+            vec!["layers[0]", "`source`", "from the surface"],
+        ),
+        (
+            "stroke-clone-no-source",
+            serde_json::json!({"tool": "clone"}),
+            vec!["layers[0].source", "missing"],
         ),
         (
             "stroke-smear-strength",

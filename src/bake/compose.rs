@@ -67,7 +67,7 @@ pub fn raster_jobs(
     for g in groups(placed, maps.range.clone(), blending) {
         let mut mask = vec![0i32; canvas.row(stats, g.start).len() - 8];
         let mut bx = [i32::MAX, i32::MAX, i32::MIN, i32::MIN];
-        for i in g.clone() {
+        for i in g.clone().filter(|&i| !placed.sources[i]) {
             let row = canvas.row(stats, i);
             for (m, r) in mask.iter_mut().zip(&row[8..]) {
                 *m |= *r;
@@ -191,11 +191,7 @@ pub(crate) fn compose(
     // One entry per (raster job, unit): the rectangle's fields with the unit's own.
     // Tool stamps read their cell of the chunk's flat images (`bake/tools.rs`).
     let start = maps.range.start;
-    let cells: HashMap<usize, u32> = super::tools::tool_units(maps, placed)
-        .into_iter()
-        .enumerate()
-        .map(|(k, u)| (u, k as u32))
-        .collect();
+    let cells: HashMap<usize, u32> = super::tools::cells(maps, placed).1;
     let cells = &cells;
     let jp: Vec<Params> = jobs
         .iter()
@@ -389,6 +385,9 @@ impl Recording<'_> {
                 );
                 pass.set_scissor_rect(origin[0], origin[1], jw, jh);
                 for (e, i) in rj.units.clone().enumerate() {
+                    if self.placed.sources[i] {
+                        continue;
+                    }
                     let bg = layer_bgs
                         .entry(i)
                         .or_insert_with(|| self.layer_bind_group(i));

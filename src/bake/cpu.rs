@@ -98,6 +98,10 @@ pub struct StrokeCpu {
     pub blends: Vec<Option<crate::maps::stamp::StampBlend>>,
     /// The stroke's tool (blur and smear read the canvas: [`crate::bake::cpu_tools`]).
     pub tool: crate::io::job::Tool,
+    /// Per unit of the stroke: a clone's source stamp (flattened, not drawn).
+    pub sources: Vec<bool>,
+    /// Per unit of the stroke: a clone stamp's source unit (unit index of the bake).
+    pub clone_of: Vec<Option<usize>>,
 }
 
 /// The CPU twin of the bake's stages after placement, on units (`job.layers[u]` at `placements[u]`
@@ -179,7 +183,20 @@ pub fn bake_units_cpu(
                 ..LayerRaster::new(mesh, topo, job, &job.layers[u], c, &images[u])
             })
             .collect();
-        let b = sels
+        // A clone's source stamps are flattened (above) but not drawn.
+        let source = |u: usize| stroke.is_some_and(|s| s.sources[u - s.units.start]);
+        let draw: Vec<Selection> = group
+            .clone()
+            .zip(&sels)
+            .map(|(u, s)| {
+                if source(u) {
+                    Selection::default()
+                } else {
+                    s.clone()
+                }
+            })
+            .collect();
+        let b = draw
             .iter()
             .fold([i32::MAX, i32::MAX, i32::MIN, i32::MIN], |b, s| {
                 let t = s.texel_box;
@@ -197,7 +214,7 @@ pub fn bake_units_cpu(
         for y in b[1].max(0)..b[3].min(h as i32) {
             for x in b[0].max(0)..b[2].min(w as i32) {
                 let (x, y) = (x as u32, y as u32);
-                let Some(src) = group_texel(&rasters, &sels, x, y) else {
+                let Some(src) = group_texel(&rasters, &draw, x, y) else {
                     continue;
                 };
                 let idx = (y * w + x) as usize;
@@ -264,7 +281,12 @@ fn tool_flats(
     let Some(s) = stroke.filter(|s| s.tool.reads_canvas()) else {
         return out;
     };
-    let stamps: Vec<usize> = group.clone().filter(|&u| !hidden(u)).collect();
+    // The units whose view of the canvas is flattened: the stamps, or a clone's sources.
+    let clone_of = |u: usize| s.clone_of[u - s.units.start];
+    let stamps: Vec<usize> = group
+        .clone()
+        .filter(|&u| !hidden(u) && clone_of(u).is_none())
+        .collect();
     let mut flats: Vec<LinearImage> = stamps
         .iter()
         .map(|&u| {
@@ -295,10 +317,16 @@ fn tool_flats(
                 &mut LinearImage::solid(r, r, [0.0; 4]),
             );
         }
-        Tool::Paint => {}
+        Tool::Paint | Tool::Clone { .. } => {}
     }
     for (f, u) in flats.into_iter().zip(stamps) {
         out[u - group.start] = Some(f);
+    }
+    // A clone stamp paints its source's flat.
+    for u in group.clone() {
+        if let Some(src) = clone_of(u) {
+            out[u - group.start] = out[src - group.start].clone();
+        }
     }
     out
 }

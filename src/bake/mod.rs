@@ -166,7 +166,8 @@ fn fold_reports<'a>(
             continue;
         };
         let stamps = &units[r.clone()];
-        let Some(first) = r.clone().find(|&u| !placed.hidden[u]).map(|u| &units[u]) else {
+        let drawn = |u: &usize| !placed.hidden[*u] && !placed.sources[*u];
+        let Some(first) = r.clone().find(drawn).map(|u| &units[u]) else {
             continue;
         };
         let mut l = first.clone();

@@ -29,6 +29,10 @@ pub struct Placed {
     pub hidden: Vec<bool>,
     /// Per unit: its coordinates blended from other units' charts (unit indices of the bake).
     pub blends: Vec<Option<crate::maps::stamp::StampBlend>>,
+    /// Per unit: a clone stroke's source stamp (selected and flattened, not drawn).
+    pub sources: Vec<bool>,
+    /// Per unit: a clone stamp's source unit (unit index of the bake).
+    pub clone_of: Vec<Option<usize>>,
     /// The units in blocks the map stage keeps in one chunk, in order, covering every unit.
     pub blocks: Vec<Range<usize>>,
     /// The strokes, in job order.
@@ -70,6 +74,8 @@ pub(crate) fn place(cx: Cx<'_>, log: &mut Log) -> Result<Placed> {
         units_of: Vec::new(),
         hidden: Vec::new(),
         blends: Vec::new(),
+        sources: Vec::new(),
+        clone_of: Vec::new(),
         blocks: Vec::new(),
         strokes: Vec::new(),
     };
@@ -94,6 +100,8 @@ pub(crate) fn place(cx: Cx<'_>, log: &mut Log) -> Result<Placed> {
             placed.job.layers.push(u.layer);
             placed.origin.push((i, k));
             placed.hidden.push(u.hidden);
+            placed.sources.push(u.source);
+            placed.clone_of.push(u.clone_of.map(|c| c + first));
             placed.blends.push(u.blend.map(|mut b| {
                 for c in &mut b.charts {
                     c.0 += first;
@@ -212,6 +220,8 @@ impl crate::bake::Engine {
                     hidden: p.hidden[s.units.clone()].to_vec(),
                     blends: p.blends[s.units.clone()].to_vec(),
                     tool: s.tool.clone(),
+                    sources: p.sources[s.units.clone()].to_vec(),
+                    clone_of: p.clone_of[s.units.clone()].to_vec(),
                 })
                 .collect(),
             job: p.job,

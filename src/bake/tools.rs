@@ -18,6 +18,7 @@ use super::params::{params_buffer, pbind, Params, PARAMS_STRIDE};
 use super::place::Placed;
 use super::stage::Cx;
 use crate::io::job::Tool;
+use std::collections::HashMap;
 use wgpu::util::DeviceExt;
 
 pub use super::params::{FLAT_COLS, FLAT_RES};
@@ -26,8 +27,8 @@ pub const MAX_FLATS: usize = 1024;
 
 /// The chunk's filtered flat images: one cell per tool stamp.
 pub struct Flats {
-    /// `FLAT_RES`² straight-colour texels per cell, cell k for the k-th of [`tool_units`] (alpha
-    /// 0: nothing known there).
+    /// `FLAT_RES`² straight-colour texels per cell, cell k for the k-th flattened unit of [`cells`]
+    /// (alpha 0: nothing known there).
     pub buffer: wgpu::Buffer,
 }
 
@@ -42,14 +43,32 @@ pub fn chunk_starts(placed: &Placed) -> Vec<usize> {
         .collect()
 }
 
-/// The chunk's tool stamps, in order; the k-th has cell k.
-pub fn tool_units(maps: &LayerMaps, placed: &Placed) -> Vec<usize> {
+/// The chunk's flattened units, in order (the k-th has cell k: a blur or smear stroke's stamps, a
+/// clone's source stamps), and the cell each drawn tool stamp reads.
+pub fn cells(maps: &LayerMaps, placed: &Placed) -> (Vec<usize>, HashMap<usize, u32>) {
     let start = maps.range.start;
-    maps.range
+    let flattened: Vec<usize> = maps
+        .range
         .clone()
         .filter(|&u| !maps.hidden[u - start])
         .filter(|&u| placed.stroke_of(u).is_some_and(|s| s.tool.reads_canvas()))
-        .collect()
+        .filter(|&u| placed.clone_of[u].is_none())
+        .collect();
+    let cell: HashMap<usize, u32> = flattened
+        .iter()
+        .enumerate()
+        .map(|(k, &u)| (u, k as u32))
+        .collect();
+    let reads = maps
+        .range
+        .clone()
+        .filter(|&u| !placed.sources[u])
+        .filter_map(|u| match placed.clone_of[u] {
+            Some(s) => cell.get(&s).map(|&c| (u, c)),
+            None => cell.get(&u).map(|&c| (u, c)),
+        })
+        .collect();
+    (flattened, reads)
 }
 
 /// Records the inverse rendering and the filter of the chunk's tool stamps into `enc`; `None` when
@@ -64,7 +83,7 @@ pub(crate) fn record(
 ) -> Option<Flats> {
     let Cx { engine, mesh, job } = cx;
     let start = maps.range.start;
-    let units = tool_units(maps, placed);
+    let units = cells(maps, placed).0;
     let stroke = placed.stroke_of(*units.first()?)?;
     let (dev, pipes) = (&engine.ctx.device, &engine.pipes);
     let n = units.len() as u32;
@@ -168,6 +187,7 @@ pub(crate) fn record(
     let modes: Vec<[u32; 4]> = match stroke.tool {
         Tool::Blur { .. } => vec![[0, n, 0, 0], [1, n, 0, 0]],
         Tool::Smear { strength } => vec![[2, n, strength.to_bits(), fresh]],
+        Tool::Clone { .. } => vec![[3, n, 0, 0]],
         Tool::Paint => Vec::new(),
     };
     for m in modes {

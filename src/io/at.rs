@@ -7,7 +7,7 @@ use serde::Deserialize;
 use std::path::Path;
 
 /// Where a layer goes.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, serde::Serialize, PartialEq)]
 #[serde(untagged)]
 pub enum AtSpec {
     /// A point, snapped to the closest surface point.
@@ -20,7 +20,7 @@ pub enum AtSpec {
 }
 
 /// A ray.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, serde::Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct RaySpec {
     /// Origin.

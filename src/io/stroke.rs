@@ -34,6 +34,11 @@ pub enum Tool {
         /// How much of the carried colour each stamp keeps, in [0, 1].
         strength: f32,
     },
+    /// Each stamp copies what is below a source stamp that follows the stroke from `source`.
+    Clone {
+        /// Where the source starts (like `at`).
+        source: AtSpec,
+    },
 }
 
 impl Tool {
@@ -200,12 +205,17 @@ pub(crate) fn validate(
         }
     };
     let tool = tool(l, &err, size_x)?;
+    if let Tool::Clone { source } = &tool {
+        check_at(source, &field("source"), src)?;
+    }
     if tool.reads_canvas() && mask {
         return Err(err(
             "mask",
-            "a blur or smear stroke's shape is its image's alpha; remove `mask` (or bake it into the image's alpha)".into(),
+            "a blur, smear or clone stroke's shape is its image's alpha; remove `mask` (or bake it into the image's alpha)".into(),
         ));
     }
+    // A clone's source stamps are solved at their points; so are its stamps (a pair per block).
+    let continuity = l.continuity.unwrap_or(true) && !matches!(tool, Tool::Clone { .. });
     Ok(Stroke {
         tool,
         path,
@@ -215,7 +225,7 @@ pub(crate) fn validate(
         pressure_size: unit("pressure_size", l.pressure_size, 1.0)?,
         pressure_flow: unit("pressure_flow", l.pressure_flow, 0.0)?,
         orient,
-        continuity: l.continuity.unwrap_or(true),
+        continuity,
     })
 }
 
@@ -264,10 +274,16 @@ fn tool(l: &Fields<'_>, err: &dyn Fn(&str, String) -> Error, size_x: f32) -> Res
             }
             Ok(Tool::Smear { strength })
         }
-        "clone" => Err(err(
-            "tool",
-            "the \"clone\" tool (a source stamp following the stroke, Maillot section 10) is not in this build; use \"paint\", \"blur\" or \"smear\"".into(),
-        )),
+        "clone" => {
+            only("clone")?;
+            let Some(source) = l.source.clone() else {
+                return Err(err(
+                    "source",
+                    "missing: a clone stroke needs a `source` point (like `at`)".into(),
+                ));
+            };
+            Ok(Tool::Clone { source })
+        }
         other => Err(err(
             "tool",
             format!("unknown tool \"{other}\"; use \"paint\", \"blur\", \"smear\" or \"clone\""),

@@ -5,8 +5,9 @@
 //   cell with its own standard deviation in texels (sigmas[cell]), cut at 3 sigma and at the cell;
 // - mode 2: smear: for each texel, the stamps of the dispatch in order, each carrying the previous
 //   one's colour mixed by `strength` (out_k = strength * out_(k-1) + (1 - strength) * flat_k; the first
-//   stamp of the stroke takes its flat), the carry kept in `carry` for the stroke's next chunk.
-// Dispatch: modes 0, 1: (cols * FLAT_RES / 8, rows * FLAT_RES / 8, 1); mode 2: (FLAT_RES / 8, FLAT_RES / 8, 1).
+//   stamp of the stroke takes its flat), the carry kept in `carry` for the stroke's next chunk;
+// - mode 3: clone: the cell copied as it is (the clone stamps read their source stamps' cells).
+// Dispatch: modes 0, 1, 3: (cols * FLAT_RES / 8, rows * FLAT_RES / 8, 1); mode 2: (FLAT_RES / 8, FLAT_RES / 8, 1).
 // CPU twins: `blur_cpu`, `smear_cpu` in src/bake/cpu.rs.
 
 struct Dims {
@@ -47,6 +48,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (cell >= dims.cells) { return; }
     let x = gid.x % FLAT_RES;
     let y = gid.y % FLAT_RES;
+    if (dims.mode == 3u) {
+        // Clone: the source stamp's flat as it is.
+        out[idx(cell, x, y)] = flat_at(cell, x, y);
+        return;
+    }
     let sigma = max(sigmas[cell], 1e-3);
     let reach = i32(min(ceil(3.0 * sigma), f32(FLAT_RES - 1u)));
     var sum = vec3<f32>(0.0);

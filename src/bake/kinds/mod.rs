@@ -31,6 +31,10 @@ pub struct Unit {
     /// Coordinates blended from other units' charts instead of solved (continuous strokes; chart
     /// unit indices are within the layer's units).
     pub blend: Option<crate::maps::stamp::StampBlend>,
+    /// A clone stroke's source stamp: selected and flattened, not drawn.
+    pub source: bool,
+    /// A clone stamp: its source unit (within the layer's units).
+    pub clone_of: Option<usize>,
 }
 
 impl Unit {
@@ -42,6 +46,8 @@ impl Unit {
             frame,
             hidden: false,
             blend: None,
+            source: false,
+            clone_of: None,
         }
     }
 }

@@ -188,5 +188,7 @@ fn chart_unit(topo: &Topology, layer: &Layer, v: u32, size: [f32; 2]) -> Unit {
         frame,
         hidden: true,
         blend: None,
+        source: false,
+        clone_of: None,
     }
 }

@@ -11,6 +11,7 @@
 //! with the stroke's `blend` at `opacity` × its alpha, so overlapping stamps of one stroke never
 //! exceed `opacity` (a painter's stroke; `bake/compose.rs`, kernel `stroke_apply`).
 
+pub mod clone;
 pub mod continuity;
 pub mod path;
 pub mod stamps;
@@ -33,7 +34,11 @@ impl Kind for StrokeKind {
             .stroke
             .as_ref()
             .expect("a stroke layer has its stroke");
-        stroke.path.iter().map(query_of).collect()
+        let source = match &stroke.tool {
+            crate::io::job::Tool::Clone { source } => Some(query_of(source)),
+            _ => None,
+        };
+        stroke.path.iter().map(query_of).chain(source).collect()
     }
 
     fn expand(
@@ -54,6 +59,7 @@ impl Kind for StrokeKind {
             layer: index,
             detail,
         };
+        let (placements, source) = placements.split_at(stroke.path.len());
         check_points(layer, placements, &err)?;
         let topo = &mesh.topo;
         let edge = path::mean_edge(topo);
@@ -74,6 +80,22 @@ impl Kind for StrokeKind {
         let surface_path = join_path(cx, placements, edge, &err)?;
         let units = stamps::stamps(topo, layer, stroke, &surface_path, &placements[0], &err)?;
         let stamps = units.len();
+        let (units, pairs) = match source.first() {
+            Some(src) => {
+                check_source(layer, src, &err)?;
+                let sources = clone::sources(topo, &units, src, edge, &err)?;
+                // Each stamp follows its source, in one block (one chunk flattens both).
+                let mut out = Vec::with_capacity(2 * units.len());
+                for (s, mut u) in sources.into_iter().zip(units) {
+                    u.clone_of = Some(out.len());
+                    out.push(s);
+                    out.push(u);
+                }
+                let pairs: Vec<_> = (0..stamps).map(|k| 2 * k..2 * k + 2).collect();
+                (out, Some(pairs))
+            }
+            None => (units, None),
+        };
         let capacity = crate::bake::stage::unit_capacity(mesh);
         let fits = capacity > crate::maps::stamp::MAX_CHARTS;
         if stroke.continuity && !fits {
@@ -87,7 +109,8 @@ impl Kind for StrokeKind {
             let c = continuity::interpolate(topo, layer, units, capacity, edge);
             (c.units, c.blocks, c.charts)
         } else {
-            (units, Vec::new(), stamps)
+            let charts = units.len();
+            (units, pairs.unwrap_or_default(), charts)
         };
         Ok(Expansion {
             blocks,
@@ -146,6 +169,28 @@ fn join_path(
         }
     }
     Ok(surface_path)
+}
+
+/// The clone's `source` was placed, near the surface when given as a point.
+fn check_source(layer: &Layer, p: &Placement, err: &dyn Fn(String) -> Error) -> Result<()> {
+    let reach = layer.size[0].max(layer.size[1]);
+    if p.found == 0 {
+        return Err(err(
+            "`source`: the ray misses the mesh; aim it at the model".into(),
+        ));
+    }
+    if p.distance > reach && p.distance.is_finite() {
+        if let Some(crate::io::job::Tool::Clone {
+            source: AtSpec::Point(q),
+        }) = layer.stroke.as_ref().map(|s| &s.tool)
+        {
+            return Err(err(format!(
+                "`source`: the point {q:?} is {:.4} from the surface, farther than the stamp size {reach:.4}; put it on the mesh",
+                p.distance
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Every path point was placed, and points given as points lie near the surface.
