@@ -83,10 +83,7 @@ pub fn raster_jobs(
             continue;
         }
         // The group's compose reads its first drawn unit's fields (a stroke's stamps: Normal).
-        let shown = g
-            .clone()
-            .find(|&u| !maps.hidden[u - maps.range.start])
-            .unwrap_or(g.start);
+        let shown = g.clone().find(|&u| !placed.hidden[u]).unwrap_or(g.start);
         let base = maps.params[shown - maps.range.start];
         let rects = plan_cells(
             &mask,
@@ -350,26 +347,8 @@ impl Recording<'_> {
         let ss = self.job.ss;
         let tg = engine.targets([TILE_TARGET, used_h.next_power_of_two().max(64)]);
         {
-            let clear = wgpu::Operations {
-                load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                store: wgpu::StoreOp::Store,
-            };
-            let attachment = |view| {
-                Some(wgpu::RenderPassColorAttachment {
-                    view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: clear,
-                })
-            };
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("bake.layer_raster"),
-                color_attachments: &[attachment(&tg.color_view), attachment(&tg.cov_view)],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let views = [&tg.color_view, &tg.cov_view];
+            let mut pass = crate::gpu::cleared_pass(enc, "bake.layer_raster", &views);
             pass.set_pipeline(&pipes.layer_raster.pipeline);
             for &(k, origin) in batch {
                 let rj = &self.jobs[k];

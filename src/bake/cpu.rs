@@ -17,28 +17,7 @@ use glam::Vec2;
 /// Bilinear sample with clamp-to-edge, texel centres at half-integers (straight or premultiplied
 /// values, whatever `img` holds).
 pub fn sample_bilinear(img: &LinearImage, uv: Vec2) -> [f32; 4] {
-    let x = uv.x * img.width as f32 - 0.5;
-    let y = uv.y * img.height as f32 - 0.5;
-    let x0 = x.floor();
-    let y0 = y.floor();
-    let (fx, fy) = (x - x0, y - y0);
-    let at = |xi: f32, yi: f32| {
-        let xi = (xi as i64).clamp(0, img.width as i64 - 1) as u32;
-        let yi = (yi as i64).clamp(0, img.height as i64 - 1) as u32;
-        img.pixels[(yi * img.width + xi) as usize]
-    };
-    let (a, b, c, d) = (
-        at(x0, y0),
-        at(x0 + 1.0, y0),
-        at(x0, y0 + 1.0),
-        at(x0 + 1.0, y0 + 1.0),
-    );
-    let mut out = [0.0; 4];
-    for k in 0..4 {
-        out[k] =
-            (a[k] * (1.0 - fx) + b[k] * fx) * (1.0 - fy) + (c[k] * (1.0 - fx) + d[k] * fx) * fy;
-    }
-    out
+    img.bilinear(uv.x, uv.y, false)
 }
 
 /// Barycentric coordinates of `p` in triangle (a, b, c), or `None` outside (edges count as inside).

@@ -8,28 +8,6 @@ use crate::io::image::LinearImage;
 use crate::mesh::{Mesh, Topology};
 use glam::Vec2;
 
-/// Bilinear sample of `img` at `uv` with repeat (UVs outside [0, 1] wrap, as the bake draws them).
-pub fn sample_bilinear_wrap(img: &LinearImage, uv: Vec2) -> [f32; 4] {
-    let x = uv.x * img.width as f32 - 0.5;
-    let y = uv.y * img.height as f32 - 0.5;
-    let (x0, y0) = (x.floor(), y.floor());
-    let (fx, fy) = (x - x0, y - y0);
-    let at = |xi: f32, yi: f32| {
-        let xi = (xi as i64).rem_euclid(img.width as i64) as u32;
-        let yi = (yi as i64).rem_euclid(img.height as i64) as u32;
-        img.pixels[(yi * img.width + xi) as usize]
-    };
-    let (a, b, c, d) = (
-        at(x0, y0),
-        at(x0 + 1.0, y0),
-        at(x0, y0 + 1.0),
-        at(x0 + 1.0, y0 + 1.0),
-    );
-    std::array::from_fn(|k| {
-        (a[k] * (1.0 - fx) + b[k] * fx) * (1.0 - fy) + (c[k] * (1.0 - fx) + d[k] * fx) * fy
-    })
-}
-
 /// The canvas under a stamp in its flat space: `FLAT_RES`² texels over the stamp's rectangle
 /// (`size`), each the canvas at the UV of the stamp's point there, found among `triangles` (the
 /// stamp's selection) by their stamp coordinates `coords`; alpha 0 where no triangle is.
@@ -62,7 +40,7 @@ pub fn flatten_cpu(
                 }
                 let [ua, ub, uc] = mesh.triangles[t as usize].map(|s| uvs[s as usize]);
                 let uv = ua * w0 + ub * w1 + uc * w2;
-                let s = sample_bilinear_wrap(canvas, uv);
+                let s = canvas.bilinear(uv.x, uv.y, true);
                 out.pixels[(j * r + i) as usize] = [s[0], s[1], s[2], 1.0];
                 break;
             }

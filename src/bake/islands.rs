@@ -162,22 +162,7 @@ impl Pass<'_> {
             let side = target_side(j.rect_size, ss);
             let tg = self.engine.targets([side, side]);
             {
-                let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some("islands.raster"),
-                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                        view: &tg.cov_view,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    })],
-                    depth_stencil_attachment: None,
-                    timestamp_writes: None,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                });
+                let mut pass = crate::gpu::cleared_pass(enc, "islands.raster", &[&tg.cov_view]);
                 pass.set_pipeline(&pipes.island_raster.pipeline);
                 pass.set_bind_group(0, &bg_island, &[off]);
                 let [jw, jh] = j.rect_size.map(|v| (v * ss) as f32);

@@ -88,23 +88,19 @@ pub struct LayerMaps {
     pub expmap: Vec<Option<GeoResult>>,
     /// Per layer of the chunk: the chart report, for layers that have one.
     pub chart: Vec<Option<ChartReport>>,
-    /// Per unit of the chunk: a chart other units blend from, not drawn (no selection).
-    pub hidden: Vec<bool>,
-    /// Per unit of the chunk: coordinates blended from other units' charts (`blend_pass`), not
-    /// solved by its method.
-    pub blended: Vec<bool>,
 }
 
 impl LayerMaps {
-    /// The chunk's layers (job indices) whose map method satisfies `f`.
+    /// The chunk's layers (job indices) that their method solves (not blended: `blend_pass`) and
+    /// whose method satisfies `f`.
     fn layers_where(
         &self,
-        job: &Job,
+        (job, placed): (&Job, &Placed),
         f: impl Fn(&dyn crate::maps::MapMethod) -> bool,
     ) -> Vec<usize> {
         self.range
             .clone()
-            .filter(|&i| !self.blended[i - self.range.start] && f(method(job.layers[i].method)))
+            .filter(|&i| placed.blends[i].is_none() && f(method(job.layers[i].method)))
             .collect()
     }
 }
@@ -144,15 +140,13 @@ pub(crate) fn compute(
     let mut maps = LayerMaps {
         expmap: vec![None; range.len()],
         chart: vec![None; range.len()],
-        hidden: placed.hidden[range.clone()].to_vec(),
-        blended: range.clone().map(|i| placed.blends[i].is_some()).collect(),
         range,
         params,
         buffer,
     };
     expmap_pass(cx, placed, slots, &mut maps, log)?;
     chart_pass(cx, placed, slots, &mut maps, log)?;
-    direct_pass(cx, slots, &maps, log)?;
+    direct_pass(cx, placed, slots, &maps, log)?;
     blend_pass(cx, placed, slots, &maps, log)?;
     Ok(maps)
 }
@@ -189,7 +183,7 @@ fn expmap_pass(
 ) -> Result<()> {
     let Cx { engine, mesh, job } = cx;
     let start = maps.range.start;
-    let layers = maps.layers_where(job, |m| m.uses_expmap());
+    let layers = maps.layers_where((job, placed), |m| m.uses_expmap());
     let requests: Vec<_> = layers
         .iter()
         .map(|&i| {
@@ -225,7 +219,7 @@ fn chart_pass(
     let Cx { engine, mesh, job } = cx;
     let start = maps.range.start;
     let nv = mesh.gpu.vertex_count as u64;
-    let layers = maps.layers_where(job, |m| m.uses_expmap() && m.solves_chart());
+    let layers = maps.layers_where((job, placed), |m| m.uses_expmap() && m.solves_chart());
     let (Some(&first), Some(&last)) = (layers.first(), layers.last()) else {
         return Ok(());
     };
@@ -255,7 +249,7 @@ fn chart_pass(
     let mut items: Vec<[u32; 8]> = Vec::new();
     let mut kept = vec![true; charts.len()];
     for (k, (&i, c)) in layers.iter().zip(&charts).enumerate() {
-        if maps.hidden[i - start] && chart_error(job, i, &c.report).is_some() {
+        if placed.hidden[i] && chart_error(job, i, &c.report).is_some() {
             // A continuous stroke's corner chart (larger than its stamps) that folds or does not
             // converge keeps its exponential map: the stamps blending it stay continuous.
             log.warnings.push(format!(
@@ -379,12 +373,18 @@ fn scatter(
 }
 
 /// The methods' own kernels (planar), one compute pass for the chunk.
-fn direct_pass(cx: Cx<'_>, slots: &Slots, maps: &LayerMaps, log: &mut Log) -> Result<()> {
+fn direct_pass(
+    cx: Cx<'_>,
+    placed: &Placed,
+    slots: &Slots,
+    maps: &LayerMaps,
+    log: &mut Log,
+) -> Result<()> {
     let Cx { engine, mesh, job } = cx;
     // Group the chunk's layers by method (first appearance first): one bind group per method.
     let start = maps.range.start;
     let mut groups: Vec<(crate::io::job::Method, Vec<u32>)> = Vec::new();
-    for i in maps.range.clone().filter(|&i| !maps.blended[i - start]) {
+    for i in maps.range.clone().filter(|&i| placed.blends[i].is_none()) {
         let m = job.layers[i].method;
         let off = ((i - start) as u64 * PARAMS_STRIDE) as u32;
         match groups.iter_mut().find(|(g, _)| *g == m) {

@@ -133,7 +133,7 @@ fn compose_units(
     let starts = tools::chunk_starts(placed);
     for range in slots.chunks(&placed.blocks, &starts) {
         let maps = maps::compute(cx, placed, &slots, range.clone(), &canvas.global, log)?;
-        let stats = select::select(cx, canvas, &slots, &maps, log)?;
+        let stats = select::select(cx, canvas, (&slots, &maps), placed, log)?;
         let first = units.len();
         for i in range {
             let row = canvas.row(&stats, i);

@@ -8,16 +8,18 @@
 use super::canvas::Canvas;
 use super::maps::{LayerMaps, Slots};
 use super::params::{pbind, PARAMS_STRIDE};
+use super::place::Placed;
 use super::stage::{Cx, Log};
 use crate::error::{Error, Result};
 
-/// Selects the triangles of the chunk's layers on the GPU and reads the stats rows back (every
-/// layer's, as the buffer holds them). A layer that covers no triangle is an error naming it.
+/// Selects the triangles of the chunk's layers on the GPU (not the hidden corner charts of
+/// continuous strokes) and reads the stats rows back (every layer's, as the buffer holds them). A
+/// layer that covers no triangle is an error naming it.
 pub(crate) fn select(
     cx: Cx<'_>,
     canvas: &Canvas,
-    slots: &Slots,
-    maps: &LayerMaps,
+    (slots, maps): (&Slots, &LayerMaps),
+    placed: &Placed,
     log: &mut Log,
 ) -> Result<Vec<i32>> {
     let Cx { engine, mesh, job } = cx;
@@ -47,7 +49,8 @@ pub(crate) fn select(
                 timestamp_writes: None,
             });
             pass.set_pipeline(&pipes.select_triangles.pipeline);
-            for k in (0..maps.range.len()).filter(|&k| !maps.hidden[k]) {
+            let start = maps.range.start;
+            for k in (0..maps.range.len()).filter(|&k| !placed.hidden[start + k]) {
                 pass.set_bind_group(0, &bg, &[(k as u64 * PARAMS_STRIDE) as u32]);
                 pass.dispatch_workgroups(g.triangle_count.div_ceil(64), 1, 1);
                 log.commands += 1;
@@ -57,7 +60,7 @@ pub(crate) fn select(
     })?;
     let stats = canvas.read_stats(engine, "layer selection read-back")?;
     for i in maps.range.clone() {
-        if !maps.hidden[i - maps.range.start] && canvas.row(&stats, i)[0] <= 0 {
+        if !placed.hidden[i] && canvas.row(&stats, i)[0] <= 0 {
             return Err(Error::Placement {
                 path: job.source.clone(),
                 layer: i,

@@ -46,11 +46,10 @@ pub fn chunk_starts(placed: &Placed) -> Vec<usize> {
 /// The chunk's flattened units, in order (the k-th has cell k: a blur or smear stroke's stamps, a
 /// clone's source stamps), and the cell each drawn tool stamp reads.
 pub fn cells(maps: &LayerMaps, placed: &Placed) -> (Vec<usize>, HashMap<usize, u32>) {
-    let start = maps.range.start;
     let flattened: Vec<usize> = maps
         .range
         .clone()
-        .filter(|&u| !maps.hidden[u - start])
+        .filter(|&u| !placed.hidden[u])
         .filter(|&u| placed.stroke_of(u).is_some_and(|s| s.tool.reads_canvas()))
         .filter(|&u| placed.clone_of[u].is_none())
         .collect();
@@ -87,23 +86,12 @@ pub(crate) fn record(
     let stroke = placed.stroke_of(*units.first()?)?;
     let (dev, pipes) = (&engine.ctx.device, &engine.pipes);
     let n = units.len() as u32;
-    let rows = n.div_ceil(FLAT_COLS);
+    let rows = n.div_ceil(FLAT_COLS).next_power_of_two();
+    // The pooled raster targets (reused by every bake; rows of cells rounded up to a power of two so
+    // that chunks share a few sizes), whose colour target has the layer format.
     let size = [FLAT_COLS * FLAT_RES, rows * FLAT_RES];
-    let atlas = dev.create_texture(&wgpu::TextureDescriptor {
-        label: Some("bake.flat_atlas"),
-        size: wgpu::Extent3d {
-            width: size[0],
-            height: size[1],
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: pipes.layer_format,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-        view_formats: &[],
-    });
-    let view = atlas.create_view(&Default::default());
+    let targets = engine.targets(size);
+    let view = &targets.color_view;
     let entries: Vec<Params> = units
         .iter()
         .enumerate()
@@ -130,22 +118,7 @@ pub(crate) fn record(
         ],
     );
     {
-        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("bake.stamp_flatten"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: None,
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        let mut pass = crate::gpu::cleared_pass(enc, "bake.stamp_flatten", &[view]);
         pass.set_pipeline(&pipes.stamp_flatten.pipeline);
         for (k, &u) in units.iter().enumerate() {
             let k = k as u32;
@@ -201,7 +174,7 @@ pub(crate) fn record(
             "bake.stamp_filter",
             &[
                 (0, dims.as_entire_binding()),
-                (1, wgpu::BindingResource::TextureView(&view)),
+                (1, wgpu::BindingResource::TextureView(view)),
                 (2, tmp.as_entire_binding()),
                 (3, out.as_entire_binding()),
                 (4, sigmas.as_entire_binding()),

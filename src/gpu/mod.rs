@@ -36,6 +36,36 @@ pub fn parse_backends(name: &str) -> Option<wgpu::Backends> {
     }
 }
 
+/// A render pass over `views`, each cleared to transparent first (the bake's raster targets).
+pub fn cleared_pass<'e>(
+    enc: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    views: &[&wgpu::TextureView],
+) -> wgpu::RenderPass<'e> {
+    let attachments: Vec<Option<wgpu::RenderPassColorAttachment>> = views
+        .iter()
+        .map(|view| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                    store: wgpu::StoreOp::Store,
+                },
+            })
+        })
+        .collect();
+    enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some(label),
+        color_attachments: &attachments,
+        depth_stencil_attachment: None,
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
+}
+
 impl GpuContext {
     /// Creates a headless device. `backend` (e.g. `"vulkan"`, `"gl"`) overrides `WGPU_BACKEND`; with
     /// neither, Vulkan is tried first and GL second.

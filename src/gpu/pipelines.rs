@@ -225,9 +225,10 @@ pub struct Pipelines {
 impl Pipelines {
     /// Creates every pipeline on `device`.
     ///
-    /// Longer than a screen on purpose: it is the table of the engine's pipelines, one entry per
-    /// kernel with its bindings in binding order (the data the style guide asks for, as vello's
+    /// Longer than a screen on purpose: it is the table of the engine's compute kernels, one entry
+    /// per kernel with its bindings in binding order (the data the style guide asks for, as vello's
     /// `add_shader!` list). Adding a kernel adds an entry here; splitting the table would scatter it.
+    /// The render pipelines, which need more than a binding list, are built by [`Rasters`].
     pub fn new(device: &wgpu::Device) -> Self {
         use Bind::*;
         let features = device.features();
@@ -237,90 +238,7 @@ impl Pipelines {
         } else {
             wgpu::TextureFormat::Rgba16Float
         };
-        let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
-
-        let layer_layout = layout(
-            device,
-            "layer_raster",
-            &[
-                (0, Params),
-                (1, Ro),
-                (2, Ro),
-                (3, Ro),
-                (4, Ro),
-                (5, Ro),
-                (6, Tex(true)),
-                (7, Tex(true)),
-                (8, Sampler),
-                (9, Ro),
-            ],
-            vf,
-        );
-        let premult_over = wgpu::BlendState {
-            color: wgpu::BlendComponent {
-                src_factor: wgpu::BlendFactor::One,
-                dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
-                operation: wgpu::BlendOperation::Add,
-            },
-            alpha: wgpu::BlendComponent {
-                src_factor: wgpu::BlendFactor::One,
-                dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
-                operation: wgpu::BlendOperation::Add,
-            },
-        };
-        let make_layer = |format: wgpu::TextureFormat, blend: bool| {
-            raster(
-                device,
-                "layer_raster",
-                layer_layout.clone(),
-                &[],
-                &[
-                    Some(wgpu::ColorTargetState {
-                        format,
-                        blend: blend.then_some(premult_over),
-                        write_mask: wgpu::ColorWrites::ALL,
-                    }),
-                    Some(COVERAGE_FORMAT.into()),
-                ],
-                None,
-                1,
-            )
-        };
-        // f32 targets keep 16-bit output exact; where f32 is not renderable (GL), fall back to f16.
-        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let first = make_layer(LAYER_COLOR_FORMAT, layer_blending);
-        let (layer_raster, layer_format, layer_blending) = match pollster::block_on(scope.pop()) {
-            None => (first, LAYER_COLOR_FORMAT, layer_blending),
-            Some(_) => (
-                make_layer(wgpu::TextureFormat::Rgba16Float, true),
-                wgpu::TextureFormat::Rgba16Float,
-                true,
-            ),
-        };
-        let flatten_layout = layout(
-            device,
-            "stamp_flatten",
-            &[
-                (0, Params),
-                (1, Ro),
-                (2, Ro),
-                (3, Ro),
-                (4, Ro),
-                (5, Ro),
-                (10, Ro),
-                (11, Ro),
-            ],
-            vf,
-        );
-        let stamp_flatten = raster(
-            device,
-            "stamp_flatten",
-            flatten_layout,
-            &[],
-            &[Some(layer_format.into())],
-            None,
-            1,
-        );
+        let rasters = Rasters::new(device, layer_blending);
         let cg_binds = &[
             (0, Uniform),
             (1, Ro),
@@ -335,71 +253,6 @@ impl Pipelines {
             (10, Rw),
             (11, Rw),
         ];
-        let island_layout = layout(
-            device,
-            "island_raster",
-            &[(0, Params), (1, Ro), (2, Ro), (3, Ro)],
-            vf,
-        );
-        let island_raster = raster(
-            device,
-            "island_raster",
-            island_layout,
-            &[],
-            &[Some(COVERAGE_FORMAT.into())],
-            None,
-            1,
-        );
-
-        let preview_layout = layout(
-            device,
-            "preview",
-            &[(0, Uniform), (1, Tex(true)), (2, Sampler)],
-            vf,
-        );
-        let vb = |loc: u32, fmt: wgpu::VertexFormat| -> Vec<wgpu::VertexAttribute> {
-            vec![wgpu::VertexAttribute {
-                format: fmt,
-                offset: 0,
-                shader_location: loc,
-            }]
-        };
-        let a0 = vb(0, wgpu::VertexFormat::Float32x3);
-        let a1 = vb(1, wgpu::VertexFormat::Float32x3);
-        let a2 = vb(2, wgpu::VertexFormat::Float32x2);
-        let buffers = [
-            Some(wgpu::VertexBufferLayout {
-                array_stride: 12,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &a0,
-            }),
-            Some(wgpu::VertexBufferLayout {
-                array_stride: 12,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &a1,
-            }),
-            Some(wgpu::VertexBufferLayout {
-                array_stride: 8,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &a2,
-            }),
-        ];
-        let preview = raster(
-            device,
-            "preview",
-            preview_layout,
-            &buffers,
-            &[Some(PREVIEW_FORMAT.into())],
-            Some(wgpu::DepthStencilState {
-                format: wgpu::TextureFormat::Depth32Float,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            4,
-        );
-
         Self {
             place_candidates: Kernel::new(
                 device,
@@ -426,8 +279,8 @@ impl Pipelines {
                     (7, Rw),
                 ],
             ),
-            layer_raster,
-            stamp_flatten,
+            layer_raster: rasters.layer,
+            stamp_flatten: rasters.flatten,
             stamp_filter: Kernel::new(
                 device,
                 "stamp_filter",
@@ -440,7 +293,7 @@ impl Pipelines {
                     (5, Rw),
                 ],
             ),
-            island_raster,
+            island_raster: rasters.island,
             island_mask: Kernel::new(
                 device,
                 "island_mask",
@@ -535,12 +388,197 @@ impl Pipelines {
                     (14, Ro),
                 ],
             ),
-            preview,
-            layer_blending,
-            layer_format,
+            preview: rasters.preview,
+            layer_blending: rasters.layer_blending,
+            layer_format: rasters.layer_format,
             image_format,
         }
     }
+}
+
+/// The render pipelines: the layer raster (with the format and blending it got), the tools'
+/// inverse raster into the same format, the island raster and the preview.
+struct Rasters {
+    layer: Raster,
+    flatten: Raster,
+    island: Raster,
+    preview: Raster,
+    layer_format: wgpu::TextureFormat,
+    layer_blending: bool,
+}
+
+impl Rasters {
+    /// `layer_blending`: whether f32 targets blend on this device.
+    fn new(device: &wgpu::Device, layer_blending: bool) -> Self {
+        let (layer, layer_format, layer_blending) = layer_raster(device, layer_blending);
+        Self {
+            layer,
+            flatten: flatten_raster(device, layer_format),
+            island: island_raster(device),
+            preview: preview_raster(device),
+            layer_format,
+            layer_blending,
+        }
+    }
+}
+
+/// Bindings the layer raster and the tools' inverse raster share: `Params`, triangle lists, split
+/// triangles, UVs, welded ids, coordinates.
+const UNIT_BINDS: [(u32, Bind); 6] = [
+    (0, Bind::Params),
+    (1, Bind::Ro),
+    (2, Bind::Ro),
+    (3, Bind::Ro),
+    (4, Bind::Ro),
+    (5, Bind::Ro),
+];
+
+/// `layer_raster` into f32 targets (blending premultiplied source-over where the device can), or
+/// into f16 targets with blending where f32 is not renderable (GL); returns the pipeline, its
+/// colour format and whether it blends.
+fn layer_raster(device: &wgpu::Device, blending: bool) -> (Raster, wgpu::TextureFormat, bool) {
+    use Bind::*;
+    let binds: Vec<(u32, Bind)> = UNIT_BINDS
+        .into_iter()
+        .chain([(6, Tex(true)), (7, Tex(true)), (8, Sampler), (9, Ro)])
+        .collect();
+    let layer_layout = layout(
+        device,
+        "layer_raster",
+        &binds,
+        wgpu::ShaderStages::VERTEX_FRAGMENT,
+    );
+    let premult = wgpu::BlendComponent {
+        src_factor: wgpu::BlendFactor::One,
+        dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
+        operation: wgpu::BlendOperation::Add,
+    };
+    let premult_over = wgpu::BlendState {
+        color: premult,
+        alpha: premult,
+    };
+    let make_layer = |format: wgpu::TextureFormat, blend: bool| {
+        raster(
+            device,
+            "layer_raster",
+            layer_layout.clone(),
+            &[],
+            &[
+                Some(wgpu::ColorTargetState {
+                    format,
+                    blend: blend.then_some(premult_over),
+                    write_mask: wgpu::ColorWrites::ALL,
+                }),
+                Some(COVERAGE_FORMAT.into()),
+            ],
+            None,
+            1,
+        )
+    };
+    // f32 targets keep 16-bit output exact; where f32 is not renderable (GL), fall back to f16.
+    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let first = make_layer(LAYER_COLOR_FORMAT, blending);
+    match pollster::block_on(scope.pop()) {
+        None => (first, LAYER_COLOR_FORMAT, blending),
+        Some(_) => {
+            let f16 = wgpu::TextureFormat::Rgba16Float;
+            (make_layer(f16, true), f16, true)
+        }
+    }
+}
+
+/// `stamp_flatten`: the canvas drawn into tool stamps' flat cells, in the layer targets' format.
+fn flatten_raster(device: &wgpu::Device, format: wgpu::TextureFormat) -> Raster {
+    let binds: Vec<(u32, Bind)> = UNIT_BINDS
+        .into_iter()
+        .chain([(10, Bind::Ro), (11, Bind::Ro)])
+        .collect();
+    let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
+    let flatten_layout = layout(device, "stamp_flatten", &binds, vf);
+    raster(
+        device,
+        "stamp_flatten",
+        flatten_layout,
+        &[],
+        &[Some(format.into())],
+        None,
+        1,
+    )
+}
+
+/// `island_raster`: island coverage at the texture's samples.
+fn island_raster(device: &wgpu::Device) -> Raster {
+    use Bind::*;
+    let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
+    let island_layout = layout(
+        device,
+        "island_raster",
+        &[(0, Params), (1, Ro), (2, Ro), (3, Ro)],
+        vf,
+    );
+    raster(
+        device,
+        "island_raster",
+        island_layout,
+        &[],
+        &[Some(COVERAGE_FORMAT.into())],
+        None,
+        1,
+    )
+}
+
+/// `preview`: the textured model, depth-tested, 4× MSAA.
+fn preview_raster(device: &wgpu::Device) -> Raster {
+    use Bind::*;
+    let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
+    let preview_layout = layout(
+        device,
+        "preview",
+        &[(0, Uniform), (1, Tex(true)), (2, Sampler)],
+        vf,
+    );
+    let vb = |loc: u32, fmt: wgpu::VertexFormat| -> Vec<wgpu::VertexAttribute> {
+        vec![wgpu::VertexAttribute {
+            format: fmt,
+            offset: 0,
+            shader_location: loc,
+        }]
+    };
+    let a0 = vb(0, wgpu::VertexFormat::Float32x3);
+    let a1 = vb(1, wgpu::VertexFormat::Float32x3);
+    let a2 = vb(2, wgpu::VertexFormat::Float32x2);
+    let buffers = [
+        Some(wgpu::VertexBufferLayout {
+            array_stride: 12,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &a0,
+        }),
+        Some(wgpu::VertexBufferLayout {
+            array_stride: 12,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &a1,
+        }),
+        Some(wgpu::VertexBufferLayout {
+            array_stride: 8,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &a2,
+        }),
+    ];
+    raster(
+        device,
+        "preview",
+        preview_layout,
+        &buffers,
+        &[Some(PREVIEW_FORMAT.into())],
+        Some(wgpu::DepthStencilState {
+            format: wgpu::TextureFormat::Depth32Float,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        4,
+    )
 }
 
 fn raster(

@@ -39,6 +39,33 @@ pub fn linear_to_srgb(c: f32) -> f32 {
 }
 
 impl LinearImage {
+    /// Bilinear sample at (u, v) in [0, 1]² (texel centres at half-integers), with clamp-to-edge or,
+    /// when `repeat`, wrapping (glTF's default sampler). The CPU twins' one image sampler.
+    pub fn bilinear(&self, u: f32, v: f32, repeat: bool) -> [f32; 4] {
+        let x = u * self.width as f32 - 0.5;
+        let y = v * self.height as f32 - 0.5;
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let at = |xi: f32, yi: f32| {
+            let (w, h) = (self.width as i64, self.height as i64);
+            let (xi, yi) = if repeat {
+                ((xi as i64).rem_euclid(w), (yi as i64).rem_euclid(h))
+            } else {
+                ((xi as i64).clamp(0, w - 1), (yi as i64).clamp(0, h - 1))
+            };
+            self.pixels[(yi * w + xi) as usize]
+        };
+        let (a, b, c, d) = (
+            at(x0, y0),
+            at(x0 + 1.0, y0),
+            at(x0, y0 + 1.0),
+            at(x0 + 1.0, y0 + 1.0),
+        );
+        std::array::from_fn(|k| {
+            (a[k] * (1.0 - fx) + b[k] * fx) * (1.0 - fy) + (c[k] * (1.0 - fx) + d[k] * fx) * fy
+        })
+    }
+
     /// A `width`×`height` image filled with one colour.
     pub fn solid(width: u32, height: u32, rgba: [f32; 4]) -> Self {
         Self {

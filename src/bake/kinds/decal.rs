@@ -2,10 +2,10 @@
 //! `"kind": "decal"`: one image placed at one surface point (`at`: a point snapped to the surface,
 //! or the first hit of a ray), `size` wide and high, turned by `up` and `angle`.
 
-use super::{query_of, Expansion, Kind, Unit};
+use super::{placement_problem, query_of, Expansion, Kind, Unit};
 use crate::bake::stage::Cx;
 use crate::error::{Error, Result};
-use crate::io::job::{AtSpec, Layer};
+use crate::io::job::Layer;
 use crate::maps::Frame;
 use crate::place::{Placement, Query};
 
@@ -26,25 +26,13 @@ impl Kind for Decal {
     ) -> Result<Expansion> {
         let job = cx.job;
         let (l, p) = (&job.layers[index], &placements[0]);
-        if p.found == 0 {
+        let reach = l.size[0].max(l.size[1]);
+        if let Some(detail) = placement_problem(&l.at, p, (reach, "the decal's size")) {
             return Err(Error::Placement {
                 path: job.source.clone(),
                 layer: index,
-                detail: "the ray misses the mesh; aim it at the model (check origin, direction and the model's units in `decalbake info`)".into(),
+                detail,
             });
-        }
-        let reach = l.size[0].max(l.size[1]);
-        if let AtSpec::Point(at) = l.at {
-            if p.distance > reach {
-                return Err(Error::Placement {
-                    path: job.source.clone(),
-                    layer: index,
-                    detail: format!(
-                        "the point {at:?} is {:.4} from the surface, farther than the decal's size {reach:.4}; place it on the mesh (its bounding box is in `decalbake info`) or use a ray",
-                        p.distance,
-                    ),
-                });
-            }
         }
         let f = Frame::new(p, l);
         if f.up_fallback {

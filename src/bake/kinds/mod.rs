@@ -96,3 +96,23 @@ pub fn query_of(at: &crate::io::job::AtSpec) -> Query {
         AtSpec::Ray { ray } => Query::Ray(Vec3::from(ray.origin), Vec3::from(ray.dir)),
     }
 }
+
+/// Why the placement `p` of `at` cannot be used, or `None`: a ray that missed the mesh, or a point
+/// farther from the surface than `reach` (`what` names that size in the message: "the decal's
+/// size", "the stamp size"). Callers prefix the field (`path[3]: `, `` `source`: ``).
+pub fn placement_problem(
+    at: &crate::io::job::AtSpec,
+    p: &Placement,
+    (reach, what): (f32, &str),
+) -> Option<String> {
+    if p.found == 0 {
+        return Some("the ray misses the mesh; aim it at the model (check origin, direction and the model's units in `decalbake info`)".into());
+    }
+    match at {
+        crate::io::job::AtSpec::Point(q) if p.distance > reach => Some(format!(
+            "the point {q:?} is {:.4} from the surface, farther than {what} {reach:.4}; place it on the mesh (its bounding box is in `decalbake info`) or use a ray",
+            p.distance
+        )),
+        _ => None,
+    }
+}

@@ -16,11 +16,11 @@ pub mod continuity;
 pub mod path;
 pub mod stamps;
 
-use super::{query_of, Expansion, Kind};
+use super::{placement_problem, query_of, Expansion, Kind};
 pub use crate::bake::report::StrokeReport;
 use crate::bake::stage::Cx;
 use crate::error::{Error, Result};
-use crate::io::job::{AtSpec, Layer};
+use crate::io::job::Layer;
 use crate::maps::expmap::cpu::{Options, Seed};
 use crate::place::{Placement, Query};
 use glam::Vec3;
@@ -59,8 +59,8 @@ impl Kind for StrokeKind {
             layer: index,
             detail,
         };
-        let (placements, source) = placements.split_at(stroke.path.len());
         check_points(layer, placements, &err)?;
+        let (placements, source) = placements.split_at(stroke.path.len());
         let topo = &mesh.topo;
         let edge = path::mean_edge(topo);
         let (lo, hi) = (mesh.stats.bbox_min, mesh.stats.bbox_max);
@@ -82,7 +82,6 @@ impl Kind for StrokeKind {
         let stamps = units.len();
         let (units, pairs) = match source.first() {
             Some(src) => {
-                check_source(layer, src, &err)?;
                 let sources = clone::sources(topo, &units, src, edge, &err)?;
                 // Each stamp follows its source, in one block (one chunk flattens both).
                 let mut out = Vec::with_capacity(2 * units.len());
@@ -171,29 +170,8 @@ fn join_path(
     Ok(surface_path)
 }
 
-/// The clone's `source` was placed, near the surface when given as a point.
-fn check_source(layer: &Layer, p: &Placement, err: &dyn Fn(String) -> Error) -> Result<()> {
-    let reach = layer.size[0].max(layer.size[1]);
-    if p.found == 0 {
-        return Err(err(
-            "`source`: the ray misses the mesh; aim it at the model".into(),
-        ));
-    }
-    if p.distance > reach && p.distance.is_finite() {
-        if let Some(crate::io::job::Tool::Clone {
-            source: AtSpec::Point(q),
-        }) = layer.stroke.as_ref().map(|s| &s.tool)
-        {
-            return Err(err(format!(
-                "`source`: the point {q:?} is {:.4} from the surface, farther than the stamp size {reach:.4}; put it on the mesh",
-                p.distance
-            )));
-        }
-    }
-    Ok(())
-}
-
-/// Every path point was placed, and points given as points lie near the surface.
+/// Every path point (and a clone's `source`, after them in `placements`) was placed near the
+/// surface.
 fn check_points(
     layer: &Layer,
     placements: &[Placement],
@@ -203,20 +181,20 @@ fn check_points(
         .stroke
         .as_ref()
         .expect("a stroke layer has its stroke");
-    let reach = layer.size[0].max(layer.size[1]);
-    for (k, (at, p)) in stroke.path.iter().zip(placements).enumerate() {
-        if p.found == 0 {
-            return Err(err(format!(
-                "path[{k}]: the ray misses the mesh; aim it at the model"
-            )));
-        }
-        if let AtSpec::Point(q) = at {
-            if p.distance > reach {
-                return Err(err(format!(
-                    "path[{k}]: the point {q:?} is {:.4} from the surface, farther than the stamp size {reach:.4}; put the path on the mesh (its bounding box is in `decalbake info`)",
-                    p.distance
-                )));
-            }
+    let reach = (layer.size[0].max(layer.size[1]), "the stamp size");
+    let source = match &stroke.tool {
+        crate::io::job::Tool::Clone { source } => Some(("`source`".to_string(), source)),
+        _ => None,
+    };
+    let named = stroke
+        .path
+        .iter()
+        .enumerate()
+        .map(|(k, at)| (format!("path[{k}]"), at))
+        .chain(source);
+    for ((name, at), p) in named.zip(placements) {
+        if let Some(why) = placement_problem(at, p, reach) {
+            return Err(err(format!("{name}: {why}")));
         }
     }
     Ok(())
