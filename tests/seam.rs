@@ -61,17 +61,8 @@ fn stroke_across_uv_seams_is_continuous_on_spot() {
     let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
     let seams = spot_seams(&mesh, &topo);
     let size = 0.3f32;
-    let mid = |e: &(u32, u32)| 0.5 * (topo.positions[e.0 as usize] + topo.positions[e.1 as usize]);
-    let (e, _, _) = seams
-        .iter()
-        .max_by_key(|(e, _, _)| {
-            seams
-                .iter()
-                .filter(|(f, _, _)| mid(f).distance(mid(e)) < 0.4 * size)
-                .count()
-        })
-        .unwrap();
-    let center = mid(e);
+    let e = densest_seam(&topo, &seams, size);
+    let center = 0.5 * (topo.positions[e.0 as usize] + topo.positions[e.1 as usize]);
     let d = (topo.positions[e.1 as usize] - topo.positions[e.0 as usize]).normalize();
     let pts = [center - 0.2 * d, center, center + 0.2 * d];
     let mut brush = LinearImage::solid(64, 64, [0.0; 4]);
@@ -91,14 +82,7 @@ fn stroke_across_uv_seams_is_continuous_on_spot() {
     let baked = engine.bake(&loaded, &job).unwrap();
     let l = &baked.report.layers[0];
     eprintln!("stroke: {:?}, distortion {:?}", l.stroke, l.distortion);
-    let texture = LinearImage {
-        width: 512,
-        height: 512,
-        pixels: (0..512 * 512)
-            .map(|i| baked.linear(i % 512, i / 512))
-            .collect(),
-    };
-    std::fs::write(dir.join("baked.png"), texture.encode_png(8)).unwrap();
+    let texture = read_texture(&baked, &dir);
     let base = mesh
         .material
         .as_ref()
@@ -127,18 +111,9 @@ fn seam_check(method: &str) {
     let seams = spot_seams(&mesh, &topo);
 
     // Centre the decal where seam edges are densest.
-    let mid = |e: &(u32, u32)| 0.5 * (topo.positions[e.0 as usize] + topo.positions[e.1 as usize]);
     let size = 0.3f32;
-    let center = seams
-        .iter()
-        .map(|(e, _, _)| mid(e))
-        .max_by_key(|c| {
-            seams
-                .iter()
-                .filter(|(e, _, _)| mid(e).distance(*c) < 0.4 * size)
-                .count()
-        })
-        .unwrap();
+    let e = densest_seam(&topo, &seams, size);
+    let center = 0.5 * (topo.positions[e.0 as usize] + topo.positions[e.1 as usize]);
 
     // A smooth decal: a colour ramp, opaque.
     let mut decal = LinearImage::solid(64, 64, [0.0; 4]);
@@ -171,14 +146,7 @@ fn seam_check(method: &str) {
         "{method}: distortion {:?}, chart {:?}",
         layer.distortion, layer.chart
     );
-    let texture = LinearImage {
-        width: 512,
-        height: 512,
-        pixels: (0..512 * 512)
-            .map(|i| baked.linear(i % 512, i / 512))
-            .collect(),
-    };
-    std::fs::write(dir.join("baked.png"), texture.encode_png(8)).unwrap();
+    let texture = read_texture(&baked, &dir);
     let base = mesh
         .material
         .as_ref()
@@ -350,4 +318,33 @@ fn footprint(mesh: &Mesh, topo: &Topology, t: usize) -> f32 {
     let c1 = d1 * inv[0][1] + d2 * inv[1][1];
     let (a, b, c) = (c0.dot(c0), c0.dot(c1), c1.dot(c1));
     (0.5 * (a + c + ((a - c).powi(2) + 4.0 * b * b).sqrt())).sqrt()
+}
+
+/// The baked 512² texture in linear light, also written to `dir/baked.png` to look at.
+fn read_texture(baked: &decalbake::Baked, dir: &Path) -> LinearImage {
+    let texture = LinearImage {
+        width: 512,
+        height: 512,
+        pixels: (0..512 * 512)
+            .map(|i| baked.linear(i % 512, i / 512))
+            .collect(),
+    };
+    std::fs::write(dir.join("baked.png"), texture.encode_png(8)).unwrap();
+    texture
+}
+
+/// The seam edge with the most seam edges within 0.4 × `size` of its midpoint (a layer `size` wide
+/// centred there straddles the most seams).
+fn densest_seam(topo: &Topology, seams: &[Seam], size: f32) -> (u32, u32) {
+    let mid = |e: &(u32, u32)| 0.5 * (topo.positions[e.0 as usize] + topo.positions[e.1 as usize]);
+    seams
+        .iter()
+        .map(|(e, _, _)| *e)
+        .max_by_key(|e| {
+            seams
+                .iter()
+                .filter(|(f, _, _)| mid(f).distance(mid(e)) < 0.4 * size)
+                .count()
+        })
+        .unwrap()
 }
