@@ -7,7 +7,7 @@
 mod common;
 use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
 use decalbake::solve::gpu::{cg_batched, dots, spmv, GpuCsr, SystemDesc};
-use decalbake::solve::sparse::{pcg, relative_residual, CgStatus, Csr};
+use decalbake::solve::sparse::{pcg, relative_residual, CgStatus, ComplexCsr, Csr};
 
 const EPS: f64 = 5.96e-8;
 
@@ -202,6 +202,124 @@ fn batched_cg_converges_and_is_batch_independent() {
         assert_eq!(alone.reports[0].iterations, rep.iterations);
         assert_eq!(alone.x, batch.x[r].to_vec(), "system {k} differs alone");
     }
+}
+
+/// Many small systems in one batch are packed one per invocation (`cg_packed.wgsl`); each alone gets
+/// a workgroup (`cg_batched.wgsl`). Both sum in their own fixed order, so x differs in the last
+/// bits; both must reach the tolerance, agree with each other to 1e-5 of |x| and with the f64
+/// twin within the forward-error bound (cond × residual; cond < 2 × 8 / 0.05 as in the test
+/// above), and take the same iterations within 10 % (f32 rounding moves the step where the
+/// residual crosses).
+#[test]
+fn packed_systems_match_one_workgroup_each() {
+    let e = common::engine();
+    let mut rng = Lcg(11);
+    let sizes: Vec<usize> = (0..24).map(|k| 5 + 9 * k).collect();
+    let blocks: Vec<Csr> = sizes
+        .iter()
+        .map(|&n| round_matrix(&random_spd(n, 8, 0.05, &mut rng)))
+        .collect();
+    let refs: Vec<&Csr> = blocks.iter().collect();
+    let (a, starts) = Csr::block_diagonal(&refs);
+    let b = round32(&random_vec(a.rows, &mut rng));
+    let rtol = 1e-5;
+    let systems: Vec<SystemDesc> = sizes
+        .iter()
+        .zip(&starts)
+        .map(|(&n, &s)| SystemDesc::new(s, n, rtol, 5000))
+        .collect();
+    let batch = cg_batched(&e.ctx, e.pipelines(), &a, &b, &vec![0.0; a.rows], &systems).unwrap();
+    assert_eq!(batch.packed as usize, sizes.len(), "every system packed");
+    assert!(
+        !batch.complex,
+        "a random SPD matrix has no complex block structure"
+    );
+    for (k, (s, rep)) in systems.iter().zip(&batch.reports).enumerate() {
+        let r = s.row0 as usize..(s.row0 + s.n) as usize;
+        let alone = cg_batched(
+            &e.ctx,
+            e.pipelines(),
+            &blocks[k],
+            &b[r.clone()],
+            &vec![0.0; s.n as usize],
+            &[SystemDesc::new(0, s.n as usize, rtol, 5000)],
+        )
+        .unwrap();
+        assert_eq!(alone.packed, 0, "a lone system keeps its workgroup");
+        let xp: Vec<f64> = batch.x[r.clone()].iter().map(|&v| v as f64).collect();
+        let xw: Vec<f64> = alone.x.iter().map(|&v| v as f64).collect();
+        let mut xc = vec![0.0; s.n as usize];
+        pcg(&blocks[k], &b[r.clone()], &mut xc, 1e-12, 10_000);
+        let diff = |u: &[f64], v: &[f64]| {
+            u.iter()
+                .zip(v)
+                .map(|(p, q)| (p - q).abs())
+                .fold(0.0, f64::max)
+        };
+        let xmax = xc.iter().map(|v| v.abs()).fold(0.0, f64::max).max(1e-3);
+        let (wi, pi) = (alone.reports[0].iterations, rep.iterations);
+        println!(
+            "n {:3}: packed {pi} its, workgroup {wi} its; |packed - workgroup| {:.1e}, |packed - f64| {:.1e} of {xmax:.1e}",
+            s.n,
+            diff(&xp, &xw),
+            diff(&xp, &xc)
+        );
+        assert_eq!(rep.status, CgStatus::Converged);
+        assert!(relative_residual(&blocks[k], &b[r.clone()], &xp) <= 2.0 * rtol as f64);
+        // Same iterations, other summation order: the runs differ by accumulated rounding
+        // (2e-7 of |x| measured); 1e-5 leaves room for that and still catches a wrong step.
+        assert!(diff(&xp, &xw) <= 1e-5 * xmax);
+        assert!(diff(&xp, &xc) <= 320.0 * 2.0 * rtol as f64 * xmax);
+        assert!(
+            pi.abs_diff(wi) <= 1 + wi / 10,
+            "iterations {pi} packed, {wi} alone"
+        );
+    }
+}
+
+/// The complex block form of a matrix: found where every 2 × 2 block is [[a, -b], [b, a]], refused
+/// otherwise, and equal to the real matrix it came from.
+#[test]
+fn complex_blocks_are_found_only_where_they_exist() {
+    let mut t = Vec::new();
+    for (i, j, a, b) in [
+        (0u32, 0u32, 4.0, 0.0),
+        (0, 1, -1.0, 0.5),
+        (1, 0, -1.0, -0.5),
+        (1, 1, 3.0, 0.0),
+    ] {
+        let (r, c) = (2 * i, 2 * j);
+        t.extend([(r, c, a), (r, c + 1, -b), (r + 1, c, b), (r + 1, c + 1, a)]);
+    }
+    let m = Csr::from_triplets(4, t.clone());
+    let c = ComplexCsr::from_real(&m).expect("complex blocks");
+    assert_eq!(c.rows, 2);
+    assert_eq!(
+        c.vals,
+        vec![[4.0, 0.0], [-1.0, 0.5], [-1.0, -0.5], [3.0, 0.0]]
+    );
+    assert_eq!(
+        c.to_real().mul(&[1.0, 2.0, 3.0, 4.0]),
+        m.mul(&[1.0, 2.0, 3.0, 4.0])
+    );
+    // One entry off by 1e-6 relative: not a complex block.
+    let mut off = t.clone();
+    off[0].2 *= 1.0 + 1e-6;
+    assert!(ComplexCsr::from_real(&Csr::from_triplets(4, off)).is_none());
+    // A missing mirror entry (b on one side only).
+    let one_sided: Vec<_> = t
+        .iter()
+        .copied()
+        .filter(|&(r, c, _)| (r, c) != (3, 0))
+        .collect();
+    assert!(ComplexCsr::from_real(&Csr::from_triplets(4, one_sided)).is_none());
+    // Odd size, and a random SPD matrix.
+    assert!(ComplexCsr::from_real(&Csr::from_triplets(
+        3,
+        vec![(0, 0, 1.0), (1, 1, 1.0), (2, 2, 1.0)]
+    ))
+    .is_none());
+    assert!(ComplexCsr::from_real(&random_spd(40, 6, 0.1, &mut Lcg(5))).is_none());
 }
 
 /// A real mesh system: Spot's (clamped-cotangent) Laplacian plus a mass shift, 2,930 unknowns.

@@ -201,6 +201,10 @@ pub struct Pipelines {
     pub cg_batched: Kernel,
     /// The same with 64 invocations per system (small systems).
     pub cg_batched_narrow: Kernel,
+    /// `wgsl/solve/cg_packed.wgsl`: many small systems, one per invocation.
+    pub cg_packed: Kernel,
+    /// `cg_packed` on 2 × 2 complex blocks (`shaders::complex_source`): LSCM systems.
+    pub cg_packed_complex: Kernel,
     /// CSR sparse matrix-vector product.
     pub spmv: Kernel,
     /// Batched dot products and norms.
@@ -357,6 +361,13 @@ impl Pipelines {
                 "cg_batched",
                 cg_binds,
                 Some(shaders::narrow_source("cg_batched")),
+            ),
+            cg_packed: Kernel::new(device, "cg_packed", cg_binds),
+            cg_packed_complex: Kernel::with_source(
+                device,
+                "cg_packed",
+                cg_binds,
+                Some(shaders::complex_source()),
             ),
             spmv: Kernel::new(
                 device,

@@ -68,6 +68,7 @@ pub const KERNELS: &[(&str, &str)] = &[
         "cg_batched",
         include_str!("../../wgsl/solve/cg_batched.wgsl"),
     ),
+    ("cg_packed", include_str!("../../wgsl/solve/cg_packed.wgsl")),
     ("spmv", include_str!("../../wgsl/solve/spmv.wgsl")),
     (
         "dot_batched",
@@ -97,6 +98,11 @@ pub const SHARED: &[(&str, &str)] = &[
     ("expmap", include_str!("../../wgsl/shared/expmap.wgsl")),
     ("linalg", include_str!("../../wgsl/shared/linalg.wgsl")),
     ("dims", include_str!("../../wgsl/shared/dims.wgsl")),
+    ("cg_real", include_str!("../../wgsl/shared/cg_real.wgsl")),
+    (
+        "cg_complex",
+        include_str!("../../wgsl/shared/cg_complex.wgsl"),
+    ),
 ];
 
 /// The complete WGSL text of kernel `name`, imports resolved. Panics on an unknown name or import:
@@ -147,6 +153,21 @@ pub fn narrow_source(name: &str) -> String {
     let from = format!("const WG: u32 = {LINALG_WG}u;");
     assert!(full.contains(&from), "{name} has no `{from}`");
     full.replace(&from, &format!("const WG: u32 = {LINALG_WG_NARROW}u;"))
+}
+
+/// The packed conjugate gradient on 2 × 2 complex blocks: `cg_packed` with the `cg_complex` import
+/// in place of `cg_real` (see the kernel's header).
+pub fn complex_source() -> String {
+    let text = KERNELS
+        .iter()
+        .find(|(n, _)| *n == "cg_packed")
+        .expect("cg_packed is a kernel")
+        .1;
+    assert!(
+        text.contains("#import cg_real"),
+        "cg_packed has no `#import cg_real`"
+    );
+    resolve(&text.replace("#import cg_real", "#import cg_complex"))
 }
 
 /// Creates a shader module for kernel `name`.

@@ -15,7 +15,7 @@
 use crate::error::{Error, Result};
 use crate::gpu::pipelines::{Kernel, Pipelines};
 use crate::gpu::GpuContext;
-use crate::solve::sparse::{CgReport, CgStatus, Csr};
+use crate::solve::sparse::{CgReport, CgStatus, ComplexCsr, Csr};
 use wgpu::util::DeviceExt;
 
 /// Loop steps one invocation may run per dispatch (lavapipe abandons invocations past about 65535).
@@ -23,10 +23,19 @@ const LOOP_BUDGET: usize = 20_000;
 /// Loop steps per invocation above which a single iteration is refused (lavapipe abandons an
 /// invocation past about 65535).
 const HARD_LOOP_LIMIT: usize = 50_000;
-/// Iterations per submission before the host looks at the status.
+/// Iterations per submission before the host looks at the status (at most; see [`FIRST_SUBMIT_ITERS`]).
 pub const ITERS_PER_SUBMIT: u32 = 512;
+/// Iterations of a solve's first submission; each next submission doubles them.
+pub const FIRST_SUBMIT_ITERS: u32 = 16;
 /// Workgroup size of the batched kernels (`WG` in wgsl/shared/linalg.wgsl).
 const WG: usize = 256;
+/// The class of systems solved one per invocation (`wgsl/solve/cg_packed.wgsl`).
+const PACKED: u32 = 2;
+/// Workgroup size of the packed kernel (`PACK_WG` there).
+const PACK_WG: u32 = 64;
+/// Batches with at least this many systems pack the small ones one per invocation: enough to fill
+/// both cores' SIMD lanes of lavapipe (2 × 8), see [`kernel_classes`].
+pub const PACK_MIN_SYSTEMS: usize = 16;
 
 /// One system of a batch. Keep in sync with `System` in wgsl/shared/linalg.wgsl.
 #[repr(C)]
@@ -38,7 +47,8 @@ pub struct SystemDesc {
     pub n: u32,
     /// Iteration budget.
     pub max_iter: u32,
-    /// Set by the solver: 1 = solved by the 256-wide kernel, 0 = by the 64-wide one.
+    /// Set by the solver: 1 = solved by the 256-wide kernel, 0 = by the 64-wide one, 2 = packed
+    /// (one per invocation).
     wide: u32,
     /// Target relative residual |b - A x| / |b|.
     pub rtol: f32,
@@ -64,7 +74,9 @@ impl SystemDesc {
 struct CgRound {
     iters: u32,
     base: u32,
-    pad: [u32; 2],
+    /// Systems in this dispatch (the packed kernel's bound; the workgroup kernels use one group each).
+    count: u32,
+    pad: u32,
 }
 
 /// Keep in sync with `State` in wgsl/solve/cg_batched.wgsl.
@@ -128,28 +140,33 @@ fn f32s(v: &[f64]) -> Vec<f32> {
 impl GpuCsr {
     /// Uploads `a` (values rounded to f32).
     pub fn upload(ctx: &GpuContext, a: &Csr) -> Result<Self> {
+        Self::upload_parts(ctx, (&a.row_ptr, &a.cols, &a.vals), a.max_row_len())
+    }
+
+    /// Uploads the blocks of `c` (each (a, b) as two f32; `rows`, `nnz` and `max_row_len` count
+    /// blocks).
+    pub fn upload_complex(ctx: &GpuContext, c: &ComplexCsr) -> Result<Self> {
+        let vals: Vec<f64> = c.vals.iter().flatten().copied().collect();
+        let mut gpu = Self::upload_parts(ctx, (&c.row_ptr, &c.cols, &vals), c.max_row_len())?;
+        gpu.nnz = c.cols.len() as u32;
+        Ok(gpu)
+    }
+
+    fn upload_parts(
+        ctx: &GpuContext,
+        (row_ptr, cols, vals): (&[u32], &[u32], &[f64]),
+        max_row_len: usize,
+    ) -> Result<Self> {
+        let buf = |label: &str, bytes: &[u8]| {
+            storage_init(ctx, label, bytes, wgpu::BufferUsages::empty())
+        };
         ctx.scoped("sparse matrix upload", || Self {
-            row_ptr: storage_init(
-                ctx,
-                "csr.row_ptr",
-                bytemuck::cast_slice(&a.row_ptr),
-                wgpu::BufferUsages::empty(),
-            ),
-            cols: storage_init(
-                ctx,
-                "csr.cols",
-                bytemuck::cast_slice(&a.cols),
-                wgpu::BufferUsages::empty(),
-            ),
-            vals: storage_init(
-                ctx,
-                "csr.vals",
-                bytemuck::cast_slice(&f32s(&a.vals)),
-                wgpu::BufferUsages::empty(),
-            ),
-            rows: a.rows as u32,
-            nnz: a.nnz() as u32,
-            max_row_len: a.max_row_len() as u32,
+            row_ptr: buf("csr.row_ptr", bytemuck::cast_slice(row_ptr)),
+            cols: buf("csr.cols", bytemuck::cast_slice(cols)),
+            vals: buf("csr.vals", bytemuck::cast_slice(&f32s(vals))),
+            rows: row_ptr.len() as u32 - 1,
+            nnz: vals.len() as u32,
+            max_row_len: max_row_len as u32,
         })
     }
 
@@ -363,10 +380,18 @@ pub struct Solved {
     pub dispatches: u32,
     /// Submissions (each followed by one status read-back).
     pub submits: u32,
+    /// Systems solved one per invocation (`cg_packed.wgsl`); the rest had a workgroup each.
+    pub packed: u32,
+    /// Whether the packed systems were solved on complex 2 × 2 blocks ([`ComplexCsr`]).
+    pub complex: bool,
 }
 
 /// Solves every system of the block-diagonal SPD matrix `a` (`systems` give each block's rows,
 /// tolerance and budget) by Jacobi-preconditioned CG from the warm start `x0`, on the GPU.
+///
+/// A batch of at least [`PACK_MIN_SYSTEMS`] systems whose matrix has the complex 2 × 2 block
+/// structure of LSCM systems ([`ComplexCsr`], every system on whole blocks) is solved by the packed
+/// kernel on the blocks; otherwise see [`kernel_classes`].
 pub fn cg_batched(
     ctx: &GpuContext,
     pipes: &Pipelines,
@@ -375,11 +400,91 @@ pub fn cg_batched(
     x0: &[f64],
     systems: &[SystemDesc],
 ) -> Result<Solved> {
+    if let Some(c) = complex_batch(a, systems) {
+        check_sizes(a, b, x0)?;
+        let gpu = GpuCsr::upload_complex(ctx, &c)?;
+        // One Jacobi weight per block row: the diagonal block's a (both real rows' diagonal).
+        let dinv = jacobi((0..c.rows).map(|i| {
+            let (s, e) = (c.row_ptr[i] as usize, c.row_ptr[i + 1] as usize);
+            (s..e)
+                .find(|&k| c.cols[k] as usize == i)
+                .map_or(0.0, |k| c.vals[k][0])
+        }));
+        let max_n = systems.iter().map(|s| s.n / 2).max().unwrap_or(0);
+        let per_iter = packed_steps(gpu.max_row_len, max_n);
+        let halves: Vec<SystemDesc> = systems
+            .iter()
+            .map(|s| SystemDesc {
+                row0: s.row0 / 2,
+                n: s.n / 2,
+                wide: PACKED,
+                ..*s
+            })
+            .collect();
+        let classes = [(
+            PACKED,
+            &pipes.cg_packed_complex,
+            iters_per_dispatch(per_iter),
+        )];
+        let solved = run(ctx, &gpu, &dinv, a.rows, b, x0, &halves, &classes)?;
+        return Ok(Solved {
+            complex: true,
+            ..solved
+        });
+    }
     let gpu = GpuCsr::upload(ctx, a)?;
     cg_batched_on(ctx, pipes, &gpu, a, b, x0, systems)
 }
 
-/// [`cg_batched`] with the matrix already on the GPU (`a` gives the diagonal and row lengths).
+/// The blocks of `a` when `systems` are many (at least [`PACK_MIN_SYSTEMS`]), each starts and ends
+/// on a block, `a` has the complex block structure and one packed iteration of the largest fits
+/// the loop budget.
+fn complex_batch(a: &Csr, systems: &[SystemDesc]) -> Option<ComplexCsr> {
+    if systems.len() < PACK_MIN_SYSTEMS || systems.iter().any(|s| s.row0 % 2 + s.n % 2 != 0) {
+        return None;
+    }
+    let c = ComplexCsr::from_real(a)?;
+    let max_n = systems.iter().map(|s| s.n / 2).max().unwrap_or(0);
+    (packed_steps(c.max_row_len() as u32, max_n) <= LOOP_BUDGET).then_some(c)
+}
+
+/// Loop steps of one packed iteration of a system of `n` rows of up to `row_len` entries: every
+/// row is walked by the product, the updates and p, and on replacement iterations by the product
+/// again.
+fn packed_steps(row_len: u32, n: u32) -> usize {
+    n as usize * (2 * row_len as usize + 4) + 16
+}
+
+/// Iterations per dispatch for a kernel class whose iteration takes `per_iter` loop steps.
+fn iters_per_dispatch(per_iter: usize) -> u32 {
+    (LOOP_BUDGET / per_iter.max(1)).clamp(1, 256) as u32
+}
+
+/// 1 / d for each diagonal entry (1 where d is 0 or not finite), in f32.
+fn jacobi(diagonal: impl Iterator<Item = f64>) -> Vec<f32> {
+    diagonal
+        .map(|d| {
+            if d != 0.0 && d.is_finite() {
+                (1.0 / d) as f32
+            } else {
+                1.0
+            }
+        })
+        .collect()
+}
+
+fn check_sizes(a: &Csr, b: &[f64], x0: &[f64]) -> Result<()> {
+    if b.len() != a.rows || x0.len() != a.rows {
+        return Err(Error::Gpu {
+            stage: "conjugate gradient".into(),
+            detail: format!("{} rows but b has {} and x0 {}", a.rows, b.len(), x0.len()),
+        });
+    }
+    Ok(())
+}
+
+/// [`cg_batched`] with the matrix already on the GPU (`a` gives the diagonal and row lengths), on
+/// the real CSR.
 #[allow(clippy::too_many_arguments, reason = "the solve's inputs")]
 pub fn cg_batched_on(
     ctx: &GpuContext,
@@ -390,34 +495,37 @@ pub fn cg_batched_on(
     x0: &[f64],
     systems: &[SystemDesc],
 ) -> Result<Solved> {
+    check_sizes(a, b, x0)?;
+    let dinv = jacobi(a.diagonal().into_iter());
+    let (systems, classes) = kernel_classes(pipes, gpu, systems)?;
+    run(ctx, gpu, &dinv, a.rows, b, x0, &systems, &classes)
+}
+
+/// Runs the CG of `systems` (their kernel classes set) on the uploaded matrix: state and vector
+/// buffers (`rows` f32 each), one bind group per class and 65535 systems, the submissions, the
+/// read-back of x.
+#[allow(clippy::too_many_arguments, reason = "the solve's inputs")]
+fn run(
+    ctx: &GpuContext,
+    gpu: &GpuCsr,
+    dinv: &[f32],
+    rows: usize,
+    b: &[f64],
+    x0: &[f64],
+    systems: &[SystemDesc],
+    classes: &[(u32, &Kernel, u32)],
+) -> Result<Solved> {
     let dev = &ctx.device;
-    let rows = a.rows;
-    if b.len() != rows || x0.len() != rows {
-        return Err(Error::Gpu {
-            stage: "conjugate gradient".into(),
-            detail: format!("{} rows but b has {} and x0 {}", rows, b.len(), x0.len()),
-        });
-    }
     if systems.is_empty() {
         return Ok(Solved {
             x: f32s(x0),
             reports: Vec::new(),
             dispatches: 0,
             submits: 0,
+            packed: 0,
+            complex: false,
         });
     }
-    let dinv: Vec<f32> = a
-        .diagonal()
-        .iter()
-        .map(|&d| {
-            if d != 0.0 && d.is_finite() {
-                (1.0 / d) as f32
-            } else {
-                1.0
-            }
-        })
-        .collect();
-    let (systems, classes) = kernel_classes(pipes, gpu, systems)?;
     let max_iter = systems.iter().map(|s| s.max_iter).max().unwrap_or(1);
     let state_size = systems.len() as u64 * 32;
     let vec_buf = |label: &str, data: Option<&[f32]>| -> wgpu::Buffer {
@@ -440,11 +548,11 @@ pub fn cg_batched_on(
         let sys = storage_init(
             ctx,
             "cg.systems",
-            bytemuck::cast_slice(&systems),
+            bytemuck::cast_slice(systems),
             wgpu::BufferUsages::empty(),
         );
         let bb = vec_buf("cg.b", Some(&f32s(b)));
-        let db = vec_buf("cg.dinv", Some(&dinv));
+        let db = vec_buf("cg.dinv", Some(dinv));
         let xb = vec_buf("cg.x", Some(&f32s(x0)));
         let (rb, pb, qb) = (
             vec_buf("cg.r", None),
@@ -460,7 +568,7 @@ pub fn cg_batched_on(
         let mut rounds = Vec::new();
         // Per class: (kernel, iterations per dispatch, [(bind group, workgroups)]).
         let mut bgs = Vec::new();
-        for &(_, kernel, iters) in &classes {
+        for &(wide, kernel, iters) in classes {
             let mut groups = Vec::new();
             for base in (0..systems.len()).step_by(65535) {
                 let count = (systems.len() - base).min(65535) as u32;
@@ -470,7 +578,8 @@ pub fn cg_batched_on(
                     bytemuck::bytes_of(&CgRound {
                         iters,
                         base: base as u32,
-                        pad: [0; 2],
+                        count,
+                        pad: 0,
                     }),
                 );
                 groups.push((
@@ -492,7 +601,11 @@ pub fn cg_batched_on(
                             (11, state.as_entire_binding()),
                         ],
                     ),
-                    count,
+                    if wide == PACKED {
+                        count.div_ceil(PACK_WG)
+                    } else {
+                        count
+                    },
                 ));
                 rounds.push(round);
             }
@@ -524,14 +637,21 @@ pub fn cg_batched_on(
         reports,
         dispatches,
         submits,
+        packed: systems.iter().filter(|s| s.wide == PACKED).count() as u32,
+        complex: false,
     })
 }
 
-/// Per system, the 64- or 256-wide kernel; per kernel class (wide, kernel, iterations per dispatch).
+/// Per system, its kernel; per kernel class (class, kernel, iterations per dispatch).
 ///
-/// Each system gets the 64-wide kernel when one iteration of it stays well under the loop budget
-/// with 64 invocations, else the 256-wide one: a choice that depends on the system alone, so its
-/// arithmetic (and result) is the same in any batch.
+/// A batch of at least [`PACK_MIN_SYSTEMS`] systems puts every system that one invocation can
+/// iterate within the loop budget into the packed kernel (one system per invocation; class
+/// [`PACKED`]); the rest, and every system of a smaller batch, get the 64-wide workgroup kernel
+/// when one iteration of it stays well under the loop budget with 64 invocations, else the
+/// 256-wide one. Within each kernel a system's arithmetic does not depend on the rest of its
+/// batch; whether it is packed does (a lone chart would leave all lanes but one idle in the packed
+/// kernel, so it keeps a workgroup). The two orders of summation give results that agree to the
+/// solve's tolerance (tests/linalg.rs).
 #[allow(clippy::type_complexity)]
 fn kernel_classes<'p>(
     pipes: &'p Pipelines,
@@ -543,23 +663,34 @@ fn kernel_classes<'p>(
     // the reductions' fixed steps.
     let row_len = 3 * gpu.max_row_len as usize + 8;
     let cost = |n: u32, wg: u32| (n as usize).div_ceil(wg as usize).max(1) * row_len + 60;
+    let packed_cost = |n: u32| packed_steps(gpu.max_row_len, n);
     let narrow_wg = crate::gpu::shaders::LINALG_WG_NARROW;
+    let pack = systems.len() >= PACK_MIN_SYSTEMS;
     let systems: Vec<SystemDesc> = systems
         .iter()
         .map(|s| SystemDesc {
-            wide: u32::from(cost(s.n, narrow_wg) > LOOP_BUDGET / 8),
+            wide: if pack && packed_cost(s.n) <= LOOP_BUDGET {
+                PACKED
+            } else {
+                u32::from(cost(s.n, narrow_wg) > LOOP_BUDGET / 8)
+            },
             ..*s
         })
         .collect();
     let mut classes = Vec::new();
-    for (wide, kernel, wg) in [
-        (0u32, &pipes.cg_batched_narrow, narrow_wg),
-        (1u32, &pipes.cg_batched, WG as u32),
+    for (wide, kernel) in [
+        (0u32, &pipes.cg_batched_narrow),
+        (1u32, &pipes.cg_batched),
+        (PACKED, &pipes.cg_packed),
     ] {
         let Some(max_n) = systems.iter().filter(|s| s.wide == wide).map(|s| s.n).max() else {
             continue;
         };
-        let per_iter = cost(max_n, wg);
+        let per_iter = match wide {
+            0 => cost(max_n, narrow_wg),
+            1 => cost(max_n, WG as u32),
+            _ => packed_cost(max_n),
+        };
         if per_iter > HARD_LOOP_LIMIT {
             return Err(Error::Gpu {
                 stage: "conjugate gradient".into(),
@@ -569,7 +700,7 @@ fn kernel_classes<'p>(
                 ),
             });
         }
-        classes.push((wide, kernel, (LOOP_BUDGET / per_iter).clamp(1, 256) as u32));
+        classes.push((wide, kernel, iters_per_dispatch(per_iter)));
     }
     Ok((systems, classes))
 }
@@ -586,14 +717,15 @@ fn iterate(
     state_size: u64,
 ) -> Result<(Vec<CgState>, u32, u32)> {
     let dev = &ctx.device;
-    let per_submit = |iters: u32| {
-        ITERS_PER_SUBMIT
-            .min(max_iter.saturating_add(1))
-            .div_ceil(iters)
-            .max(1)
-    };
+    // The first submission covers FIRST_SUBMIT_ITERS iterations, each next one twice as many up to
+    // ITERS_PER_SUBMIT: warm-started charts often converge in a few iterations, and a submission's
+    // dispatches cost their fixed price even when every system has finished.
+    let mut span = FIRST_SUBMIT_ITERS;
     let (mut dispatches, mut submits) = (0u32, 0u32);
     let states = loop {
+        let target = span.min(max_iter.saturating_add(1));
+        let per_submit = |iters: u32| target.div_ceil(iters).max(1);
+        span = (span * 2).min(ITERS_PER_SUBMIT);
         ctx.scoped("conjugate gradient", || {
             let mut enc =
                 dev.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("cg") });

@@ -108,6 +108,88 @@ impl Csr {
     }
 }
 
+/// A real matrix of even size whose 2 × 2 blocks all have the form [[a, -b], [b, a]], stored as one
+/// complex entry (a, b) per block: rows and columns are block indices (a vertex's (u, v) pair in an
+/// LSCM system). The real form of a Hermitian matrix has this structure, and the LSCM energy is a
+/// Hermitian form in z = u + i v (Lévy et al. 2002), so the conjugate gradient can read one column and
+/// one (a, b) where the real CSR reads four entries with their columns (`wgsl/shared/cg_complex.wgsl`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ComplexCsr {
+    /// Block rows (half the real rows).
+    pub rows: usize,
+    /// Block-row start offsets into `cols`/`vals` (length `rows + 1`).
+    pub row_ptr: Vec<u32>,
+    /// Block column of each stored block.
+    pub cols: Vec<u32>,
+    /// (a, b) of each stored block.
+    pub vals: Vec<[f64; 2]>,
+}
+
+/// Largest difference between a block's two copies of `a` (and of `b`) allowed by
+/// [`ComplexCsr::from_real`], relative to the block's largest entry: the LSCM assembly computes the
+/// two copies with the same products added in another order, which differ in the last bits only.
+pub const COMPLEX_REL_TOL: f64 = 1e-9;
+
+impl ComplexCsr {
+    /// The blocks of `a`, or `None` when `a` has an odd size or a block that is not of the form
+    /// [[a, -b], [b, a]] within [`COMPLEX_REL_TOL`] (a missing entry counts as 0). Each (a, b) is
+    /// the mean of its two copies.
+    pub fn from_real(a: &Csr) -> Option<Self> {
+        if !a.rows.is_multiple_of(2) {
+            return None;
+        }
+        let rows = a.rows / 2;
+        let mut out = ComplexCsr {
+            rows,
+            row_ptr: vec![0],
+            cols: Vec::new(),
+            vals: Vec::new(),
+        };
+        let mut block: std::collections::BTreeMap<usize, [f64; 4]> = Default::default();
+        for i in 0..rows {
+            block.clear();
+            for k in 0..2 {
+                for (c, v) in a.row(2 * i + k) {
+                    block.entry(c / 2).or_default()[2 * k + c % 2] = v;
+                }
+            }
+            for (&j, &[uu, uv, vu, vv]) in &block {
+                let scale = uu.abs().max(uv.abs()).max(vu.abs()).max(vv.abs());
+                let tol = COMPLEX_REL_TOL * scale;
+                if (uu - vv).abs() > tol || (uv + vu).abs() > tol {
+                    return None;
+                }
+                out.cols.push(j as u32);
+                out.vals.push([0.5 * (uu + vv), 0.5 * (vu - uv)]);
+            }
+            out.row_ptr.push(out.cols.len() as u32);
+        }
+        Some(out)
+    }
+
+    /// The real matrix of these blocks.
+    pub fn to_real(&self) -> Csr {
+        let mut t = Vec::with_capacity(4 * self.vals.len());
+        for i in 0..self.rows {
+            let (s, e) = (self.row_ptr[i] as usize, self.row_ptr[i + 1] as usize);
+            for (&j, &[a, b]) in self.cols[s..e].iter().zip(&self.vals[s..e]) {
+                let (r, c) = (2 * i as u32, 2 * j);
+                t.extend([(r, c, a), (r, c + 1, -b), (r + 1, c, b), (r + 1, c + 1, a)]);
+            }
+        }
+        Csr::from_triplets(2 * self.rows, t)
+    }
+
+    /// Longest block row.
+    pub fn max_row_len(&self) -> usize {
+        self.row_ptr
+            .windows(2)
+            .map(|w| (w[1] - w[0]) as usize)
+            .max()
+            .unwrap_or(0)
+    }
+}
+
 /// Dot product in f64.
 pub fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()

@@ -26,7 +26,8 @@ struct Round {
     iters: u32,
     // First system of this dispatch (dispatches cover at most 65535 systems each).
     base: u32,
-    pad1: u32,
+    // Systems in this dispatch (used by cg_packed.wgsl; here one workgroup per system).
+    count: u32,
     pad2: u32,
 }
 
@@ -61,7 +62,8 @@ var<workgroup> wg_iters: u32;
 
 fn a_times_p(i: u32) -> f32 {
     var s = 0.0;
-    for (var k = row_ptr[i]; k < row_ptr[i + 1u]; k++) {
+    let end = row_ptr[i + 1u];
+    for (var k = row_ptr[i]; k < end; k++) {
         s += vals[k] * p[cols[k]];
     }
     return s;
@@ -70,7 +72,8 @@ fn a_times_p(i: u32) -> f32 {
 // (A x)_i and (|A| |x|)_i.
 fn a_times_x(i: u32) -> vec2<f32> {
     var s = vec2<f32>(0.0);
-    for (var k = row_ptr[i]; k < row_ptr[i + 1u]; k++) {
+    let end = row_ptr[i + 1u];
+    for (var k = row_ptr[i]; k < end; k++) {
         let t = vals[k] * x[cols[k]];
         s += vec2<f32>(t, abs(t));
     }

@@ -174,6 +174,9 @@ pub fn run(
             );
             t.elapsed().as_secs_f64() * 1000.0
         });
+        let charts = (method == "lscm")
+            .then(|| chart_solves(engine, &loaded, &units))
+            .transpose()?;
         let l = &report.layers[0];
         emit(serde_json::json!({
             "bench": "strokes", "adapter": engine.ctx.adapter, "mesh": loaded.stats.source,
@@ -187,7 +190,66 @@ pub fn run(
             "separate_decals_ms": decals_ms, "stroke_vs_decals": decals_ms / stroke_ms,
             "cpu_twin_ms": cpu_ms, "gpu_vs_cpu_twin": cpu_ms.map(|c| c / stroke_ms),
             "commands": report.gpu_commands,
+            "chart_solves": charts,
         }));
     }
     Ok(())
+}
+
+/// The stroke's LSCM charts (stamps and corner charts) built three ways from the same requests,
+/// each from the planar projection (the bake warm-starts from the exponential maps, which these
+/// figures leave out): all in one [`chart::build`] (every round's solves batched, as the bake does
+/// per chunk), one `build` per chart, and on the CPU twin. Charts per second of the whole build
+/// (selection, assembly, refinement and solves) and of the solves alone.
+fn chart_solves(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    units: &decalbake::bake::Units,
+) -> Result<serde_json::Value> {
+    use decalbake::maps::chart::{self, ChartKind, ChartRequest, SolveStats, Solver};
+    let requests: Vec<ChartRequest> = (0..units.placements.len())
+        .map(|i| ChartRequest {
+            frame: units.frames[i],
+            triangle: units.placements[i].triangle,
+            kind: ChartKind::Lscm,
+            max_iter: None,
+            warm: None,
+        })
+        .collect();
+    let topo = &mesh.topo;
+    let gpu = Solver::Gpu(&engine.ctx, engine.pipelines());
+    let n = requests.len() as f64;
+    let per_s = |secs: f64| n / secs.max(1e-9);
+    let timed = |f: &mut dyn FnMut(&mut SolveStats) -> Result<u32>| -> Result<serde_json::Value> {
+        let mut stats = SolveStats::default();
+        let t = Instant::now();
+        let iterations = f(&mut stats)?;
+        let secs = t.elapsed().as_secs_f64();
+        Ok(serde_json::json!({
+            "ms": secs * 1e3, "charts_per_s": per_s(secs),
+            "solve_ms": stats.solve_seconds * 1e3, "solve_charts_per_s": per_s(stats.solve_seconds),
+            "solves": stats.batches, "submits": stats.submits, "cg_iterations": iterations,
+        }))
+    };
+    let total = |c: &[chart::Chart]| c.iter().map(|c| c.report.cg_iterations_total).sum::<u32>();
+    // Warm-up: pipelines compiled, buffers of this size seen once.
+    chart::build(topo, &requests, &gpu, &mut SolveStats::default())?;
+    let batched = timed(&mut |st| Ok(total(&chart::build(topo, &requests, &gpu, st)?)))?;
+    let one_by_one = timed(&mut |st| {
+        let mut it = 0;
+        for r in &requests {
+            it += total(&chart::build(topo, std::slice::from_ref(r), &gpu, st)?);
+        }
+        Ok(it)
+    })?;
+    let cpu = timed(&mut |st| Ok(total(&chart::build(topo, &requests, &Solver::Cpu, st)?)))?;
+    let ratio = |a: &serde_json::Value, b: &serde_json::Value, k: &str| {
+        b[k].as_f64().unwrap_or(0.0) / a[k].as_f64().unwrap_or(1.0)
+    };
+    Ok(serde_json::json!({
+        "charts": requests.len(), "batched": batched, "one_by_one": one_by_one, "cpu_twin": cpu,
+        "batched_over_one_by_one": ratio(&one_by_one, &batched, "charts_per_s"),
+        "batched_over_one_by_one_solves": ratio(&one_by_one, &batched, "solve_charts_per_s"),
+        "batched_over_cpu_twin": ratio(&cpu, &batched, "charts_per_s"),
+    }))
 }

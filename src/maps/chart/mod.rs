@@ -206,6 +206,9 @@ pub struct SolveStats {
     pub dispatches: u32,
     /// Submissions (each with one status read-back).
     pub submits: u32,
+    /// Wall time spent in the solves, seconds (GPU: upload, submissions, read-backs; CPU: the
+    /// twin's CG), without the set-up and refinement around them.
+    pub solve_seconds: f64,
 }
 
 impl Solver<'_> {
@@ -219,6 +222,18 @@ impl Solver<'_> {
         if systems.is_empty() {
             return Ok(Vec::new());
         }
+        let t = std::time::Instant::now();
+        let out = self.solve_timed(systems, rtol, stats);
+        stats.solve_seconds += t.elapsed().as_secs_f64();
+        out
+    }
+
+    fn solve_timed(
+        &self,
+        systems: &[(&System, Vec<f64>, u32)],
+        rtol: f32,
+        stats: &mut SolveStats,
+    ) -> Result<Vec<(Vec<f64>, CgReport)>> {
         match self {
             Solver::Cpu => Ok(systems
                 .iter()

@@ -1,0 +1,20 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+// The real form of cg_packed.wgsl: one f32 unknown per row, one f32 per stored entry.
+
+alias V = f32;
+alias M = f32;
+
+// The entry times the unknown.
+fn mat_mul(m: M, v: V) -> V {
+    return m * v;
+}
+
+// |entry| times |unknown|: a row's terms of |A| |x|, the residual's reference.
+fn mat_abs_mul(m: M, v: V) -> V {
+    return abs(m * v);
+}
+
+// The real inner product's term.
+fn vdot(a: V, c: V) -> f32 {
+    return a * c;
+}
