@@ -137,6 +137,11 @@ pub struct Engine {
     pub(crate) pipes: Pipelines,
     targets: Mutex<HashMap<[u32; 2], Arc<Targets>>>,
     pub(crate) linear_sampler: wgpu::Sampler,
+    /// Select every layer's triangles from the whole mesh instead of from the vertices its map can
+    /// reach (`bake::maps::LayerMaps::candidate_triangles`). The results are the same; this is the
+    /// reference the tests and `decalbake bench --strokes` compare the candidate lists with.
+    /// Default `false`.
+    pub whole_mesh_selection: bool,
 }
 
 impl Engine {
@@ -184,6 +189,7 @@ impl Engine {
             pipes,
             targets: Mutex::new(HashMap::new()),
             linear_sampler,
+            whole_mesh_selection: false,
         })
     }
 

@@ -88,9 +88,40 @@ pub struct LayerMaps {
     pub expmap: Vec<Option<GeoResult>>,
     /// Per layer of the chunk: the chart report, for layers that have one.
     pub chart: Vec<Option<ChartReport>>,
+    /// Per layer of the chunk: the vertices its map can make valid (an exponential map's
+    /// candidate disc, a chart's vertices, a blended stamp's charts' union), or `None` where the
+    /// method may cover any vertex (planar projections). See [`LayerMaps::candidate_triangles`].
+    pub reach: Vec<Option<Vec<u32>>>,
 }
 
 impl LayerMaps {
+    /// Per layer of the chunk, the triangles the selection stage must test (ascending): every
+    /// triangle with a vertex in the layer's reach, a superset of those with all three vertices
+    /// valid, so selecting from them finds what a pass over the whole mesh finds, with work in
+    /// proportion to the decal. `None`: the whole mesh.
+    pub fn candidate_triangles(&self, topo: &crate::mesh::Topology) -> Vec<Option<Vec<u32>>> {
+        self.reach
+            .iter()
+            .map(|r| {
+                r.as_ref().map(|verts| {
+                    let mut t: Vec<u32> = verts
+                        .iter()
+                        .flat_map(|&v| {
+                            let (a, b) = (
+                                topo.vertex_triangle_offsets[v as usize] as usize,
+                                topo.vertex_triangle_offsets[v as usize + 1] as usize,
+                            );
+                            topo.vertex_triangles[a..b].iter().copied()
+                        })
+                        .collect();
+                    t.sort_unstable();
+                    t.dedup();
+                    t
+                })
+            })
+            .collect()
+    }
+
     /// The chunk's layers (job indices) that their method solves (not blended: `blend_pass`) and
     /// whose method satisfies `f`.
     fn layers_where(
@@ -140,6 +171,7 @@ pub(crate) fn compute(
     let mut maps = LayerMaps {
         expmap: vec![None; range.len()],
         chart: vec![None; range.len()],
+        reach: vec![None; range.len()],
         range,
         params,
         buffer,
@@ -148,6 +180,7 @@ pub(crate) fn compute(
     chart_pass(cx, placed, slots, &mut maps, log)?;
     direct_pass(cx, placed, slots, &maps, log)?;
     blend_pass(cx, placed, slots, &maps, log)?;
+    blend_reach(placed, &mut maps);
     Ok(maps)
 }
 
@@ -200,10 +233,43 @@ fn expmap_pass(
         &slots.coords,
     )?;
     log.commands += dispatches;
-    for (&i, r) in layers.iter().zip(results) {
+    for ((&i, r), (seed, opts, _)) in layers.iter().zip(results).zip(&requests) {
         maps.expmap[i - start] = Some(r);
+        // The relaxation writes only its candidate disc (and marks the halo unreachable).
+        maps.reach[i - start] = Some(crate::maps::expmap::gpu::candidates(
+            &mesh.topo,
+            seed,
+            opts.radius,
+        ));
     }
     Ok(())
+}
+
+/// A blended stamp's reach: the union of its charts' (its coordinates are valid where all of
+/// theirs are).
+fn blend_reach(placed: &Placed, maps: &mut LayerMaps) {
+    let start = maps.range.start;
+    for i in maps.range.clone() {
+        let Some(b) = &placed.blends[i] else {
+            continue;
+        };
+        // Without charts every vertex is valid (`maps::stamp::blend_cpu`): the whole mesh.
+        let mut union: Option<Vec<u32>> = (!b.charts.is_empty()).then(Vec::new);
+        for &(u, _, _) in &b.charts {
+            union = match (union, &maps.reach[u - start]) {
+                (Some(mut a), Some(r)) => {
+                    a.extend_from_slice(r);
+                    Some(a)
+                }
+                _ => None,
+            };
+        }
+        if let Some(v) = &mut union {
+            v.sort_unstable();
+            v.dedup();
+        }
+        maps.reach[i - start] = union;
+    }
 }
 
 /// The conformal charts of every layer whose method has one, solved in one batch from the layers'
@@ -262,6 +328,10 @@ fn chart_pass(
         }
         check_chart(job, (i, placed.origin[i].0), &c.report, log)?;
         maps.chart[i - start] = Some(c.report);
+        // A chart may grow past its exponential map's disc (refinement unfolds across borders).
+        if let Some(r) = &mut maps.reach[i - start] {
+            r.extend(c.coords.iter().map(|&(v, _)| v));
+        }
         let base = (i - start) as u64 * nv;
         for &(v, uv) in &c.coords {
             let value = [uv[0], uv[1], 0.0, 1.0];

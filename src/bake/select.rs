@@ -2,8 +2,10 @@
 //! Stage 4, triangle selection: which triangles each layer of a chunk covers (all three vertices
 //! valid in its map, coordinate box meeting the decal rectangle, facing it for projections), appended
 //! to the layer's triangle list, with its texel box and the 64×64-texel cells of the texture they
-//! touch in its stats row. Kernel `wgsl/bake/select_triangles.wgsl`; CPU twin
-//! [`crate::bake::cpu::select_triangles`].
+//! touch in its stats row. Each layer tests only its candidate triangles (those with a vertex its
+//! map can reach: [`LayerMaps::candidate_triangles`]), so the work follows the decal's size, not the
+//! mesh's. Kernel `wgsl/bake/select_triangles.wgsl`; CPU twin
+//! [`crate::bake::cpu::select_triangles`] (over the whole mesh).
 
 use super::canvas::Canvas;
 use super::maps::{LayerMaps, Slots};
@@ -11,6 +13,10 @@ use super::params::{pbind, PARAMS_STRIDE};
 use super::place::Placed;
 use super::stage::{Cx, Log};
 use crate::error::{Error, Result};
+use wgpu::util::DeviceExt;
+
+/// `ranges` offset of a layer tested against every triangle (`NO_CANDIDATES` in the kernel).
+const NO_CANDIDATES: u32 = u32::MAX;
 
 /// Selects the triangles of the chunk's layers on the GPU (not the hidden corner charts of
 /// continuous strokes) and reads the stats rows back (every layer's, as the buffer holds them). A
@@ -25,7 +31,34 @@ pub(crate) fn select(
     let Cx { engine, mesh, job } = cx;
     let (dev, pipes, g) = (&engine.ctx.device, &engine.pipes, &mesh.gpu);
     let uvs = &g.uvs[job.uv_set as usize];
+    // Each slot's candidate triangles (offset, count) in one list; NO_CANDIDATES: the whole mesh.
+    let candidates = if engine.whole_mesh_selection {
+        vec![None; maps.range.len()]
+    } else {
+        maps.candidate_triangles(&mesh.topo)
+    };
+    let mut ranges: Vec<[u32; 2]> = Vec::with_capacity(candidates.len());
+    let mut cands: Vec<u32> = Vec::new();
+    for c in &candidates {
+        ranges.push(match c {
+            Some(t) => {
+                cands.extend_from_slice(t);
+                [(cands.len() - t.len()) as u32, t.len() as u32]
+            }
+            None => [NO_CANDIDATES, g.triangle_count],
+        });
+    }
+    cands.push(0);
     engine.ctx.scoped("layer selection", || {
+        let storage = |label: &str, bytes: &[u8]| {
+            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytes,
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        };
+        let ranges_buf = storage("bake.select_ranges", bytemuck::cast_slice(&ranges));
+        let cands_buf = storage("bake.select_candidates", bytemuck::cast_slice(&cands));
         let bg = pipes.select_triangles.bind(
             dev,
             "bake.select_triangles",
@@ -38,6 +71,8 @@ pub(crate) fn select(
                 (5, slots.coords.as_entire_binding()),
                 (6, slots.lists.as_entire_binding()),
                 (7, canvas.stats.as_entire_binding()),
+                (8, ranges_buf.as_entire_binding()),
+                (9, cands_buf.as_entire_binding()),
             ],
         );
         let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -52,7 +87,7 @@ pub(crate) fn select(
             let start = maps.range.start;
             for k in (0..maps.range.len()).filter(|&k| !placed.hidden[start + k]) {
                 pass.set_bind_group(0, &bg, &[(k as u64 * PARAMS_STRIDE) as u32]);
-                pass.dispatch_workgroups(g.triangle_count.div_ceil(64), 1, 1);
+                pass.dispatch_workgroups(ranges[k][1].div_ceil(64).max(1), 1, 1);
                 log.commands += 1;
             }
         }

@@ -177,7 +177,7 @@ fn run(cli: Cli) -> Result<()> {
             peers,
             charts,
         } => {
-            let engine = engine(cli.backend.as_deref())?;
+            let mut engine = engine(cli.backend.as_deref())?;
             if strokes {
                 let opts = bench::strokes::StrokeBenchOptions {
                     mesh,
@@ -187,7 +187,7 @@ fn run(cli: Cli) -> Result<()> {
                     reps,
                     cpu_budget,
                 };
-                bench::strokes::run(&engine, &opts, |v| println!("{v}"))?;
+                bench::strokes::run(&mut engine, &opts, |v| println!("{v}"))?;
                 return Ok(());
             }
             if device {

@@ -281,6 +281,8 @@ impl Pipelines {
                     (5, Ro),
                     (6, Rw),
                     (7, Rw),
+                    (8, Ro),
+                    (9, Ro),
                 ],
             ),
             layer_raster: rasters.layer,

@@ -2,8 +2,11 @@
 // Chooses the triangles a layer covers, for any placement method: all three vertices have valid layer
 // coordinates, the triangle's coordinate box overlaps the decal rectangle, and (planar projection only)
 // the triangle faces the projection. Appends them to the layer's list and grows the layer's texel
-// bounding box in the output texture. Dispatch: (ceil(triangles / 64), 1, 1).
-// CPU twin: `select_triangles` in src/bake/cpu.rs.
+// bounding box in the output texture. The triangles tested are the layer's candidates
+// (`ranges[params.slot]`: offset and count in `cands`, every triangle with a vertex its map can
+// reach, src/bake/maps.rs), or every triangle of the mesh where the offset is NO_CANDIDATES.
+// Dispatch: (ceil(tested / 64), 1, 1). CPU twin: `select_triangles` in src/bake/cpu.rs (over the
+// whole mesh, so the tests also check the candidates miss nothing).
 #import params
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -18,11 +21,21 @@
 // the cell mask: the texel blocks this layer's triangles touch, wrapped into
 // the texture (UV repeat), so rasterization only visits blocks that can change.
 @group(0) @binding(7) var<storage, read_write> stats: array<atomic<i32>>;
+@group(0) @binding(8) var<storage, read> ranges: array<vec2<u32>>;
+@group(0) @binding(9) var<storage, read> cands: array<u32>;
+
+const NO_CANDIDATES: u32 = 0xffffffffu;
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let t = gid.x;
-    if (t >= params.triangle_count) { return; }
+    let range = ranges[params.slot];
+    var t = gid.x;
+    if (range.x == NO_CANDIDATES) {
+        if (t >= params.triangle_count) { return; }
+    } else {
+        if (t >= range.y) { return; }
+        t = cands[range.x + t];
+    }
     let tri = tris[t];
     if ((tri.w & 1u) != 0u) { return; }
     let base = params.slot * params.vertex_count;

@@ -97,7 +97,7 @@ fn l_stamps(report: &decalbake::bake::report::Report) -> usize {
 
 /// Runs the benchmark, calling `emit` with one JSON object per configuration.
 pub fn run(
-    engine: &Engine,
+    engine: &mut Engine,
     opts: &StrokeBenchOptions,
     mut emit: impl FnMut(serde_json::Value),
 ) -> Result<()> {
@@ -140,6 +140,10 @@ pub fn run(
         let stroke = serde_json::json!([{ "kind": "stroke", "image": "brush.png", "path": pts,
             "size": [size, size], "spacing": 0.1, "flow": 0.6, "method": method, "continuity": continuity }]);
         let sj = job(&loaded, opts.side, stroke, &dir)?;
+        // The baseline of the selection stage: every layer tested against the whole mesh.
+        engine.whole_mesh_selection = true;
+        let whole_ms = time_bakes(engine, &loaded, &sj, opts.reps)?.0;
+        engine.whole_mesh_selection = false;
         let (stroke_ms, report) = time_bakes(engine, &loaded, &sj, opts.reps)?;
         let units = engine.units(&loaded, &sj)?;
         let stamps = l_stamps(&report);
@@ -188,6 +192,7 @@ pub fn run(
             "cg_iterations": l.stroke.as_ref().map(|s| s.cg_iterations),
             "timings": report.timings,
             "separate_decals_ms": decals_ms, "stroke_vs_decals": decals_ms / stroke_ms,
+            "whole_mesh_selection_ms": whole_ms, "stroke_vs_whole_mesh_selection": whole_ms / stroke_ms,
             "cpu_twin_ms": cpu_ms, "gpu_vs_cpu_twin": cpu_ms.map(|c| c / stroke_ms),
             "commands": report.gpu_commands,
             "chart_solves": charts,
