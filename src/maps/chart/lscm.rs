@@ -15,7 +15,7 @@
 use crate::mesh::Topology;
 use crate::solve::sparse::Csr;
 use glam::{DVec2, DVec3};
-use std::collections::HashMap;
+use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 
 /// Triangles whose area is below this fraction of their longest edge squared are skipped: they
 /// carry no angle to preserve and would only add huge weights.
@@ -73,7 +73,7 @@ pub fn assemble(
     fixed: &[(u32, [f64; 2])],
     warm: &dyn Fn(u32) -> [f64; 2],
 ) -> System {
-    let mut local: HashMap<u32, u32> = HashMap::new();
+    let mut local: HashMap<u32, u32> = HashMap::default();
     let mut vertices = Vec::new();
     for &t in triangles {
         for v in topo.triangles[t as usize] {
@@ -272,7 +272,7 @@ fn seed_ring(topo: &Topology, triangles: &[u32], seed_triangle: u32) -> Vec<u32>
         );
         around.extend(&topo.vertex_triangles[a..b]);
     }
-    let in_chart: std::collections::HashSet<u32> = triangles.iter().copied().collect();
+    let in_chart: HashSet<u32> = triangles.iter().copied().collect();
     around.retain(|t| in_chart.contains(t));
     around.sort_unstable();
     around.dedup();
@@ -295,7 +295,7 @@ pub fn scale_at(
     zs: DVec2,
     radius: f64,
 ) -> Option<f64> {
-    let ring: std::collections::HashSet<u32> = seed_ring(topo, triangles, seed_triangle)
+    let ring: HashSet<u32> = seed_ring(topo, triangles, seed_triangle)
         .iter()
         .flat_map(|&t| topo.triangles[t as usize])
         .collect();

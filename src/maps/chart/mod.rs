@@ -48,7 +48,7 @@ use region::{RegionFix, RegionReport};
 pub mod lscm;
 pub mod region;
 use glam::{DVec2, DVec3};
-use std::collections::{HashMap, HashSet};
+use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 
 /// Relative residual of the solves while the triangle set is still changing.
 pub const COARSE_RTOL: f32 = 1e-3;
@@ -331,7 +331,7 @@ fn select_within(topo: &Topology, frame: &Frame, start: u32, radius: f64, reach:
         point_in_triangle(q, DVec2::ZERO)
             || (0..3).any(|k| segment_distance(q[k], q[(k + 1) % 3], DVec2::ZERO) <= radius)
     };
-    let mut seen = HashSet::from([start]);
+    let mut seen = HashSet::from_iter([start]);
     let mut out = vec![start];
     let mut queue = std::collections::VecDeque::from([start]);
     while let Some(t) = queue.pop_front() {
@@ -568,7 +568,7 @@ impl ChartReport {
 /// Fills `chart`'s scale at the placed point and footprint figures, from the map the layer ends up
 /// with (hybrid: the exponential map with the chart's vertices moved).
 fn assess(topo: &Topology, req: &ChartRequest, chart: &mut Chart) {
-    let mut z: HashMap<u32, DVec2> = HashMap::new();
+    let mut z: HashMap<u32, DVec2> = HashMap::default();
     if let (ChartKind::Hybrid { expmap, .. }, false) = (req.kind, chart.replaces_map) {
         for (v, c) in expmap.iter().enumerate() {
             if c[3] > 0.5 {
@@ -787,7 +787,7 @@ fn start_work(topo: &Topology, r: &ChartRequest, reach: f64) -> Work {
         triangles = region::grow_disc(topo, &triangles, r.triangle, r.frame.center.as_dvec3());
         region.fix = RegionFix::ShrunkToDisc;
     }
-    let mut warm = HashMap::new();
+    let mut warm = HashMap::default();
     for &t in &triangles {
         for v in topo.triangles[t as usize] {
             warm.entry(v).or_insert_with(|| match r.warm {
@@ -803,7 +803,7 @@ fn start_work(topo: &Topology, r: &ChartRequest, reach: f64) -> Work {
         reach,
         region,
         warm,
-        seen: HashSet::new(),
+        seen: HashSet::default(),
         rounds: 0,
         iterations: 0,
         done: false,
@@ -930,7 +930,7 @@ pub fn initial_system(
 ) -> (Vec<u32>, System, Vec<f64>) {
     let radius = half_extent(frame).length();
     let triangles = select(topo, frame, triangle, radius);
-    let mut warm = HashMap::new();
+    let mut warm = HashMap::default();
     for &t in &triangles {
         for v in topo.triangles[t as usize] {
             warm.entry(v)
@@ -942,7 +942,7 @@ pub fn initial_system(
         triangles: triangles.clone(),
         reach: REACH,
         warm,
-        seen: HashSet::new(),
+        seen: HashSet::default(),
         rounds: 0,
         iterations: 0,
         done: false,
@@ -1023,7 +1023,7 @@ fn refine(topo: &Topology, req: &ChartRequest, w: &mut Work, remove: bool) -> bo
             .collect();
         // The placed triangle's connected part of what is kept.
         let mut comp = vec![req.triangle];
-        let mut seen = HashSet::from([req.triangle]);
+        let mut seen = HashSet::from_iter([req.triangle]);
         let mut i = 0;
         while i < comp.len() {
             for nb in topo.triangle_neighbors[comp[i] as usize] {
@@ -1038,7 +1038,7 @@ fn refine(topo: &Topology, req: &ChartRequest, w: &mut Work, remove: bool) -> bo
     }
     let set: HashSet<u32> = w.triangles.iter().copied().collect();
     let mut add = Vec::new();
-    let mut added = HashSet::new();
+    let mut added = HashSet::default();
     for &t in &w.triangles {
         let tri = topo.triangles[t as usize];
         for k in 0..3 {
@@ -1117,7 +1117,7 @@ fn hybrid_system(
     let h = half_extent(&req.frame);
     let valid = |v: u32| expmap[v as usize][3] > 0.5;
     let z = |v: u32| DVec2::new(expmap[v as usize][0] as f64, expmap[v as usize][1] as f64);
-    let mut free: HashSet<u32> = HashSet::new();
+    let mut free: HashSet<u32> = HashSet::default();
     // The map's triangles, found from its vertices (cost proportional to the map, not the mesh).
     let mut map_tris = map_triangles(topo, expmap);
     for &t in &map_tris {
@@ -1154,7 +1154,7 @@ fn hybrid_system(
         [q.x, q.y]
     };
     let mut fixed: Vec<(u32, [f64; 2])> = Vec::new();
-    let mut fixed_seen = HashSet::new();
+    let mut fixed_seen = HashSet::default();
     for &t in &energy {
         for v in topo.triangles[t as usize] {
             if !free.contains(&v) && fixed_seen.insert(v) {

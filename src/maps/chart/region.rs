@@ -9,7 +9,8 @@
 
 use crate::mesh::{Topology, NO_NEIGHBOR};
 use glam::DVec3;
-use std::collections::{BinaryHeap, HashSet};
+use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
+use std::collections::BinaryHeap;
 
 /// The topology of a chart's region and what was done about it: the first selection's, or, when a
 /// refinement round had to shrink the region, that round's.
@@ -58,7 +59,7 @@ pub fn topology(topo: &Topology, tris: &[u32]) -> RegionReport {
     let f = tris.len() as i64;
     let e = (3 * f + boundary.len() as i64) / 2;
     let chi = vertices.len() as i64 - e + f;
-    let mut seen = HashSet::new();
+    let mut seen = HashSet::default();
     let mut components = 0;
     for &t in tris {
         if !seen.insert(t) {
@@ -87,8 +88,8 @@ pub fn topology(topo: &Topology, tris: &[u32]) -> RegionReport {
 
 /// Connected components of the boundary-edge graph: the boundary loops of a manifold region.
 fn loops(edges: &[(u32, u32)]) -> u32 {
-    let mut parent: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
-    fn find(p: &mut std::collections::HashMap<u32, u32>, x: u32) -> u32 {
+    let mut parent: HashMap<u32, u32> = HashMap::default();
+    fn find(p: &mut HashMap<u32, u32>, x: u32) -> u32 {
         let mut r = x;
         while let Some(&q) = p.get(&r) {
             if q == r {
@@ -132,7 +133,7 @@ pub fn grow_disc(topo: &Topology, tris: &[u32], start: u32, center: DVec3) -> Ve
             std::cmp::Reverse(t),
         )
     };
-    let mut region: HashSet<u32> = HashSet::from([start]);
+    let mut region: HashSet<u32> = HashSet::from_iter([start]);
     let mut verts: HashSet<u32> = topo.triangles[start as usize].into_iter().collect();
     let mut out = vec![start];
     let mut heap = BinaryHeap::new();
