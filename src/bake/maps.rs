@@ -179,8 +179,8 @@ pub(crate) fn compute(
     expmap_pass(cx, placed, slots, &mut maps, log)?;
     chart_pass(cx, placed, slots, &mut maps, log)?;
     direct_pass(cx, placed, slots, &maps, log)?;
-    blend_pass(cx, placed, slots, &maps, log)?;
     blend_reach(placed, &mut maps);
+    blend_pass(cx, placed, slots, &maps, log)?;
     Ok(maps)
 }
 
@@ -493,8 +493,12 @@ fn direct_pass(
     Ok(())
 }
 
+/// `first` of a stamp record whose blend covers every vertex (`ALL_VERTICES` in the kernel).
+const ALL_VERTICES: u32 = u32::MAX;
+
 /// `stamp_blend`: the chunk's blended stamps' coordinates from their corners' charts (in the same
-/// chunk: [`Slots::chunks`] keeps them together), one dispatch for all of them.
+/// chunk: [`Slots::chunks`] keeps them together), one dispatch for all of them, each stamp over the
+/// vertices its charts reach ([`LayerMaps::reach`]; the rest of its slot stays cleared).
 fn blend_pass(
     cx: Cx<'_>,
     placed: &Placed,
@@ -506,12 +510,24 @@ fn blend_pass(
     let start = maps.range.start;
     let slot = |u: usize| (u - start) as u32;
     let mut records: Vec<[u32; 4]> = Vec::new();
+    // Each stamp writes the vertices its charts reach (`verts`), or all where that is unknown.
+    let mut verts: Vec<u32> = Vec::new();
+    let mut widest = 0u32;
+    let nv = mesh.gpu.vertex_count;
     for i in maps.range.clone() {
         let Some(b) = &placed.blends[i] else {
             continue;
         };
         let c = b.corners;
-        records.push([slot(i), b.charts.len() as u32, 0, 0]);
+        let (first, count) = match &maps.reach[i - start] {
+            Some(r) => {
+                verts.extend_from_slice(r);
+                ((verts.len() - r.len()) as u32, r.len() as u32)
+            }
+            None => (ALL_VERTICES, nv),
+        };
+        widest = widest.max(count);
+        records.push([slot(i), b.charts.len() as u32, first, count]);
         records.push([c[0], c[1], c[2], 0]);
         records.push([
             b.bary[0].to_bits(),
@@ -534,11 +550,16 @@ fn blend_pass(
     }
     let stamps = (records.len() / 9) as u32;
     let (dev, pipes) = (&engine.ctx.device, &engine.pipes);
-    let nv = mesh.gpu.vertex_count;
+    verts.push(0);
     engine.ctx.scoped("stamp charts", || {
         let recs = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("bake.stamp_records"),
             contents: bytemuck::cast_slice(&records),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let verts = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("bake.stamp_vertices"),
+            contents: bytemuck::cast_slice(&verts),
             usage: wgpu::BufferUsages::STORAGE,
         });
         let mut enc = dev.create_command_encoder(&Default::default());
@@ -555,6 +576,7 @@ fn blend_pass(
                     (0, dims.as_entire_binding()),
                     (1, recs.as_entire_binding()),
                     (2, slots.coords.as_entire_binding()),
+                    (3, verts.as_entire_binding()),
                 ],
             );
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -563,7 +585,7 @@ fn blend_pass(
             });
             pass.set_pipeline(&pipes.stamp_blend.pipeline);
             pass.set_bind_group(0, &bg, &[]);
-            pass.dispatch_workgroups(nv.div_ceil(64), (stamps - first).min(65_535), 1);
+            pass.dispatch_workgroups(widest.div_ceil(64).max(1), (stamps - first).min(65_535), 1);
         }
         engine.ctx.queue.submit([enc.finish()]);
     })?;

@@ -379,7 +379,11 @@ impl Pipelines {
             dot_batched: Kernel::new(device, "dot_batched", &[(0, Ro), (1, Ro), (2, Ro), (3, Rw)]),
             copy: Kernel::new(device, "copy", &[(0, Uniform), (1, Ro), (2, Rw)]),
             chart_scatter: Kernel::new(device, "chart_scatter", &[(0, Uniform), (1, Ro), (2, Rw)]),
-            stamp_blend: Kernel::new(device, "stamp_blend", &[(0, Uniform), (1, Ro), (2, Rw)]),
+            stamp_blend: Kernel::new(
+                device,
+                "stamp_blend",
+                &[(0, Uniform), (1, Ro), (2, Rw), (3, Ro)],
+            ),
             expmap_relax: Kernel::new(
                 device,
                 "expmap_relax",
