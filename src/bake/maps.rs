@@ -273,7 +273,7 @@ fn blend_reach(placed: &Placed, maps: &mut LayerMaps) {
 }
 
 /// The conformal charts of every layer whose method has one, solved in one batch from the layers'
-/// exponential maps (read back once, from the first to the last chart layer's slot), then written
+/// exponential maps (read back once, over their candidate discs: [`read_discs`]), then written
 /// into their slots on the GPU (`chart_scatter`).
 fn chart_pass(
     cx: Cx<'_>,
@@ -286,26 +286,19 @@ fn chart_pass(
     let start = maps.range.start;
     let nv = mesh.gpu.vertex_count as u64;
     let layers = maps.layers_where((job, placed), |m| m.uses_expmap() && m.solves_chart());
-    let (Some(&first), Some(&last)) = (layers.first(), layers.last()) else {
+    if layers.is_empty() {
         return Ok(());
-    };
+    }
     let t = Instant::now();
-    let bytes = engine.ctx.read_buffer_range(
-        &slots.coords,
-        (first - start) as u64 * nv * 16,
-        (last - first + 1) as u64 * nv * 16,
-        "chart exponential-map read-back",
-    )?;
-    let all: &[[f32; 4]] = bytemuck::cast_slice(&bytes);
-    let n = nv as usize;
+    let all = read_discs(engine, slots, maps, &layers, nv)?;
     let requests: Vec<_> = layers
         .iter()
-        .map(|&i| {
+        .zip(&all)
+        .map(|(&i, map)| {
             let l = &job.layers[i];
-            let k = i - first;
             let (f, tri) = (placed.frames[i], placed.placements[i].triangle);
             method(l.method)
-                .chart(l, f, tri, &all[k * n..(k + 1) * n])
+                .chart(l, f, tri, map)
                 .expect("filtered above")
         })
         .collect();
@@ -352,6 +345,90 @@ fn chart_pass(
     log.commands += 1;
     log.timings.charts_ms += ms(t);
     Ok(())
+}
+
+/// The exponential maps of `layers` (per welded vertex), read back only over their candidate
+/// discs (`chart_gather`; every other vertex is unreached, as the relaxation leaves it), where
+/// reading the slots whole would move the mesh's size per layer.
+fn read_discs(
+    engine: &Engine,
+    slots: &Slots,
+    maps: &LayerMaps,
+    layers: &[usize],
+    nv: u64,
+) -> Result<Vec<Vec<[f32; 4]>>> {
+    let start = maps.range.start;
+    let discs: Vec<&[u32]> = layers
+        .iter()
+        .map(|&i| maps.reach[i - start].as_deref().unwrap_or(&[]))
+        .collect();
+    let indices: Vec<u32> = layers
+        .iter()
+        .zip(&discs)
+        .flat_map(|(&i, d)| {
+            d.iter()
+                .map(move |&v| ((i - start) as u64 * nv + v as u64) as u32)
+        })
+        .collect();
+    let (dev, pipes) = (&engine.ctx.device, &engine.pipes);
+    let len = indices.len().max(1) as u64;
+    let out = engine.ctx.scoped("chart exponential maps", || {
+        let idx = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("bake.chart_gather_indices"),
+            contents: bytemuck::cast_slice(if indices.is_empty() {
+                &[0u32][..]
+            } else {
+                &indices
+            }),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let dims = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("bake.chart_gather_dims"),
+            contents: bytemuck::cast_slice(&[indices.len() as u32, 0, 0, 0]),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let out = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("bake.chart_gather_out"),
+            size: len * 16,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let bg = pipes.chart_gather.bind(
+            dev,
+            "bake.chart_gather",
+            &[
+                (0, dims.as_entire_binding()),
+                (1, idx.as_entire_binding()),
+                (2, slots.coords.as_entire_binding()),
+                (3, out.as_entire_binding()),
+            ],
+        );
+        let mut enc = dev.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&pipes.chart_gather.pipeline);
+            pass.set_bind_group(0, &bg, &[]);
+            pass.dispatch_workgroups((len as u32).div_ceil(64), 1, 1);
+        }
+        engine.ctx.queue.submit([enc.finish()]);
+        out
+    })?;
+    let bytes = engine
+        .ctx
+        .read_buffer(&out, len * 16, "chart exponential-map read-back")?;
+    let values: &[[f32; 4]] = bytemuck::cast_slice(&bytes);
+    let mut at = 0;
+    Ok(discs
+        .iter()
+        .map(|d| {
+            let mut map = vec![[0.0f32; 4]; nv as usize];
+            for &v in *d {
+                map[v as usize] = values[at];
+                at += 1;
+            }
+            map
+        })
+        .collect())
 }
 
 /// A chart that did not converge stops the bake; one that kept growing is a warning.

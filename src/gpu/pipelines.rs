@@ -213,6 +213,8 @@ pub struct Pipelines {
     pub copy: Kernel,
     /// Chart coordinates into coords slots.
     pub chart_scatter: Kernel,
+    /// `wgsl/maps/chart_gather.wgsl`: the charts' exponential maps read where they can be valid.
+    pub chart_gather: Kernel,
     /// Continuous stamp charts from their corners' charts.
     pub stamp_blend: Kernel,
     /// Preview.
@@ -379,6 +381,11 @@ impl Pipelines {
             dot_batched: Kernel::new(device, "dot_batched", &[(0, Ro), (1, Ro), (2, Ro), (3, Rw)]),
             copy: Kernel::new(device, "copy", &[(0, Uniform), (1, Ro), (2, Rw)]),
             chart_scatter: Kernel::new(device, "chart_scatter", &[(0, Uniform), (1, Ro), (2, Rw)]),
+            chart_gather: Kernel::new(
+                device,
+                "chart_gather",
+                &[(0, Uniform), (1, Ro), (2, Ro), (3, Rw)],
+            ),
             stamp_blend: Kernel::new(
                 device,
                 "stamp_blend",

@@ -80,6 +80,10 @@ pub const KERNELS: &[(&str, &str)] = &[
         include_str!("../../wgsl/maps/chart_scatter.wgsl"),
     ),
     (
+        "chart_gather",
+        include_str!("../../wgsl/maps/chart_gather.wgsl"),
+    ),
+    (
         "stamp_blend",
         include_str!("../../wgsl/maps/stamp_blend.wgsl"),
     ),
