@@ -106,13 +106,7 @@ impl LayerMaps {
                 r.as_ref().map(|verts| {
                     let mut t: Vec<u32> = verts
                         .iter()
-                        .flat_map(|&v| {
-                            let (a, b) = (
-                                topo.vertex_triangle_offsets[v as usize] as usize,
-                                topo.vertex_triangle_offsets[v as usize + 1] as usize,
-                            );
-                            topo.vertex_triangles[a..b].iter().copied()
-                        })
+                        .flat_map(|&v| topo.triangles_around(v).iter().copied())
                         .collect();
                     t.sort_unstable();
                     t.dedup();
@@ -373,20 +367,15 @@ fn read_discs(
     let (dev, pipes) = (&engine.ctx.device, &engine.pipes);
     let len = indices.len().max(1) as u64;
     let out = engine.ctx.scoped("chart exponential maps", || {
-        let idx = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("bake.chart_gather_indices"),
-            contents: bytemuck::cast_slice(if indices.is_empty() {
-                &[0u32][..]
-            } else {
-                &indices
-            }),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
-        let dims = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("bake.chart_gather_dims"),
-            contents: bytemuck::cast_slice(&[indices.len() as u32, 0, 0, 0]),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
+        let idx = engine.ctx.storage_init(
+            "bake.chart_gather_indices",
+            bytemuck::cast_slice(&indices),
+            wgpu::BufferUsages::empty(),
+        );
+        let dims = engine.ctx.uniform_init(
+            "bake.chart_gather_dims",
+            bytemuck::cast_slice(&[indices.len() as u32, 0, 0, 0]),
+        );
         let out = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("bake.chart_gather_out"),
             size: len * 16,
@@ -627,18 +616,17 @@ fn blend_pass(
     }
     let stamps = (records.len() / 9) as u32;
     let (dev, pipes) = (&engine.ctx.device, &engine.pipes);
-    verts.push(0);
     engine.ctx.scoped("stamp charts", || {
         let recs = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("bake.stamp_records"),
             contents: bytemuck::cast_slice(&records),
             usage: wgpu::BufferUsages::STORAGE,
         });
-        let verts = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("bake.stamp_vertices"),
-            contents: bytemuck::cast_slice(&verts),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
+        let verts = engine.ctx.storage_init(
+            "bake.stamp_vertices",
+            bytemuck::cast_slice(&verts),
+            wgpu::BufferUsages::empty(),
+        );
         let mut enc = dev.create_command_encoder(&Default::default());
         for first in (0..stamps).step_by(65_535) {
             let dims = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {

@@ -13,7 +13,6 @@ use super::params::{pbind, PARAMS_STRIDE};
 use super::place::Placed;
 use super::stage::{Cx, Log};
 use crate::error::{Error, Result};
-use wgpu::util::DeviceExt;
 
 /// `ranges` offset of a layer tested against every triangle (`NO_CANDIDATES` in the kernel).
 const NO_CANDIDATES: u32 = u32::MAX;
@@ -48,17 +47,16 @@ pub(crate) fn select(
             None => [NO_CANDIDATES, g.triangle_count],
         });
     }
-    cands.push(0);
     engine.ctx.scoped("layer selection", || {
-        let storage = |label: &str, bytes: &[u8]| {
-            dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: bytes,
-                usage: wgpu::BufferUsages::STORAGE,
-            })
-        };
-        let ranges_buf = storage("bake.select_ranges", bytemuck::cast_slice(&ranges));
-        let cands_buf = storage("bake.select_candidates", bytemuck::cast_slice(&cands));
+        let none = wgpu::BufferUsages::empty();
+        let ranges_buf =
+            engine
+                .ctx
+                .storage_init("bake.select_ranges", bytemuck::cast_slice(&ranges), none);
+        let cands_buf =
+            engine
+                .ctx
+                .storage_init("bake.select_candidates", bytemuck::cast_slice(&cands), none);
         let bg = pipes.select_triangles.bind(
             dev,
             "bake.select_triangles",

@@ -67,6 +67,35 @@ pub fn cleared_pass<'e>(
 }
 
 impl GpuContext {
+    /// A storage buffer holding `bytes` (usable as `STORAGE | extra`); empty contents become one
+    /// zero word, since wgpu rejects zero-sized bindings.
+    pub fn storage_init(
+        &self,
+        label: &str,
+        bytes: &[u8],
+        extra: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
+        use wgpu::util::DeviceExt;
+        let pad = [0u8; 16];
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: if bytes.is_empty() { &pad } else { bytes },
+                usage: wgpu::BufferUsages::STORAGE | extra,
+            })
+    }
+
+    /// A uniform buffer holding `bytes`.
+    pub fn uniform_init(&self, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+        use wgpu::util::DeviceExt;
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytes,
+                usage: wgpu::BufferUsages::UNIFORM,
+            })
+    }
+
     /// Creates a headless device. `backend` (e.g. `"vulkan"`, `"gl"`) overrides `WGPU_BACKEND`; with
     /// neither, Vulkan is tried first and GL second.
     pub fn new(backend: Option<&str>) -> Result<Self> {

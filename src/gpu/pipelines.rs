@@ -233,8 +233,9 @@ impl Pipelines {
     ///
     /// Longer than a screen on purpose: it is the table of the engine's compute kernels, one entry
     /// per kernel with its bindings in binding order (the data the style guide asks for, as vello's
-    /// `add_shader!` list). Adding a kernel adds an entry here; splitting the table would scatter it.
-    /// The render pipelines, which need more than a binding list, are built by [`Rasters`].
+    /// `add_shader!` list). Adding a kernel adds an entry here; two families that share bindings
+    /// or an owner are built by [`linalg_kernels`] and [`slot_kernels`]. The render pipelines, which
+    /// need more than a binding list, are built by [`Rasters`].
     pub fn new(device: &wgpu::Device) -> Self {
         use Bind::*;
         let features = device.features();
@@ -245,20 +246,9 @@ impl Pipelines {
             wgpu::TextureFormat::Rgba16Float
         };
         let rasters = Rasters::new(device, layer_blending);
-        let cg_binds = &[
-            (0, Uniform),
-            (1, Ro),
-            (2, Ro),
-            (3, Ro),
-            (4, Ro),
-            (5, Ro),
-            (6, Ro),
-            (7, Rw),
-            (8, Rw),
-            (9, Rw),
-            (10, Rw),
-            (11, Rw),
-        ];
+        let [cg_batched, cg_batched_narrow, cg_packed, cg_packed_complex, spmv, dot_batched, copy] =
+            linalg_kernels(device);
+        let [chart_scatter, chart_gather, stamp_blend] = slot_kernels(device);
         Self {
             place_candidates: Kernel::new(
                 device,
@@ -359,38 +349,16 @@ impl Pipelines {
                     (6, Rw),
                 ],
             ),
-            cg_batched: Kernel::new(device, "cg_batched", cg_binds),
-            cg_batched_narrow: Kernel::with_source(
-                device,
-                "cg_batched",
-                cg_binds,
-                Some(shaders::narrow_source("cg_batched")),
-            ),
-            cg_packed: Kernel::new(device, "cg_packed", cg_binds),
-            cg_packed_complex: Kernel::with_source(
-                device,
-                "cg_packed",
-                cg_binds,
-                Some(shaders::complex_source()),
-            ),
-            spmv: Kernel::new(
-                device,
-                "spmv",
-                &[(0, Uniform), (1, Ro), (2, Ro), (3, Ro), (4, Ro), (5, Rw)],
-            ),
-            dot_batched: Kernel::new(device, "dot_batched", &[(0, Ro), (1, Ro), (2, Ro), (3, Rw)]),
-            copy: Kernel::new(device, "copy", &[(0, Uniform), (1, Ro), (2, Rw)]),
-            chart_scatter: Kernel::new(device, "chart_scatter", &[(0, Uniform), (1, Ro), (2, Rw)]),
-            chart_gather: Kernel::new(
-                device,
-                "chart_gather",
-                &[(0, Uniform), (1, Ro), (2, Ro), (3, Rw)],
-            ),
-            stamp_blend: Kernel::new(
-                device,
-                "stamp_blend",
-                &[(0, Uniform), (1, Ro), (2, Rw), (3, Ro)],
-            ),
+            cg_batched,
+            cg_batched_narrow,
+            cg_packed,
+            cg_packed_complex,
+            spmv,
+            dot_batched,
+            copy,
+            chart_scatter,
+            chart_gather,
+            stamp_blend,
             expmap_relax: Kernel::new(
                 device,
                 "expmap_relax",
@@ -643,4 +611,60 @@ fn raster(
         cache: None,
     });
     Raster { pipeline, layout }
+}
+
+/// The linear-algebra kernels (`wgsl/solve/`), in the order of their `Pipelines` fields: the
+/// conjugate gradient's four variants (one workgroup per system, 256 and 64 wide; one system per
+/// invocation, real and on complex blocks), which share one binding list, then SpMV, batched dot
+/// products and the streaming copy.
+fn linalg_kernels(device: &wgpu::Device) -> [Kernel; 7] {
+    use Bind::*;
+    let cg = &[
+        (0, Uniform),
+        (1, Ro),
+        (2, Ro),
+        (3, Ro),
+        (4, Ro),
+        (5, Ro),
+        (6, Ro),
+        (7, Rw),
+        (8, Rw),
+        (9, Rw),
+        (10, Rw),
+        (11, Rw),
+    ];
+    let variant = |name: &str, text: String| Kernel::with_source(device, name, cg, Some(text));
+    [
+        Kernel::new(device, "cg_batched", cg),
+        variant("cg_batched", shaders::narrow_source("cg_batched")),
+        Kernel::new(device, "cg_packed", cg),
+        variant("cg_packed", shaders::complex_source()),
+        Kernel::new(
+            device,
+            "spmv",
+            &[(0, Uniform), (1, Ro), (2, Ro), (3, Ro), (4, Ro), (5, Rw)],
+        ),
+        Kernel::new(device, "dot_batched", &[(0, Ro), (1, Ro), (2, Ro), (3, Rw)]),
+        Kernel::new(device, "copy", &[(0, Uniform), (1, Ro), (2, Rw)]),
+    ]
+}
+
+/// The kernels the bake's map stage runs on the coordinate slots it owns (`bake/maps.rs`): chart
+/// coordinates written in and the exponential maps read out over their discs, and the blended
+/// stamps of continuous strokes.
+fn slot_kernels(device: &wgpu::Device) -> [Kernel; 3] {
+    use Bind::*;
+    [
+        Kernel::new(device, "chart_scatter", &[(0, Uniform), (1, Ro), (2, Rw)]),
+        Kernel::new(
+            device,
+            "chart_gather",
+            &[(0, Uniform), (1, Ro), (2, Ro), (3, Rw)],
+        ),
+        Kernel::new(
+            device,
+            "stamp_blend",
+            &[(0, Uniform), (1, Ro), (2, Rw), (3, Ro)],
+        ),
+    ]
 }

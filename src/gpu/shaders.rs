@@ -102,6 +102,7 @@ pub const SHARED: &[(&str, &str)] = &[
     ("expmap", include_str!("../../wgsl/shared/expmap.wgsl")),
     ("linalg", include_str!("../../wgsl/shared/linalg.wgsl")),
     ("dims", include_str!("../../wgsl/shared/dims.wgsl")),
+    ("cg_state", include_str!("../../wgsl/shared/cg_state.wgsl")),
     ("cg_real", include_str!("../../wgsl/shared/cg_real.wgsl")),
     (
         "cg_complex",

@@ -164,6 +164,15 @@ impl Topology {
         }
     }
 
+    /// The triangles around welded vertex `v`.
+    pub fn triangles_around(&self, v: u32) -> &[u32] {
+        let (a, b) = (
+            self.vertex_triangle_offsets[v as usize] as usize,
+            self.vertex_triangle_offsets[v as usize + 1] as usize,
+        );
+        &self.vertex_triangles[a..b]
+    }
+
     /// Number of degenerate triangles.
     pub fn degenerate_count(&self) -> usize {
         self.degenerate.iter().filter(|d| **d).count()

@@ -27,7 +27,6 @@ use crate::error::{Error, Result};
 use crate::gpu::pipelines::{Kernel, Pipelines};
 use crate::gpu::GpuContext;
 use crate::solve::sparse::{CgReport, CgStatus, ComplexCsr, Csr};
-use wgpu::util::DeviceExt;
 
 /// Loop steps one invocation may run per dispatch (lavapipe abandons invocations past about 65535).
 const LOOP_BUDGET: usize = 20_000;
@@ -79,7 +78,7 @@ impl SystemDesc {
     }
 }
 
-/// Keep in sync with `Round` in wgsl/solve/cg_batched.wgsl.
+/// Keep in sync with `Round` in wgsl/shared/cg_state.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct CgRound {
@@ -90,7 +89,7 @@ struct CgRound {
     pad: u32,
 }
 
-/// Keep in sync with `State` in wgsl/solve/cg_batched.wgsl.
+/// Keep in sync with `State` in wgsl/shared/cg_state.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
 struct CgState {
@@ -119,31 +118,6 @@ pub struct GpuCsr {
     pub max_row_len: u32,
 }
 
-fn storage_init(
-    ctx: &GpuContext,
-    label: &str,
-    bytes: &[u8],
-    extra: wgpu::BufferUsages,
-) -> wgpu::Buffer {
-    // wgpu rejects zero-sized bindings: pad empty arrays to one word.
-    let pad = [0u8; 16];
-    ctx.device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: if bytes.is_empty() { &pad } else { bytes },
-            usage: wgpu::BufferUsages::STORAGE | extra,
-        })
-}
-
-fn uniform(ctx: &GpuContext, label: &str, bytes: &[u8]) -> wgpu::Buffer {
-    ctx.device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: bytes,
-            usage: wgpu::BufferUsages::UNIFORM,
-        })
-}
-
 fn f32s(v: &[f64]) -> Vec<f32> {
     v.iter().map(|&x| x as f32).collect()
 }
@@ -168,9 +142,8 @@ impl GpuCsr {
         (row_ptr, cols, vals): (&[u32], &[u32], &[f64]),
         max_row_len: usize,
     ) -> Result<Self> {
-        let buf = |label: &str, bytes: &[u8]| {
-            storage_init(ctx, label, bytes, wgpu::BufferUsages::empty())
-        };
+        let buf =
+            |label: &str, bytes: &[u8]| ctx.storage_init(label, bytes, wgpu::BufferUsages::empty());
         ctx.scoped("sparse matrix upload", || Self {
             row_ptr: buf("csr.row_ptr", bytemuck::cast_slice(row_ptr)),
             cols: buf("csr.cols", bytemuck::cast_slice(cols)),
@@ -204,8 +177,7 @@ pub fn spmv(
 ) -> Result<(Vec<f32>, f64)> {
     let dev = &ctx.device;
     let (xb, yb, dims, bg) = ctx.scoped("spmv", || {
-        let xb = storage_init(
-            ctx,
+        let xb = ctx.storage_init(
             "spmv.x",
             bytemuck::cast_slice(x),
             wgpu::BufferUsages::empty(),
@@ -216,7 +188,7 @@ pub fn spmv(
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        let dims = uniform(ctx, "spmv.dims", bytemuck::cast_slice(&[a.rows, 0, 0, 0]));
+        let dims = ctx.uniform_init("spmv.dims", bytemuck::cast_slice(&[a.rows, 0, 0, 0]));
         let bg = pipes.spmv.bind(
             dev,
             "spmv",
@@ -267,20 +239,17 @@ pub fn dots(
     let dev = &ctx.device;
     let out_size = (segments.len() as u64 * 16).max(16);
     let (out, bg, keep) = ctx.scoped("dot products", || {
-        let sys = storage_init(
-            ctx,
+        let sys = ctx.storage_init(
             "dot.systems",
             bytemuck::cast_slice(segments),
             wgpu::BufferUsages::empty(),
         );
-        let ab = storage_init(
-            ctx,
+        let ab = ctx.storage_init(
             "dot.a",
             bytemuck::cast_slice(a),
             wgpu::BufferUsages::empty(),
         );
-        let bb = storage_init(
-            ctx,
+        let bb = ctx.storage_init(
             "dot.b",
             bytemuck::cast_slice(b),
             wgpu::BufferUsages::empty(),
@@ -344,7 +313,7 @@ pub fn copy_bandwidth(ctx: &GpuContext, pipes: &Pipelines, bytes: u64, reps: u32
             usage: wgpu::BufferUsages::STORAGE,
             mapped_at_creation: false,
         });
-        let dims = uniform(ctx, "copy.dims", bytemuck::cast_slice(&[len, 0, 0, 0]));
+        let dims = ctx.uniform_init("copy.dims", bytemuck::cast_slice(&[len, 0, 0, 0]));
         let bg = pipes.copy.bind(
             dev,
             "copy",
@@ -541,12 +510,9 @@ fn run(
     let state_size = systems.len() as u64 * 32;
     let vec_buf = |label: &str, data: Option<&[f32]>| -> wgpu::Buffer {
         match data {
-            Some(d) => storage_init(
-                ctx,
-                label,
-                bytemuck::cast_slice(d),
-                wgpu::BufferUsages::COPY_SRC,
-            ),
+            Some(d) => {
+                ctx.storage_init(label, bytemuck::cast_slice(d), wgpu::BufferUsages::COPY_SRC)
+            }
             None => dev.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
                 size: (rows as u64 * 4).max(16),
@@ -556,8 +522,7 @@ fn run(
         }
     };
     let (xb, state, bgs, keep) = ctx.scoped("conjugate gradient", || {
-        let sys = storage_init(
-            ctx,
+        let sys = ctx.storage_init(
             "cg.systems",
             bytemuck::cast_slice(systems),
             wgpu::BufferUsages::empty(),
@@ -570,8 +535,7 @@ fn run(
             vec_buf("cg.p", None),
             vec_buf("cg.ap", None),
         );
-        let state = storage_init(
-            ctx,
+        let state = ctx.storage_init(
             "cg.state",
             bytemuck::cast_slice(&vec![CgState::default(); systems.len()]),
             wgpu::BufferUsages::COPY_SRC,
@@ -583,8 +547,7 @@ fn run(
             let mut groups = Vec::new();
             for base in (0..systems.len()).step_by(65535) {
                 let count = (systems.len() - base).min(65535) as u32;
-                let round = uniform(
-                    ctx,
+                let round = ctx.uniform_init(
                     "cg.round",
                     bytemuck::bytes_of(&CgRound {
                         iters,

@@ -79,11 +79,7 @@ impl Csr {
 
     /// Longest row.
     pub fn max_row_len(&self) -> usize {
-        self.row_ptr
-            .windows(2)
-            .map(|w| (w[1] - w[0]) as usize)
-            .max()
-            .unwrap_or(0)
+        longest_row(&self.row_ptr)
     }
 
     /// The block-diagonal matrix of `blocks`, and each block's first row.
@@ -182,12 +178,17 @@ impl ComplexCsr {
 
     /// Longest block row.
     pub fn max_row_len(&self) -> usize {
-        self.row_ptr
-            .windows(2)
-            .map(|w| (w[1] - w[0]) as usize)
-            .max()
-            .unwrap_or(0)
+        longest_row(&self.row_ptr)
     }
+}
+
+/// The most entries of one row, from CSR row offsets.
+fn longest_row(row_ptr: &[u32]) -> usize {
+    row_ptr
+        .windows(2)
+        .map(|w| (w[1] - w[0]) as usize)
+        .max()
+        .unwrap_or(0)
 }
 
 /// Dot product in f64.

@@ -12,37 +12,9 @@
 // spent (not converged), 4 = breakdown (NaN/Inf seen, or <p, Ap> <= 0: the matrix is not SPD).
 // Dispatch: (systems, 1, 1). CPU twin: `sparse::pcg` in src/solve/sparse.rs (f64).
 #import linalg
+#import cg_state
 
-const REPLACE: u32 = 50u;
-const ST_INIT: u32 = 0u;
-const ST_RUN: u32 = 1u;
-const ST_DONE: u32 = 2u;
-const ST_BUDGET: u32 = 3u;
-const ST_BREAK: u32 = 4u;
 const ST_OTHER: u32 = 99u;
-
-// Keep in sync with `CgRound` in src/solve/gpu.rs.
-struct Round {
-    iters: u32,
-    // First system of this dispatch (dispatches cover at most 65535 systems each).
-    base: u32,
-    // Systems in this dispatch (used by cg_packed.wgsl; here one workgroup per system).
-    count: u32,
-    pad2: u32,
-}
-
-// Keep in sync with `CgState` in src/solve/gpu.rs.
-struct State {
-    status: u32,
-    iters: u32,
-    pad0: u32,
-    pad1: u32,
-    rz: f32,
-    bnorm: f32,
-    rel_residual: f32,
-    // max(|b|, |(|A| |x|)|) at the last true residual: the residual's reference (see the header).
-    scale: f32,
-}
 
 @group(0) @binding(0) var<uniform> round: Round;
 @group(0) @binding(1) var<storage, read> systems: array<System>;
@@ -78,10 +50,6 @@ fn a_times_x(i: u32) -> vec2<f32> {
         s += vec2<f32>(t, abs(t));
     }
     return s;
-}
-
-fn finite(v: f32) -> bool {
-    return abs(v) <= 3.0e38;
 }
 
 // r = b - A x and z = D^-1 r for this invocation's rows; returns (<r, z>, <r, r>, <b, b>,

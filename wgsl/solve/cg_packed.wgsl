@@ -21,37 +21,11 @@
 // lanes costs a loop over the lanes, so that halves the loads of an iteration.
 // CPU twin: `sparse::pcg` in src/solve/sparse.rs (f64, on the real form).
 #import linalg
+#import cg_state
 #import cg_real
 
 const PACK_WG: u32 = 64u;
-const REPLACE: u32 = 50u;
-const ST_INIT: u32 = 0u;
-const ST_RUN: u32 = 1u;
-const ST_DONE: u32 = 2u;
-const ST_BUDGET: u32 = 3u;
-const ST_BREAK: u32 = 4u;
 const PACKED: u32 = 2u;
-
-// Keep in sync with `CgRound` in src/solve/gpu.rs.
-struct Round {
-    iters: u32,
-    base: u32,
-    // Systems in this dispatch.
-    count: u32,
-    pad2: u32,
-}
-
-// Keep in sync with `CgState` in src/solve/gpu.rs.
-struct State {
-    status: u32,
-    iters: u32,
-    pad0: u32,
-    pad1: u32,
-    rz: f32,
-    bnorm: f32,
-    rel_residual: f32,
-    scale: f32,
-}
 
 @group(0) @binding(0) var<uniform> round: Round;
 @group(0) @binding(1) var<storage, read> systems: array<System>;
@@ -65,10 +39,6 @@ struct State {
 @group(0) @binding(9) var<storage, read_write> p: array<V>;
 @group(0) @binding(10) var<storage, read_write> ap: array<V>;
 @group(0) @binding(11) var<storage, read_write> state: array<State>;
-
-fn finite(v: f32) -> bool {
-    return abs(v) <= 3.0e38;
-}
 
 // r = b - A x and z = D^-1 r over the system's rows; returns (<r, z>, <r, r>, <b, b>,
 // |(|A| |x|)|²). With `set_p`, also p = z (the start of a solve).

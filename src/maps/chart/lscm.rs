@@ -266,11 +266,7 @@ pub fn normalising_similarity(
 fn seed_ring(topo: &Topology, triangles: &[u32], seed_triangle: u32) -> Vec<u32> {
     let mut around: Vec<u32> = Vec::new();
     for v in topo.triangles[seed_triangle as usize] {
-        let (a, b) = (
-            topo.vertex_triangle_offsets[v as usize] as usize,
-            topo.vertex_triangle_offsets[v as usize + 1] as usize,
-        );
-        around.extend(&topo.vertex_triangles[a..b]);
+        around.extend(topo.triangles_around(v));
     }
     let in_chart: HashSet<u32> = triangles.iter().copied().collect();
     around.retain(|t| in_chart.contains(t));

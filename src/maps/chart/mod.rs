@@ -583,13 +583,7 @@ fn assess(topo: &Topology, req: &ChartRequest, chart: &mut Chart) {
     // including triangles left out of the chart (a handle cut open) whose corners it still covers.
     let mut tris: Vec<u32> = z
         .keys()
-        .flat_map(|&v| {
-            let (a, b) = (
-                topo.vertex_triangle_offsets[v as usize] as usize,
-                topo.vertex_triangle_offsets[v as usize + 1] as usize,
-            );
-            topo.vertex_triangles[a..b].iter().copied()
-        })
+        .flat_map(|&v| topo.triangles_around(v).iter().copied())
         .filter(|&t| {
             !topo.degenerate[t as usize]
                 && topo.triangles[t as usize].iter().all(|v| z.contains_key(v))
@@ -655,13 +649,7 @@ fn map_triangles(topo: &Topology, expmap: &[[f32; 4]]) -> Vec<u32> {
     let valid = |v: u32| expmap[v as usize][3] > 0.5;
     let mut tris: Vec<u32> = (0..expmap.len() as u32)
         .filter(|&v| valid(v))
-        .flat_map(|v| {
-            let (a, b) = (
-                topo.vertex_triangle_offsets[v as usize] as usize,
-                topo.vertex_triangle_offsets[v as usize + 1] as usize,
-            );
-            topo.vertex_triangles[a..b].iter().copied()
-        })
+        .flat_map(|v| topo.triangles_around(v).iter().copied())
         .filter(|&t| {
             !topo.degenerate[t as usize] && topo.triangles[t as usize].iter().all(|&v| valid(v))
         })

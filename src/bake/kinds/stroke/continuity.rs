@@ -131,11 +131,7 @@ fn levels(w: f32, varies: bool, step: f32) -> Vec<(u32, f32)> {
 /// that it covers such a stamp turned any way with its point anywhere in a triangle around `v`
 /// (half-diagonal plus the longest edge at `v`, Maillot section 7).
 fn chart_unit(topo: &Topology, layer: &Layer, v: u32, size: [f32; 2]) -> Unit {
-    let (a, b) = (
-        topo.vertex_triangle_offsets[v as usize] as usize,
-        topo.vertex_triangle_offsets[v as usize + 1] as usize,
-    );
-    let tris = &topo.vertex_triangles[a..b];
+    let tris = topo.triangles_around(v);
     let p = topo.positions[v as usize];
     let longest = tris
         .iter()
