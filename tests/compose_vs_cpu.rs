@@ -338,7 +338,7 @@ fn distortion_report_matches_analytic_values_on_the_folded_sheet() {
         &mesh,
         &topo,
         &mesh.uv_sets[0],
-        &coords,
+        (&coords, None),
         &frame,
         true,
         [64, 64],

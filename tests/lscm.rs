@@ -57,6 +57,7 @@ fn lscm_chart(
         kind: ChartKind::Lscm,
         max_iter: None,
         warm: None,
+        cone: true,
     };
     let mut stats = Default::default();
     let c = chart::build(topo, &[req], &engine.solver(), &mut stats)

@@ -476,7 +476,9 @@ fn blended_stamp_equals_the_direct_chart_on_a_plane() {
             &units.job.layers[u],
             &units.frames[u],
             &units.placements[u],
+            false,
         )
+        .coords
     };
     let s = &units.strokes[0];
     let mut checked = 0;

@@ -9,7 +9,8 @@
 
 use crate::io::image::LinearImage;
 use crate::io::job::{Job, Layer};
-use crate::maps::Frame;
+use crate::maps::chart::cone::Cone;
+use crate::maps::{CpuCoords, Frame};
 use crate::mesh::{Mesh, Topology};
 use crate::place::Placement;
 use glam::Vec2;
@@ -116,15 +117,17 @@ pub fn bake_units_cpu(
         let group = stroke.map_or(li..li + 1, |s| li..s.units.end);
         let blend_of = |u: usize| stroke.and_then(|s| s.blends[u - s.units.start].as_ref());
         let hidden = |u: usize| stroke.is_some_and(|s| s.hidden[u - s.units.start]);
-        let mut coords: Vec<Vec<[f32; 4]>> = group
+        let (mut coords, cones): (Vec<Vec<[f32; 4]>>, Vec<Option<Cone>>) = group
             .clone()
             .map(|u| match blend_of(u) {
-                Some(_) => Vec::new(),
+                Some(_) => (Vec::new(), None),
                 None => {
-                    layer_coords_cpu(topo, &surface, &job.layers[u], &frames[u], &placements[u])
+                    let (l, f, p) = (&job.layers[u], &frames[u], &placements[u]);
+                    let c = layer_coords_cpu(topo, &surface, l, f, p, !hidden(u));
+                    (c.coords, c.cone)
                 }
             })
-            .collect();
+            .unzip();
         for u in group.clone() {
             if let Some(b) = blend_of(u) {
                 let charts: Vec<&[[f32; 4]]> = b
@@ -137,14 +140,15 @@ pub fn bake_units_cpu(
         }
         let sels: Vec<Selection> = group
             .clone()
-            .zip(&coords)
-            .map(|(u, c)| {
+            .zip(coords.iter().zip(&cones))
+            .map(|(u, (c, cone))| {
                 let (layer, frame) = (&job.layers[u], &frames[u]);
                 let facing = crate::maps::method(layer.method).front_facing();
                 if hidden(u) {
                     Selection::default()
                 } else {
-                    select_triangles(mesh, topo, uvs, c, frame, facing, [w, h])
+                    let map = (&c[..], cone.as_ref());
+                    select_triangles(mesh, topo, uvs, map, frame, facing, [w, h])
                 }
             })
             .collect();
@@ -156,9 +160,10 @@ pub fn bake_units_cpu(
         );
         let rasters: Vec<LayerRaster> = group
             .clone()
-            .zip(&coords)
-            .map(|(u, c)| LayerRaster {
+            .zip(coords.iter().zip(&cones))
+            .map(|(u, (c, cone))| LayerRaster {
                 flat: flats[u - group.start].take(),
+                cone: *cone,
                 ..LayerRaster::new(mesh, topo, job, &job.layers[u], c, &images[u])
             })
             .collect();
@@ -384,7 +389,8 @@ pub fn layer_coords_cpu(
     layer: &Layer,
     frame: &Frame,
     placement: &Placement,
-) -> Vec<[f32; 4]> {
+    cone: bool,
+) -> CpuCoords {
     let m = crate::maps::method(layer.method);
     let expmap = m.uses_expmap().then(|| {
         let opts = frame.expmap_options(layer);
@@ -396,7 +402,7 @@ pub fn layer_coords_cpu(
             .map(|(d, uv)| [uv[0], uv[1], *d, if d.is_finite() { 1.0 } else { 0.0 }])
             .collect()
     });
-    m.cpu_coords(topo, layer, frame, placement.triangle, expmap)
+    m.cpu_coords(topo, layer, frame, (placement.triangle, cone), expmap)
 }
 
 /// Twin of `layer_raster` + `compose`'s averaging for one layer.
@@ -410,6 +416,9 @@ struct LayerRaster<'a> {
     mask: Option<&'a LinearImage>,
     /// A blur or smear stamp's filtered flat image (colour; its image's alpha is the shape).
     flat: Option<LinearImage>,
+    /// The cone that opens the layer's chart: applied per sample, as `layer_raster` does per
+    /// fragment.
+    cone: Option<Cone>,
 }
 
 impl<'a> LayerRaster<'a> {
@@ -438,6 +447,7 @@ impl<'a> LayerRaster<'a> {
             premult,
             mask: mask.as_ref(),
             flat: None,
+            cone: None,
         }
     }
 
@@ -455,8 +465,12 @@ impl<'a> LayerRaster<'a> {
             };
             covered = true;
             let lc = self.topo.triangles[t as usize].map(|v| self.coords[v as usize]);
-            let lx = bc[0] * lc[0][0] + bc[1] * lc[1][0] + bc[2] * lc[2][0];
-            let ly = bc[0] * lc[0][1] + bc[1] * lc[1][1] + bc[2] * lc[2][1];
+            let mut lx = bc[0] * lc[0][0] + bc[1] * lc[1][0] + bc[2] * lc[2][0];
+            let mut ly = bc[0] * lc[0][1] + bc[1] * lc[1][1] + bc[2] * lc[2][1];
+            if let Some(cone) = &self.cone {
+                let z = cone.apply(glam::DVec2::new(lx as f64, ly as f64));
+                (lx, ly) = (z.x as f32, z.y as f32);
+            }
             let im = Vec2::new(lx / layer.size[0] + 0.5, 0.5 - ly / layer.size[1]);
             let mut s = [0.0; 4];
             if im.x >= 0.0 && im.y >= 0.0 && im.x <= 1.0 && im.y <= 1.0 {
@@ -625,7 +639,7 @@ pub fn select_triangles(
     mesh: &Mesh,
     topo: &Topology,
     uvs: &[Vec2],
-    coords: &[[f32; 4]],
+    (coords, cone): (&[[f32; 4]], Option<&Cone>),
     f: &Frame,
     facing: bool,
     tex: [u32; 2],
@@ -643,15 +657,21 @@ pub fn select_triangles(
         if c.iter().any(|c| c[3] < 0.5) {
             continue;
         }
-        let lo = Vec2::new(
-            c[0][0].min(c[1][0]).min(c[2][0]),
-            c[0][1].min(c[1][1]).min(c[2][1]),
-        );
-        let hi = Vec2::new(
-            c[0][0].max(c[1][0]).max(c[2][0]),
-            c[0][1].max(c[1][1]).max(c[2][1]),
-        );
-        if hi.x < -hx || lo.x > hx || hi.y < -hy || lo.y > hy {
+        let mut z = c.map(|c| Vec2::new(c[0], c[1]));
+        let (mut hx, mut hy, mut cut) = (hx, hy, false);
+        if let Some(cone) = cone {
+            // Twin of the kernel's FLAG_CONE branch: the cut's triangles are kept; the others are
+            // tested opened, with a margin of a tenth of their box.
+            let w = z.map(|z| z.as_dvec2());
+            cut = cone.cut_crosses(w);
+            z = w.map(|w| cone.apply(w).as_vec2());
+            let ext = z[0].max(z[1]).max(z[2]) - z[0].min(z[1]).min(z[2]);
+            hx += 0.1 * ext.max_element();
+            hy += 0.1 * ext.max_element();
+        }
+        let lo = z[0].min(z[1]).min(z[2]);
+        let hi = z[0].max(z[1]).max(z[2]);
+        if !cut && (hi.x < -hx || lo.x > hx || hi.y < -hy || lo.y > hy) {
             continue;
         }
         if facing {

@@ -9,7 +9,9 @@
 //! ([`Slots`]); the selection and compose stages then run on the same chunk.
 
 use super::engine::{Engine, LoadedMesh};
-use super::params::{params_buffer, pbind, Params, FLAG_FACING, FLAG_MASK, PARAMS_STRIDE};
+use super::params::{
+    params_buffer, pbind, Params, FLAG_CONE, FLAG_FACING, FLAG_MASK, PARAMS_STRIDE,
+};
 use super::place::Placed;
 use super::stage::{ms, Cx, Log};
 use crate::error::{Error, Result};
@@ -172,6 +174,9 @@ pub(crate) fn compute(
     };
     expmap_pass(cx, placed, slots, &mut maps, log)?;
     chart_pass(cx, placed, slots, &mut maps, log)?;
+    if maps.params.iter().any(|p| p.flags & FLAG_CONE != 0) {
+        maps.buffer = params_buffer(&engine.ctx.device, "bake.layer_params", &maps.params);
+    }
     direct_pass(cx, placed, slots, &maps, log)?;
     blend_reach(placed, &mut maps);
     blend_pass(cx, placed, slots, &maps, log)?;
@@ -291,9 +296,14 @@ fn chart_pass(
         .map(|(&i, map)| {
             let l = &job.layers[i];
             let (f, tri) = (placed.frames[i], placed.placements[i].triangle);
-            method(l.method)
+            let req = method(l.method)
                 .chart(l, f, tri, map)
-                .expect("filtered above")
+                .expect("filtered above");
+            // Stamps blend a corner chart's coordinates vertex by vertex: no cut there.
+            chart::ChartRequest {
+                cone: !placed.hidden[i],
+                ..req
+            }
         })
         .collect();
     let mut stats = chart::SolveStats::default();
@@ -315,6 +325,11 @@ fn chart_pass(
         }
         check_chart(job, (i, placed.origin[i].0), &c.report, log)?;
         maps.chart[i - start] = Some(c.report);
+        if let Some(cone) = c.cone() {
+            let p = &mut maps.params[i - start];
+            (p.cone_a, p.cone_b) = cone.params();
+            p.flags |= FLAG_CONE;
+        }
         // A chart may grow past its exponential map's disc (refinement unfolds across borders).
         if let Some(r) = &mut maps.reach[i - start] {
             r.extend(c.coords.iter().map(|&(v, _)| v));

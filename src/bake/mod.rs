@@ -43,7 +43,7 @@ pub mod tools;
 
 pub use engine::{Baked, Engine, LoadedMesh};
 pub use images::f32_to_f16;
-pub use param::{size_figures, ParamRow, SizeFigures};
+pub use param::{size_figures, ParamMap, ParamRow, SizeFigures};
 pub use place::Units;
 
 use crate::error::Result;

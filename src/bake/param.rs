@@ -5,6 +5,7 @@
 use super::engine::{Engine, LoadedMesh};
 use crate::error::{Error, Result};
 use crate::io::job::{Job, Method};
+use crate::maps::chart::cone::Cone;
 use crate::maps::Frame;
 use crate::mesh::Topology;
 use crate::place::{place_gpu, Query};
@@ -22,13 +23,25 @@ pub struct ParamRow {
     pub distance: Option<f32>,
     /// Local coordinates in model units (image +x, image +y), before scaling to the image.
     pub uv: [f32; 2],
+    /// A chart opened at a tip ([`crate::maps::chart::cone`]): the uncut chart's coordinates, which
+    /// the bake carries over each triangle and opens per texel (`uv` is this vertex's image through
+    /// the cone). Equal to `uv` for every other map.
+    pub chart_uv: [f32; 2],
 }
+
+/// A layer's `param` rows and the cone its chart was opened by, if any.
+pub type ParamMap = (Vec<ParamRow>, Option<Cone>);
 
 impl Engine {
     /// The local coordinates of layer `index` of `job` for every vertex its map reaches: for
     /// `expmap` the GPU map's reached vertices (distance = |(u, v)|), for `planar` the vertices of the
     /// triangles the projection covers (no distance).
     pub fn layer_param(&self, mesh: &LoadedMesh, job: &Job, index: usize) -> Result<Vec<ParamRow>> {
+        Ok(self.layer_param_map(mesh, job, index)?.0)
+    }
+
+    /// [`Engine::layer_param`] with the cone that opens the layer's chart at a tip, if any.
+    pub fn layer_param_map(&self, mesh: &LoadedMesh, job: &Job, index: usize) -> Result<ParamMap> {
         let layer = job.layers.get(index).ok_or_else(|| {
             Error::job(
                 &job.source,
@@ -63,6 +76,7 @@ impl Engine {
         let frame = Frame::new(&placement, layer);
         let topo = &mesh.topo;
         let mut rows = Vec::new();
+        let mut cone = None;
         // Every method but planar starts from the layer's exponential map, as in the bake.
         let expmap = match layer.method {
             Method::Planar => Vec::new(),
@@ -82,6 +96,7 @@ impl Engine {
                             position: topo.positions[v].to_array(),
                             distance: Some((c[0] * c[0] + c[1] * c[1]).sqrt()),
                             uv: [c[0], c[1]],
+                            chart_uv: [c[0], c[1]],
                         });
                     }
                 }
@@ -105,6 +120,7 @@ impl Engine {
                     return Err(e);
                 }
                 let replaces = chart.replaces_map;
+                cone = chart.cone();
                 let mut uv: HashMap<u32, [f32; 2]> = chart.coords.into_iter().collect();
                 if !replaces {
                     // Vertices the hybrid solve did not move keep their exponential-map position.
@@ -124,7 +140,13 @@ impl Engine {
                         vertex: v,
                         position: topo.positions[v as usize].to_array(),
                         distance,
-                        uv: c,
+                        // Per vertex through the cone; the bake opens the cut's triangles per texel.
+                        uv: cone.map_or(c, |k| {
+                            k.apply(DVec2::new(c[0] as f64, c[1] as f64))
+                                .as_vec2()
+                                .to_array()
+                        }),
+                        chart_uv: c,
                     });
                 }
                 rows.sort_by_key(|r| r.vertex);
@@ -137,7 +159,7 @@ impl Engine {
                     &mesh.mesh,
                     topo,
                     &no_uvs,
-                    &coords,
+                    (&coords, None),
                     &frame,
                     true,
                     [1, 1],
@@ -153,6 +175,7 @@ impl Engine {
                                 position: topo.positions[v as usize].to_array(),
                                 distance: None,
                                 uv: [c[0], c[1]],
+                                chart_uv: [c[0], c[1]],
                             });
                         }
                     }
@@ -160,7 +183,7 @@ impl Engine {
                 rows.sort_by_key(|r| r.vertex);
             }
         }
-        Ok(rows)
+        Ok((rows, cone))
     }
 }
 
@@ -184,11 +207,23 @@ pub struct SizeFigures {
     pub painted_area: f64,
 }
 
-/// [`SizeFigures`] of a square decal of side `size` placed at `p`, from its `param` rows.
-pub fn size_figures(topo: &Topology, rows: &[ParamRow], p: DVec3, size: f64) -> SizeFigures {
+/// [`SizeFigures`] of a square decal of side `size` placed at `p`, from its `param` rows (and the
+/// cone of its chart: the cut's triangles are sampled through it, as the bake draws them, and left
+/// out of the fold counts, as the chart's own check does).
+pub fn size_figures(topo: &Topology, map: &ParamMap, p: DVec3, size: f64) -> SizeFigures {
+    let (rows, cone) = (&map.0, map.1.as_ref());
     let uv: HashMap<u32, DVec2> = rows
         .iter()
         .map(|r| (r.vertex, DVec2::new(r.uv[0] as f64, r.uv[1] as f64)))
+        .collect();
+    let chart: HashMap<u32, DVec2> = rows
+        .iter()
+        .map(|r| {
+            (
+                r.vertex,
+                DVec2::new(r.chart_uv[0] as f64, r.chart_uv[1] as f64),
+            )
+        })
         .collect();
     let scale = |radius: f64| {
         let mut s: Vec<f64> = rows
@@ -218,14 +253,23 @@ pub fn size_figures(topo: &Topology, rows: &[ParamRow], p: DVec3, size: f64) -> 
         if area3 <= 0.0 {
             continue;
         }
+        let w = tri.map(|v| chart[&v]);
+        let cut = cone.is_some_and(|c| c.cut_crosses(w));
+        // A point of the triangle's image, as the bake computes it per texel.
+        let at = |a: f64, b: f64| match cone {
+            Some(c) => c.apply(w[0] + a * (w[1] - w[0]) + b * (w[2] - w[0])),
+            None => z[0] + a * (z[1] - z[0]) + b * (z[2] - z[0]),
+        };
         let area2 = 0.5 * (z[1] - z[0]).perp_dot(z[2] - z[0]);
-        ratios.push(area2.abs() / area3);
-        let lo = z[0].min(z[1]).min(z[2]);
-        let hi = z[0].max(z[1]).max(z[2]);
-        if hi.x < -h || lo.x > h || hi.y < -h || lo.y > h {
-            continue;
+        if !cut {
+            ratios.push(area2.abs() / area3);
+            let lo = z[0].min(z[1]).min(z[2]);
+            let hi = z[0].max(z[1]).max(z[2]);
+            if hi.x < -h || lo.x > h || hi.y < -h || lo.y > h {
+                continue;
+            }
+            foot.push((area2, area3));
         }
-        foot.push((area2, area3));
         // Painted area: the fraction of 15 × 15 barycentric samples inside the rectangle.
         let n = 15;
         let mut inside = 0;
@@ -236,7 +280,7 @@ pub fn size_figures(topo: &Topology, rows: &[ParamRow], p: DVec3, size: f64) -> 
                     (i as f64 + 1.0 / 3.0) / n as f64,
                     (j as f64 + 1.0 / 3.0) / n as f64,
                 );
-                let q = z[0] + a * (z[1] - z[0]) + b * (z[2] - z[0]);
+                let q = at(a, b);
                 total += 1;
                 inside += usize::from(q.x.abs() <= h && q.y.abs() <= h);
             }

@@ -52,9 +52,14 @@ pub struct Params {
     pub atlas_origin: [u32; 2],
     /// Tool stamps: x = their cell in the flat atlas; `stamp_flatten`: y = the atlas's rows.
     pub pad: [u32; 2],
+    /// A cone chart ([`FLAG_CONE`]): the tip's image, k, unused
+    /// ([`crate::maps::chart::cone::Cone::params`]).
+    pub cone_a: [f32; 4],
+    /// A cone chart: α, β.
+    pub cone_b: [f32; 4],
 }
 
-const _: () = assert!(std::mem::size_of::<Params>() == 160);
+const _: () = assert!(std::mem::size_of::<Params>() == 192);
 
 /// Require front-facing triangles.
 pub const FLAG_FACING: u32 = 1;
@@ -64,6 +69,9 @@ pub const FLAG_MASK: u32 = 2;
 pub const FLAG_16BIT: u32 = 4;
 /// A blur or smear stamp: colour from its flat image, shape from its image's alpha.
 pub const FLAG_TOOL: u32 = 8;
+/// The layer's chart is opened at a tip: its coordinates go through the cone transform in
+/// `cone_a` / `cone_b` (`wgsl/shared/cone.wgsl`).
+pub const FLAG_CONE: u32 = 16;
 
 /// Texels per side of a tool stamp's flat cell (`bake/tools.rs`). Keep in sync with `FLAT_RES` in
 /// `wgsl/bake/stamp_flatten.wgsl`, `stamp_filter.wgsl` and `layer_raster.wgsl`.

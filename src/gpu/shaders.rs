@@ -96,6 +96,7 @@ pub const KERNELS: &[(&str, &str)] = &[
 /// Shared files that `#import` can name.
 pub const SHARED: &[(&str, &str)] = &[
     ("params", include_str!("../../wgsl/shared/params.wgsl")),
+    ("cone", include_str!("../../wgsl/shared/cone.wgsl")),
     ("geometry", include_str!("../../wgsl/shared/geometry.wgsl")),
     ("blend", include_str!("../../wgsl/shared/blend.wgsl")),
     ("acc", include_str!("../../wgsl/shared/acc.wgsl")),

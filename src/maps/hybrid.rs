@@ -36,6 +36,7 @@ impl MapMethod for Hybrid {
             },
             max_iter: layer.cg_max_iterations,
             warm: None,
+            cone: true,
         })
     }
 }

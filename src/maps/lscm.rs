@@ -33,6 +33,7 @@ impl MapMethod for Lscm {
             kind: ChartKind::Lscm,
             max_iter: layer.cg_max_iterations,
             warm: Some(expmap),
+            cone: true,
         })
     }
 }

@@ -90,23 +90,37 @@ pub trait MapMethod: Sync {
     }
 
     /// CPU twin: the layer's coordinates for every welded vertex. `expmap` is the layer's CPU
-    /// exponential map when [`MapMethod::uses_expmap`]. The default serves the methods built on
-    /// the exponential map: the chart solved in f64 from it, or the map itself.
+    /// exponential map when [`MapMethod::uses_expmap`]; `cone`: whether a chart may be opened at a
+    /// tip ([`chart::ChartRequest::cone`]). The default serves the methods built on the
+    /// exponential map: the chart solved in f64 from it, or the map itself.
     fn cpu_coords(
         &self,
         topo: &Topology,
         layer: &Layer,
         frame: &Frame,
-        triangle: u32,
+        at: (u32, bool),
         expmap: Option<Vec<[f32; 4]>>,
-    ) -> Vec<[f32; 4]> {
+    ) -> CpuCoords {
         let map = expmap.expect("the exponential map is computed for methods that use it");
         if self.solves_chart() {
-            cpu_chart_coords(self, topo, layer, frame, triangle, map)
+            cpu_chart_coords(self, topo, layer, frame, at, map)
         } else {
-            map
+            CpuCoords {
+                coords: map,
+                cone: None,
+            }
         }
     }
+}
+
+/// A layer's coordinates from a CPU twin: what its slot holds, and the cone transform its chart
+/// goes through where the coordinates are used ([`chart::cone`]).
+#[derive(Debug, Clone)]
+pub struct CpuCoords {
+    /// Per welded vertex `(x, y, extra, valid)`.
+    pub coords: Vec<[f32; 4]>,
+    /// The chart's cone, when it was opened at a tip.
+    pub cone: Option<chart::cone::Cone>,
 }
 
 /// The one place where a job's `method` becomes its implementation.
@@ -126,12 +140,14 @@ fn cpu_chart_coords<M: MapMethod + ?Sized>(
     topo: &Topology,
     layer: &Layer,
     frame: &Frame,
-    triangle: u32,
+    (triangle, cone): (u32, bool),
     expmap: Vec<[f32; 4]>,
-) -> Vec<[f32; 4]> {
-    let req = m
-        .chart(layer, *frame, triangle, &expmap)
-        .expect("a chart method returns a chart");
+) -> CpuCoords {
+    let req = ChartRequest {
+        cone,
+        ..m.chart(layer, *frame, triangle, &expmap)
+            .expect("a chart method returns a chart")
+    };
     let solved = chart::build(topo, &[req], &chart::Solver::Cpu, &mut Default::default())
         .expect("the CPU solver does not fail")
         .remove(0);
@@ -140,8 +156,9 @@ fn cpu_chart_coords<M: MapMethod + ?Sized>(
     } else {
         vec![[0.0; 4]; topo.positions.len()]
     };
+    let cone = solved.cone();
     for (v, c) in solved.coords {
         coords[v as usize] = [c[0], c[1], 0.0, 1.0];
     }
-    coords
+    CpuCoords { coords, cone }
 }

@@ -59,9 +59,12 @@ impl super::MapMethod for Planar {
         topo: &Topology,
         _layer: &crate::io::job::Layer,
         frame: &Frame,
-        _triangle: u32,
+        _at: (u32, bool),
         _expmap: Option<Vec<[f32; 4]>>,
-    ) -> Vec<[f32; 4]> {
-        planar_coords(topo, frame)
+    ) -> super::CpuCoords {
+        super::CpuCoords {
+            coords: planar_coords(topo, frame),
+            cone: None,
+        }
     }
 }

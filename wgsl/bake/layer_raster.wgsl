@@ -2,10 +2,14 @@
 // Draws a layer's triangles at their global UV (shifted by the UV tile and the raster rectangle) into a
 // supersampled target, carrying the layer's local coordinates; the fragment stage samples the decal
 // image (premultiplied, mipmapped: implicit derivatives pick the level) and the optional mask.
+// A cone chart (FLAG_CONE) carries the uncut chart coordinates and opens them per fragment
+// (shared/cone.wgsl), so its cut runs through the triangles it crosses; its mip level comes from the
+// transform's analytic derivative (the implicit one jumps across the cut).
 // Attachment 0: premultiplied colour; attachment 1: island coverage (1 where a triangle is drawn).
 // Non-indexed draw of 3 * (triangles in the layer's list) vertices.
 // CPU twin: `LayerRaster` in src/bake/cpu.rs.
 #import params
+#import cone
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> lists: array<u32>;
@@ -43,6 +47,8 @@ struct VsOut {
     @builtin(position) pos: vec4<f32>,
     // Decal image coordinates: (0,0) top-left, (1,1) bottom-right.
     @location(0) img: vec2<f32>,
+    // The layer's chart coordinates (model units).
+    @location(1) w: vec2<f32>,
 }
 
 @vertex
@@ -56,6 +62,7 @@ fn vs_main(@builtin(vertex_index) vi: u32) -> VsOut {
     var o: VsOut;
     o.pos = vec4<f32>(ndc.x, -ndc.y, 0.0, 1.0);
     o.img = vec2<f32>(c.x / params.axis_u.w + 0.5, 0.5 - c.y / params.axis_v.w);
+    o.w = c.xy;
     return o;
 }
 
@@ -66,19 +73,35 @@ struct FsOut {
 
 @fragment
 fn fs_main(in: VsOut) -> FsOut {
-    var c = textureSample(image, samp, in.img);
-    let m = textureSample(mask, samp, in.img);
+    var img = in.img;
+    var c: vec4<f32>;
+    var m: vec4<f32>;
+    let wx = dpdx(in.w);
+    let wy = dpdy(in.w);
+    if ((params.flags & FLAG_CONE) != 0u) {
+        let z = cone_apply(params.cone_a, params.cone_b, in.w);
+        let d = cone_derivative(params.cone_a, params.cone_b, in.w);
+        let to_img = vec2<f32>(1.0 / params.axis_u.w, -1.0 / params.axis_v.w);
+        img = vec2<f32>(0.5, 0.5) + z * to_img;
+        let gx = cone_cmul(d, wx) * to_img;
+        let gy = cone_cmul(d, wy) * to_img;
+        c = textureSampleGrad(image, samp, img, gx, gy);
+        m = textureSampleGrad(mask, samp, img, gx, gy);
+    } else {
+        c = textureSample(image, samp, img);
+        m = textureSample(mask, samp, img);
+    }
     if ((params.flags & FLAG_MASK) != 0u) {
         // Mask images are premultiplied like decals: red * alpha is the mask value.
         c = c * m.r;
     }
     if ((params.flags & FLAG_TOOL) != 0u) {
         // What is below, filtered in the stamp's flat space, with the stamp image's alpha as shape.
-        let f = flat_at(in.img);
+        let f = flat_at(img);
         let shape = select(0.0, c.a, f.a > 0.0);
         c = vec4<f32>(f.rgb * shape, shape);
     }
-    let inside = all(in.img >= vec2<f32>(0.0)) && all(in.img <= vec2<f32>(1.0));
+    let inside = all(img >= vec2<f32>(0.0)) && all(img <= vec2<f32>(1.0));
     var o: FsOut;
     o.color = select(vec4<f32>(0.0), c * params.opacity, inside);
     o.coverage = vec4<f32>(1.0);

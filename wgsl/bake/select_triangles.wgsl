@@ -1,13 +1,14 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // Chooses the triangles a layer covers, for any placement method: all three vertices have valid layer
 // coordinates, the triangle's coordinate box overlaps the decal rectangle, and (planar projection only)
-// the triangle faces the projection. Appends them to the layer's list and grows the layer's texel
+// the triangle faces the projection (a cone chart, FLAG_CONE: by the opened images, shared/cone.wgsl). Appends them to the layer's list and grows the layer's texel
 // bounding box in the output texture. The triangles tested are the layer's candidates
 // (`ranges[params.slot]`: offset and count in `cands`, every triangle with a vertex its map can
 // reach, src/bake/maps.rs), or every triangle of the mesh where the offset is NO_CANDIDATES.
 // Dispatch: (ceil(tested / 64), 1, 1). CPU twin: `select_triangles` in src/bake/cpu.rs (over the
 // whole mesh, so the tests also check the candidates miss nothing).
 #import params
+#import cone
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
@@ -45,11 +46,27 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (c0.w < 0.5 || c1.w < 0.5 || c2.w < 0.5) { return; }
     let s = params.aux * params.stats_stride;
     atomicAdd(&stats[s + 6u], 1);
-    let hx = 0.5 * params.axis_u.w;
-    let hy = 0.5 * params.axis_v.w;
-    let lo = min(min(c0.xy, c1.xy), c2.xy);
-    let hi = max(max(c0.xy, c1.xy), c2.xy);
-    if (hi.x < -hx || lo.x > hx || hi.y < -hy || lo.y > hy) { return; }
+    var hx = 0.5 * params.axis_u.w;
+    var hy = 0.5 * params.axis_v.w;
+    var z0 = c0.xy;
+    var z1 = c1.xy;
+    var z2 = c2.xy;
+    var cut = false;
+    if ((params.flags & FLAG_CONE) != 0u) {
+        // A cone chart: the cut's triangles are drawn (the fragments outside the decal are not
+        // painted); the others are tested by their opened images, with a margin of a tenth of
+        // their box for their curved edges.
+        cut = cone_cut_crosses(params.cone_a, z0, z1, z2);
+        z0 = cone_apply(params.cone_a, params.cone_b, z0);
+        z1 = cone_apply(params.cone_a, params.cone_b, z1);
+        z2 = cone_apply(params.cone_a, params.cone_b, z2);
+        let ext = max(max(z0, z1), z2) - min(min(z0, z1), z2);
+        hx += 0.1 * max(ext.x, ext.y);
+        hy += 0.1 * max(ext.x, ext.y);
+    }
+    let lo = min(min(z0, z1), z2);
+    let hi = max(max(z0, z1), z2);
+    if (!cut && (hi.x < -hx || lo.x > hx || hi.y < -hy || lo.y > hy)) { return; }
     if ((params.flags & FLAG_FACING) != 0u) {
         let a = positions[tri.x].xyz;
         let n = cross(positions[tri.y].xyz - a, positions[tri.z].xyz - a);

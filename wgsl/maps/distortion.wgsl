@@ -5,6 +5,7 @@
 // reduces its triangles (area-weighted sums, extremes, flip count) into one partial; the host adds
 // the partials. Dispatch: (DIST_GROUPS, 1, 1) per layer. CPU twin: `distortion` in src/maps/distortion.rs.
 #import params
+#import cone
 
 const WG: u32 = 64u;
 // Keep in sync with `DIST_GROUPS` in src/maps/distortion.rs.
@@ -42,9 +43,18 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid
         let y = normalize(cross(n, x));
         // Triangle in its own plane: columns P1 = (l1, 0), P2 = (e2.x, e2.y).
         let q2 = vec2<f32>(dot(e2, x), dot(e2, y));
-        let c0 = coords[base + t.x].xy;
-        let d1 = coords[base + t.y].xy - c0;
-        let d2 = coords[base + t.z].xy - c0;
+        var c0 = coords[base + t.x].xy;
+        var c1 = coords[base + t.y].xy;
+        var c2 = coords[base + t.z].xy;
+        if ((params.flags & FLAG_CONE) != 0u) {
+            // A cone chart: measured opened; the cut's triangles are left out (drawn per fragment).
+            if (cone_cut_crosses(params.cone_a, c0, c1, c2)) { continue; }
+            c0 = cone_apply(params.cone_a, params.cone_b, c0);
+            c1 = cone_apply(params.cone_a, params.cone_b, c1);
+            c2 = cone_apply(params.cone_a, params.cone_b, c2);
+        }
+        let d1 = c1 - c0;
+        let d2 = c2 - c0;
         // M = [d1 d2] * inverse([(l1, 0) q2]).
         let inv_det = 1.0 / (l1 * q2.y);
         let m00 = (d1.x * q2.y) * inv_det;

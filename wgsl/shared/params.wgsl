@@ -41,9 +41,15 @@ struct Params {
     atlas_origin: vec2<u32>,
     // Tool stamps: x = cell of the flat atlas; stamp_flatten: y = the atlas's rows of cells.
     _pad: vec2<u32>,
+    // FLAG_CONE: the cone transform of the layer's chart (shared/cone.wgsl): tip (xy), k (z);
+    // alpha (xy), beta (zw).
+    cone_a: vec4<f32>,
+    cone_b: vec4<f32>,
 }
 
 const FLAG_FACING: u32 = 1u;
 const FLAG_MASK: u32 = 2u;
 // Blur / smear stamps: colour from the stamp's flat image (`flats`), shape from the image's alpha.
 const FLAG_TOOL: u32 = 8u;
+// The layer's chart is opened at a tip: coordinates go through `cone_apply` (shared/cone.wgsl).
+const FLAG_CONE: u32 = 16u;

@@ -75,7 +75,7 @@ pub fn measure(
         Path::new("."),
         Path::new("."),
     )?;
-    let rows = engine.layer_param(mesh, &job, 0)?;
+    let map = engine.layer_param_map(mesh, &job, 0)?;
     let p = DVec3::from(at.map(f64::from));
-    Ok(size_figures(&mesh.topo, &rows, p, size as f64))
+    Ok(size_figures(&mesh.topo, &map, p, size as f64))
 }

@@ -219,6 +219,7 @@ fn chart_solves(
             kind: ChartKind::Lscm,
             max_iter: None,
             warm: None,
+            cone: true,
         })
         .collect();
     let topo = &mesh.topo;

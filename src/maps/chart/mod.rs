@@ -45,6 +45,7 @@ use crate::mesh::{Topology, NO_NEIGHBOR};
 use crate::solve::sparse::{CgReport, CgStatus, Csr};
 use lscm::System;
 use region::{RegionFix, RegionReport};
+pub mod cone;
 pub mod lscm;
 pub mod region;
 use glam::{DVec2, DVec3};
@@ -91,6 +92,9 @@ pub struct ChartRequest<'a> {
     /// LSCM: an exponential map at the same placement (per welded vertex `(u, v, _, valid)`), the
     /// warm start where it reaches; elsewhere the planar projection is used.
     pub warm: Option<&'a [[f32; 4]]>,
+    /// Whether the chart may be opened at a cone-like tip ([`cone`]); false for charts whose
+    /// coordinates other units blend vertex by vertex (a continuous stroke's corner charts).
+    pub cone: bool,
 }
 
 impl<'a> ChartRequest<'a> {
@@ -146,6 +150,8 @@ pub struct ChartReport {
     pub footprint_torn: u32,
     /// What was done when the chart folded into the footprint.
     pub fallback: Fallback,
+    /// The cone transform that opens the chart at a tip, when it has one ([`cone`]).
+    pub cone: Option<cone::Cone>,
 }
 
 /// A footprint triangle whose image-to-surface area ratio is below this fraction of the chart's
@@ -184,6 +190,13 @@ pub struct Chart {
     /// True when the chart replaces the layer's map (LSCM); false when it only moves its own
     /// vertices and the others keep their exponential-map coordinates (hybrid).
     pub replaces_map: bool,
+}
+
+impl Chart {
+    /// The cone transform the chart's coordinates go through where they are used (`None`: none).
+    pub fn cone(&self) -> Option<cone::Cone> {
+        self.report.cone
+    }
 }
 
 /// Where the solves run.
@@ -418,10 +431,41 @@ struct Work {
     region: RegionReport,
     /// Current coordinates (model units, frame-aligned) per welded vertex.
     warm: HashMap<u32, DVec2>,
+    /// The cone fitted to the current coordinates (refinement tests the opened chart's image).
+    cone: Option<cone::Cone>,
     seen: HashSet<Vec<u32>>,
     rounds: u32,
     iterations: u32,
     done: bool,
+}
+
+impl Work {
+    /// Vertex `v`'s image in the opened chart (its coordinate through the cone, if any).
+    fn image(&self, v: u32) -> DVec2 {
+        let w = self.warm[&v];
+        self.cone.map_or(w, |c| c.apply(w))
+    }
+}
+
+/// The cone a chart needs ([`cone::fit`]), when the request allows one.
+fn fit_cone(
+    topo: &Topology,
+    req: &ChartRequest,
+    triangles: &[u32],
+    coord: &dyn Fn(u32) -> DVec2,
+) -> Option<cone::Cone> {
+    if !req.cone {
+        return None;
+    }
+    cone::fit(
+        topo,
+        &cone::ChartView {
+            triangles,
+            coord,
+            frame: &req.frame,
+            seed_triangle: req.triangle,
+        },
+    )
 }
 
 /// A solved system's unknowns (scaled back by `scale`) as a per-vertex chart coordinate.
@@ -556,6 +600,7 @@ impl ChartReport {
             footprint_collapsed: 0,
             footprint_torn: 0,
             fallback: Fallback::None,
+            cone: None,
         }
     }
 
@@ -591,6 +636,13 @@ fn assess(topo: &Topology, req: &ChartRequest, chart: &mut Chart) {
         .collect();
     tris.sort_unstable();
     tris.dedup();
+    if let Some(c) = chart.report.cone {
+        // The cut's triangles are drawn per fragment, their per-vertex images straddle the wedge.
+        tris.retain(|&t| !c.cut_crosses(topo.triangles[t as usize].map(|v| z[&v])));
+        for q in z.values_mut() {
+            *q = c.apply(*q);
+        }
+    }
     let coord = |v: u32| z.get(&v).map_or([f64::NAN; 2], |c| [c.x, c.y]);
     let st = topo.triangles[req.triangle as usize];
     let p = req.frame.center.as_dvec3();
@@ -739,6 +791,7 @@ fn build_lscm(
                         w.warm.insert(v, lscm::cmul(alpha, z) + beta);
                     }
                 }
+                w.cone = fit_cone(topo, req, &w.triangles, &|v| w.warm[&v]);
             }
             if last {
                 finals[k] = Some((x, rep, sys));
@@ -791,6 +844,7 @@ fn start_work(topo: &Topology, r: &ChartRequest, reach: f64) -> Work {
         reach,
         region,
         warm,
+        cone: None,
         seen: HashSet::default(),
         rounds: 0,
         iterations: 0,
@@ -822,6 +876,7 @@ fn finished_chart(w: &Work, rep: CgReport, sys: System) -> Chart {
             residual: rep.residual,
             status: rep.status,
             settled: w.done,
+            cone: w.cone,
             ..ChartReport::unassessed(w.region)
         },
     }
@@ -892,6 +947,15 @@ fn build_hybrid(
                 cg_iterations_total: rep.iterations,
                 residual: rep.residual,
                 status: rep.status,
+                cone: if whole {
+                    let at: HashMap<u32, DVec2> = coords
+                        .iter()
+                        .map(|&(v, c)| (v, DVec2::new(c[0] as f64, c[1] as f64)))
+                        .collect();
+                    fit_cone(topo, req, &sys.triangles, &|v| at[&v])
+                } else {
+                    None
+                },
                 ..ChartReport::unassessed(region_report)
             };
             (coords, report)
@@ -930,6 +994,7 @@ pub fn initial_system(
         triangles: triangles.clone(),
         reach: REACH,
         warm,
+        cone: None,
         seen: HashSet::default(),
         rounds: 0,
         iterations: 0,
@@ -941,6 +1006,7 @@ pub fn initial_system(
         kind: ChartKind::Lscm,
         max_iter: None,
         warm: None,
+        cone: false,
     };
     let (sys, x0) = pinned_system(topo, &req, &w);
     (triangles, sys, x0)
@@ -1000,7 +1066,7 @@ fn pinned_lscm(
 fn refine(topo: &Topology, req: &ChartRequest, w: &mut Work, remove: bool) -> bool {
     let h = half_extent(&req.frame);
     let before = w.triangles.len();
-    let img = |w: &Work, t: u32| topo.triangles[t as usize].map(|v| w.warm[&v]);
+    let img = |w: &Work, t: u32| topo.triangles[t as usize].map(|v| w.image(v));
     let mut changed = false;
     if remove {
         let keep: HashSet<u32> = w
@@ -1039,7 +1105,7 @@ fn refine(topo: &Topology, req: &ChartRequest, w: &mut Work, remove: bool) -> bo
                 continue;
             }
             let (a, b) = (tri[k], tri[(k + 1) % 3]);
-            if segment_meets_rect(w.warm[&a], w.warm[&b], h) && added.insert(nb) {
+            if segment_meets_rect(w.image(a), w.image(b), h) && added.insert(nb) {
                 add.push((nb, a, b));
             }
         }
