@@ -123,7 +123,9 @@ pub fn bake_units_cpu(
                 Some(_) => (Vec::new(), None),
                 None => {
                     let (l, f, p) = (&job.layers[u], &frames[u], &placements[u]);
-                    let c = layer_coords_cpu(topo, &surface, l, f, p, !hidden(u));
+                    let paint =
+                        stroke.is_none_or(|s| matches!(s.tool, crate::io::job::Tool::Paint));
+                    let c = layer_coords_cpu(topo, &surface, l, f, p, !hidden(u) && paint);
                     (c.coords, c.cone)
                 }
             })

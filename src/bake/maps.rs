@@ -299,9 +299,14 @@ fn chart_pass(
             let req = method(l.method)
                 .chart(l, f, tri, map)
                 .expect("filtered above");
-            // Stamps blend a corner chart's coordinates vertex by vertex: no cut there.
+            // No cut where coordinates are used vertex by vertex: corner charts (stamps blend them)
+            // and the stamps of blur, smear and clone strokes (inverse rendering draws their
+            // triangles at their coordinates).
+            let paint = placed
+                .stroke_of(i)
+                .is_none_or(|s| matches!(s.tool, crate::io::job::Tool::Paint));
             chart::ChartRequest {
-                cone: !placed.hidden[i],
+                cone: !placed.hidden[i] && paint,
                 ..req
             }
         })

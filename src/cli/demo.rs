@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! The built-in demo scene: Keenan Crane's "Spot" (public domain, bundled in `assets/`) with four
-//! decals generated in code, one per blend style, a painted stroke over the UV seam along its back,
+//! decals generated in code, one per blend style, a conformal decal on a horn tip (a cone chart), a painted stroke over the UV seam along its back,
 //! and a blur stroke across the edges of the badge and a black patch beside it. `decalbake demo` writes the scene's files (mesh,
 //! decal PNGs, job file) next to its outputs, so the job can be edited and re-run with `decalbake bake`.
 
@@ -144,6 +144,10 @@ pub fn job_json() -> String {
               "size": [0.35, 0.35], "up": [0, 1, 0], "method": "lscm", "blend": "multiply" },
             { "kind": "decal", "image": "decals/glow.png", "at": { "ray": { "origin": [0.0, 0.55, -1.5], "dir": [0, 0, 1] } },
               "size": [0.3, 0.3], "method": "planar", "blend": "screen", "opacity": 0.8 },
+            // On the tip of the left horn: a cone chart, opened along a cut from the tip (the
+            // image's bottom, here the back of the horn).
+            { "kind": "decal", "image": "decals/rings.png", "at": [0.17745, 0.95365, -0.26041],
+              "size": [0.22, 0.22], "up": [0, 0, -1], "method": "lscm", "blend": "normal" },
             { "kind": "stroke", "image": "decals/brush.png", "path": path, "pressure": pressure,
               "size": [0.1, 0.1], "spacing": 0.15, "flow": 0.8, "opacity": 0.95, "method": "lscm" },
             { "kind": "stroke", "tool": "blur", "radius": 0.025, "image": "decals/brush.png",

@@ -18,7 +18,7 @@
 //! maps the uncut chart onto a wedge of angle 2πk: on an exact cone of half-angle φ (k = sin φ) it is
 //! the cone's isometric development, and on a rounded tip it undoes the growth outside the rounded
 //! part. k is measured from the chart, as the k that makes the opened chart's scale at the decal's
-//! outer half equal to its scale at the centre ([`wedge`]), not taken from Ω. The branch cut, where the image is discontinuous, is the ray from the tip along the image's
+//! outer half equal to its scale at the centre (`wedge`), not taken from Ω. The branch cut, where the image is discontinuous, is the ray from the tip along the image's
 //! −y axis (towards the image's bottom edge): the decal's bottom is where the wedge of the image that
 //! no surface receives ends up, as the exponential map leaves an unused wedge where its geodesics
 //! close. α (scale and turn) keeps the chart's scale and orientation at the placed point (the same
@@ -32,8 +32,9 @@
 //!
 //! A chart gets a cone only where it needs one ([`fit`]): its scale over the vertices within half
 //! the decal's size ([`CONE_CHECK`]) is more than [`CONE_TRIGGER`] times the size asked for, and
-//! the surface there holds positive curvature. Charts everywhere else (a decal on a smooth region,
-//! a continuous stroke's corner charts, which stamps blend vertex by vertex) have no cut.
+//! the surface there holds positive curvature. Charts everywhere else have no cut: a decal on a
+//! smooth region, and the charts whose coordinates are used vertex by vertex
+//! ([`super::ChartRequest::cone`] is false: a continuous stroke's corner charts, tool stamps).
 
 use super::lscm::{self, cmul};
 use crate::maps::Frame;
@@ -132,7 +133,7 @@ pub struct ChartView<'a> {
 /// [`CONE_CHECK`] × the larger side must exceed [`CONE_TRIGGER`] and the curvature Ω gathered by
 /// the chart's interior vertices within that radius must be positive (at least 0.05 · 2π). The tip
 /// is the chart image of those vertices weighted by their positive angle defects; k is measured
-/// from the chart ([`wedge`]); α and β keep the scale, turn and image of the placed point.
+/// from the chart (`wedge`); α and β keep the scale, turn and image of the placed point.
 pub fn fit(topo: &Topology, c: &ChartView) -> Option<Cone> {
     let side = c.frame.size[0].max(c.frame.size[1]) as f64;
     let p = c.frame.center.as_dvec3();
@@ -188,7 +189,7 @@ pub fn fit(topo: &Topology, c: &ChartView) -> Option<Cone> {
 
 /// The wedge fraction k the chart needs: the k for which the opened chart's scale (median of
 /// |z_v − z_p| / |x_v − p|) over the decal's outer half (vertices at 0.25 to 0.5 × the side from the
-/// placed point) equals its scale near the point (the ring of [`keep_at_point`]), found by
+/// placed point) equals its scale near the point (the ring of `keep_at_point`), found by
 /// bisection in [[`MIN_WEDGE`], 1] (the ratio falls as k does). Measured, not derived from the
 /// angle defects: on a rounded tip Ω counts curvature that lies beyond the vertices nearer the tip,
 /// and k = 1 − Ω / 2π over-opens the chart (Spot's horn: 0.18 from Ω); a log-log fit of the
@@ -313,11 +314,11 @@ fn keep_at_point(topo: &Topology, c: &ChartView, cone: &Cone, zs: DVec2) -> Opti
     Some(turn / scale)
 }
 
-/// Directions [`keep_at_point`] averages the turn over (a multiple of 4 plus 0: with the half-step
+/// Directions `keep_at_point` averages the turn over (a multiple of 4 plus 0: with the half-step
 /// offset none lies on the cut, the −y direction, when the tip is at the placed point).
 pub const TURN_SAMPLES: usize = 64;
 
-/// Fewest vertices [`keep_at_point`] measures over.
+/// Fewest vertices `keep_at_point` measures over.
 pub const RING_MIN: usize = 8;
 
 /// The angle defect 2π − Σ corner angles of `v`, when its whole fan lies in `inside` and closes

@@ -93,7 +93,8 @@ pub struct ChartRequest<'a> {
     /// warm start where it reaches; elsewhere the planar projection is used.
     pub warm: Option<&'a [[f32; 4]]>,
     /// Whether the chart may be opened at a cone-like tip ([`cone`]); false for charts whose
-    /// coordinates other units blend vertex by vertex (a continuous stroke's corner charts).
+    /// coordinates are used vertex by vertex (a continuous stroke's corner charts, which stamps
+    /// blend; the stamps of blur, smear and clone strokes, which inverse rendering draws).
     pub cone: bool,
 }
 
