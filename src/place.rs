@@ -1,11 +1,14 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! Placement: snapping a layer's point to the closest surface point, or casting its ray, on the GPU.
 //!
-//! All layers of a job are placed in one submission: `place_candidates` tests every (non-degenerate)
-//! triangle against every query and reduces per workgroup in a fixed order (ties go to the lower
-//! triangle id, so results are deterministic); `place_reduce` finishes the reduction per layer and
-//! computes the point, barycentric coordinates and the smooth normal there. [`place_cpu`] is the plain
-//! CPU twin the tests compare against.
+//! All layers of a job are placed in one submission: `place_bvh` walks the mesh's BVH
+//! ([`crate::mesh::bvh`]) once per query, nearest boxes first, keeping the best triangle (ties go to
+//! the lower triangle id, so results are deterministic and equal the brute-force test's);
+//! `place_candidates` tests every (non-degenerate) triangle against the queries whose walk was cut
+//! short (a point equidistant from much of the mesh) and reduces per workgroup in a fixed order;
+//! `place_reduce` finishes the reduction per layer and computes the point, barycentric coordinates
+//! and the smooth normal there. [`place_gpu_brute`] runs the brute-force test for every query (the
+//! reference the tests and `decalbake bench` compare with); [`place_cpu`] is the plain CPU twin.
 
 use crate::error::Result;
 use crate::gpu::pipelines::Pipelines;
@@ -71,12 +74,33 @@ impl Query {
     }
 }
 
-/// Places every query on the GPU in one submission (two dispatches) and one read-back.
+/// Places every query on the GPU through the mesh's BVH, in one submission (three dispatches) and
+/// one read-back.
 pub fn place_gpu(
     ctx: &GpuContext,
     pipes: &Pipelines,
     mesh: &GpuMesh,
     queries: &[Query],
+) -> Result<Vec<Placement>> {
+    place_with(ctx, pipes, mesh, queries, true)
+}
+
+/// [`place_gpu`] testing every triangle against every query (no BVH): the reference.
+pub fn place_gpu_brute(
+    ctx: &GpuContext,
+    pipes: &Pipelines,
+    mesh: &GpuMesh,
+    queries: &[Query],
+) -> Result<Vec<Placement>> {
+    place_with(ctx, pipes, mesh, queries, false)
+}
+
+fn place_with(
+    ctx: &GpuContext,
+    pipes: &Pipelines,
+    mesh: &GpuMesh,
+    queries: &[Query],
+    bvh: bool,
 ) -> Result<Vec<Placement>> {
     if queries.is_empty() {
         return Ok(Vec::new());
@@ -103,6 +127,25 @@ pub fn place_gpu(
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
+        // 1 = test every triangle for this query; the BVH walk clears it where it finishes.
+        let brute = ctx.storage_init(
+            "place.brute",
+            bytemuck::cast_slice(&vec![1u32; queries.len()]),
+            wgpu::BufferUsages::empty(),
+        );
+        let bg0 = pipes.place_bvh.bind(
+            device,
+            "place.bvh",
+            &[
+                (0, mesh.positions.as_entire_binding()),
+                (1, mesh.tris.as_entire_binding()),
+                (2, qbuf.as_entire_binding()),
+                (3, partials.as_entire_binding()),
+                (4, mesh.bvh_nodes.as_entire_binding()),
+                (5, mesh.bvh_triangles.as_entire_binding()),
+                (6, brute.as_entire_binding()),
+            ],
+        );
         let bg1 = pipes.place_candidates.bind(
             device,
             "place.candidates",
@@ -111,6 +154,7 @@ pub fn place_gpu(
                 (1, mesh.tris.as_entire_binding()),
                 (2, qbuf.as_entire_binding()),
                 (3, partials.as_entire_binding()),
+                (4, brute.as_entire_binding()),
             ],
         );
         let bg2 = pipes.place_reduce.bind(
@@ -133,6 +177,11 @@ pub fn place_gpu(
                 label: Some("place"),
                 timestamp_writes: None,
             });
+            if bvh {
+                pass.set_pipeline(&pipes.place_bvh.pipeline);
+                pass.set_bind_group(0, &bg0, &[]);
+                pass.dispatch_workgroups((queries.len() as u32).div_ceil(64), 1, 1);
+            }
             pass.set_pipeline(&pipes.place_candidates.pipeline);
             pass.set_bind_group(0, &bg1, &[]);
             pass.dispatch_workgroups(PLACE_GROUPS, queries.len() as u32, 1);

@@ -35,10 +35,12 @@ fn demo_writes_decodable_outputs_and_a_glb_that_loads_back() {
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
     let layers = report["layers"].as_array().unwrap();
-    assert_eq!(layers.len(), 6);
-    assert_eq!(layers[4]["kind"], "stroke");
-    assert_eq!(layers[5]["stroke"]["tool"], "blur");
-    assert!(layers[4]["stroke"]["stamps"].as_u64().unwrap() > 50);
+    assert_eq!(layers.len(), 7);
+    // The horn tip's decal is a cone chart.
+    assert!(layers[4]["chart"]["cone"]["k"].as_f64().unwrap() < 0.6);
+    assert_eq!(layers[5]["kind"], "stroke");
+    assert_eq!(layers[6]["stroke"]["tool"], "blur");
+    assert!(layers[5]["stroke"]["stamps"].as_u64().unwrap() > 50);
     for l in layers {
         assert!(
             l["texels_covered"].as_u64().unwrap() > 500,

@@ -29,6 +29,8 @@ pub struct LoadedMesh {
     pub surface: crate::mesh::SurfaceData,
     /// Its GPU buffers.
     pub gpu: GpuMesh,
+    /// The BVH over its triangles (placement on the GPU, planar decals' candidates on the CPU).
+    pub bvh: crate::mesh::bvh::Bvh,
     /// Statistics.
     pub stats: MeshStats,
     /// Load, weld and upload times (ms).
@@ -266,6 +268,7 @@ impl Engine {
         let t1 = Instant::now();
         let topo = Topology::build(&mesh, crate::mesh::DEFAULT_WELD_TOLERANCE);
         let surface = crate::mesh::SurfaceData::new(&topo);
+        let bvh = crate::mesh::bvh::Bvh::build(&topo);
         for (i, n) in mesh.normals.iter_mut().enumerate() {
             if *n == Vec3::ZERO {
                 *n = topo.normals[topo.welded_of[i] as usize];
@@ -274,7 +277,7 @@ impl Engine {
         let weld = ms(t1);
         let t2 = Instant::now();
         let gpu = self.ctx.scoped("mesh upload", || {
-            GpuMesh::upload(&self.ctx.device, &mesh, &topo, &surface)
+            GpuMesh::upload(&self.ctx.device, &mesh, &topo, &surface, &bvh)
         })?;
         let upload = ms(t2);
         let stats = LoadedMesh::stats_of(&mesh, &topo);
@@ -283,6 +286,7 @@ impl Engine {
             topo,
             surface,
             gpu,
+            bvh,
             stats,
             timings: (load, weld, upload),
             material_texture: std::sync::OnceLock::new(),

@@ -178,6 +178,7 @@ pub(crate) fn compute(
         maps.buffer = params_buffer(&engine.ctx.device, "bake.layer_params", &maps.params);
     }
     direct_pass(cx, placed, slots, &maps, log)?;
+    direct_reach(cx, placed, &mut maps);
     blend_reach(placed, &mut maps);
     blend_pass(cx, placed, slots, &maps, log)?;
     Ok(maps)
@@ -242,6 +243,19 @@ fn expmap_pass(
         ));
     }
     Ok(())
+}
+
+/// The reach of the layers whose method's own pass wrote their coordinates (planar: the vertices
+/// near the decal's box, from the mesh's BVH; [`crate::maps::MapMethod::reach`]).
+fn direct_reach(cx: Cx<'_>, placed: &Placed, maps: &mut LayerMaps) {
+    let Cx { mesh, job, .. } = cx;
+    let start = maps.range.start;
+    for i in maps.range.clone() {
+        let m = method(job.layers[i].method);
+        if placed.blends[i].is_none() && !m.uses_expmap() {
+            maps.reach[i - start] = m.reach(&mesh.topo, &mesh.bvh, &placed.frames[i]);
+        }
+    }
 }
 
 /// A blended stamp's reach: the union of its charts' (its coordinates are valid where all of

@@ -237,7 +237,7 @@ fn run(cli: Cli) -> Result<()> {
                     println!("{v}")
                 })?;
             } else {
-                bench::bake::run(&engine, &opts, |v| println!("{v}"))?;
+                bench::bake::run(&mut engine, &opts, |v| println!("{v}"))?;
             }
             Ok(())
         }

@@ -163,7 +163,9 @@ pub struct Raster {
 
 /// All pipelines.
 pub struct Pipelines {
-    /// Placement stage 1.
+    /// Placement through the mesh's BVH (stage 1).
+    pub place_bvh: Kernel,
+    /// Placement stage 1, brute force (the queries the BVH walk flags, or all: the reference).
     pub place_candidates: Kernel,
     /// Placement stage 2.
     pub place_reduce: Kernel,
@@ -249,17 +251,11 @@ impl Pipelines {
         let [cg_batched, cg_batched_narrow, cg_packed, cg_packed_complex, spmv, dot_batched, copy] =
             linalg_kernels(device);
         let [chart_scatter, chart_gather, stamp_blend] = slot_kernels(device);
+        let [place_bvh, place_candidates, place_reduce] = place_kernels(device);
         Self {
-            place_candidates: Kernel::new(
-                device,
-                "place_candidates",
-                &[(0, Ro), (1, Ro), (2, Ro), (3, Rw)],
-            ),
-            place_reduce: Kernel::new(
-                device,
-                "place_reduce",
-                &[(0, Ro), (1, Ro), (2, Ro), (3, Ro), (4, Ro), (5, Rw)],
-            ),
+            place_bvh,
+            place_candidates,
+            place_reduce,
             planar_coords: Kernel::new(device, "planar_coords", &[(0, Params), (1, Ro), (2, Rw)]),
             select_triangles: Kernel::new(
                 device,
@@ -652,6 +648,36 @@ fn linalg_kernels(device: &wgpu::Device) -> [Kernel; 7] {
 /// The kernels the bake's map stage runs on the coordinate slots it owns (`bake/maps.rs`): chart
 /// coordinates written in and the exponential maps read out over their discs, and the blended
 /// stamps of continuous strokes.
+/// The placement kernels (`src/place.rs`): `place_bvh`, `place_candidates`, `place_reduce`.
+fn place_kernels(device: &wgpu::Device) -> [Kernel; 3] {
+    use Bind::*;
+    [
+        Kernel::new(
+            device,
+            "place_bvh",
+            &[
+                (0, Ro),
+                (1, Ro),
+                (2, Ro),
+                (3, Rw),
+                (4, Ro),
+                (5, Ro),
+                (6, Rw),
+            ],
+        ),
+        Kernel::new(
+            device,
+            "place_candidates",
+            &[(0, Ro), (1, Ro), (2, Ro), (3, Rw), (4, Ro)],
+        ),
+        Kernel::new(
+            device,
+            "place_reduce",
+            &[(0, Ro), (1, Ro), (2, Ro), (3, Ro), (4, Ro), (5, Rw)],
+        ),
+    ]
+}
+
 fn slot_kernels(device: &wgpu::Device) -> [Kernel; 3] {
     use Bind::*;
     [

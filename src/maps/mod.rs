@@ -89,6 +89,19 @@ pub trait MapMethod: Sync {
         0
     }
 
+    /// The vertices the selection stage needs to look at for a layer of this method placed with
+    /// `frame`, when the method's own pass writes every vertex (planar: those near the decal's box,
+    /// from the mesh's BVH, [`planar::reach`]); `None`: the whole mesh. Methods built on the
+    /// exponential map get their reach from the map stage instead.
+    fn reach(
+        &self,
+        _topo: &Topology,
+        _bvh: &crate::mesh::bvh::Bvh,
+        _frame: &Frame,
+    ) -> Option<Vec<u32>> {
+        None
+    }
+
     /// CPU twin: the layer's coordinates for every welded vertex. `expmap` is the layer's CPU
     /// exponential map when [`MapMethod::uses_expmap`]; `cone`: whether a chart may be opened at a
     /// tip ([`chart::ChartRequest::cone`]). The default serves the methods built on the

@@ -4,7 +4,9 @@
 //! the map stage's direct pass ([`super::MapMethod::record`]); CPU twin [`planar_coords`].
 
 use crate::maps::Frame;
+use crate::mesh::bvh::Bvh;
 use crate::mesh::Topology;
+use glam::Vec3;
 
 /// CPU twin of `planar_coords.wgsl`: `(x, y, depth, valid)` per welded vertex.
 pub fn planar_coords(topo: &Topology, f: &Frame) -> Vec<[f32; 4]> {
@@ -54,6 +56,10 @@ impl super::MapMethod for Planar {
         offsets.len() as u32
     }
 
+    fn reach(&self, topo: &Topology, bvh: &Bvh, frame: &Frame) -> Option<Vec<u32>> {
+        Some(reach(topo, bvh, frame))
+    }
+
     fn cpu_coords(
         &self,
         topo: &Topology,
@@ -67,4 +73,28 @@ impl super::MapMethod for Planar {
             cone: None,
         }
     }
+}
+
+/// The vertices a planar decal's selection needs: those of the triangles near the decal's box (its
+/// rectangle times the depth limit), found in the mesh's BVH. The selection keeps a triangle whose
+/// coordinate box, in the decal's frame, meets that box; every point of a triangle's box lies within
+/// √3 × its longest edge of one of its corners, so such a triangle has a corner within
+/// √3 × [`Bvh::max_edge`] of the decal's box, and its world box meets the decal's world box grown by
+/// that much. The triangles around these vertices are therefore a superset of what a pass over the
+/// whole mesh selects ([`crate::bake::cpu::select_triangles`] is that pass; the tests compare).
+pub fn reach(topo: &Topology, bvh: &Bvh, frame: &Frame) -> Vec<u32> {
+    let ext = frame.axis_u.abs() * (0.5 * frame.size[0])
+        + frame.axis_v.abs() * (0.5 * frame.size[1])
+        + frame.normal.abs() * frame.depth;
+    let grow = Vec3::splat(3f32.sqrt() * bvh.max_edge);
+    let lo = frame.center - ext - grow;
+    let hi = frame.center + ext + grow;
+    let mut verts: Vec<u32> = bvh
+        .overlapping(lo, hi)
+        .into_iter()
+        .flat_map(|t| topo.triangles[t as usize])
+        .collect();
+    verts.sort_unstable();
+    verts.dedup();
+    verts
 }

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! Meshes: loading ([`Mesh`]), welded surface topology ([`Topology`]), intrinsic surface data
 //! ([`surface::SurfaceData`]) and the GPU upload ([`upload::GpuMesh`]).
+pub mod bvh;
 mod load;
 pub mod surface;
 mod topology;

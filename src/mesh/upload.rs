@@ -54,6 +54,10 @@ pub struct GpuMesh {
     pub boundary_edge_count: u32,
     /// Number of non-manifold edges.
     pub non_manifold_edge_count: u32,
+    /// The BVH's nodes ([`crate::mesh::bvh::BvhNode`]).
+    pub bvh_nodes: wgpu::Buffer,
+    /// The BVH's triangles in leaf order, `u32`.
+    pub bvh_triangles: wgpu::Buffer,
 }
 
 fn storage(
@@ -81,6 +85,7 @@ impl GpuMesh {
         mesh: &Mesh,
         topo: &Topology,
         surface: &crate::mesh::SurfaceData,
+        bvh: &crate::mesh::bvh::Bvh,
     ) -> Self {
         let v4 = |v: &[glam::Vec3]| -> Vec<[f32; 4]> {
             v.iter().map(|p| [p.x, p.y, p.z, 0.0]).collect()
@@ -183,6 +188,18 @@ impl GpuMesh {
                 device,
                 "mesh.non_manifold_edges",
                 bytemuck::cast_slice(&topo.non_manifold_edges),
+                none,
+            ),
+            bvh_nodes: storage(
+                device,
+                "mesh.bvh_nodes",
+                bytemuck::cast_slice(&bvh.nodes),
+                none,
+            ),
+            bvh_triangles: storage(
+                device,
+                "mesh.bvh_triangles",
+                bytemuck::cast_slice(&bvh.triangles),
                 none,
             ),
             boundary_edge_count: topo.boundary_edges.len() as u32,

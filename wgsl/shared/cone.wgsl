@@ -2,8 +2,7 @@
 // The cone transform of a chart opened at a tip (FLAG_CONE): with q = -i (w - tip),
 // z = beta + alpha * i * q^k on the principal branch; the cut is the ray from the tip along -y.
 // `a` = Params.cone_a (tip xy, k z), `b` = Params.cone_b (alpha xy, beta zw).
-// CPU twin: `Cone` in src/maps/chart/cone.rs (`apply`, `cut_crosses`; the derivative only picks the
-// mip level, which the CPU twin of the raster does not model: it samples level 0).
+// CPU twin: `Cone` in src/maps/chart/cone.rs (`apply`, `cut_crosses`).
 
 fn cone_q(a: vec4<f32>, w: vec2<f32>) -> vec2<f32> {
     let d = w - a.xy;
@@ -25,16 +24,6 @@ fn cone_apply(a: vec4<f32>, b: vec4<f32>, w: vec2<f32>) -> vec2<f32> {
         raw = vec2<f32>(-m * sin(t), m * cos(t));
     }
     return cone_cmul(b.xy, raw) + b.zw;
-}
-
-// dz/dw = alpha k q^(k - 1), a complex number (the transform is conformal).
-fn cone_derivative(a: vec4<f32>, b: vec4<f32>, w: vec2<f32>) -> vec2<f32> {
-    let q = cone_q(a, w);
-    let r = length(q);
-    if (r <= 0.0) { return vec2<f32>(0.0); }
-    let t = (a.z - 1.0) * atan2(q.y, q.x);
-    let m = a.z * pow(r, a.z - 1.0);
-    return cone_cmul(b.xy, vec2<f32>(m * cos(t), m * sin(t)));
 }
 
 // Whether the cut (q's negative real axis) crosses the triangle with uncut images w0, w1, w2.

@@ -7,9 +7,10 @@
 //! bounding-box diagonal wide, with random angles and the blend modes in turn.
 
 use super::common::{largest_uv_mesh, median, random_job, SHARED_MESHES};
-use decalbake::bake::Engine;
+use decalbake::bake::{Engine, LoadedMesh};
 use decalbake::error::Result;
 use decalbake::io::image::LinearImage;
+use decalbake::io::job::Job;
 use decalbake::mesh::Mesh;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -40,7 +41,7 @@ pub struct BenchOptions {
 
 /// Runs the benchmark, calling `emit` with one JSON object per configuration.
 pub fn run(
-    engine: &Engine,
+    engine: &mut Engine,
     opts: &BenchOptions,
     mut emit: impl FnMut(serde_json::Value),
 ) -> Result<()> {
@@ -101,6 +102,12 @@ pub fn run(
             };
             let compose = med(|t| t.compose_ms);
             let gpu_total = median(totals.clone());
+            let brute_ms = brute_placement_ms(engine, &loaded, &job)?;
+            // The same bake with every layer selected over the whole mesh (no BVH candidates).
+            engine.whole_mesh_selection = true;
+            let whole = engine.bake(&loaded, &job);
+            engine.whole_mesh_selection = false;
+            let whole_compose_ms = whole?.report.timings.compose_ms;
             let mut cpu_ms = None;
             if (n as u64) * (side as u64).pow(2) <= opts.cpu_budget {
                 let topo = &loaded.topo;
@@ -144,6 +151,8 @@ pub fn run(
                     "png_encode": med(|t| t.write_ms),
                 },
                 "cold_total_ms": cold_ms,
+                "placement_brute_ms": brute_ms,
+                "compose_whole_mesh_selection_ms": whole_compose_ms,
                 "texels_composed": texels,
                 "composed_texels_per_s": texels as f64 / (compose / 1000.0),
                 "gpu_commands": baked.report.gpu_commands,
@@ -154,4 +163,26 @@ pub fn run(
     }
     let _ = std::fs::remove_dir_all(&dir);
     Ok(())
+}
+
+/// The same placements tested against every triangle (`place::place_gpu_brute`, the reference the
+/// BVH walk replaced), timed in the same run: median of 3, ms.
+fn brute_placement_ms(engine: &Engine, loaded: &LoadedMesh, job: &Job) -> Result<f64> {
+    use decalbake::io::job::AtSpec;
+    use decalbake::place::Query;
+    let queries: Vec<Query> = job
+        .layers
+        .iter()
+        .map(|l| match &l.at {
+            AtSpec::Point(p) => Query::Point(glam::Vec3::from(*p)),
+            AtSpec::Ray { ray } => Query::Ray(ray.origin.into(), ray.dir.into()),
+        })
+        .collect();
+    let mut times = Vec::new();
+    for _ in 0..3 {
+        let t = Instant::now();
+        decalbake::place::place_gpu_brute(&engine.ctx, engine.pipelines(), &loaded.gpu, &queries)?;
+        times.push(t.elapsed().as_secs_f64() * 1000.0);
+    }
+    Ok(median(times))
 }

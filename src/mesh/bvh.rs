@@ -1,0 +1,160 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! A bounding-volume hierarchy over the welded, non-degenerate triangles: placement walks it on the
+//! GPU (`wgsl/place/place_bvh.wgsl`: one invocation per query, nearest child first, pruning boxes
+//! farther than the best hit so far) instead of testing every triangle against every query, and the
+//! selection of planar decals asks it on the CPU for the triangles near the decal's box
+//! ([`Bvh::overlapping`]) instead of testing the whole mesh.
+//!
+//! Built on the CPU when a mesh is prepared: median splits along the longest axis of the centroids'
+//! box (`select_nth_unstable`, ties by triangle id, so the tree is deterministic), leaves of at most
+//! [`LEAF`] triangles, the two children of a node stored next to each other. Balanced by
+//! construction: depth ⌈log₂(n / LEAF)⌉ + 1, so the GPU's fixed traversal stack ([`MAX_DEPTH`])
+//! always suffices. Boxes are padded by [`PAD`] of the mesh's size so that f32 rounding in the box
+//! tests never prunes a triangle the brute-force test would pick.
+
+use super::Topology;
+use glam::Vec3;
+
+/// Most triangles in a leaf.
+pub const LEAF: usize = 4;
+/// Relative padding of every box (times the mesh's bounding-box diagonal).
+pub const PAD: f32 = 1e-5;
+/// Deepest tree the GPU traversal's stack holds (keep in sync with `STACK` in place_bvh.wgsl:
+/// two entries a level).
+pub const MAX_DEPTH: usize = 30;
+
+/// One node, as the GPU reads it. Keep in sync with `Node` in wgsl/place/place_bvh.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct BvhNode {
+    /// Box minimum.
+    pub lo: [f32; 3],
+    /// Internal node: index of the first child (the second is next to it); leaf: first entry in
+    /// [`Bvh::triangles`].
+    pub first: u32,
+    /// Box maximum.
+    pub hi: [f32; 3],
+    /// Leaf: its triangle count; internal node: 0.
+    pub count: u32,
+}
+
+/// The hierarchy: nodes (root first) and the triangles in leaf order.
+#[derive(Debug, Clone, Default)]
+pub struct Bvh {
+    /// Nodes, root at 0 (empty for a mesh without triangles).
+    pub nodes: Vec<BvhNode>,
+    /// Welded triangle ids, grouped by leaf.
+    pub triangles: Vec<u32>,
+    /// Depth of the deepest leaf (the root is depth 1).
+    pub depth: usize,
+    /// The longest edge of any triangle in the tree: every point of a triangle's box is within
+    /// √3 times this of one of its corners.
+    pub max_edge: f32,
+}
+
+impl Bvh {
+    /// Builds the hierarchy over `topo`'s non-degenerate triangles.
+    pub fn build(topo: &Topology) -> Self {
+        let mut tris: Vec<u32> = (0..topo.triangles.len() as u32)
+            .filter(|&t| !topo.degenerate[t as usize])
+            .collect();
+        if tris.is_empty() {
+            return Self::default();
+        }
+        let corners = |t: u32| topo.triangles[t as usize].map(|v| topo.positions[v as usize]);
+        let centroid = |t: u32| corners(t).iter().sum::<Vec3>() / 3.0;
+        let (lo, hi) = tris
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |b, &t| {
+                corners(t)
+                    .iter()
+                    .fold(b, |(lo, hi), p| (lo.min(*p), hi.max(*p)))
+            });
+        let pad = PAD * (hi - lo).length().max(f32::MIN_POSITIVE) + 1e-30;
+        let mut nodes = vec![BvhNode {
+            lo: [0.0; 3],
+            first: 0,
+            hi: [0.0; 3],
+            count: 0,
+        }];
+        let mut depth = 0;
+        // (node, range of `tris`, depth)
+        let mut work = vec![(0usize, 0usize, tris.len(), 1usize)];
+        while let Some((node, start, end, d)) = work.pop() {
+            depth = depth.max(d);
+            let part = &mut tris[start..end];
+            let (lo, hi) = part
+                .iter()
+                .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |b, &t| {
+                    corners(t)
+                        .iter()
+                        .fold(b, |(lo, hi), p| (lo.min(*p), hi.max(*p)))
+                });
+            nodes[node].lo = (lo - Vec3::splat(pad)).to_array();
+            nodes[node].hi = (hi + Vec3::splat(pad)).to_array();
+            if part.len() <= LEAF {
+                nodes[node].first = start as u32;
+                nodes[node].count = part.len() as u32;
+                continue;
+            }
+            let (clo, chi) = part
+                .iter()
+                .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &t| {
+                    (lo.min(centroid(t)), hi.max(centroid(t)))
+                });
+            let axis = (chi - clo).max_position();
+            let mid = part.len() / 2;
+            part.select_nth_unstable_by(mid, |&a, &b| {
+                centroid(a)[axis]
+                    .total_cmp(&centroid(b)[axis])
+                    .then(a.cmp(&b))
+            });
+            let first = nodes.len();
+            nodes[node].first = first as u32;
+            nodes.extend([nodes[node]; 2]);
+            work.push((first, start, start + mid, d + 1));
+            work.push((first + 1, start + mid, end, d + 1));
+        }
+        assert!(
+            depth <= MAX_DEPTH,
+            "a median-split tree of {} triangles has depth {depth}",
+            tris.len()
+        );
+        let max_edge = tris.iter().fold(0.0f32, |m, &t| {
+            let c = corners(t);
+            m.max(c[0].distance(c[1]))
+                .max(c[1].distance(c[2]))
+                .max(c[2].distance(c[0]))
+        });
+        Self {
+            nodes,
+            triangles: tris,
+            depth,
+            max_edge,
+        }
+    }
+
+    /// The triangles whose (padded) leaf boxes overlap the box `lo`..`hi`, ascending: a superset of
+    /// those whose own boxes overlap it.
+    pub fn overlapping(&self, lo: Vec3, hi: Vec3) -> Vec<u32> {
+        let mut out = Vec::new();
+        if self.nodes.is_empty() {
+            return out;
+        }
+        let mut stack = vec![0usize];
+        while let Some(i) = stack.pop() {
+            let n = &self.nodes[i];
+            if Vec3::from(n.lo).cmpgt(hi).any() || Vec3::from(n.hi).cmplt(lo).any() {
+                continue;
+            }
+            let first = n.first as usize;
+            if n.count > 0 {
+                out.extend_from_slice(&self.triangles[first..first + n.count as usize]);
+            } else {
+                stack.extend([first, first + 1]);
+            }
+        }
+        out.sort_unstable();
+        out
+    }
+}
