@@ -165,7 +165,8 @@ fn icosphere(levels: u32) -> (Vec<[f32; 3]>, Vec<u32>) {
 
 /// Placement through the BVH (`place_bvh`) finds exactly what testing every triangle finds
 /// (`place_gpu_brute`; same triangle, same point bit for bit, ties to the lower triangle), for
-/// points near and far from Bob, rays from outside and from inside, and rays that miss; and on a
+/// points near and far from Bob, points exactly at vertices and rays through them (ties between
+/// the triangles of a fan), rays from outside and from inside, and rays that miss; and on a
 /// finely tessellated sphere for its centre, which is nearly equidistant from all 328k triangles:
 /// the walk there is cut short and the brute-force test finishes the query (without that fallback
 /// the query would come back empty or wrong).
@@ -201,6 +202,16 @@ fn bvh_placement_matches_testing_every_triangle() {
     }
     queries.push(Query::Ray(Vec3::new(0.0, 0.1, 5.0), -Vec3::Z));
     queries.push(Query::Ray(Vec3::new(5.0, 5.0, 5.0), Vec3::X));
+    // Ties: a point exactly at a vertex is at distance 0 from every triangle of its fan (the lower
+    // triangle wins), and a ray through a vertex hits its fan at the same distance.
+    for k in 0..50 {
+        let v = verts[(k * 104_729) % verts.len()];
+        queries.push(Query::Point(v));
+        queries.push(Query::Ray(
+            v + Vec3::new(0.0, 2.0, 0.0),
+            Vec3::new(0.0, -1.0, 0.0),
+        ));
+    }
     let (ctx, pipes) = (&engine.ctx, engine.pipelines());
     let fast = decalbake::place::place_gpu(ctx, pipes, &loaded.gpu, &queries).unwrap();
     let brute = place_gpu_brute(ctx, pipes, &loaded.gpu, &queries).unwrap();

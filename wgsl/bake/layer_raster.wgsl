@@ -83,10 +83,10 @@ fn fs_main(in: VsOut) -> FsOut {
         img = vec2<f32>(z.x / params.axis_u.w + 0.5, 0.5 - z.y / params.axis_v.w);
     }
     var c = textureSample(image, samp, img);
-    let m = textureSample(mask, samp, img);
+    // A uniform branch (params is uniform): layers without a mask do not sample one.
     if ((params.flags & FLAG_MASK) != 0u) {
         // Mask images are premultiplied like decals: red * alpha is the mask value.
-        c = c * m.r;
+        c = c * textureSample(mask, samp, img).r;
     }
     if ((params.flags & FLAG_TOOL) != 0u) {
         // What is below, filtered in the stamp's flat space, with the stamp image's alpha as shape.
