@@ -114,6 +114,7 @@ pub(crate) fn run(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Run> 
         warnings: log.warnings,
         timings: log.timings,
         gpu_commands: log.commands,
+        input_hash: None,
     };
     Ok(Run { encoded, report })
 }

@@ -131,6 +131,10 @@ pub struct Report {
     pub timings: Timings,
     /// GPU dispatches and draws issued.
     pub gpu_commands: u32,
+    /// `decalbake batch`: SHA-256 of the job's inputs (engine version, job text, mesh and image
+    /// bytes), which `--resume` compares before skipping a job whose outputs exist.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub input_hash: Option<String>,
 }
 
 /// What a stroke reports (the layer's `stroke` block).

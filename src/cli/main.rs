@@ -5,6 +5,7 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use decalbake::{Engine, Job};
 
+mod batch;
 mod bench;
 mod demo;
 use std::path::{Path, PathBuf};
@@ -30,6 +31,31 @@ enum Cmd {
         /// Output directory.
         #[arg(long, default_value = "decalbake-demo")]
         out: PathBuf,
+    },
+    /// Bake the jobs of a manifest (JSON Lines: job file paths or job objects) in one process:
+    /// failures isolated, `--resume` after a killed node, shards for job arrays.
+    Batch {
+        /// The manifest.
+        manifest: Option<PathBuf>,
+        /// Output root: each job's outputs go to DIR/line-N[-stem]/ (default: as each job says).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// This process's share: I/N (jobs whose position is I modulo N), or auto (Slurm, Kubernetes
+        /// or AWS Batch array index).
+        #[arg(long)]
+        shard: Option<String>,
+        /// Skip jobs whose outputs exist with the same input hash.
+        #[arg(long)]
+        resume: bool,
+        /// Stop at the first failed job.
+        #[arg(long)]
+        fail_fast: bool,
+        /// Summary JSON (default: summary.json in the output root, else beside the manifest).
+        #[arg(long)]
+        summary: Option<PathBuf>,
+        /// Join these shard summaries into --summary instead of baking.
+        #[arg(long, num_args = 1..)]
+        merge_summaries: Vec<PathBuf>,
     },
     /// Bake a job file.
     Bake {
@@ -141,6 +167,40 @@ fn run(cli: Cli) -> Result<()> {
             bake(&engine, &job)
         }
         Cmd::Info { mesh } => info(&mesh),
+        Cmd::Batch {
+            manifest,
+            out,
+            shard,
+            resume,
+            fail_fast,
+            summary,
+            merge_summaries,
+        } => {
+            let code = if !merge_summaries.is_empty() {
+                let Some(summary) = summary else {
+                    anyhow::bail!(bad_usage("--merge-summaries needs --summary OUT.json"));
+                };
+                batch::merge(&merge_summaries, &summary)?
+            } else {
+                let Some(manifest) = manifest else {
+                    anyhow::bail!(bad_usage("give a manifest (or --merge-summaries)"));
+                };
+                let engine = engine(cli.backend.as_deref())?;
+                let opts = batch::BatchOptions {
+                    manifest,
+                    out,
+                    shard,
+                    resume,
+                    fail_fast,
+                    summary,
+                };
+                batch::run(&engine, &opts)?
+            };
+            if code != 0 {
+                std::process::exit(code);
+            }
+            Ok(())
+        }
         Cmd::Param { job, layer, out } => {
             let job = Job::load(&job, None)?;
             let engine = engine(cli.backend.as_deref())?;
@@ -245,6 +305,15 @@ fn run(cli: Cli) -> Result<()> {
 }
 
 /// A headless engine, its adapter named on stderr.
+/// A usage mistake, reported as an input error (exit 2).
+fn bad_usage(msg: &str) -> decalbake::Error {
+    decalbake::Error::Job {
+        path: PathBuf::from("decalbake batch"),
+        field: "options".into(),
+        detail: msg.into(),
+    }
+}
+
 fn engine(backend: Option<&str>) -> Result<Engine> {
     let engine = Engine::new(backend)?;
     eprintln!("adapter: {}", engine.ctx.adapter);

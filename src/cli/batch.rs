@@ -1,0 +1,447 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! `decalbake batch MANIFEST`: many bakes in one process, each mesh loaded once, a failing job
+//! reported and the others baked, a rerun after a killed node redoing only what is missing, and the
+//! work split over the array tasks of the scheduler a site already runs.
+//!
+//! - **Manifest**: JSON Lines, one job per line: a string (a job file's path) or an object (the job
+//!   itself, the same schema). Paths are relative to the manifest (a job file's own paths to the job
+//!   file). Blank lines are skipped; a line that is neither is a bad manifest (exit 2, nothing baked).
+//!   A job's number is its line number.
+//! - **Outputs**: as each job says; with `--out DIR`, under `DIR/<job>/` (`<job>`: `line-N` and, for
+//!   a job file, its stem), so jobs that name the same outputs do not overwrite each other. Every
+//!   file is written atomically (temporary file and rename).
+//! - **Failures**: a job that fails is recorded in the summary (line, job file, field, message,
+//!   class: `input` for what exit code 2 means for `bake`, `engine` otherwise) and the batch goes on
+//!   (`--fail-fast` stops it). Exit 0 when every job succeeded, 3 when some failed, 2 for a bad
+//!   manifest or options.
+//! - **Resume**: each job's report carries `input_hash`, the SHA-256 of the engine version, the
+//!   job's text and the bytes of its mesh and images. `--resume` skips a job whose outputs all exist
+//!   and whose report has the same hash; a job without a report is always baked again.
+//! - **Shards**: `--shard I/N` takes the jobs whose position in the manifest (0-based) is I modulo N;
+//!   `--shard auto` reads I and N from a Slurm job array (`SLURM_ARRAY_TASK_ID` minus
+//!   `SLURM_ARRAY_TASK_MIN`, `SLURM_ARRAY_TASK_COUNT`), a Kubernetes indexed job
+//!   (`JOB_COMPLETION_INDEX`, with `DECALBAKE_SHARDS` for N) or an AWS Batch array job
+//!   (`AWS_BATCH_JOB_ARRAY_INDEX`, `AWS_BATCH_JOB_ARRAY_SIZE`), and says which. `--merge-summaries`
+//!   joins the shards' summaries into one.
+//! - **Meshes** stay loaded between jobs, least recently used first out when their estimated size
+//!   passes [`MESH_BUDGET`].
+//!
+//! Jobs run one after another in this process; outputs do not depend on the shard, order or the
+//! meshes cached (a bake is deterministic), which `tests/batch.rs` checks byte for byte.
+
+use anyhow::{bail, Context, Result};
+use decalbake::{Engine, Job, LoadedMesh};
+use serde_json::{json, Value};
+use sha2::{Digest, Sha256};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Estimated bytes of loaded meshes kept between jobs (CPU and GPU copies; see [`mesh_bytes`]).
+pub const MESH_BUDGET: u64 = 2 << 30;
+
+/// What `decalbake batch` was asked to do.
+pub struct BatchOptions {
+    /// The manifest (JSON Lines).
+    pub manifest: PathBuf,
+    /// Output root (`DIR/<job>/`), or the jobs' own output paths.
+    pub out: Option<PathBuf>,
+    /// `I/N`, `auto`, or none (every job).
+    pub shard: Option<String>,
+    /// Skip jobs whose outputs exist with the same input hash.
+    pub resume: bool,
+    /// Stop at the first failure.
+    pub fail_fast: bool,
+    /// Where the summary goes (default: `summary.json` in the output root or beside the manifest).
+    pub summary: Option<PathBuf>,
+}
+
+/// One job of the manifest.
+struct Entry {
+    /// Line number (1-based).
+    line: usize,
+    /// The job file, for a path entry.
+    file: Option<PathBuf>,
+    /// The job's text.
+    text: String,
+}
+
+/// Exit code of a batch: 0, or 3 when some job failed.
+pub fn run(engine: &Engine, opts: &BatchOptions) -> Result<i32> {
+    let t0 = Instant::now();
+    let entries = read_manifest(&opts.manifest)?;
+    let (index, count, source) = shard(opts.shard.as_deref())?;
+    eprintln!(
+        "batch: {} jobs in {}, shard {index}/{count} ({source})",
+        entries.len(),
+        opts.manifest.display()
+    );
+    let mine: Vec<&Entry> = entries
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| k % count == index)
+        .map(|(_, e)| e)
+        .collect();
+    let mut meshes = MeshCache::default();
+    let mut rows = Vec::new();
+    let mut failed = 0;
+    for (n, entry) in mine.iter().enumerate() {
+        let t = Instant::now();
+        let row = match bake_entry(engine, opts, entry, &mut meshes) {
+            Ok((status, outputs, hash)) => {
+                json!({ "status": status, "outputs": outputs, "input_hash": hash })
+            }
+            Err(e) => {
+                failed += 1;
+                failure(&e)
+            }
+        };
+        let mut row = row;
+        row["line"] = json!(entry.line);
+        row["job"] = json!(entry.file.as_ref().map(|f| f.display().to_string()));
+        row["ms"] = json!(t.elapsed().as_secs_f64() * 1000.0);
+        eprintln!(
+            "[{}/{}] line {}: {}{}",
+            n + 1,
+            mine.len(),
+            entry.line,
+            row["status"].as_str().unwrap_or("?"),
+            row["message"]
+                .as_str()
+                .map(|m| format!(": {m}"))
+                .unwrap_or_default()
+        );
+        rows.push(row);
+        if failed > 0 && opts.fail_fast {
+            break;
+        }
+    }
+    let summary = summary_of(
+        rows,
+        json!({ "index": index, "count": count, "source": source }),
+        t0,
+    );
+    let path = opts.summary.clone().unwrap_or_else(|| {
+        opts.out
+            .clone()
+            .unwrap_or_else(|| {
+                opts.manifest
+                    .parent()
+                    .unwrap_or(Path::new(""))
+                    .to_path_buf()
+            })
+            .join("summary.json")
+    });
+    write_json(&path, &summary)?;
+    eprintln!("summary: {}", path.display());
+    Ok(if failed > 0 { 3 } else { 0 })
+}
+
+/// The manifest's jobs; any line that is neither a string nor an object stops the batch.
+fn read_manifest(path: &Path) -> Result<Vec<Entry>> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("reading the manifest {}", path.display()))?;
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let mut out = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let bad = |why: String| {
+            job_error(
+                path,
+                format!("line {}", i + 1),
+                format!("{why}; each line is a job file's path (a JSON string) or a job object"),
+            )
+        };
+        let entry = match serde_json::from_str::<Value>(line).map_err(|e| bad(e.to_string()))? {
+            Value::String(p) => {
+                let file = dir.join(p);
+                let text = std::fs::read_to_string(&file).map_err(|e| {
+                    bad(format!(
+                        "the job file {} cannot be read: {e}",
+                        file.display()
+                    ))
+                })?;
+                Entry {
+                    line: i + 1,
+                    file: Some(file),
+                    text,
+                }
+            }
+            v @ Value::Object(_) => Entry {
+                line: i + 1,
+                file: None,
+                text: v.to_string(),
+            },
+            other => return Err(bad(format!("found {other}")).into()),
+        };
+        out.push(entry);
+    }
+    Ok(out)
+}
+
+/// (index, count, where they came from) of this process's shard.
+fn shard(spec: Option<&str>) -> Result<(usize, usize, String)> {
+    let env = |k: &str| {
+        std::env::var(k)
+            .ok()
+            .and_then(|v| v.trim().parse::<usize>().ok())
+    };
+    let (index, count, source) = match spec {
+        None => (0, 1, "all jobs".to_string()),
+        Some("auto") => {
+            if let (Some(id), Some(n)) = (env("SLURM_ARRAY_TASK_ID"), env("SLURM_ARRAY_TASK_COUNT"))
+            {
+                let min = env("SLURM_ARRAY_TASK_MIN").unwrap_or(0);
+                (id - min.min(id), n, "Slurm job array".into())
+            } else if let (Some(id), Some(n)) =
+                (env("JOB_COMPLETION_INDEX"), env("DECALBAKE_SHARDS"))
+            {
+                (id, n, "Kubernetes indexed job".into())
+            } else if let (Some(id), Some(n)) = (
+                env("AWS_BATCH_JOB_ARRAY_INDEX"),
+                env("AWS_BATCH_JOB_ARRAY_SIZE"),
+            ) {
+                (id, n, "AWS Batch array job".into())
+            } else {
+                bail!(bad_option("--shard auto found no array index: set SLURM_ARRAY_TASK_ID and SLURM_ARRAY_TASK_COUNT, JOB_COMPLETION_INDEX and DECALBAKE_SHARDS, or AWS_BATCH_JOB_ARRAY_INDEX and AWS_BATCH_JOB_ARRAY_SIZE"))
+            }
+        }
+        Some(s) => {
+            let parsed = s
+                .split_once('/')
+                .and_then(|(i, n)| Some((i.trim().parse().ok()?, n.trim().parse().ok()?)));
+            match parsed {
+                Some((i, n)) => (i, n, "--shard".into()),
+                None => bail!(bad_option(&format!(
+                    "--shard {s}: use I/N (for example 0/4) or auto"
+                ))),
+            }
+        }
+    };
+    if count == 0 || index >= count {
+        bail!(bad_option(&format!(
+            "shard {index} of {count} ({source}): the index must be below the count"
+        )));
+    }
+    Ok((index, count, source))
+}
+
+/// A bad option, as an input error (exit 2).
+fn bad_option(msg: &str) -> decalbake::Error {
+    job_error(Path::new("decalbake batch"), "options", msg)
+}
+
+/// Bakes one job (or skips it on `--resume`): (status, outputs, input hash).
+fn bake_entry(
+    engine: &Engine,
+    opts: &BatchOptions,
+    entry: &Entry,
+    meshes: &mut MeshCache,
+) -> Result<(&'static str, Vec<String>, String)> {
+    let manifest_dir = opts.manifest.parent().unwrap_or(Path::new(""));
+    let (source, input_dir) = match &entry.file {
+        Some(f) => (f.clone(), f.parent().unwrap_or(Path::new("")).to_path_buf()),
+        None => (
+            PathBuf::from(format!("{}#line-{}", opts.manifest.display(), entry.line)),
+            manifest_dir.to_path_buf(),
+        ),
+    };
+    let out_dir = match &opts.out {
+        Some(root) => {
+            let stem = entry
+                .file
+                .as_ref()
+                .and_then(|f| f.file_stem())
+                .map(|s| format!("-{}", s.to_string_lossy()))
+                .unwrap_or_default();
+            root.join(format!("line-{}{stem}", entry.line))
+        }
+        None => input_dir.clone(),
+    };
+    let job = Job::parse(&entry.text, &source, &input_dir, &out_dir)?;
+    let hash = input_hash(&entry.text, &job)?;
+    let outputs: Vec<PathBuf> = [
+        &job.out_texture,
+        &job.out_glb,
+        &job.out_report,
+        &job.out_preview,
+    ]
+    .into_iter()
+    .flatten()
+    .cloned()
+    .collect();
+    let names = || outputs.iter().map(|p| p.display().to_string()).collect();
+    if opts.resume && up_to_date(&job, &outputs, &hash) {
+        return Ok(("skipped", names(), hash));
+    }
+    let mesh = meshes.get(engine, &job.mesh)?;
+    let mut baked = engine.bake(&mesh, &job)?;
+    baked.report.input_hash = Some(hash.clone());
+    for dir in outputs.iter().filter_map(|p| p.parent()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    decalbake::output::write_outputs(engine, &mesh, &job, &mut baked)?;
+    Ok(("ok", names(), hash))
+}
+
+/// Whether every output exists and the report's `input_hash` is `hash`.
+fn up_to_date(job: &Job, outputs: &[PathBuf], hash: &str) -> bool {
+    let Some(report) = &job.out_report else {
+        return false;
+    };
+    let recorded = std::fs::read(report)
+        .ok()
+        .and_then(|b| serde_json::from_slice::<Value>(&b).ok())
+        .and_then(|v| v["input_hash"].as_str().map(str::to_string));
+    recorded.as_deref() == Some(hash) && outputs.iter().all(|p| p.exists())
+}
+
+/// SHA-256 of the engine version, the job's text and the bytes of every file it reads.
+fn input_hash(text: &str, job: &Job) -> Result<String> {
+    let mut h = Sha256::new();
+    h.update(env!("CARGO_PKG_VERSION").as_bytes());
+    h.update([0]);
+    h.update(text.as_bytes());
+    let mut files = vec![job.mesh.clone()];
+    if let decalbake::io::job::Base::Image(p) = &job.base {
+        files.push(p.clone());
+    }
+    for l in &job.layers {
+        files.push(l.image.clone());
+        files.extend(l.mask.clone());
+    }
+    for f in files {
+        h.update([0]);
+        // A file that cannot be read is the bake's error to report, with its own message.
+        h.update(std::fs::read(&f).unwrap_or_default());
+    }
+    Ok(format!("{:x}", h.finalize()))
+}
+
+/// A failed job's summary row: message, file and field where the error names them, class.
+fn failure(e: &anyhow::Error) -> Value {
+    let engine_error = e.chain().find_map(|c| c.downcast_ref::<decalbake::Error>());
+    let (file, field) = match engine_error {
+        Some(decalbake::Error::Job { path, field, .. }) => {
+            (Some(path.display().to_string()), Some(field.clone()))
+        }
+        Some(
+            decalbake::Error::Io { path, .. }
+            | decalbake::Error::Image { path, .. }
+            | decalbake::Error::Gltf { path, .. }
+            | decalbake::Error::Mesh { path, .. }
+            | decalbake::Error::Placement { path, .. },
+        ) => (Some(path.display().to_string()), None),
+        _ => (None, None),
+    };
+    let input = engine_error.is_some_and(|d| d.is_input_error());
+    // The engine's errors say everything (their sources included); others show their chain.
+    let message = match engine_error {
+        Some(d) => d.to_string(),
+        None => format!("{e:#}"),
+    };
+    json!({
+        "status": "failed",
+        "message": message,
+        "file": file,
+        "field": field,
+        "class": if input { "input" } else { "engine" },
+    })
+}
+
+/// The summary of `rows` (job rows, in manifest order).
+fn summary_of(mut rows: Vec<Value>, shard: Value, t0: Instant) -> Value {
+    rows.sort_by_key(|r| r["line"].as_u64());
+    let count = |s: &str| rows.iter().filter(|r| r["status"] == s).count();
+    json!({
+        "version": env!("CARGO_PKG_VERSION"),
+        "shard": shard,
+        "counts": { "ok": count("ok"), "skipped": count("skipped"), "failed": count("failed") },
+        "seconds": t0.elapsed().as_secs_f64(),
+        "jobs": rows,
+    })
+}
+
+/// `--merge-summaries`: the shards' summaries as one (jobs in manifest order, counts added up);
+/// exit 3 when a job failed in any of them.
+pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<i32> {
+    let t0 = Instant::now();
+    let mut rows = Vec::new();
+    let mut shards = Vec::new();
+    for p in inputs {
+        let v: Value = serde_json::from_slice(
+            &std::fs::read(p).with_context(|| format!("reading the summary {}", p.display()))?,
+        )
+        .map_err(|e| job_error(p, "(top level)", format!("not a summary: {e}")))?;
+        let Some(jobs) = v["jobs"].as_array() else {
+            bail!(job_error(p, "jobs", "a summary has a jobs array"));
+        };
+        rows.extend(jobs.iter().cloned());
+        shards.push(v["shard"].clone());
+    }
+    let failed = rows.iter().any(|r| r["status"] == "failed");
+    let mut summary = summary_of(rows, Value::Null, t0);
+    summary["shard"] = json!({ "merged": shards });
+    write_json(out, &summary)?;
+    eprintln!("merged {} summaries into {}", inputs.len(), out.display());
+    Ok(if failed { 3 } else { 0 })
+}
+
+fn write_json(path: &Path, v: &Value) -> Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let text = serde_json::to_string_pretty(v)?;
+    decalbake::io::image::write_atomic(path, text.as_bytes())?;
+    Ok(())
+}
+
+/// Loaded meshes by path, least recently used first out past [`MESH_BUDGET`].
+#[derive(Default)]
+struct MeshCache {
+    /// (path, mesh, estimated bytes), most recently used last.
+    entries: Vec<(PathBuf, Arc<LoadedMesh>, u64)>,
+}
+
+impl MeshCache {
+    fn get(&mut self, engine: &Engine, path: &Path) -> Result<Arc<LoadedMesh>> {
+        if let Some(i) = self.entries.iter().position(|e| e.0 == path) {
+            let e = self.entries.remove(i);
+            let mesh = e.1.clone();
+            self.entries.push(e);
+            return Ok(mesh);
+        }
+        let mesh = Arc::new(engine.load_mesh(path)?);
+        let bytes = mesh_bytes(&mesh);
+        while !self.entries.is_empty()
+            && self.entries.iter().map(|e| e.2).sum::<u64>() + bytes > MESH_BUDGET
+        {
+            self.entries.remove(0);
+        }
+        self.entries.push((path.to_path_buf(), mesh.clone(), bytes));
+        Ok(mesh)
+    }
+}
+
+/// A loaded mesh's estimated size: about 200 bytes a welded vertex and 150 a triangle over its CPU
+/// and GPU copies (positions, normals, UVs, adjacency, curvature, BVH), plus its material texture.
+fn mesh_bytes(m: &LoadedMesh) -> u64 {
+    let tex = m
+        .mesh
+        .material
+        .as_ref()
+        .and_then(|mt| mt.base_color_texture.as_ref())
+        .map_or(0, |t| t.width as u64 * t.height as u64 * 32);
+    200 * m.stats.welded_vertices as u64 + 150 * m.stats.triangles as u64 + tex
+}
+
+/// An input error naming `path` and `field` (exit 2 for `bake`; class `input` in a summary).
+fn job_error(path: &Path, field: impl Into<String>, detail: impl Into<String>) -> decalbake::Error {
+    decalbake::Error::Job {
+        path: path.to_path_buf(),
+        field: field.into(),
+        detail: detail.into(),
+    }
+}

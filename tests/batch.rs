@@ -1,0 +1,233 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! `decalbake batch`: a failing job is reported and the others baked (exit 3), `--resume` skips
+//! what is done and redoes what changed, shards cover the manifest once and merge, outputs are the
+//! bytes `decalbake bake` writes for the same job, and a bad manifest stops everything (exit 2).
+
+mod common;
+use common::*;
+use serde_json::Value;
+use std::path::Path;
+
+/// Spot, an image and a manifest of four jobs: a job file (line 1), an inline job (line 2), a job
+/// whose image is missing (line 4, after a blank line) and an inline job on a second image (line 5).
+fn setup(name: &str) -> std::path::PathBuf {
+    let dir = scratch(name);
+    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
+    std::fs::copy(spot, dir.join("spot.glb")).unwrap();
+    std::fs::write(
+        dir.join("img.png"),
+        test_image(16, 16, 3, true).encode_png(8),
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("img2.png"),
+        test_image(16, 16, 9, true).encode_png(8),
+    )
+    .unwrap();
+    let job = |img: &str, at: [f32; 3], out: &str| {
+        serde_json::json!({ "mesh": "spot.glb", "texture": { "width": 64, "height": 64, "padding": 2 },
+            "layers": [{ "image": img, "at": at, "size": [0.3, 0.3], "method": "expmap" }],
+            "output": { "texture": format!("{out}.png"), "report": format!("{out}.report.json") } })
+    };
+    std::fs::write(
+        dir.join("a.json"),
+        job("img.png", [0.17745, 0.95365, -0.26041], "a").to_string(),
+    )
+    .unwrap();
+    let lines = [
+        "\"a.json\"".to_string(),
+        job("img.png", [0.5, 0.3, 0.2], "b").to_string(),
+        String::new(),
+        job("missing.png", [0.5, 0.3, 0.2], "c").to_string(),
+        job("img2.png", [0.0, 0.5, 0.5], "d").to_string(),
+    ];
+    std::fs::write(dir.join("manifest.jsonl"), lines.join("\n")).unwrap();
+    dir
+}
+
+fn summary(path: &Path) -> Value {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
+
+fn statuses(s: &Value) -> Vec<(u64, String)> {
+    s["jobs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|j| {
+            (
+                j["line"].as_u64().unwrap(),
+                j["status"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn a_batch_isolates_failures_resumes_and_writes_what_bake_writes() {
+    let dir = setup("batch_resume");
+    let (m, out) = (dir.join("manifest.jsonl"), dir.join("out"));
+    let run = |extra: &[&str]| {
+        let mut args = vec!["batch", m.to_str().unwrap(), "--out", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        cli(&args)
+    };
+    let (code, _, err) = run(&[]);
+    assert_eq!(code, 3, "some job failed: {err}");
+    let s = summary(&out.join("summary.json"));
+    assert_eq!(
+        statuses(&s),
+        [(1, "ok"), (2, "ok"), (4, "failed"), (5, "ok")].map(|(l, s)| (l, s.to_string()))
+    );
+    let failed = &s["jobs"][2];
+    assert_eq!(failed["class"], "input");
+    assert!(
+        failed["file"].as_str().unwrap().ends_with("missing.png"),
+        "{failed}"
+    );
+    assert!(
+        !out.join("line-4").exists(),
+        "a failed job leaves no output directory"
+    );
+    // The same bytes as `decalbake bake` of the job file.
+    let serial = dir.join("serial");
+    let (code, _, err) = cli(&[
+        "bake",
+        dir.join("a.json").to_str().unwrap(),
+        "--out",
+        serial.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(
+        std::fs::read(out.join("line-1-a/a.png")).unwrap(),
+        std::fs::read(serial.join("a.png")).unwrap()
+    );
+    let report = summary(&out.join("line-1-a/a.report.json"));
+    assert_eq!(report["input_hash"], s["jobs"][0]["input_hash"]);
+    // Resume: what is done is skipped, the failure is tried again.
+    let (code, _, _) = run(&["--resume"]);
+    assert_eq!(code, 3);
+    let s2 = summary(&out.join("summary.json"));
+    assert_eq!(
+        statuses(&s2),
+        [
+            (1, "skipped"),
+            (2, "skipped"),
+            (4, "failed"),
+            (5, "skipped")
+        ]
+        .map(|(l, s)| (l, s.to_string()))
+    );
+    // A changed input changes the hash: the jobs that read it bake again.
+    std::fs::write(
+        dir.join("img2.png"),
+        test_image(16, 16, 10, true).encode_png(8),
+    )
+    .unwrap();
+    std::fs::remove_file(out.join("line-2/b.png")).unwrap();
+    let (code, _, _) = run(&["--resume"]);
+    assert_eq!(code, 3);
+    assert_eq!(
+        statuses(&summary(&out.join("summary.json"))),
+        [(1, "skipped"), (2, "ok"), (4, "failed"), (5, "ok")].map(|(l, s)| (l, s.to_string()))
+    );
+    // --fail-fast stops at the failure.
+    let (code, _, _) = run(&["--fail-fast"]);
+    assert_eq!(code, 3);
+    assert_eq!(
+        summary(&out.join("summary.json"))["jobs"]
+            .as_array()
+            .unwrap()
+            .len(),
+        3
+    );
+}
+
+#[test]
+fn shards_cover_the_manifest_once_and_merge() {
+    let dir = setup("batch_shards");
+    let m = dir.join("manifest.jsonl");
+    let full = dir.join("full");
+    cli(&[
+        "batch",
+        m.to_str().unwrap(),
+        "--out",
+        full.to_str().unwrap(),
+    ]);
+    let mut parts = Vec::new();
+    for i in 0..3 {
+        let out = dir.join(format!("shard{i}"));
+        let (code, _, err) = cli(&[
+            "batch",
+            m.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--shard",
+            &format!("{i}/3"),
+        ]);
+        assert!(code == 0 || code == 3, "{err}");
+        parts.push(out.join("summary.json"));
+    }
+    let merged = dir.join("merged.json");
+    let mut args = vec![
+        "batch",
+        "--summary",
+        merged.to_str().unwrap(),
+        "--merge-summaries",
+    ];
+    args.extend(parts.iter().map(|p| p.to_str().unwrap()));
+    let (code, _, err) = cli(&args);
+    assert_eq!(code, 3, "a shard had a failure: {err}");
+    let (a, b) = (summary(&merged), summary(&full.join("summary.json")));
+    assert_eq!(statuses(&a), statuses(&b));
+    assert_eq!(a["counts"], b["counts"]);
+    // Outputs do not depend on the shard: line 5 (position 3) ran in shard 0.
+    assert_eq!(
+        std::fs::read(dir.join("shard0/line-5/d.png")).unwrap(),
+        std::fs::read(full.join("line-5/d.png")).unwrap()
+    );
+    // A Slurm array task: index minus the array's first index, count from Slurm.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_decalbake"))
+        .args([
+            "batch",
+            m.to_str().unwrap(),
+            "--out",
+            dir.join("slurm").to_str().unwrap(),
+            "--shard",
+            "auto",
+        ])
+        .env("SLURM_ARRAY_TASK_ID", "8")
+        .env("SLURM_ARRAY_TASK_MIN", "7")
+        .env("SLURM_ARRAY_TASK_COUNT", "4")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("shard 1/4 (Slurm job array)"), "{err}");
+    assert_eq!(
+        statuses(&summary(&dir.join("slurm/summary.json"))),
+        [(2, "ok".to_string())]
+    );
+    // A shard index past the count is a bad option.
+    let (code, _, err) = cli(&["batch", m.to_str().unwrap(), "--shard", "3/3"]);
+    assert_eq!(code, 2, "{err}");
+}
+
+#[test]
+fn a_bad_manifest_stops_before_baking() {
+    let dir = setup("batch_bad");
+    std::fs::write(dir.join("bad.jsonl"), "\"a.json\"\n42\n").unwrap();
+    let out = dir.join("out");
+    let (code, _, err) = cli(&[
+        "batch",
+        dir.join("bad.jsonl").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("bad.jsonl") && err.contains("line 2"), "{err}");
+    assert!(!out.exists(), "nothing baked, no summary");
+    std::fs::write(dir.join("gone.jsonl"), "\"nope.json\"\n").unwrap();
+    let (code, _, err) = cli(&["batch", dir.join("gone.jsonl").to_str().unwrap()]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("nope.json"), "{err}");
+}
