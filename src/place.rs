@@ -177,7 +177,8 @@ fn place_with(
                 label: Some("place"),
                 timestamp_writes: None,
             });
-            if bvh {
+            // A mesh whose triangles are all degenerate has no tree: the brute force answers.
+            if bvh && mesh.bvh_node_count > 0 {
                 pass.set_pipeline(&pipes.place_bvh.pipeline);
                 pass.set_bind_group(0, &bg0, &[]);
                 pass.dispatch_workgroups((queries.len() as u32).div_ceil(64), 1, 1);

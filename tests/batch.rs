@@ -166,7 +166,8 @@ fn shards_cover_the_manifest_once_and_merge() {
             &format!("{i}/3"),
         ]);
         assert!(code == 0 || code == 3, "{err}");
-        parts.push(out.join("summary.json"));
+        // Several shards: each its own summary-I.json.
+        parts.push(out.join(format!("summary-{i}.json")));
     }
     let merged = dir.join("merged.json");
     let mut args = vec![
@@ -204,7 +205,7 @@ fn shards_cover_the_manifest_once_and_merge() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("shard 1/4 (Slurm job array)"), "{err}");
     assert_eq!(
-        statuses(&summary(&dir.join("slurm/summary.json"))),
+        statuses(&summary(&dir.join("slurm/summary-1.json"))),
         [(2, "ok".to_string())]
     );
     // A shard index past the count is a bad option.
@@ -226,8 +227,26 @@ fn a_bad_manifest_stops_before_baking() {
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("bad.jsonl") && err.contains("line 2"), "{err}");
     assert!(!out.exists(), "nothing baked, no summary");
-    std::fs::write(dir.join("gone.jsonl"), "\"nope.json\"\n").unwrap();
-    let (code, _, err) = cli(&["batch", dir.join("gone.jsonl").to_str().unwrap()]);
-    assert_eq!(code, 2, "{err}");
-    assert!(err.contains("nope.json"), "{err}");
+    // A job file that cannot be read fails its own job, not the batch.
+    std::fs::write(dir.join("gone.jsonl"), "\"nope.json\"\n\"a.json\"\n").unwrap();
+    let out = dir.join("gone");
+    let (code, _, err) = cli(&[
+        "batch",
+        dir.join("gone.jsonl").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 3, "{err}");
+    let s = summary(&out.join("summary.json"));
+    assert_eq!(
+        statuses(&s),
+        [(1, "failed".to_string()), (2, "ok".to_string())]
+    );
+    assert!(
+        s["jobs"][0]["file"]
+            .as_str()
+            .unwrap()
+            .ends_with("nope.json"),
+        "{s}"
+    );
 }

@@ -476,6 +476,30 @@ fn gpu_cone_chart_matches_the_cpu_twin() {
         (g - c).abs() <= 0.01 * c,
         "triangle selection: GPU {g}, CPU {c}"
     );
+    // The distortion report (the kernel opens the chart per vertex) against its CPU twin on the
+    // CPU chart: the mean angle distortion within 1 % (selections differ at the margin), no flips.
+    let surface = decalbake::mesh::SurfaceData::new(&topo);
+    let frame = decalbake::maps::Frame::new(&placements[0], &job.layers[0]);
+    let twin = decalbake::bake::cpu::layer_coords_cpu(
+        &topo,
+        &surface,
+        &job.layers[0],
+        &frame,
+        &placements[0],
+        true,
+    );
+    let cpu_d = decalbake::maps::distortion::distortion(
+        &topo,
+        (&twin.coords, twin.cone.as_ref()),
+        &cpu.selected[0],
+    );
+    let gpu_d = baked.report.layers[0].distortion;
+    eprintln!("cone twin distortion: GPU {gpu_d:?}\nCPU {cpu_d:?}");
+    assert!(
+        (gpu_d.angle_distortion_mean / cpu_d.angle_distortion_mean - 1.0).abs() < 0.01,
+        "GPU {gpu_d:?} CPU {cpu_d:?}"
+    );
+    assert_eq!((gpu_d.flipped, cpu_d.flipped), (0, 0));
     let mut diffs = Vec::new();
     for y in 0..64u32 {
         for x in 0..64u32 {
@@ -504,4 +528,49 @@ fn gpu_cone_chart_matches_the_cpu_twin() {
         over * 100 <= 3 * diffs.len() && max <= 0.5,
         "{over} texels over 1e-3, max {max}"
     );
+}
+
+/// A decal placed beside a cone's apex (the apex inside the decal, 0.15 from the placed point):
+/// the cut runs from the tip away from the placed point, so it crosses none of the triangles
+/// around the placed one, and the size still holds there (within 10 % at 0.2 × the size).
+/// A cut fixed to the image's bottom edge would run through the decal's centre here whenever the
+/// tip lies above it.
+#[test]
+fn a_cut_beside_the_placed_point_runs_away_from_it() {
+    let engine = engine();
+    let phi = 30f32.to_radians();
+    let (pos, uv, idx) = cone_mesh(1.0, phi, 32, 96);
+    let dir = scratch("cone_beside");
+    write_glb(&dir.join("cone.glb"), &pos, Some(&uv), &idx);
+    let mesh = engine.load_mesh(&dir.join("cone.glb")).unwrap();
+    // 0.15 down the slant from the apex, on the side the image's up ([0, 0, 1]) points away from,
+    // so the tip is above the placed point in the image.
+    let at = Vec3::new(0.0, 1.0, 0.0) + 0.15 * Vec3::new(0.0, -phi.cos(), -phi.sin());
+    let size = 0.8;
+    let (rows, cone) = engine
+        .layer_param_map(&mesh, &decal_job(at, size, "lscm"), 0)
+        .unwrap();
+    let cone = cone.expect("the apex is inside the decal: a cone chart");
+    let placed = engine
+        .place(&mesh, &[decalbake::place::Query::Point(at)])
+        .unwrap()[0];
+    let chart: std::collections::HashMap<u32, glam::DVec2> = rows
+        .iter()
+        .map(|r| (r.vertex, Vec2::from(r.chart_uv).as_dvec2()))
+        .collect();
+    let topo = &mesh.topo;
+    let ring: Vec<u32> = topo.triangles[placed.triangle as usize]
+        .iter()
+        .flat_map(|&v| topo.triangles_around(v).iter().copied())
+        .collect();
+    for t in ring {
+        let w = topo.triangles[t as usize].map(|v| chart[&v]);
+        assert!(
+            !cone.cut_crosses(w),
+            "the cut crosses triangle {t} next to the placed point: {cone:?}"
+        );
+    }
+    let m = measure(topo, &(rows, Some(cone)), at, size);
+    eprintln!("beside the apex: cut {:.3} rad, {m:?}", cone.cut);
+    assert!((m.scale_fifth - 1.0).abs() <= SCALE_TOL, "{m:?}");
 }

@@ -171,7 +171,7 @@ fn seam_check(method: &str) {
         coords[r.vertex as usize] = [r.uv[0], r.uv[1], 0.0, 1.0];
     }
     let stretch = |t: usize| {
-        let d = decalbake::maps::distortion::distortion(&topo, &coords, &[t as u32]);
+        let d = decalbake::maps::distortion::distortion(&topo, (&coords, None), &[t as u32]);
         (d.area_ratio_max.abs() * d.angle_distortion_max)
             .sqrt()
             .max(1.0)

@@ -662,10 +662,10 @@ pub fn select_triangles(
         let mut z = c.map(|c| Vec2::new(c[0], c[1]));
         let (mut hx, mut hy, mut cut) = (hx, hy, false);
         if let Some(cone) = cone {
-            // Twin of the kernel's FLAG_CONE branch: the cut's triangles are kept; the others are
-            // tested opened, with a margin of a tenth of their box.
+            // Twin of the kernel's FLAG_CONE branch: the cut's triangles and those near the tip
+            // are kept; the others are tested opened, with a margin of a tenth of their box.
             let w = z.map(|z| z.as_dvec2());
-            cut = cone.cut_crosses(w);
+            cut = cone.cut_crosses(w) || cone.near_tip(w);
             z = w.map(|w| cone.apply(w).as_vec2());
             let ext = z[0].max(z[1]).max(z[2]) - z[0].min(z[1]).min(z[2]);
             hx += 0.1 * ext.max_element();

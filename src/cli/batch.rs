@@ -5,8 +5,8 @@
 //!
 //! - **Manifest**: JSON Lines, one job per line: a string (a job file's path) or an object (the job
 //!   itself, the same schema). Paths are relative to the manifest (a job file's own paths to the job
-//!   file). Blank lines are skipped; a line that is neither is a bad manifest (exit 2, nothing baked).
-//!   A job's number is its line number.
+//!   file). Blank lines are skipped; a line that is neither is a bad manifest (exit 2, nothing
+//!   baked); a job file that cannot be read fails its own job. A job's number is its line number.
 //! - **Outputs**: as each job says; with `--out DIR`, under `DIR/<job>/` (`<job>`: `line-N` and, for
 //!   a job file, its stem), so jobs that name the same outputs do not overwrite each other. Every
 //!   file is written atomically (temporary file and rename).
@@ -15,14 +15,15 @@
 //!   (`--fail-fast` stops it). Exit 0 when every job succeeded, 3 when some failed, 2 for a bad
 //!   manifest or options.
 //! - **Resume**: each job's report carries `input_hash`, the SHA-256 of the engine version, the
-//!   job's text and the bytes of its mesh and images. `--resume` skips a job whose outputs all exist
+//!   job's text and the bytes of its mesh (with a `.gltf`'s external files) and images. `--resume` skips a job whose outputs all exist
 //!   and whose report has the same hash; a job without a report is always baked again.
 //! - **Shards**: `--shard I/N` takes the jobs whose position in the manifest (0-based) is I modulo N;
 //!   `--shard auto` reads I and N from a Slurm job array (`SLURM_ARRAY_TASK_ID` minus
 //!   `SLURM_ARRAY_TASK_MIN`, `SLURM_ARRAY_TASK_COUNT`), a Kubernetes indexed job
 //!   (`JOB_COMPLETION_INDEX`, with `DECALBAKE_SHARDS` for N) or an AWS Batch array job
-//!   (`AWS_BATCH_JOB_ARRAY_INDEX`, `AWS_BATCH_JOB_ARRAY_SIZE`), and says which. `--merge-summaries`
-//!   joins the shards' summaries into one.
+//!   (`AWS_BATCH_JOB_ARRAY_INDEX`, `AWS_BATCH_JOB_ARRAY_SIZE`), and says which; a stepped Slurm
+//!   array (`SLURM_ARRAY_TASK_STEP`) counts in steps. Each shard's default summary is
+//!   `summary-I.json`; `--merge-summaries` joins them into one.
 //! - **Meshes** stay loaded between jobs, least recently used first out when their estimated size
 //!   passes [`MESH_BUDGET`].
 //!
@@ -60,10 +61,11 @@ pub struct BatchOptions {
 struct Entry {
     /// Line number (1-based).
     line: usize,
-    /// The job file, for a path entry.
+    /// The job file, for a path entry (read when the job runs: one missing file fails its job,
+    /// not the batch).
     file: Option<PathBuf>,
-    /// The job's text.
-    text: String,
+    /// The job's text, for an inline job.
+    text: Option<String>,
 }
 
 /// Exit code of a batch: 0, or 3 when some job failed.
@@ -121,6 +123,12 @@ pub fn run(engine: &Engine, opts: &BatchOptions) -> Result<i32> {
         json!({ "index": index, "count": count, "source": source }),
         t0,
     );
+    // Shards writing into one directory keep their own summaries (`--merge-summaries` joins them).
+    let name = if count > 1 {
+        format!("summary-{index}.json")
+    } else {
+        "summary.json".to_string()
+    };
     let path = opts.summary.clone().unwrap_or_else(|| {
         opts.out
             .clone()
@@ -130,7 +138,7 @@ pub fn run(engine: &Engine, opts: &BatchOptions) -> Result<i32> {
                     .unwrap_or(Path::new(""))
                     .to_path_buf()
             })
-            .join("summary.json")
+            .join(name)
     });
     write_json(&path, &summary)?;
     eprintln!("summary: {}", path.display());
@@ -155,24 +163,15 @@ fn read_manifest(path: &Path) -> Result<Vec<Entry>> {
             )
         };
         let entry = match serde_json::from_str::<Value>(line).map_err(|e| bad(e.to_string()))? {
-            Value::String(p) => {
-                let file = dir.join(p);
-                let text = std::fs::read_to_string(&file).map_err(|e| {
-                    bad(format!(
-                        "the job file {} cannot be read: {e}",
-                        file.display()
-                    ))
-                })?;
-                Entry {
-                    line: i + 1,
-                    file: Some(file),
-                    text,
-                }
-            }
+            Value::String(p) => Entry {
+                line: i + 1,
+                file: Some(dir.join(p)),
+                text: None,
+            },
             v @ Value::Object(_) => Entry {
                 line: i + 1,
                 file: None,
-                text: v.to_string(),
+                text: Some(v.to_string()),
             },
             other => return Err(bad(format!("found {other}")).into()),
         };
@@ -193,8 +192,10 @@ fn shard(spec: Option<&str>) -> Result<(usize, usize, String)> {
         Some("auto") => {
             if let (Some(id), Some(n)) = (env("SLURM_ARRAY_TASK_ID"), env("SLURM_ARRAY_TASK_COUNT"))
             {
+                // Arrays like --array=4-16:4 step their ids: 4, 8, 12, 16 are shards 0..3.
                 let min = env("SLURM_ARRAY_TASK_MIN").unwrap_or(0);
-                (id - min.min(id), n, "Slurm job array".into())
+                let step = env("SLURM_ARRAY_TASK_STEP").unwrap_or(1).max(1);
+                ((id - min.min(id)) / step, n, "Slurm job array".into())
             } else if let (Some(id), Some(n)) =
                 (env("JOB_COMPLETION_INDEX"), env("DECALBAKE_SHARDS"))
             {
@@ -260,8 +261,17 @@ fn bake_entry(
         }
         None => input_dir.clone(),
     };
-    let job = Job::parse(&entry.text, &source, &input_dir, &out_dir)?;
-    let hash = input_hash(&entry.text, &job)?;
+    let text = match (&entry.text, &entry.file) {
+        (Some(t), _) => t.clone(),
+        (None, Some(f)) => std::fs::read_to_string(f).map_err(|source| decalbake::Error::Io {
+            path: f.clone(),
+            action: "reading the job file",
+            source,
+        })?,
+        (None, None) => unreachable!("a manifest entry is a path or a job"),
+    };
+    let job = Job::parse(&text, &source, &input_dir, &out_dir)?;
+    let hash = input_hash(&text, &job)?;
     let outputs: Vec<PathBuf> = [
         &job.out_texture,
         &job.out_glb,
@@ -279,6 +289,11 @@ fn bake_entry(
     let mesh = meshes.get(engine, &job.mesh)?;
     let mut baked = engine.bake(&mesh, &job)?;
     baked.report.input_hash = Some(hash.clone());
+    // The old report goes first: a run killed between renames must not leave it vouching for a
+    // half-replaced set of outputs.
+    if let Some(r) = &job.out_report {
+        let _ = std::fs::remove_file(r);
+    }
     for dir in outputs.iter().filter_map(|p| p.parent()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
@@ -298,13 +313,19 @@ fn up_to_date(job: &Job, outputs: &[PathBuf], hash: &str) -> bool {
     recorded.as_deref() == Some(hash) && outputs.iter().all(|p| p.exists())
 }
 
-/// SHA-256 of the engine version, the job's text and the bytes of every file it reads.
+/// SHA-256 of the engine version, the job's text and the bytes of every file it reads (the mesh,
+/// a `.gltf`'s external buffers and images, the base image, the layers' images and masks), each
+/// prefixed by its length.
 fn input_hash(text: &str, job: &Job) -> Result<String> {
     let mut h = Sha256::new();
-    h.update(env!("CARGO_PKG_VERSION").as_bytes());
-    h.update([0]);
-    h.update(text.as_bytes());
+    let mut part = |bytes: &[u8]| {
+        h.update((bytes.len() as u64).to_le_bytes());
+        h.update(bytes);
+    };
+    part(env!("CARGO_PKG_VERSION").as_bytes());
+    part(text.as_bytes());
     let mut files = vec![job.mesh.clone()];
+    files.extend(gltf_external_files(&job.mesh));
     if let decalbake::io::job::Base::Image(p) = &job.base {
         files.push(p.clone());
     }
@@ -313,11 +334,32 @@ fn input_hash(text: &str, job: &Job) -> Result<String> {
         files.extend(l.mask.clone());
     }
     for f in files {
-        h.update([0]);
         // A file that cannot be read is the bake's error to report, with its own message.
-        h.update(std::fs::read(&f).unwrap_or_default());
+        part(&std::fs::read(&f).unwrap_or_default());
     }
     Ok(format!("{:x}", h.finalize()))
+}
+
+/// The files a `.gltf` names by URI (buffers and images; data URIs are in the file itself).
+fn gltf_external_files(mesh: &Path) -> Vec<PathBuf> {
+    let is_gltf = mesh
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gltf"));
+    let Some(doc) = is_gltf
+        .then(|| std::fs::read(mesh).ok())
+        .flatten()
+        .and_then(|b| serde_json::from_slice::<Value>(&b).ok())
+    else {
+        return Vec::new();
+    };
+    let dir = mesh.parent().unwrap_or(Path::new(""));
+    ["buffers", "images"]
+        .iter()
+        .flat_map(|k| doc[*k].as_array().cloned().unwrap_or_default())
+        .filter_map(|e| e["uri"].as_str().map(str::to_string))
+        .filter(|u| !u.starts_with("data:"))
+        .map(|u| dir.join(u))
+        .collect()
 }
 
 /// A failed job's summary row: message, file and field where the error names them, class.

@@ -144,9 +144,9 @@ pub fn job_json() -> String {
               "size": [0.35, 0.35], "up": [0, 1, 0], "method": "lscm", "blend": "multiply" },
             { "kind": "decal", "image": "decals/glow.png", "at": { "ray": { "origin": [0.0, 0.55, -1.5], "dir": [0, 0, 1] } },
               "size": [0.3, 0.3], "method": "planar", "blend": "screen", "opacity": 0.8 },
-            // On the tip of the left horn: a cone chart, opened along a cut from the tip (the
-            // image's bottom, here the back of the horn).
-            { "kind": "decal", "image": "decals/rings.png", "at": [0.17745, 0.95365, -0.26041],
+            // On the tip of the left horn, just in front of it: a cone chart, opened along a cut
+            // from the tip away from the placed point (down the back of the horn).
+            { "kind": "decal", "image": "decals/rings.png", "at": [0.2, 0.95, -0.285],
               "size": [0.22, 0.22], "up": [0, 0, -1], "method": "lscm", "blend": "normal" },
             { "kind": "stroke", "image": "decals/brush.png", "path": path, "pressure": pressure,
               "size": [0.1, 0.1], "spacing": 0.15, "flow": 0.8, "opacity": 0.95, "method": "lscm" },

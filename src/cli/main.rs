@@ -304,7 +304,6 @@ fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// A headless engine, its adapter named on stderr.
 /// A usage mistake, reported as an input error (exit 2).
 fn bad_usage(msg: &str) -> decalbake::Error {
     decalbake::Error::Job {
@@ -314,6 +313,7 @@ fn bad_usage(msg: &str) -> decalbake::Error {
     }
 }
 
+/// A headless engine, its adapter named on stderr.
 fn engine(backend: Option<&str>) -> Result<Engine> {
     let engine = Engine::new(backend)?;
     eprintln!("adapter: {}", engine.ctx.adapter);

@@ -645,9 +645,6 @@ fn linalg_kernels(device: &wgpu::Device) -> [Kernel; 7] {
     ]
 }
 
-/// The kernels the bake's map stage runs on the coordinate slots it owns (`bake/maps.rs`): chart
-/// coordinates written in and the exponential maps read out over their discs, and the blended
-/// stamps of continuous strokes.
 /// The placement kernels (`src/place.rs`): `place_bvh`, `place_candidates`, `place_reduce`.
 fn place_kernels(device: &wgpu::Device) -> [Kernel; 3] {
     use Bind::*;
@@ -678,6 +675,9 @@ fn place_kernels(device: &wgpu::Device) -> [Kernel; 3] {
     ]
 }
 
+/// The kernels the bake's map stage runs on the coordinate slots it owns (`bake/maps.rs`): chart
+/// coordinates written in and the exponential maps read out over their discs, and the blended
+/// stamps of continuous strokes.
 fn slot_kernels(device: &wgpu::Device) -> [Kernel; 3] {
     use Bind::*;
     [

@@ -80,8 +80,13 @@ impl Distortion {
     }
 }
 
-/// CPU twin of `distortion.wgsl` for one layer.
-pub fn distortion(topo: &Topology, coords: &[[f32; 4]], triangles: &[u32]) -> Distortion {
+/// CPU twin of `distortion.wgsl` for one layer: its coordinates, through its chart's cone where it
+/// has one (the triangles the cut crosses left out, as the kernel does).
+pub fn distortion(
+    topo: &Topology,
+    (coords, cone): (&[[f32; 4]], Option<&crate::maps::chart::cone::Cone>),
+    triangles: &[u32],
+) -> Distortion {
     let mut partial = [[0.0f32; 4], [0.0, f32::MIN, f32::MAX, 0.0]];
     partial[1][0] = 0.0;
     for &t in triangles {
@@ -98,8 +103,16 @@ pub fn distortion(topo: &Topology, coords: &[[f32; 4]], triangles: &[u32]) -> Di
         let x = e1 / l1;
         let y = n.cross(x).normalize();
         let q2 = Vec2::new(e2.dot(x), e2.dot(y));
-        let c = |v: u32| Vec2::new(coords[v as usize][0], coords[v as usize][1]);
-        let (d1, d2) = (c(tri[1]) - c(tri[0]), c(tri[2]) - c(tri[0]));
+        let w = tri
+            .map(|v| glam::DVec2::new(coords[v as usize][0] as f64, coords[v as usize][1] as f64));
+        if cone.is_some_and(|k| k.cut_crosses(w)) {
+            continue;
+        }
+        let c = |i: usize| match cone {
+            Some(k) => k.apply(w[i]).as_vec2(),
+            None => Vec2::new(coords[tri[i] as usize][0], coords[tri[i] as usize][1]),
+        };
+        let (d1, d2) = (c(1) - c(0), c(2) - c(0));
         let inv_det = 1.0 / (l1 * q2.y);
         let m00 = (d1.x * q2.y) * inv_det;
         let m10 = (d1.y * q2.y) * inv_det;

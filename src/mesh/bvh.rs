@@ -9,18 +9,20 @@
 //! box (`select_nth_unstable`, ties by triangle id, so the tree is deterministic), leaves of at most
 //! [`LEAF`] triangles, the two children of a node stored next to each other. Balanced by
 //! construction: depth ⌈log₂(n / LEAF)⌉ + 1, so the GPU's fixed traversal stack ([`MAX_DEPTH`])
-//! always suffices. Boxes are padded by [`PAD`] of the mesh's size so that f32 rounding in the box
-//! tests never prunes a triangle the brute-force test would pick.
+//! always suffices. Boxes are padded by [`PAD`] of the mesh's size (or of its largest coordinate,
+//! for a mesh far from the origin) so that f32 rounding in the box tests never prunes a triangle
+//! the brute-force test would pick.
 
 use super::Topology;
 use glam::Vec3;
 
 /// Most triangles in a leaf.
 pub const LEAF: usize = 4;
-/// Relative padding of every box (times the mesh's bounding-box diagonal).
+/// Relative padding of every box (times the larger of the mesh's bounding-box diagonal and its
+/// largest coordinate).
 pub const PAD: f32 = 1e-5;
-/// Deepest tree the GPU traversal's stack holds (keep in sync with `STACK` in place_bvh.wgsl:
-/// two entries a level).
+/// Deepest tree the build allows; the GPU walk's stack (`STACK` = 64 in place_bvh.wgsl) needs
+/// depth + 1 entries, so this leaves room.
 pub const MAX_DEPTH: usize = 30;
 
 /// One node, as the GPU reads it. Keep in sync with `Node` in wgsl/place/place_bvh.wgsl.
@@ -70,7 +72,9 @@ impl Bvh {
                     .iter()
                     .fold(b, |(lo, hi), p| (lo.min(*p), hi.max(*p)))
             });
-        let pad = PAD * (hi - lo).length().max(f32::MIN_POSITIVE) + 1e-30;
+        // Rounding in the keys grows with the coordinates' magnitude, not only the mesh's size.
+        let scale = (hi - lo).length().max(lo.abs().max(hi.abs()).max_element());
+        let pad = PAD * scale.max(f32::MIN_POSITIVE) + 1e-30;
         let mut nodes = vec![BvhNode {
             lo: [0.0; 3],
             first: 0,

@@ -58,6 +58,8 @@ pub struct GpuMesh {
     pub bvh_nodes: wgpu::Buffer,
     /// The BVH's triangles in leaf order, `u32`.
     pub bvh_triangles: wgpu::Buffer,
+    /// Nodes in the BVH (0: no triangle to place on).
+    pub bvh_node_count: u32,
 }
 
 fn storage(
@@ -202,6 +204,7 @@ impl GpuMesh {
                 bytemuck::cast_slice(&bvh.triangles),
                 none,
             ),
+            bvh_node_count: bvh.nodes.len() as u32,
             boundary_edge_count: topo.boundary_edges.len() as u32,
             non_manifold_edge_count: topo.non_manifold_edges.len() as u32,
             curvature: storage(

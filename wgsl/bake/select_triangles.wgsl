@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // Chooses the triangles a layer covers, for any placement method: all three vertices have valid layer
 // coordinates, the triangle's coordinate box overlaps the decal rectangle, and (planar projection only)
-// the triangle faces the projection (a cone chart, FLAG_CONE: by the opened images, shared/cone.wgsl). Appends them to the layer's list and grows the layer's texel
-// bounding box in the output texture. The triangles tested are the layer's candidates
+// the triangle faces the projection. Appends them to the layer's list and grows the layer's texel
+// bounding box in the output texture. A cone chart (FLAG_CONE, shared/cone.wgsl) is tested by its
+// opened images. The triangles tested are the layer's candidates
 // (`ranges[params.slot]`: offset and count in `cands`, every triangle with a vertex its map can
 // reach, src/bake/maps.rs), or every triangle of the mesh where the offset is NO_CANDIDATES.
 // Dispatch: (ceil(tested / 64), 1, 1). CPU twin: `select_triangles` in src/bake/cpu.rs (over the
@@ -53,10 +54,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var z2 = c2.xy;
     var cut = false;
     if ((params.flags & FLAG_CONE) != 0u) {
-        // A cone chart: the cut's triangles are drawn (the fragments outside the decal are not
-        // painted); the others are tested by their opened images, with a margin of a tenth of
-        // their box for their curved edges.
-        cut = cone_cut_crosses(params.cone_a, z0, z1, z2);
+        // A cone chart: the cut's triangles and those near the tip are drawn (the fragments
+        // outside the decal are not painted); the others are tested by their opened images, with
+        // a margin of a tenth of their box for their curved edges.
+        cut = cone_cut_crosses(params.cone_a, z0, z1, z2) || cone_near_tip(params.cone_a, z0, z1, z2);
         z0 = cone_apply(params.cone_a, params.cone_b, z0);
         z1 = cone_apply(params.cone_a, params.cone_b, z1);
         z2 = cone_apply(params.cone_a, params.cone_b, z2);

@@ -12,7 +12,7 @@
 
 const PLACE_GROUPS: u32 = 32u;
 const NO_TRI: u32 = 0xffffffffu;
-// Two entries a level; keep in sync with `MAX_DEPTH` in src/mesh/bvh.rs.
+// The walk holds at most depth + 1 entries; `MAX_DEPTH` in src/mesh/bvh.rs keeps the tree below.
 const STACK: u32 = 64u;
 const MAX_STEPS: u32 = 50000u;
 

@@ -11,24 +11,27 @@
 //! the image runs ahead of the surface (1.3× at half the decal's size on Spot's horn) and the decal
 //! covers about half the surface the exponential map's does. No seamless map can keep both.
 //!
-//! The cone transform opens the chart instead. With q = −i (w − w₀) (w₀ the tip's image),
+//! The cone transform opens the chart instead. With q = (w − w₀) · conj(ρ) (w₀ the tip's image,
+//! ρ = −e^{iφ_c} for a cut in direction φ_c; for the downward cut q = −i (w − w₀) and ρ = i),
 //!
-//! z = β + α · i · q^k,  k = θ / 2π,  principal branch (arg q in (−π, π]),
+//! z = β + α · ρ · q^k,  k = θ / 2π,  principal branch (arg q in (−π, π]),
 //!
 //! maps the uncut chart onto a wedge of angle 2πk: on an exact cone of half-angle φ (k = sin φ) it is
 //! the cone's isometric development, and on a rounded tip it undoes the growth outside the rounded
 //! part. k is measured from the chart, as the k that makes the opened chart's scale at the decal's
-//! outer half equal to its scale at the centre (`wedge`), not taken from Ω. The branch cut, where the image is discontinuous, is the ray from the tip along the image's
-//! −y axis (towards the image's bottom edge): the decal's bottom is where the wedge of the image that
-//! no surface receives ends up, as the exponential map leaves an unused wedge where its geodesics
-//! close. α (scale and turn) keeps the chart's scale and orientation at the placed point (the same
-//! ring median as step 3, [`super::FIT_RADIUS`]); β keeps the placed point where it was.
+//! outer half equal to its scale at the centre (`wedge`), not taken from Ω. The branch cut, where
+//! the image is discontinuous, is the ray from the tip in direction φ_c ([`cut_angle`]): towards the
+//! image's bottom edge for a decal on the tip, else away from the placed point, so it never runs
+//! through the decal's centre. The wedge of the image that no surface receives ends up there, as
+//! the exponential map leaves an unused wedge where its geodesics close. α (scale and turn) keeps
+//! the chart's scale and orientation at the placed point; β keeps the placed point where it was.
 //!
 //! The coordinate slots keep `w`, which is continuous across the cut; every consumer applies the
 //! transform: the raster per fragment (`wgsl/shared/cone.wgsl`), so the cut runs exactly through the
-//! triangles it crosses; the selection, the distortion measure, the fold check and `decalbake param`
-//! per vertex, leaving out the triangles the cut crosses ([`Cone::cut_crosses`]), whose per-vertex
-//! images would straddle the wedge.
+//! triangles it crosses; the selection per vertex, keeping the triangles the cut crosses and those
+//! near the tip (whose opened edges bend most); the distortion measure, the fold check and
+//! `decalbake param` per vertex, leaving out the triangles the cut crosses ([`Cone::cut_crosses`]),
+//! whose per-vertex images would straddle the wedge.
 //!
 //! A chart gets a cone only where it needs one ([`fit`]): its scale over the vertices within half
 //! the decal's size ([`CONE_CHECK`]) is more than [`CONE_TRIGGER`] times the size asked for, and
@@ -48,6 +51,9 @@ pub const CONE_TRIGGER: f64 = 1.1;
 /// Radius (fraction of the decal's larger side) over which the scale is checked and the curvature
 /// gathered: half the size, the decal's edge.
 pub const CONE_CHECK: f64 = 0.5;
+/// A tip closer than this fraction of the decal's side to the placed point counts as under it
+/// ([`cut_angle`]).
+pub const TIP_AT_POINT: f64 = 0.02;
 /// Smallest wedge fraction k: a tip sharper than this (Ω > 1.75π) is treated as this one.
 pub const MIN_WEDGE: f64 = 0.25;
 
@@ -56,7 +62,11 @@ pub const MIN_WEDGE: f64 = 0.25;
 pub struct Cone {
     /// The tip's image w₀ in the uncut chart.
     pub tip: [f64; 2],
-    /// Wedge fraction k = θ / 2π = 1 − Ω / 2π.
+    /// Direction of the cut from the tip (radians from the image's +x axis): −π/2 (the image's
+    /// bottom) when the tip is near the placed point, else away from the placed point
+    /// ([`cut_angle`]).
+    pub cut: f64,
+    /// Wedge fraction k = θ / 2π (measured, `wedge`).
     pub k: f64,
     /// Complex scale and turn α.
     pub alpha: [f64; 2],
@@ -67,13 +77,21 @@ pub struct Cone {
 }
 
 impl Cone {
-    /// q = −i (w − w₀).
-    fn q(&self, w: DVec2) -> DVec2 {
-        let d = w - DVec2::from(self.tip);
-        DVec2::new(d.y, -d.x)
+    /// ρ = −e^{iφ_c}, the unit complex number that turns the cut onto q's negative real axis.
+    fn rho(&self) -> DVec2 {
+        -DVec2::new(self.cut.cos(), self.cut.sin())
     }
 
-    /// i q^k on the principal branch, before α and β.
+    /// q = (w − w₀) · conj(ρ) (= −i (w − w₀) for the downward cut), with −0 as +0 in its imaginary
+    /// part, so a point on the cut's line is on the same side in Rust and WGSL.
+    fn q(&self, w: DVec2) -> DVec2 {
+        let d = w - DVec2::from(self.tip);
+        let r = self.rho();
+        let q = cmul(d, DVec2::new(r.x, -r.y));
+        DVec2::new(q.x, if q.y == 0.0 { 0.0 } else { q.y })
+    }
+
+    /// ρ q^k on the principal branch, before α and β.
     fn raw(&self, w: DVec2) -> DVec2 {
         let q = self.q(w);
         let r = q.length();
@@ -82,7 +100,7 @@ impl Cone {
         }
         let a = self.k * q.y.atan2(q.x);
         let m = r.powf(self.k);
-        DVec2::new(-m * a.sin(), m * a.cos())
+        cmul(self.rho(), DVec2::new(m * a.cos(), m * a.sin()))
     }
 
     /// The opened chart's coordinates of a point the uncut chart puts at `w`.
@@ -91,7 +109,7 @@ impl Cone {
     }
 
     /// Whether the cut crosses the triangle with uncut images `w`: some edge meets the ray from the
-    /// tip along −y (q's negative real axis). A triangle around the tip always does.
+    /// tip in the cut's direction (q's negative real axis). A triangle around the tip always does.
     pub fn cut_crosses(&self, w: [DVec2; 3]) -> bool {
         let q = w.map(|w| self.q(w));
         (0..3).any(|i| {
@@ -103,10 +121,26 @@ impl Cone {
         })
     }
 
-    /// The two `vec4`s of the WGSL `Params` (`cone_a`: tip, k; `cone_b`: α, β).
+    /// Whether the triangle with uncut images `w` lies near the tip: a corner closer to it than the
+    /// triangle's own extent (its opened edges bend most; the selection keeps it).
+    pub fn near_tip(&self, w: [DVec2; 3]) -> bool {
+        let ext = w[0].max(w[1]).max(w[2]) - w[0].min(w[1]).min(w[2]);
+        let tip = DVec2::from(self.tip);
+        w.iter()
+            .map(|p| (*p - tip).length())
+            .fold(f64::INFINITY, f64::min)
+            < ext.max_element()
+    }
+
+    /// The two `vec4`s of the WGSL `Params` (`cone_a`: tip, k, cut angle; `cone_b`: α, β).
     pub fn params(&self) -> ([f32; 4], [f32; 4]) {
         (
-            [self.tip[0] as f32, self.tip[1] as f32, self.k as f32, 0.0],
+            [
+                self.tip[0] as f32,
+                self.tip[1] as f32,
+                self.k as f32,
+                self.cut as f32,
+            ],
             [
                 self.alpha[0] as f32,
                 self.alpha[1] as f32,
@@ -173,9 +207,11 @@ pub fn fit(topo: &Topology, c: &ChartView) -> Option<Cone> {
         return None;
     }
     let tip = tip / weight;
-    let k = wedge(topo, c, tip, zs)?;
+    let cut = cut_angle(tip, zs, side);
+    let k = wedge(topo, c, (tip, cut), zs)?;
     let mut cone = Cone {
         tip: tip.to_array(),
+        cut,
         k: k.clamp(MIN_WEDGE, 1.0),
         alpha: [1.0, 0.0],
         beta: [0.0, 0.0],
@@ -195,7 +231,7 @@ pub fn fit(topo: &Topology, c: &ChartView) -> Option<Cone> {
 /// and k = 1 − Ω / 2π over-opens the chart (Spot's horn: 0.18 from Ω); a log-log fit of the
 /// growth from the tip weighs the rounded cap, where the chart does not grow, and under-opens it.
 /// `None` when the chart does not outgrow the surface at k = 1.
-fn wedge(topo: &Topology, c: &ChartView, tip: DVec2, zs: DVec2) -> Option<f64> {
+fn wedge(topo: &Topology, c: &ChartView, (tip, cut): (DVec2, f64), zs: DVec2) -> Option<f64> {
     let side = c.frame.size[0].max(c.frame.size[1]) as f64;
     let near = ring(topo, c, side);
     let outer: Vec<(f64, u32)> = vertices_by_distance(topo, c)
@@ -208,6 +244,7 @@ fn wedge(topo: &Topology, c: &ChartView, tip: DVec2, zs: DVec2) -> Option<f64> {
     let ratio = |k: f64| -> Option<f64> {
         let cone = Cone {
             tip: tip.to_array(),
+            cut,
             k,
             alpha: [1.0, 0.0],
             beta: [0.0, 0.0],
@@ -241,6 +278,20 @@ fn wedge(topo: &Topology, c: &ChartView, tip: DVec2, zs: DVec2) -> Option<f64> {
         }
     }
     Some(0.5 * (lo + hi))
+}
+
+/// The cut's direction from the tip for a decal placed at `zs` (images in the uncut chart): away
+/// from the placed point, so the cut never crosses the decal's centre, unless the tip is within
+/// [`TIP_AT_POINT`] × the decal's side of it (a decal on the tip itself, where that direction is
+/// noise that would differ between the GPU's and the CPU's charts): then towards the image's bottom
+/// edge (−π/2), the side a decal's `up` points away from.
+pub fn cut_angle(tip: DVec2, zs: DVec2, side: f64) -> f64 {
+    let d = tip - zs;
+    if d.length() > TIP_AT_POINT * side {
+        d.y.atan2(d.x)
+    } else {
+        -std::f64::consts::FRAC_PI_2
+    }
 }
 
 /// The chart's vertices with their distance from the placed point, nearest first.
@@ -314,8 +365,8 @@ fn keep_at_point(topo: &Topology, c: &ChartView, cone: &Cone, zs: DVec2) -> Opti
     Some(turn / scale)
 }
 
-/// Directions `keep_at_point` averages the turn over (a multiple of 4 plus 0: with the half-step
-/// offset none lies on the cut, the −y direction, when the tip is at the placed point).
+/// Directions `keep_at_point` averages the turn over (a multiple of 4: with the half-step offset
+/// none lies on a downward cut from a tip at the placed point).
 pub const TURN_SAMPLES: usize = 64;
 
 /// Fewest vertices `keep_at_point` measures over.

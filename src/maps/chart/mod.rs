@@ -637,21 +637,23 @@ fn assess(topo: &Topology, req: &ChartRequest, chart: &mut Chart) {
         .collect();
     tris.sort_unstable();
     tris.dedup();
+    // The placed point's image, interpolated in the uncut chart (the placed triangle is the one a
+    // cut from a tip under the decal crosses), then opened.
+    let st = topo.triangles[req.triangle as usize];
+    let p = req.frame.center.as_dvec3();
+    let bary = lscm::barycentric(st.map(|v| topo.positions[v as usize].as_dvec3()), p);
+    let mut zs = st.iter().zip(bary).fold(DVec2::ZERO, |a, (&v, w)| {
+        a + w * z.get(&v).copied().unwrap_or(DVec2::NAN)
+    });
     if let Some(c) = chart.report.cone {
         // The cut's triangles are drawn per fragment, their per-vertex images straddle the wedge.
         tris.retain(|&t| !c.cut_crosses(topo.triangles[t as usize].map(|v| z[&v])));
         for q in z.values_mut() {
             *q = c.apply(*q);
         }
+        zs = c.apply(zs);
     }
     let coord = |v: u32| z.get(&v).map_or([f64::NAN; 2], |c| [c.x, c.y]);
-    let st = topo.triangles[req.triangle as usize];
-    let p = req.frame.center.as_dvec3();
-    let bary = lscm::barycentric(st.map(|v| topo.positions[v as usize].as_dvec3()), p);
-    let zs = st
-        .iter()
-        .zip(bary)
-        .fold(DVec2::ZERO, |a, (&v, w)| a + w * DVec2::from(coord(v)));
     let radius = CHECK_RADIUS * max_side(&req.frame);
     let r = &mut chart.report;
     r.scale_at_point =
