@@ -72,8 +72,20 @@ fn a_batch_isolates_failures_resumes_and_writes_what_bake_writes() {
         args.extend_from_slice(extra);
         cli(&args)
     };
-    let (code, _, err) = run(&[]);
+    let (code, stdout, err) = run(&["--progress", "json"]);
     assert_eq!(code, 3, "some job failed: {err}");
+    // --progress json: one event per job on stdout, then the counts.
+    let events: Vec<Value> = stdout
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(events.len(), 5, "{stdout}");
+    assert!(events[..4]
+        .iter()
+        .all(|e| e["event"] == "job" && e["total"] == 4));
+    assert_eq!(events[2]["status"], "failed");
+    assert_eq!(events[4]["event"], "done");
+    assert_eq!(events[4]["counts"]["ok"], 3);
     let s = summary(&out.join("summary.json"));
     assert_eq!(
         statuses(&s),

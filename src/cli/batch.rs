@@ -55,6 +55,82 @@ pub struct BatchOptions {
     pub fail_fast: bool,
     /// Where the summary goes (default: `summary.json` in the output root or beside the manifest).
     pub summary: Option<PathBuf>,
+    /// How progress is shown.
+    pub progress: ProgressMode,
+}
+
+/// `--progress`: a bar on a terminal, log lines otherwise (`auto`), or JSON events on stdout.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ProgressMode {
+    /// A bar when stderr is a terminal, else one log line per job.
+    Auto,
+    /// One log line per job on stderr.
+    Lines,
+    /// One JSON object per job on stdout (`{"event": "job", ...}`), then `{"event": "done", ...}`.
+    Json,
+}
+
+/// Progress as it is shown (see [`ProgressMode`]).
+enum Progress {
+    Bar(indicatif::ProgressBar),
+    Lines,
+    Json,
+}
+
+impl Progress {
+    fn new(mode: ProgressMode, total: usize) -> Self {
+        use std::io::IsTerminal;
+        match mode {
+            ProgressMode::Json => Progress::Json,
+            ProgressMode::Auto if std::io::stderr().is_terminal() => {
+                let bar = indicatif::ProgressBar::new(total as u64);
+                bar.set_style(
+                    indicatif::ProgressStyle::with_template(
+                        "{bar:40} {pos}/{len} jobs, {per_sec}, ETA {eta}  {msg}",
+                    )
+                    .expect("a valid template"),
+                );
+                Progress::Bar(bar)
+            }
+            _ => Progress::Lines,
+        }
+    }
+
+    /// Job `done` of `total` finished with summary row `row`.
+    fn job(&self, done: usize, total: usize, row: &Value) {
+        let status = row["status"].as_str().unwrap_or("?");
+        let why = row["message"]
+            .as_str()
+            .map(|m| format!(": {m}"))
+            .unwrap_or_default();
+        let line = row["line"].as_u64().unwrap_or(0);
+        match self {
+            Progress::Bar(bar) => {
+                if status == "failed" {
+                    bar.println(format!("line {line}: failed{why}"));
+                }
+                bar.set_message(format!("line {line}: {status}"));
+                bar.inc(1);
+            }
+            Progress::Lines => eprintln!("[{done}/{total}] line {line}: {status}{why}"),
+            Progress::Json => println!(
+                "{}",
+                json!({ "event": "job", "done": done, "total": total, "line": line,
+                        "status": status, "ms": row["ms"], "message": row["message"] })
+            ),
+        }
+    }
+
+    fn finish(&self, summary: &Value, path: &Path) {
+        match self {
+            Progress::Bar(bar) => bar.finish_with_message(format!("summary: {}", path.display())),
+            Progress::Lines => eprintln!("summary: {}", path.display()),
+            Progress::Json => println!(
+                "{}",
+                json!({ "event": "done", "counts": summary["counts"], "summary": path.display().to_string() })
+            ),
+        }
+    }
 }
 
 /// One job of the manifest.
@@ -87,6 +163,7 @@ pub fn run(engine: &Engine, opts: &BatchOptions) -> Result<i32> {
     let mut meshes = MeshCache::default();
     let mut rows = Vec::new();
     let mut failed = 0;
+    let progress = Progress::new(opts.progress, mine.len());
     for (n, entry) in mine.iter().enumerate() {
         let t = Instant::now();
         let row = match bake_entry(engine, opts, entry, &mut meshes) {
@@ -102,17 +179,7 @@ pub fn run(engine: &Engine, opts: &BatchOptions) -> Result<i32> {
         row["line"] = json!(entry.line);
         row["job"] = json!(entry.file.as_ref().map(|f| f.display().to_string()));
         row["ms"] = json!(t.elapsed().as_secs_f64() * 1000.0);
-        eprintln!(
-            "[{}/{}] line {}: {}{}",
-            n + 1,
-            mine.len(),
-            entry.line,
-            row["status"].as_str().unwrap_or("?"),
-            row["message"]
-                .as_str()
-                .map(|m| format!(": {m}"))
-                .unwrap_or_default()
-        );
+        progress.job(n + 1, mine.len(), &row);
         rows.push(row);
         if failed > 0 && opts.fail_fast {
             break;
@@ -141,7 +208,7 @@ pub fn run(engine: &Engine, opts: &BatchOptions) -> Result<i32> {
             .join(name)
     });
     write_json(&path, &summary)?;
-    eprintln!("summary: {}", path.display());
+    progress.finish(&summary, &path);
     Ok(if failed > 0 { 3 } else { 0 })
 }
 

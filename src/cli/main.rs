@@ -56,6 +56,10 @@ enum Cmd {
         /// Join these shard summaries into --summary instead of baking.
         #[arg(long, num_args = 1..)]
         merge_summaries: Vec<PathBuf>,
+        /// Progress: a bar on a terminal, else one line per job (auto), lines, or JSON events on
+        /// stdout (json).
+        #[arg(long, value_enum, default_value = "auto")]
+        progress: batch::ProgressMode,
     },
     /// Bake a job file.
     Bake {
@@ -175,6 +179,7 @@ fn run(cli: Cli) -> Result<()> {
             fail_fast,
             summary,
             merge_summaries,
+            progress,
         } => {
             let code = if !merge_summaries.is_empty() {
                 let Some(summary) = summary else {
@@ -193,6 +198,7 @@ fn run(cli: Cli) -> Result<()> {
                     resume,
                     fail_fast,
                     summary,
+                    progress,
                 };
                 batch::run(&engine, &opts)?
             };
