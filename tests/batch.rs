@@ -199,6 +199,38 @@ fn shards_cover_the_manifest_once_and_merge() {
         std::fs::read(dir.join("shard0/line-5/d.png")).unwrap(),
         std::fs::read(full.join("line-5/d.png")).unwrap()
     );
+    // Two jobs at once on one engine: the same summary and the same bytes as one at a time.
+    let par = dir.join("jobs2");
+    let (code, _, err) = cli(&[
+        "batch",
+        m.to_str().unwrap(),
+        "--out",
+        par.to_str().unwrap(),
+        "--jobs",
+        "2",
+    ]);
+    assert_eq!(code, 3, "{err}");
+    assert_eq!(statuses(&summary(&par.join("summary.json"))), statuses(&b));
+    for f in [
+        "line-1-a/a.png",
+        "line-2/b.png",
+        "line-5/d.png",
+        "line-1-a/a.report.json",
+    ] {
+        let (x, y) = (
+            std::fs::read(par.join(f)).unwrap(),
+            std::fs::read(full.join(f)).unwrap(),
+        );
+        if f.ends_with(".png") {
+            assert_eq!(x, y, "{f} differs between --jobs 2 and one at a time");
+        } else {
+            let (x, y): (Value, Value) = (
+                serde_json::from_slice(&x).unwrap(),
+                serde_json::from_slice(&y).unwrap(),
+            );
+            assert_eq!(x["input_hash"], y["input_hash"]);
+        }
+    }
     // A Slurm array task: index minus the array's first index, count from Slurm.
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_decalbake"))
         .args([

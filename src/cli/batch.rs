@@ -27,8 +27,11 @@
 //! - **Meshes** stay loaded between jobs, least recently used first out when their estimated size
 //!   passes [`MESH_BUDGET`].
 //!
-//! Jobs run one after another in this process; outputs do not depend on the shard, order or the
-//! meshes cached (a bake is deterministic), which `tests/batch.rs` checks byte for byte.
+//! `--jobs K` bakes K jobs at once on threads sharing one engine (and the mesh cache; a mesh loads
+//! under its lock); outputs do not depend on the shard, order, concurrency or the meshes cached (a
+//! bake is deterministic and each bake's raster and compose are one command buffer, so the raster
+//! targets the engine pools are never shared between two bakes in flight), which `tests/batch.rs`
+//! checks byte for byte.
 
 use anyhow::{bail, Context, Result};
 use decalbake::{Engine, Job, LoadedMesh};
@@ -57,6 +60,8 @@ pub struct BatchOptions {
     pub summary: Option<PathBuf>,
     /// How progress is shown.
     pub progress: ProgressMode,
+    /// Jobs baked at once, on threads sharing the engine (outputs do not depend on it).
+    pub jobs: usize,
 }
 
 /// `--progress`: a bar on a terminal, log lines otherwise (`auto`), or JSON events on stdout.
@@ -160,31 +165,9 @@ pub fn run(engine: &Engine, opts: &BatchOptions) -> Result<i32> {
         .filter(|(k, _)| k % count == index)
         .map(|(_, e)| e)
         .collect();
-    let mut meshes = MeshCache::default();
-    let mut rows = Vec::new();
-    let mut failed = 0;
     let progress = Progress::new(opts.progress, mine.len());
-    for (n, entry) in mine.iter().enumerate() {
-        let t = Instant::now();
-        let row = match bake_entry(engine, opts, entry, &mut meshes) {
-            Ok((status, outputs, hash)) => {
-                json!({ "status": status, "outputs": outputs, "input_hash": hash })
-            }
-            Err(e) => {
-                failed += 1;
-                failure(&e)
-            }
-        };
-        let mut row = row;
-        row["line"] = json!(entry.line);
-        row["job"] = json!(entry.file.as_ref().map(|f| f.display().to_string()));
-        row["ms"] = json!(t.elapsed().as_secs_f64() * 1000.0);
-        progress.job(n + 1, mine.len(), &row);
-        rows.push(row);
-        if failed > 0 && opts.fail_fast {
-            break;
-        }
-    }
+    let rows = bake_all(engine, opts, &mine, &progress);
+    let failed = rows.iter().filter(|r| r["status"] == "failed").count();
     let summary = summary_of(
         rows,
         json!({ "index": index, "count": count, "source": source }),
@@ -210,6 +193,51 @@ pub fn run(engine: &Engine, opts: &BatchOptions) -> Result<i32> {
     write_json(&path, &summary)?;
     progress.finish(&summary, &path);
     Ok(if failed > 0 { 3 } else { 0 })
+}
+
+/// Bakes `mine` on `opts.jobs` threads sharing the engine and the mesh cache, each taking the next
+/// job in manifest order (`--fail-fast`: no new job after a failure); their summary rows.
+fn bake_all(
+    engine: &Engine,
+    opts: &BatchOptions,
+    mine: &[&Entry],
+    progress: &Progress,
+) -> Vec<Value> {
+    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+    use std::sync::Mutex;
+    let (next, done, stop) = (
+        AtomicUsize::new(0),
+        AtomicUsize::new(0),
+        AtomicBool::new(false),
+    );
+    let meshes = Mutex::new(MeshCache::default());
+    let rows = Mutex::new(Vec::new());
+    std::thread::scope(|scope| {
+        for _ in 0..opts.jobs.max(1) {
+            scope.spawn(|| loop {
+                let k = next.fetch_add(1, Ordering::SeqCst);
+                if k >= mine.len() || stop.load(Ordering::SeqCst) {
+                    break;
+                }
+                let (entry, t) = (mine[k], Instant::now());
+                let mut row = match bake_entry(engine, opts, entry, &meshes) {
+                    Ok((status, outputs, hash)) => {
+                        json!({ "status": status, "outputs": outputs, "input_hash": hash })
+                    }
+                    Err(e) => {
+                        stop.fetch_or(opts.fail_fast, Ordering::SeqCst);
+                        failure(&e)
+                    }
+                };
+                row["line"] = json!(entry.line);
+                row["job"] = json!(entry.file.as_ref().map(|f| f.display().to_string()));
+                row["ms"] = json!(t.elapsed().as_secs_f64() * 1000.0);
+                progress.job(done.fetch_add(1, Ordering::SeqCst) + 1, mine.len(), &row);
+                rows.lock().expect("rows").push(row);
+            });
+        }
+    });
+    rows.into_inner().expect("rows")
 }
 
 /// The manifest's jobs; any line that is neither a string nor an object stops the batch.
@@ -306,7 +334,7 @@ fn bake_entry(
     engine: &Engine,
     opts: &BatchOptions,
     entry: &Entry,
-    meshes: &mut MeshCache,
+    meshes: &std::sync::Mutex<MeshCache>,
 ) -> Result<(&'static str, Vec<String>, String)> {
     let manifest_dir = opts.manifest.parent().unwrap_or(Path::new(""));
     let (source, input_dir) = match &entry.file {
@@ -353,7 +381,7 @@ fn bake_entry(
     if opts.resume && up_to_date(&job, &outputs, &hash) {
         return Ok(("skipped", names(), hash));
     }
-    let mesh = meshes.get(engine, &job.mesh)?;
+    let mesh = meshes.lock().expect("mesh cache").get(engine, &job.mesh)?;
     let mut baked = engine.bake(&mesh, &job)?;
     baked.report.input_hash = Some(hash.clone());
     // The old report goes first: a run killed between renames must not leave it vouching for a

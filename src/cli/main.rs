@@ -60,6 +60,9 @@ enum Cmd {
         /// stdout (json).
         #[arg(long, value_enum, default_value = "auto")]
         progress: batch::ProgressMode,
+        /// Jobs baked at once (threads sharing the engine).
+        #[arg(long, default_value_t = 1)]
+        jobs: usize,
     },
     /// Bake a job file.
     Bake {
@@ -180,6 +183,7 @@ fn run(cli: Cli) -> Result<()> {
             summary,
             merge_summaries,
             progress,
+            jobs,
         } => {
             let code = if !merge_summaries.is_empty() {
                 let Some(summary) = summary else {
@@ -199,6 +203,7 @@ fn run(cli: Cli) -> Result<()> {
                     fail_fast,
                     summary,
                     progress,
+                    jobs,
                 };
                 batch::run(&engine, &opts)?
             };
