@@ -124,7 +124,6 @@ impl Baked {
 }
 
 /// Pooled raster targets of one size.
-/// Pooled raster targets of one size.
 pub(crate) struct Targets {
     pub color_view: wgpu::TextureView,
     pub cov_view: wgpu::TextureView,
@@ -133,6 +132,14 @@ pub(crate) struct Targets {
 }
 
 /// The engine: a device, its pipelines and pooled targets. Load meshes once, bake many jobs.
+///
+/// `Engine` and [`LoadedMesh`] are `Send` and `Sync`: several threads may bake with one engine
+/// and one mesh at once (`decalbake batch --jobs`, a host renderer's worker threads). Each bake
+/// records its raster and compose into one command buffer, so the raster targets the engine pools
+/// by size are never used by two bakes in flight; the mesh's caches (islands, material texture)
+/// are behind a lock. Results are the same bytes as baking one after another
+/// (`tests/demo_and_api.rs`). Settings such as [`Engine::whole_mesh_selection`] are fields: set
+/// them before sharing the engine.
 pub struct Engine {
     /// The GPU context.
     pub ctx: GpuContext,
