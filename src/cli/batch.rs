@@ -73,6 +73,8 @@ pub enum ProgressMode {
     Lines,
     /// One JSON object per job on stdout (`{"event": "job", ...}`), then `{"event": "done", ...}`.
     Json,
+    /// Nothing (`decalbake bench --batch-bake`).
+    None,
 }
 
 /// Progress as it is shown (see [`ProgressMode`]).
@@ -80,6 +82,7 @@ enum Progress {
     Bar(indicatif::ProgressBar),
     Lines,
     Json,
+    None,
 }
 
 impl Progress {
@@ -87,6 +90,7 @@ impl Progress {
         use std::io::IsTerminal;
         match mode {
             ProgressMode::Json => Progress::Json,
+            ProgressMode::None => Progress::None,
             ProgressMode::Auto if std::io::stderr().is_terminal() => {
                 let bar = indicatif::ProgressBar::new(total as u64);
                 bar.set_style(
@@ -123,6 +127,7 @@ impl Progress {
                 json!({ "event": "job", "done": done, "total": total, "line": line,
                         "status": status, "ms": row["ms"], "message": row["message"] })
             ),
+            Progress::None => {}
         }
     }
 
@@ -134,6 +139,7 @@ impl Progress {
                 "{}",
                 json!({ "event": "done", "counts": summary["counts"], "summary": path.display().to_string() })
             ),
+            Progress::None => {}
         }
     }
 }

@@ -147,6 +147,10 @@ enum Cmd {
         /// potpourri3d's log maps on the same patches / meshes and seeds.
         #[arg(long)]
         peers: Option<PathBuf>,
+        /// Jobs per minute of `decalbake batch` against one `decalbake bake` process per job:
+        /// the first `--decals` value is the number of jobs, at `--sizes` in turn.
+        #[arg(long)]
+        batch_bake: bool,
         /// With `--linalg`: chart sizes (vertices) to solve one at a time.
         #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000")]
         charts: Vec<usize>,
@@ -185,32 +189,17 @@ fn run(cli: Cli) -> Result<()> {
             progress,
             jobs,
         } => {
-            let code = if !merge_summaries.is_empty() {
-                let Some(summary) = summary else {
-                    anyhow::bail!(bad_usage("--merge-summaries needs --summary OUT.json"));
-                };
-                batch::merge(&merge_summaries, &summary)?
-            } else {
-                let Some(manifest) = manifest else {
-                    anyhow::bail!(bad_usage("give a manifest (or --merge-summaries)"));
-                };
-                let engine = engine(cli.backend.as_deref())?;
-                let opts = batch::BatchOptions {
-                    manifest,
-                    out,
-                    shard,
-                    resume,
-                    fail_fast,
-                    summary,
-                    progress,
-                    jobs,
-                };
-                batch::run(&engine, &opts)?
-            };
-            if code != 0 {
-                std::process::exit(code);
-            }
-            Ok(())
+            let opts = manifest.map(|manifest| batch::BatchOptions {
+                manifest,
+                out,
+                shard,
+                resume,
+                fail_fast,
+                summary: summary.clone(),
+                progress,
+                jobs,
+            });
+            batch_cmd(cli.backend.as_deref(), opts, &merge_summaries, summary)
         }
         Cmd::Param { job, layer, out } => {
             let job = Job::load(&job, None)?;
@@ -247,8 +236,13 @@ fn run(cli: Cli) -> Result<()> {
             device,
             peers,
             charts,
+            batch_bake,
         } => {
             let mut engine = engine(cli.backend.as_deref())?;
+            if batch_bake {
+                let count = decals.first().copied().unwrap_or(40);
+                return bench::batch::run(&engine, count, &sizes, |v| println!("{v}"));
+            }
             if strokes {
                 let opts = bench::strokes::StrokeBenchOptions {
                     mesh,
@@ -313,6 +307,31 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// `decalbake batch`: bake a manifest (`opts`), or join shard summaries into `summary`; exits
+/// with the batch's code (3: some job failed).
+fn batch_cmd(
+    backend: Option<&str>,
+    opts: Option<batch::BatchOptions>,
+    merge: &[PathBuf],
+    summary: Option<PathBuf>,
+) -> Result<()> {
+    let code = if !merge.is_empty() {
+        let Some(summary) = summary else {
+            anyhow::bail!(bad_usage("--merge-summaries needs --summary OUT.json"));
+        };
+        batch::merge(merge, &summary)?
+    } else {
+        let Some(opts) = opts else {
+            anyhow::bail!(bad_usage("give a manifest (or --merge-summaries)"));
+        };
+        batch::run(&engine(backend)?, &opts)?
+    };
+    if code != 0 {
+        std::process::exit(code);
+    }
+    Ok(())
 }
 
 /// A usage mistake, reported as an input error (exit 2).

@@ -2,6 +2,7 @@
 //! `decalbake bench`: the bake ([`bake`]), exponential maps ([`geodesic`]) and the linear algebra
 //! ([`linalg`]), each printing JSON lines; [`common`] holds the workloads they share.
 pub mod bake;
+pub mod batch;
 pub mod common;
 pub mod device;
 pub mod geodesic;
