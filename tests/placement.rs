@@ -100,74 +100,11 @@ fn placement_on_a_plane_is_exact() {
     assert!((b[0] + b[1] + b[2] - 1.0).abs() < 1e-6 && b.iter().all(|x| *x >= 0.0));
 }
 
-/// An icosphere of radius 1 subdivided `levels` times (20 · 4^levels triangles).
-fn icosphere(levels: u32) -> (Vec<[f32; 3]>, Vec<u32>) {
-    let t = (1.0 + 5f32.sqrt()) / 2.0;
-    let mut pos: Vec<Vec3> = [
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ]
-    .iter()
-    .map(|p| Vec3::from(*p).normalize())
-    .collect();
-    let mut tris: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..levels {
-        let mut mid = std::collections::HashMap::new();
-        let mut next = Vec::new();
-        for [a, b, c] in tris {
-            let mut m = |x: u32, y: u32| {
-                *mid.entry((x.min(y), x.max(y))).or_insert_with(|| {
-                    pos.push((pos[x as usize] + pos[y as usize]).normalize());
-                    pos.len() as u32 - 1
-                })
-            };
-            let (ab, bc, ca) = (m(a, b), m(b, c), m(c, a));
-            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        tris = next;
-    }
-    (
-        pos.iter().map(|p| p.to_array()).collect(),
-        tris.into_iter().flatten().collect(),
-    )
-}
-
 /// Placement through the BVH (`place_bvh`) finds exactly what testing every triangle finds
 /// (`place_gpu_brute`; same triangle, same point bit for bit, ties to the lower triangle), for
 /// points near and far from Bob, points exactly at vertices and rays through them (ties between
 /// the triangles of a fan), rays from outside and from inside, and rays that miss; and on a
-/// finely tessellated sphere for its centre, which is nearly equidistant from all 328k triangles:
+/// finely tessellated sphere (`icosphere(128)`) for its centre, nearly equidistant from all 328k triangles:
 /// the walk there is cut short and the brute-force test finishes the query (without that fallback
 /// the query would come back empty or wrong).
 #[test]
@@ -221,10 +158,9 @@ fn bvh_placement_matches_testing_every_triangle() {
         assert_eq!(a, b, "{q:?}");
     }
     // The sphere's centre.
-    let (pos, idx) = icosphere(7);
-    let dir = scratch("bvh_sphere");
-    write_glb(&dir.join("sphere.glb"), &pos, None, &idx);
-    let sphere = engine.load_mesh(&dir.join("sphere.glb")).unwrap();
+    let sphere = engine
+        .prepare(decalbake::maps::expmap::sphere::icosphere(128))
+        .unwrap();
     let q = [
         Query::Point(Vec3::ZERO),
         Query::Point(Vec3::new(0.0, 0.0, 0.5)),

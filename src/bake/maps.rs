@@ -84,7 +84,8 @@ pub struct LayerMaps {
     pub range: Range<usize>,
     /// Per layer of the chunk: its `Params` (frame, slot, blend, flags).
     pub params: Vec<Params>,
-    /// `params` as a uniform buffer, one entry per [`PARAMS_STRIDE`].
+    /// `params` as a uniform buffer, one entry per [`PARAMS_STRIDE`] (uploaded after the chart
+    /// pass, which sets the cone fields; a one-entry placeholder before).
     pub buffer: wgpu::Buffer,
     /// Per layer of the chunk: the exponential-map report, for layers that have one.
     pub expmap: Vec<Option<GeoResult>>,
@@ -163,7 +164,8 @@ pub(crate) fn compute(
         .clone()
         .map(|i| layer_params(job, placed, i, range.start, global))
         .collect();
-    let buffer = params_buffer(&engine.ctx.device, "bake.layer_params", &params);
+    // Uploaded once the chart pass has set the cones' fields (the passes before do not read it).
+    let buffer = params_buffer(&engine.ctx.device, "bake.layer_params", &[]);
     let mut maps = LayerMaps {
         expmap: vec![None; range.len()],
         chart: vec![None; range.len()],
@@ -174,9 +176,7 @@ pub(crate) fn compute(
     };
     expmap_pass(cx, placed, slots, &mut maps, log)?;
     chart_pass(cx, placed, slots, &mut maps, log)?;
-    if maps.params.iter().any(|p| p.flags & FLAG_CONE != 0) {
-        maps.buffer = params_buffer(&engine.ctx.device, "bake.layer_params", &maps.params);
-    }
+    maps.buffer = params_buffer(&engine.ctx.device, "bake.layer_params", &maps.params);
     direct_pass(cx, placed, slots, &maps, log)?;
     direct_reach(cx, placed, &mut maps);
     blend_reach(placed, &mut maps);

@@ -216,7 +216,7 @@ fn bake_all(
         AtomicUsize::new(0),
         AtomicBool::new(false),
     );
-    let meshes = Mutex::new(MeshCache::default());
+    let shared = Shared::default();
     let rows = Mutex::new(Vec::new());
     std::thread::scope(|scope| {
         for _ in 0..opts.jobs.max(1) {
@@ -226,7 +226,7 @@ fn bake_all(
                     break;
                 }
                 let (entry, t) = (mine[k], Instant::now());
-                let mut row = match bake_entry(engine, opts, entry, &meshes) {
+                let mut row = match bake_entry(engine, opts, entry, &shared) {
                     Ok((status, outputs, hash)) => {
                         json!({ "status": status, "outputs": outputs, "input_hash": hash })
                     }
@@ -340,7 +340,7 @@ fn bake_entry(
     engine: &Engine,
     opts: &BatchOptions,
     entry: &Entry,
-    meshes: &std::sync::Mutex<MeshCache>,
+    shared: &Shared,
 ) -> Result<(&'static str, Vec<String>, String)> {
     let manifest_dir = opts.manifest.parent().unwrap_or(Path::new(""));
     let (source, input_dir) = match &entry.file {
@@ -372,7 +372,7 @@ fn bake_entry(
         (None, None) => unreachable!("a manifest entry is a path or a job"),
     };
     let job = Job::parse(&text, &source, &input_dir, &out_dir)?;
-    let hash = input_hash(&text, &job)?;
+    let hash = input_hash(&text, &job, shared)?;
     let outputs: Vec<PathBuf> = [
         &job.out_texture,
         &job.out_glb,
@@ -387,7 +387,11 @@ fn bake_entry(
     if opts.resume && up_to_date(&job, &outputs, &hash) {
         return Ok(("skipped", names(), hash));
     }
-    let mesh = meshes.lock().expect("mesh cache").get(engine, &job.mesh)?;
+    let mesh = shared
+        .meshes
+        .lock()
+        .expect("mesh cache")
+        .get(engine, &job.mesh)?;
     let mut baked = engine.bake(&mesh, &job)?;
     baked.report.input_hash = Some(hash.clone());
     // The old report goes first: a run killed between renames must not leave it vouching for a
@@ -414,10 +418,35 @@ fn up_to_date(job: &Job, outputs: &[PathBuf], hash: &str) -> bool {
     recorded.as_deref() == Some(hash) && outputs.iter().all(|p| p.exists())
 }
 
-/// SHA-256 of the engine version, the job's text and the bytes of every file it reads (the mesh,
-/// a `.gltf`'s external buffers and images, the base image, the layers' images and masks), each
-/// prefixed by its length.
-fn input_hash(text: &str, job: &Job) -> Result<String> {
+/// What the jobs of one run share: loaded meshes and the digests of the files they read.
+#[derive(Default)]
+struct Shared {
+    meshes: std::sync::Mutex<MeshCache>,
+    /// SHA-256 of each input file read so far, by path: a mesh that 200 jobs use is read and
+    /// hashed once per run (its bytes do not change while the batch runs).
+    digests: std::sync::Mutex<std::collections::HashMap<PathBuf, [u8; 32]>>,
+}
+
+impl Shared {
+    /// The file's SHA-256 (of no bytes when it cannot be read: that is the bake's error to report,
+    /// with its own message).
+    fn digest(&self, f: &Path) -> [u8; 32] {
+        if let Some(d) = self.digests.lock().expect("digests").get(f) {
+            return *d;
+        }
+        let d: [u8; 32] = Sha256::digest(std::fs::read(f).unwrap_or_default()).into();
+        self.digests
+            .lock()
+            .expect("digests")
+            .insert(f.to_path_buf(), d);
+        d
+    }
+}
+
+/// SHA-256 of the engine version, the job's text and the digests of every file it reads (the
+/// mesh, a `.gltf`'s external buffers and images, the base image, the layers' images and masks),
+/// each part prefixed by its length.
+fn input_hash(text: &str, job: &Job, shared: &Shared) -> Result<String> {
     let mut h = Sha256::new();
     let mut part = |bytes: &[u8]| {
         h.update((bytes.len() as u64).to_le_bytes());
@@ -435,8 +464,7 @@ fn input_hash(text: &str, job: &Job) -> Result<String> {
         files.extend(l.mask.clone());
     }
     for f in files {
-        // A file that cannot be read is the bake's error to report, with its own message.
-        part(&std::fs::read(&f).unwrap_or_default());
+        part(&shared.digest(&f));
     }
     Ok(format!("{:x}", h.finalize()))
 }

@@ -65,13 +65,14 @@ impl Bvh {
         }
         let corners = |t: u32| topo.triangles[t as usize].map(|v| topo.positions[v as usize]);
         let centroid = |t: u32| corners(t).iter().sum::<Vec3>() / 3.0;
-        let (lo, hi) = tris
-            .iter()
-            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |b, &t| {
-                corners(t)
-                    .iter()
-                    .fold(b, |(lo, hi), p| (lo.min(*p), hi.max(*p)))
-            });
+        let bounds = |ts: &[u32]| {
+            ts.iter()
+                .flat_map(|&t| corners(t))
+                .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
+                    (lo.min(p), hi.max(p))
+                })
+        };
+        let (lo, hi) = bounds(&tris);
         // Rounding in the keys grows with the coordinates' magnitude, not only the mesh's size.
         let scale = (hi - lo).length().max(lo.abs().max(hi.abs()).max_element());
         let pad = PAD * scale.max(f32::MIN_POSITIVE) + 1e-30;
@@ -87,13 +88,7 @@ impl Bvh {
         while let Some((node, start, end, d)) = work.pop() {
             depth = depth.max(d);
             let part = &mut tris[start..end];
-            let (lo, hi) = part
-                .iter()
-                .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |b, &t| {
-                    corners(t)
-                        .iter()
-                        .fold(b, |(lo, hi), p| (lo.min(*p), hi.max(*p)))
-                });
+            let (lo, hi) = bounds(part);
             nodes[node].lo = (lo - Vec3::splat(pad)).to_array();
             nodes[node].hi = (hi + Vec3::splat(pad)).to_array();
             if part.len() <= LEAF {
