@@ -103,6 +103,10 @@ pub fn run(
             let compose = med(|t| t.compose_ms);
             let gpu_total = median(totals.clone());
             let brute_ms = brute_placement_ms(engine, &loaded, &job)?;
+            // The placement BVH's build (part of the mesh's weld time), timed on its own.
+            let t_bvh = Instant::now();
+            let _ = decalbake::mesh::bvh::Bvh::build(&loaded.topo);
+            let bvh_ms = t_bvh.elapsed().as_secs_f64() * 1000.0;
             // The same bake with every layer selected over the whole mesh (no BVH candidates).
             engine.whole_mesh_selection = true;
             let whole = engine.bake(&loaded, &job);
@@ -152,6 +156,8 @@ pub fn run(
                 },
                 "cold_total_ms": cold_ms,
                 "placement_brute_ms": brute_ms,
+                "bvh_build_ms": bvh_ms,
+                "bvh_depth": loaded.bvh.depth,
                 "compose_whole_mesh_selection_ms": whole_compose_ms,
                 "texels_composed": texels,
                 "composed_texels_per_s": texels as f64 / (compose / 1000.0),
