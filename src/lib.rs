@@ -9,6 +9,7 @@
 //! - [`solve`]: sparse matrices and the conjugate gradient (CPU twin and GPU);
 //! - [`place`]: where a layer lands on the surface (GPU and CPU twin);
 //! - [`maps`]: a layer's local coordinates, one module per method (planar, expmap, lscm, hybrid);
+//! - [`pelt`]: new UV sets by pelting (cut, spring dynamics on the GPU, packing);
 //! - [`bake`]: the engine and the bake's stages, from images to the encoded texture;
 //! - [`output`]: the files a bake writes (PNG, GLB, preview, report).
 pub mod bake;
@@ -18,6 +19,7 @@ pub mod io;
 pub mod maps;
 pub mod mesh;
 pub mod output;
+pub mod pelt;
 pub mod place;
 pub mod solve;
 

@@ -466,44 +466,6 @@ fn large_discs_converge_over_several_rounds() {
     );
 }
 
-/// An open cylinder of radius 1 and height 2, `n` segments around and `m` along.
-fn cylinder(n: u32, m: u32) -> Mesh {
-    let mut pos = Vec::new();
-    let mut tris = Vec::new();
-    for j in 0..=m {
-        for i in 0..n {
-            let a = i as f32 / n as f32 * std::f32::consts::TAU;
-            pos.push(Vec3::new(
-                a.cos(),
-                a.sin(),
-                -1.0 + 2.0 * j as f32 / m as f32,
-            ));
-        }
-    }
-    for j in 0..m {
-        for i in 0..n {
-            let (a, b) = (j * n + i, j * n + (i + 1) % n);
-            let (c, d) = (a + n, b + n);
-            tris.push([a, b, d]);
-            tris.push([a, d, c]);
-        }
-    }
-    let normals = pos
-        .iter()
-        .map(|p| Vec3::new(p.x, p.y, 0.0).normalize())
-        .collect();
-    let uv = vec![glam::Vec2::ZERO; pos.len()];
-    Mesh {
-        source: "cylinder".into(),
-        positions: pos,
-        normals,
-        uv_sets: vec![uv],
-        triangles: tris,
-        primitives: vec![],
-        material: None,
-    }
-}
-
 /// A cylinder is developable: the map must approach its unrolling (u = arc length around, v = height)
 /// as the mesh is refined. The remaining error comes from the polygonal cross-section (chords instead
 /// of arcs) and from the averaged vertex normals, both O(h^2) per edge.
@@ -515,7 +477,7 @@ fn cylinder_maps_converge_to_the_unrolling() {
         .into_iter()
         .flat_map(|nm| [(nm, Accuracy::Fast), (nm, Accuracy::Smooth)])
     {
-        let mesh = engine.prepare(cylinder(n, m)).unwrap();
+        let mesh = engine.prepare(common::cylinder(n, m)).unwrap();
         let topo = &mesh.topo;
         let seed = seed_at(topo, Vec3::new(1.2, 0.05, 0.03), Vec3::Y);
         assert!(

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 /// The library's folders (and top-level files) in pipeline order.
 const ORDER: &[&str] = &[
-    "error", "gpu", "io", "mesh", "solve", "place", "maps", "bake", "output",
+    "error", "gpu", "io", "mesh", "solve", "place", "maps", "pelt", "bake", "output",
 ];
 
 /// Longest function without a stated reason (lines from `fn` to its closing brace).

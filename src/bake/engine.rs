@@ -12,7 +12,6 @@ use crate::io::job::Job;
 use crate::mesh::upload::GpuMesh;
 use crate::mesh::{Mesh, Topology};
 use crate::place::{place_gpu, Query};
-use glam::Vec3;
 use std::collections::HashMap;
 use std::path::Path;
 use std::sync::{Arc, Mutex};
@@ -276,11 +275,7 @@ impl Engine {
         let topo = Topology::build(&mesh, crate::mesh::DEFAULT_WELD_TOLERANCE);
         let surface = crate::mesh::SurfaceData::new(&topo);
         let bvh = crate::mesh::bvh::Bvh::build(&topo);
-        for (i, n) in mesh.normals.iter_mut().enumerate() {
-            if *n == Vec3::ZERO {
-                *n = topo.normals[topo.welded_of[i] as usize];
-            }
-        }
+        topo.fill_normals(&mut mesh);
         let weld = ms(t1);
         let t2 = Instant::now();
         let gpu = self.ctx.scoped("mesh upload", || {

@@ -8,6 +8,7 @@ use decalbake::{Engine, Job};
 mod batch;
 mod bench;
 mod demo;
+mod unwrap;
 use std::path::{Path, PathBuf};
 
 #[derive(Parser)]
@@ -83,6 +84,9 @@ enum Cmd {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Write a copy of a model with a new UV set made by pelting (cut to disks, stretched on frames
+    /// by spring dynamics on the GPU, packed).
+    Unwrap(unwrap::UnwrapArgs),
     /// Print what the engine sees in a mesh.
     Info {
         /// A .gltf or .glb file.
@@ -178,6 +182,10 @@ fn run(cli: Cli) -> Result<()> {
             bake(&engine, &job)
         }
         Cmd::Info { mesh } => info(&mesh),
+        Cmd::Unwrap(args) => {
+            let backend = cli.backend.clone();
+            unwrap::run(&args, || engine(backend.as_deref()))
+        }
         Cmd::Batch {
             manifest,
             out,

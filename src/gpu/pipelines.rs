@@ -171,6 +171,10 @@ pub struct Pipelines {
     pub place_reduce: Kernel,
     /// Planar layer coordinates.
     pub planar_coords: Kernel,
+    /// One step of the pelting dynamics (`decalbake unwrap`).
+    pub pelt_step: Kernel,
+    /// The pelting dynamics' steadiness check.
+    pub pelt_check: Kernel,
     /// Triangle selection.
     pub select_triangles: Kernel,
     /// Layer raster.
@@ -257,6 +261,23 @@ impl Pipelines {
             place_candidates,
             place_reduce,
             planar_coords: Kernel::new(device, "planar_coords", &[(0, Params), (1, Ro), (2, Rw)]),
+            pelt_step: Kernel::new(
+                device,
+                "pelt_step",
+                &[
+                    (0, Uniform),
+                    (1, Ro),
+                    (2, Ro),
+                    (3, Ro),
+                    (4, Ro),
+                    (5, Ro),
+                    (6, Ro),
+                    (7, Ro),
+                    (8, Rw),
+                    (9, Rw),
+                ],
+            ),
+            pelt_check: Kernel::new(device, "pelt_check", &[(0, Uniform), (1, Rw), (2, Ro)]),
             select_triangles: Kernel::new(
                 device,
                 "select_triangles",

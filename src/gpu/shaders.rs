@@ -16,6 +16,11 @@ pub const KERNELS: &[(&str, &str)] = &[
         "place_reduce",
         include_str!("../../wgsl/place/place_reduce.wgsl"),
     ),
+    ("pelt_step", include_str!("../../wgsl/pelt/pelt_step.wgsl")),
+    (
+        "pelt_check",
+        include_str!("../../wgsl/pelt/pelt_check.wgsl"),
+    ),
     (
         "planar_coords",
         include_str!("../../wgsl/maps/planar_coords.wgsl"),
@@ -97,6 +102,7 @@ pub const KERNELS: &[(&str, &str)] = &[
 /// Shared files that `#import` can name.
 pub const SHARED: &[(&str, &str)] = &[
     ("params", include_str!("../../wgsl/shared/params.wgsl")),
+    ("pelt", include_str!("../../wgsl/shared/pelt.wgsl")),
     ("cone", include_str!("../../wgsl/shared/cone.wgsl")),
     ("geometry", include_str!("../../wgsl/shared/geometry.wgsl")),
     ("blend", include_str!("../../wgsl/shared/blend.wgsl")),

@@ -164,6 +164,20 @@ impl Topology {
         }
     }
 
+    /// Gives every vertex of `mesh` without a normal (zero: the file had none) its welded vertex's
+    /// area-weighted normal, or +Z where that is zero too (a vertex of degenerate triangles only),
+    /// so written files carry unit normals.
+    pub fn fill_normals(&self, mesh: &mut Mesh) {
+        for (i, n) in mesh.normals.iter_mut().enumerate() {
+            if *n == Vec3::ZERO {
+                *n = self.normals[self.welded_of[i] as usize];
+                if *n == Vec3::ZERO {
+                    *n = Vec3::Z;
+                }
+            }
+        }
+    }
+
     /// The triangles around welded vertex `v`.
     pub fn triangles_around(&self, v: u32) -> &[u32] {
         let (a, b) = (

@@ -1,12 +1,13 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-//! Writes a `.glb` copy of the model whose material's base colour is the baked texture.
+//! Writes a `.glb` copy of the model whose material's base colour is the baked texture (or, for
+//! `decalbake unwrap`, the model's own base-colour texture).
 //!
 //! The copy holds the mesh as decalbake loaded it: one primitive with world-space positions (node
-//! transforms applied), normals, every UV set and the triangles, plus the baked PNG embedded as the
-//! base-colour texture on the UV set it was baked into. The metallic and roughness factors of the
+//! transforms applied), normals, every UV set and the triangles, plus the PNG embedded as the
+//! base-colour texture on the UV set it belongs to. The metallic and roughness factors of the
 //! source material are kept; other texture maps (normal, occlusion, emissive) are not copied.
 
-use crate::bake::LoadedMesh;
+use crate::mesh::Mesh;
 use serde_json::json;
 
 fn pad4(buf: &mut Vec<u8>, fill: u8) {
@@ -15,9 +16,8 @@ fn pad4(buf: &mut Vec<u8>, fill: u8) {
     }
 }
 
-/// Builds GLB bytes for `mesh` textured with `png` on UV set `uv_set`.
-pub fn build_glb(mesh: &LoadedMesh, png: &[u8], uv_set: u32) -> Vec<u8> {
-    let m = &mesh.mesh;
+/// Builds GLB bytes for `m` textured with `png` on UV set `uv_set` (untextured without a PNG).
+pub fn build_glb(m: &Mesh, png: Option<&[u8]>, uv_set: u32) -> Vec<u8> {
     let mut bin: Vec<u8> = Vec::new();
     let mut views = Vec::new();
     let mut accessors = Vec::new();
@@ -63,7 +63,7 @@ pub fn build_glb(mesh: &LoadedMesh, png: &[u8], uv_set: u32) -> Vec<u8> {
         json!({"bufferView": v, "componentType": 5125, "count": idx.len(), "type": "SCALAR"}),
     );
     let indices = accessors.len() - 1;
-    let img_view = push_view(&mut bin, png, None);
+    let img_view = png.map(|png| push_view(&mut bin, png, None));
     pad4(&mut bin, 0);
 
     let (factor, metallic, roughness) = match &m.material {
@@ -73,7 +73,7 @@ pub fn build_glb(mesh: &LoadedMesh, png: &[u8], uv_set: u32) -> Vec<u8> {
         Some(mat) => ([1.0; 4], mat.metallic, mat.roughness),
         None => ([1.0; 4], 0.0, 1.0),
     };
-    let doc = json!({
+    let mut doc = json!({
         "asset": {"version": "2.0", "generator": concat!("decalbake ", env!("CARGO_PKG_VERSION"))},
         "scene": 0,
         "scenes": [{"nodes": [0]}],
@@ -89,6 +89,19 @@ pub fn build_glb(mesh: &LoadedMesh, png: &[u8], uv_set: u32) -> Vec<u8> {
         "bufferViews": views,
         "accessors": accessors,
     });
+    if img_view.is_none() {
+        let doc = doc.as_object_mut().expect("an object");
+        for key in ["textures", "samplers", "images"] {
+            doc.remove(key);
+        }
+        let pbr = &mut doc["materials"][0]["pbrMetallicRoughness"];
+        pbr.as_object_mut()
+            .expect("an object")
+            .remove("baseColorTexture");
+        if let Some(mat) = &m.material {
+            pbr["baseColorFactor"] = json!(mat.base_color_factor);
+        }
+    }
     let mut json_bytes = serde_json::to_vec(&doc).expect("serializing a JSON value cannot fail");
     pad4(&mut json_bytes, b' ');
     let total = 12 + 8 + json_bytes.len() + 8 + bin.len();

@@ -26,7 +26,7 @@ pub fn write_outputs(
     if let Some(p) = &job.out_glb {
         files.push((
             p.clone(),
-            crate::output::glb::build_glb(mesh, &png, job.uv_set),
+            crate::output::glb::build_glb(&mesh.mesh, Some(&png), job.uv_set),
         ));
     }
     if let Some(p) = &job.out_preview {

@@ -18,8 +18,35 @@ struct ViewUniform {
     light: [f32; 4],
 }
 
-/// Renders the preview and returns sRGB RGBA8 pixels (`2 * VIEW_SIDE` square).
+/// A texture to preview: sRGB RGBA8 texels, top row first, on a UV set of the mesh.
+pub struct PreviewTexture {
+    /// Width.
+    pub width: u32,
+    /// Height.
+    pub height: u32,
+    /// sRGB RGBA8, 4 bytes a texel.
+    pub rgba8: Vec<u8>,
+    /// The UV set it is mapped by.
+    pub uv_set: usize,
+}
+
+/// Renders the preview of a bake and returns sRGB RGBA8 pixels (`2 * VIEW_SIDE` square).
 pub fn render_preview(engine: &Engine, mesh: &LoadedMesh, baked: &Baked) -> Result<Vec<u8>> {
+    let tex = PreviewTexture {
+        width: baked.width,
+        height: baked.height,
+        rgba8: baked.rgba8(),
+        uv_set: baked.report.uv_set as usize,
+    };
+    render_texture_preview(engine, mesh, &tex)
+}
+
+/// Renders the preview of `mesh` wearing `baked` (for `decalbake unwrap`: a checker on the new UVs).
+pub fn render_texture_preview(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    baked: &PreviewTexture,
+) -> Result<Vec<u8>> {
     let ctx = &engine.ctx;
     let dev = &ctx.device;
     ctx.scoped("preview", || {
@@ -41,8 +68,8 @@ pub fn render_preview(engine: &Engine, mesh: &LoadedMesh, baked: &Baked) -> Resu
 }
 
 /// The baked texture with a box-filtered mip chain (in sRGB bytes: good enough for a preview).
-fn mip_chain(baked: &Baked) -> Vec<(u32, u32, Vec<u8>)> {
-    let mut levels = vec![(baked.width, baked.height, baked.rgba8())];
+fn mip_chain(baked: &PreviewTexture) -> Vec<(u32, u32, Vec<u8>)> {
+    let mut levels = vec![(baked.width, baked.height, baked.rgba8.clone())];
     while levels.last().is_some_and(|l| l.0 > 1 || l.1 > 1) {
         let (w, h, ref px) = *levels.last().expect("non-empty");
         let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
@@ -66,7 +93,7 @@ fn mip_chain(baked: &Baked) -> Vec<(u32, u32, Vec<u8>)> {
 }
 
 /// The baked texture and its mips on the GPU.
-fn upload_texture(engine: &Engine, baked: &Baked) -> wgpu::TextureView {
+fn upload_texture(engine: &Engine, baked: &PreviewTexture) -> wgpu::TextureView {
     let (ctx, dev) = (&engine.ctx, &engine.ctx.device);
     let levels = mip_chain(baked);
     let tex = dev.create_texture(&wgpu::TextureDescriptor {
@@ -158,12 +185,12 @@ fn view_groups(
 fn draw(
     engine: &Engine,
     mesh: &LoadedMesh,
-    baked: &Baked,
+    baked: &PreviewTexture,
     groups: &[(wgpu::BindGroup, wgpu::Buffer)],
 ) -> wgpu::Buffer {
     let (ctx, dev) = (&engine.ctx, &engine.ctx.device);
     let side = 2 * VIEW_SIDE;
-    let uv_buf = &mesh.gpu.uvs[baked_uv_set(baked)];
+    let uv_buf = &mesh.gpu.uvs[baked.uv_set];
     let mk = |label: &str, format, samples, usage| {
         dev.create_texture(&wgpu::TextureDescriptor {
             label: Some(label),
@@ -274,8 +301,4 @@ fn draw(
     );
     ctx.queue.submit([enc.finish()]);
     readback
-}
-
-fn baked_uv_set(baked: &Baked) -> usize {
-    baked.report.uv_set as usize
 }

@@ -5,6 +5,7 @@
 
 use decalbake::io::image::LinearImage;
 use decalbake::Engine;
+use glam::Vec3;
 use std::path::{Path, PathBuf};
 
 /// An engine on the backend `WGPU_BACKEND` names (CI: vulkan = lavapipe).
@@ -172,4 +173,42 @@ pub fn param(job: &Path, layer: &str, out: &Path) -> (i32, String, String) {
         "--out",
         out.to_str().unwrap(),
     ])
+}
+
+/// An open cylinder of radius 1 and height 2, `n` segments around and `m` along.
+pub fn cylinder(n: u32, m: u32) -> decalbake::mesh::Mesh {
+    let mut pos = Vec::new();
+    let mut tris = Vec::new();
+    for j in 0..=m {
+        for i in 0..n {
+            let a = i as f32 / n as f32 * std::f32::consts::TAU;
+            pos.push(Vec3::new(
+                a.cos(),
+                a.sin(),
+                -1.0 + 2.0 * j as f32 / m as f32,
+            ));
+        }
+    }
+    for j in 0..m {
+        for i in 0..n {
+            let (a, b) = (j * n + i, j * n + (i + 1) % n);
+            let (c, d) = (a + n, b + n);
+            tris.push([a, b, d]);
+            tris.push([a, d, c]);
+        }
+    }
+    let normals = pos
+        .iter()
+        .map(|p| Vec3::new(p.x, p.y, 0.0).normalize())
+        .collect();
+    let uv = vec![glam::Vec2::ZERO; pos.len()];
+    decalbake::mesh::Mesh {
+        source: "cylinder".into(),
+        positions: pos,
+        normals,
+        uv_sets: vec![uv],
+        triangles: tris,
+        primitives: vec![],
+        material: None,
+    }
 }

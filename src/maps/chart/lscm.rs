@@ -24,7 +24,11 @@ const SLIVER: f64 = 1e-10;
 /// The opposite-edge coefficients `(a_k, b_k)` of a welded triangle and its area, or `None` for a
 /// degenerate one.
 pub fn triangle_edges(topo: &Topology, tri: [u32; 3]) -> Option<([DVec2; 3], f64)> {
-    let p = tri.map(|v| topo.positions[v as usize].as_dvec3());
+    triangle_edges_at(tri.map(|v| topo.positions[v as usize].as_dvec3()))
+}
+
+/// [`triangle_edges`] of a triangle given by its corners.
+pub fn triangle_edges_at(p: [DVec3; 3]) -> Option<([DVec2; 3], f64)> {
     let e1 = p[1] - p[0];
     let e2 = p[2] - p[0];
     let n = e1.cross(e2);
@@ -92,15 +96,45 @@ pub fn assemble(
             fixed_local.push((i, c));
         }
     }
+    let local_tris: Vec<[u32; 3]> = triangles
+        .iter()
+        .map(|&t| topo.triangles[t as usize].map(|v| local[&v]))
+        .collect();
+    let (matrix, rhs) = assemble_local(
+        &local_tris,
+        &|k| triangle_edges(topo, topo.triangles[triangles[k] as usize]),
+        &value,
+        &|i| warm(vertices[i]),
+    );
+    System {
+        matrix,
+        rhs,
+        vertices,
+        local,
+        triangles: triangles.to_vec(),
+        fixed: fixed_local,
+    }
+}
+
+/// The LSCM matrix and right-hand side over `n = value.len()` vertices numbered 0..n: `triangles`
+/// in those numbers, `edges(k)` the opposite-edge coefficients and area of triangle `k` (`None`
+/// skips it), `value[i]` a fixed vertex's coordinates, `warm(i)` where a vertex without energy is
+/// held. [`assemble`] uses it on welded vertices; `pelt::refine` on a cut piece's own vertices.
+pub fn assemble_local(
+    triangles: &[[u32; 3]],
+    edges: &dyn Fn(usize) -> Option<([DVec2; 3], f64)>,
+    value: &[Option<[f64; 2]>],
+    warm: &dyn Fn(usize) -> [f64; 2],
+) -> (Csr, Vec<f64>) {
+    let n = value.len();
     let mut trip: Vec<(u32, u32, f64)> = Vec::with_capacity(triangles.len() * 36);
     let mut rhs = vec![0.0; 2 * n];
-    for &t in triangles {
-        let tri = topo.triangles[t as usize];
-        let Some((e, area)) = triangle_edges(topo, tri) else {
+    for (k, tri) in triangles.iter().enumerate() {
+        let Some((e, area)) = edges(k) else {
             continue;
         };
         let w = 1.0 / (4.0 * area);
-        let idx = tri.map(|v| local[&v] as usize);
+        let idx = tri.map(|v| v as usize);
         // dof j in 0..6: (vertex k = j % 3, component j / 3), coefficient rows R1, R2.
         let dof = |j: usize| 2 * idx[j % 3] + j / 3;
         let r1 = |j: usize| if j < 3 { e[j].x } else { -e[j - 3].y };
@@ -136,17 +170,10 @@ pub fn assemble(
     for (r, h) in has_row.iter().enumerate() {
         if !h {
             trip.push((r as u32, r as u32, 1.0));
-            rhs[r] = warm(vertices[r / 2])[r % 2];
+            rhs[r] = warm(r / 2)[r % 2];
         }
     }
-    System {
-        matrix: Csr::from_triplets(2 * n, trip),
-        rhs,
-        vertices,
-        local,
-        triangles: triangles.to_vec(),
-        fixed: fixed_local,
-    }
+    (Csr::from_triplets(2 * n, trip), rhs)
 }
 
 /// Conformal energy `Σ |Σ e_k z_k|² / (4A)` of per-vertex coordinates `z` (indexed by welded id

@@ -1,0 +1,270 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! `decalbake unwrap`: a copy of the model with a new UV set made by pelting (`decalbake::pelt`),
+//! its report, and a preview of the model wearing a checker on the new UVs.
+
+use anyhow::{Context, Result};
+use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
+use decalbake::pelt::{self, CutSpec, Device, Frame, Options};
+use decalbake::{Engine, Error};
+use std::path::{Path, PathBuf};
+
+/// The command's arguments.
+#[derive(clap::Args)]
+pub struct UnwrapArgs {
+    /// The model (.gltf or .glb).
+    pub mesh: PathBuf,
+    /// The copy with the new UV set (.glb).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// The cut: `auto` (through the model's tips, opening handles and joining holes), `seams`
+    /// (the model's UV seams on its base-colour set), or a JSON file: {"edges": [[a, b], ...]}
+    /// (welded vertex ids) or {"polylines": [[[x, y, z], ...], ...]} (points on the surface,
+    /// joined along the edges).
+    #[arg(long, default_value = "auto")]
+    pub cut: String,
+    /// The frame the pelts are stretched on.
+    #[arg(long, value_enum, default_value = "circle")]
+    pub frame: FrameArg,
+    /// Which TEXCOORD_n to write (default: the next free set).
+    #[arg(long)]
+    pub uv_set: Option<usize>,
+    /// Allow `--uv-set` to replace a set the model has.
+    #[arg(long)]
+    pub force: bool,
+    /// Texture side the packing margin is measured in.
+    #[arg(long, default_value_t = 1024)]
+    pub size: u32,
+    /// Margin round each pelt, in texels.
+    #[arg(long, default_value_t = 4)]
+    pub margin: u32,
+    /// Write the report (JSON) here.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Write a preview (the model wearing a checker on the new UVs) here.
+    #[arg(long)]
+    pub preview: Option<PathBuf>,
+    /// Run the dynamics on the CPU twin instead of the GPU.
+    #[arg(long)]
+    pub cpu: bool,
+}
+
+/// `--frame`.
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum FrameArg {
+    /// A circle.
+    Circle,
+    /// A square.
+    Square,
+}
+
+fn input(path: &Path, field: &str, detail: String) -> anyhow::Error {
+    Error::Job {
+        path: path.to_path_buf(),
+        field: field.to_string(),
+        detail,
+    }
+    .into()
+}
+
+/// Runs the command (`engine` is made on first use: the CPU twin needs none unless a preview is
+/// asked for).
+pub fn run(args: &UnwrapArgs, engine: impl Fn() -> Result<Engine>) -> Result<()> {
+    check_out(args)?;
+    let mut mesh = Mesh::load(&args.mesh)?;
+    let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
+    topo.fill_normals(&mut mesh);
+    let set = args.uv_set.unwrap_or(mesh.uv_sets.len());
+    if set > mesh.uv_sets.len() {
+        return Err(input(
+            &args.mesh,
+            "--uv-set",
+            format!(
+                "TEXCOORD_{set} would leave a gap: the model has {} UV sets, so the new one is TEXCOORD_{} (or replace one with --force)",
+                mesh.uv_sets.len(),
+                mesh.uv_sets.len()
+            ),
+        ));
+    }
+    if set < mesh.uv_sets.len() && !args.force {
+        return Err(input(
+            &args.mesh,
+            "--uv-set",
+            format!(
+                "the model already has TEXCOORD_{set}; add --force to replace it, or leave --uv-set out to write TEXCOORD_{}",
+                mesh.uv_sets.len()
+            ),
+        ));
+    }
+    let opts = Options {
+        cut: cut_spec(&args.cut, &mesh, &topo)?,
+        frame: match args.frame {
+            FrameArg::Circle => Frame::Circle,
+            FrameArg::Square => Frame::Square,
+        },
+        size: args.size,
+        margin: args.margin,
+        ..Options::default()
+    };
+    let engine = if args.cpu && args.preview.is_none() {
+        None
+    } else {
+        Some(engine()?)
+    };
+    let device = match (&engine, args.cpu) {
+        (Some(e), false) => Device::Gpu(&e.ctx, e.pipelines()),
+        _ => Device::Cpu,
+    };
+    let un = pelt::unwrap(device, &mesh, &topo, &opts, &args.mesh)?;
+    let out_mesh = pelt::apply(&mesh, &un, set);
+    let png = mesh.material.as_ref().and_then(|m| {
+        m.base_color_texture
+            .as_ref()
+            .map(|t| (t.encode_png(8), m.base_color_uv_set))
+    });
+    let glb = decalbake::output::glb::build_glb(
+        &out_mesh,
+        png.as_ref().map(|p| p.0.as_slice()),
+        png.as_ref().map_or(0, |p| p.1),
+    );
+    decalbake::io::image::write_atomic(&args.out, &glb)?;
+    let q = &un.report.quality;
+    eprintln!(
+        "{}: TEXCOORD_{set} from {} pelts ({} splits), {} steps, angle distortion mean {:.3} p95 {:.3}, {} flipped, {} overlaps, {:.0} % of the texture used, {:.0} ms",
+        args.out.display(),
+        un.report.pieces.len(),
+        un.report.splits,
+        un.report.steps,
+        q.angle_distortion.mean,
+        q.angle_distortion.p95,
+        q.flipped,
+        q.overlaps,
+        q.texel_utilisation * 100.0,
+        un.report.ms.cut + un.report.ms.net + un.report.ms.relax + un.report.ms.pack + un.report.ms.measure
+    );
+    if let Some(r) = &args.report {
+        let mut v = serde_json::to_value(&un.report)?;
+        v["uv_set"] = serde_json::json!(set);
+        v["mesh"] = serde_json::json!(args.mesh);
+        v["out"] = serde_json::json!(args.out);
+        decalbake::io::image::write_atomic(r, serde_json::to_string_pretty(&v)?.as_bytes())?;
+    }
+    if let (Some(p), Some(engine)) = (&args.preview, &engine) {
+        preview(engine, out_mesh, set, p)?;
+    }
+    Ok(())
+}
+
+/// Parses `--cut`.
+fn cut_spec(arg: &str, mesh: &Mesh, topo: &Topology) -> Result<CutSpec> {
+    match arg {
+        "auto" => Ok(CutSpec::Auto),
+        "seams" => Ok(CutSpec::Seams(
+            mesh.material.as_ref().map_or(0, |m| m.base_color_uv_set),
+        )),
+        file => {
+            let path = Path::new(file);
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading the cut file {}", path.display()))
+                .map_err(|e| {
+                    input(
+                        path,
+                        "--cut",
+                        format!("{e:#}; --cut takes auto, seams or a JSON file"),
+                    )
+                })?;
+            let v: serde_json::Value = serde_json::from_str(&text)
+                .map_err(|e| input(path, "(file)", format!("not JSON: {e}")))?;
+            cut_file(path, &v, topo)
+        }
+    }
+}
+
+/// A cut file: {"edges": [[a, b], ...]} or {"polylines": [[[x, y, z], ...], ...]}.
+fn cut_file(path: &Path, v: &serde_json::Value, topo: &Topology) -> Result<CutSpec> {
+    if let Some(edges) = v.get("edges") {
+        let list: Vec<[u32; 2]> = serde_json::from_value(edges.clone()).map_err(|e| {
+            input(
+                path,
+                "edges",
+                format!("expected [[a, b], ...] of welded vertex ids: {e}"),
+            )
+        })?;
+        return Ok(CutSpec::Edges(list));
+    }
+    if let Some(lines) = v.get("polylines") {
+        let lines: Vec<Vec<[f32; 3]>> = serde_json::from_value(lines.clone()).map_err(|e| {
+            input(
+                path,
+                "polylines",
+                format!("expected [[[x, y, z], ...], ...]: {e}"),
+            )
+        })?;
+        let mut edges = Vec::new();
+        for (i, line) in lines.iter().enumerate() {
+            if line.len() < 2 {
+                return Err(input(
+                    path,
+                    &format!("polylines[{i}]"),
+                    "a polyline needs at least two points".into(),
+                ));
+            }
+            edges.extend(pelt::cut::polyline_edges(topo, line));
+        }
+        return Ok(CutSpec::Edges(edges));
+    }
+    Err(input(
+        path,
+        "(file)",
+        "a cut file has `edges` ([[a, b], ...], welded vertex ids) or `polylines` ([[[x, y, z], ...], ...])".into(),
+    ))
+}
+
+/// Renders `mesh` wearing a checker on UV set `set` into `path`.
+fn preview(engine: &Engine, mesh: Mesh, set: usize, path: &Path) -> Result<()> {
+    let side = 1024u32;
+    let mut rgba8 = Vec::with_capacity((side * side * 4) as usize);
+    for y in 0..side {
+        for x in 0..side {
+            let (cx, cy) = (x / 64, y / 64);
+            let line = x % 64 == 0 || y % 64 == 0;
+            let c = if line {
+                [30, 30, 30]
+            } else if (cx + cy) % 2 == 0 {
+                [235, 235, 225]
+            } else {
+                // A hue per column, so mirrored or rotated pelts show.
+                let h = cx as f32 / 16.0 * std::f32::consts::TAU;
+                [
+                    (120.0 + 100.0 * h.cos()) as u8,
+                    (120.0 + 100.0 * (h + 2.1).cos()) as u8,
+                    (120.0 + 100.0 * (h + 4.2).cos()) as u8,
+                ]
+            };
+            rgba8.extend_from_slice(&[c[0], c[1], c[2], 255]);
+        }
+    }
+    let loaded = engine.prepare(mesh)?;
+    let tex = decalbake::output::preview::PreviewTexture {
+        width: side,
+        height: side,
+        rgba8,
+        uv_set: set,
+    };
+    let px = decalbake::output::preview::render_texture_preview(engine, &loaded, &tex)?;
+    let n = 2 * decalbake::output::preview::VIEW_SIDE;
+    let samples: Vec<u16> = px.iter().map(|&b| b as u16).collect();
+    decalbake::io::image::write_atomic(path, &decalbake::io::image::png_bytes(n, n, 8, &samples))?;
+    Ok(())
+}
+
+/// The output must be a binary glTF.
+fn check_out(args: &UnwrapArgs) -> Result<()> {
+    if args.out.extension().and_then(|e| e.to_str()) != Some("glb") {
+        return Err(input(
+            &args.out,
+            "--out",
+            "the output is a binary glTF: give it a .glb name".into(),
+        ));
+    }
+    Ok(())
+}

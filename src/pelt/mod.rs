@@ -1,0 +1,513 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Pelting (Piponi & Borshukov 2000, §3-4): new UV sets for meshes that have none or whose seams
+//! show. The surface is cut into disks (`cut`, through its tips: `tips`), each disk is stretched on
+//! a frame by damped spring dynamics in 3D on the GPU (`relax` holds the net and its CPU twin,
+//! `gpu` the dispatch of `wgsl/pelt/pelt_relax.wgsl`) and projected, the pelts are packed into
+//! [0, 1]² (`pack`) and measured (`quality`). `decalbake unwrap` writes the result as a new
+//! `TEXCOORD_n` (`apply` builds the mesh with it).
+
+pub mod cut;
+pub mod gpu;
+pub mod pack;
+pub mod quality;
+pub mod refine;
+pub mod relax;
+pub mod split;
+pub mod tips;
+
+use crate::error::Result;
+use crate::gpu::pipelines::Pipelines;
+use crate::gpu::GpuContext;
+use crate::mesh::{Mesh, Topology};
+use glam::{DVec2, Vec2};
+use std::path::Path;
+use std::time::Instant;
+
+pub use cut::CutSpec;
+pub use relax::{Frame, SystemCfg};
+
+/// How to unwrap.
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// The cut.
+    pub cut: CutSpec,
+    /// The frame.
+    pub frame: Frame,
+    /// Texture size the packing margin is measured in.
+    pub size: u32,
+    /// Margin round each pelt, in texels of `size`.
+    pub margin: u32,
+    /// The dynamics' stopping rule.
+    pub relax: SystemCfg,
+    /// What follows the pelting.
+    pub refine: Refine,
+}
+
+/// What follows the pelting (`decalbake unwrap --refine`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Refine {
+    /// The pelts as the dynamics left them.
+    None,
+    /// A least-squares conformal map from each pelt, kept where it does not fold (`refine`).
+    Conformal,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            cut: CutSpec::Auto,
+            frame: Frame::Circle,
+            size: 1024,
+            margin: 4,
+            relax: SystemCfg::default(),
+            refine: Refine::Conformal,
+        }
+    }
+}
+
+/// Where the relaxation ran.
+#[derive(Clone, Copy)]
+pub enum Device<'a> {
+    /// The GPU kernel.
+    Gpu(&'a GpuContext, &'a Pipelines),
+    /// The CPU twin.
+    Cpu,
+}
+
+/// Per-piece figures of the report.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PieceReport {
+    /// Vertices (cut vertices counted per side).
+    pub vertices: usize,
+    /// Triangles.
+    pub triangles: usize,
+    /// Boundary vertices (on the frame).
+    pub boundary: usize,
+    /// The dynamics.
+    pub relax: relax::Relaxed,
+    /// The conformal refinement (`None` with `Refine::None`).
+    pub refine: Option<refine::Refinement>,
+}
+
+/// What an unwrap reports (`decalbake unwrap --report`).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct UnwrapReport {
+    /// `gpu` or `cpu`.
+    pub device: &'static str,
+    /// The frame.
+    pub frame: Frame,
+    /// Pieces (pelts).
+    pub pieces: Vec<PieceReport>,
+    /// Pieces split in two because their pelt folded or stretched too far ([`folds`]).
+    pub splits: usize,
+    /// Opened edges (the automatic cut's and the splits' seams).
+    pub seam_edges: usize,
+    /// Summed 3D length of the opened edges.
+    pub seam_length: f64,
+    /// Welded vertices the automatic cut runs through (boundary joints, tips).
+    pub terminals: Vec<u32>,
+    /// Energy (eq. 1 plus the frame springs, in mean-edge units) summed over pieces: start, end.
+    pub energy: [f64; 2],
+    /// Most steps any piece took.
+    pub steps: u32,
+    /// The packed layout's quality.
+    pub quality: quality::Quality,
+    /// Milliseconds per stage: cut (with splits), net, relax, refine, pack, measure.
+    pub ms: Timings,
+}
+
+/// Milliseconds per stage.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct Timings {
+    /// Cutting and splitting.
+    pub cut: f64,
+    /// Building the nets.
+    pub net: f64,
+    /// The dynamics.
+    pub relax: f64,
+    /// The conformal refinement.
+    pub refine: f64,
+    /// Packing.
+    pub pack: f64,
+    /// Measuring.
+    pub measure: f64,
+}
+
+/// An unwrapped surface.
+#[derive(Debug, Clone)]
+pub struct Unwrapped {
+    /// The cut.
+    pub cut: cut::Cut,
+    /// Per piece, per piece vertex: its UV in [0, 1]² (v down, as glTF has it).
+    pub uv: Vec<Vec<Vec2>>,
+    /// The report.
+    pub report: UnwrapReport,
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// Unwraps the welded surface `topo` of `mesh` (`path` names it in errors).
+pub fn unwrap(
+    device: Device,
+    mesh: &Mesh,
+    topo: &Topology,
+    opts: &Options,
+    path: &Path,
+) -> Result<Unwrapped> {
+    let mut timings = Timings::default();
+    let t = Instant::now();
+    let first = cut::cut(mesh, topo, &opts.cut, path)?;
+    timings.cut = ms(t);
+    let mut todo = first.pieces.clone();
+    let mut done: Vec<(cut::Piece, relax::Relaxed, Vec<DVec2>, refine::Refinement)> = Vec::new();
+    let mut splits = 0;
+    for level in 0..=MAX_SPLIT_LEVELS {
+        let pelts = pelt_without_folds(device, topo, &todo, opts, &mut timings)?;
+        let t = Instant::now();
+        let (relaxed, mut flats): (Vec<relax::Relaxed>, Vec<Vec<DVec2>>) =
+            pelts.into_iter().unzip();
+        let mut refinements = vec![refine::Refinement::default(); todo.len()];
+        let mut apart = vec![None; todo.len()];
+        if opts.refine == Refine::Conformal {
+            for (k, (x, mut rf)) in refine::refine(device, topo, &todo, &flats)?
+                .into_iter()
+                .enumerate()
+            {
+                // Where the refinement overlaps itself, a split there lets the halves refine.
+                if let Some(x) = &x {
+                    apart[k] = quality::overlapping_pairs(x, &todo[k].triangles)
+                        .first()
+                        .copied();
+                }
+                if let Some(x) = x.filter(|x| !folds(topo, &todo[k], x)) {
+                    flats[k] = x;
+                    rf.kept = true;
+                }
+                refinements[k] = rf;
+            }
+        }
+        timings.refine += ms(t);
+        let t = Instant::now();
+        let mut next = Vec::new();
+        for (k, ((p, (r, flat)), rf)) in todo
+            .into_iter()
+            .zip(relaxed.into_iter().zip(flats))
+            .zip(refinements)
+            .enumerate()
+        {
+            let refine_failed = opts.refine == Refine::Conformal && !rf.kept;
+            let halves = if level < MAX_SPLIT_LEVELS && stretched(topo, &p, &flat, refine_failed) {
+                split::halves(topo, &p, apart[k].filter(|_| !rf.kept))
+            } else {
+                None
+            };
+            match halves {
+                Some(parts) => {
+                    splits += 1;
+                    for part in parts {
+                        next.extend(split::cut_region(topo, &part, path)?);
+                    }
+                }
+                None => done.push((p, r, flat, rf)),
+            }
+        }
+        timings.cut += ms(t);
+        todo = next;
+        if todo.is_empty() {
+            break;
+        }
+    }
+    let mut pieces = Vec::new();
+    let (mut relaxed, mut flat, mut refined) = (Vec::new(), Vec::new(), Vec::new());
+    for (p, r, f, rf) in done {
+        pieces.push(p);
+        relaxed.push(r);
+        flat.push(f);
+        refined.push(rf);
+    }
+    let cut = cut::Cut::assemble(topo, pieces, first.terminals);
+    let t = Instant::now();
+    let uv = place(topo, &cut, &flat, opts);
+    timings.pack = ms(t);
+    let t = Instant::now();
+    let quality = measure(topo, &cut, &uv);
+    timings.measure = ms(t);
+    let report = UnwrapReport {
+        device: match device {
+            Device::Gpu(..) => "gpu",
+            Device::Cpu => "cpu",
+        },
+        frame: opts.frame,
+        pieces: cut
+            .pieces
+            .iter()
+            .zip(relaxed.into_iter().zip(refined))
+            .map(|(p, (r, rf))| PieceReport {
+                vertices: p.welded.len(),
+                triangles: p.triangles.len(),
+                boundary: p.boundary.len(),
+                relax: r,
+                refine: (opts.refine == Refine::Conformal).then_some(rf),
+            })
+            .collect(),
+        splits,
+        seam_edges: cut.edges.len(),
+        seam_length: cut.seam_length(topo),
+        terminals: cut.terminals.clone(),
+        energy: [0.0, 0.0],
+        steps: 0,
+        quality,
+        ms: timings,
+    };
+    let mut report = report;
+    report.energy = report.pieces.iter().fold([0.0, 0.0], |a, p| {
+        [a[0] + p.relax.energy[0], a[1] + p.relax.energy[1]]
+    });
+    report.steps = report
+        .pieces
+        .iter()
+        .map(|p| p.relax.steps)
+        .max()
+        .unwrap_or(0);
+    Ok(Unwrapped { cut, uv, report })
+}
+
+fn run(device: Device, nets: &[relax::Net], cfg: &SystemCfg) -> Result<Vec<relax::Relaxed>> {
+    match device {
+        Device::Gpu(ctx, pipes) => gpu::relax_gpu(ctx, pipes, nets, cfg),
+        Device::Cpu => Ok(nets
+            .iter()
+            .map(|n| relax::relax_cpu(n, cfg, None))
+            .collect()),
+    }
+}
+
+/// The rest-length scales tried in turn until a pelt does not fold; the last (no rest length)
+/// cannot fold (`relax::Net::with_rest_scale`).
+pub const REST_SCALES: [f32; 3] = [1.0, 0.5, 0.0];
+
+/// Pelts every piece: all at eq. 1's rest lengths at once, then the ones that folded again at the
+/// next scale of [`REST_SCALES`], and so on. Returns each piece's dynamics (its report says the
+/// scale it kept) and projection.
+fn pelt_without_folds(
+    device: Device,
+    topo: &Topology,
+    pieces: &[cut::Piece],
+    opts: &Options,
+    timings: &mut Timings,
+) -> Result<Vec<(relax::Relaxed, Vec<DVec2>)>> {
+    let t = Instant::now();
+    let nets: Vec<relax::Net> = pieces
+        .iter()
+        .map(|p| relax::net(topo, p, opts.frame))
+        .collect();
+    timings.net += ms(t);
+    let mut out: Vec<Option<(relax::Relaxed, Vec<DVec2>)>> = vec![None; pieces.len()];
+    let mut todo: Vec<usize> = (0..pieces.len()).collect();
+    for (i, &scale) in REST_SCALES.iter().enumerate() {
+        let t = Instant::now();
+        let scaled: Vec<relax::Net> = todo
+            .iter()
+            .map(|&k| nets[k].with_rest_scale(scale))
+            .collect();
+        let relaxed = run(device, &scaled, &opts.relax)?;
+        timings.relax += ms(t);
+        let mut again = Vec::new();
+        for (&k, mut r) in todo.iter().zip(relaxed) {
+            r.rest_scale = scale;
+            let flat = oriented(&pieces[k], &r);
+            if i + 1 < REST_SCALES.len() && folds(topo, &pieces[k], &flat) {
+                again.push(k);
+            } else {
+                out[k] = Some((r, flat));
+            }
+        }
+        todo = again;
+    }
+    let out: Vec<(relax::Relaxed, Vec<DVec2>)> = out
+        .into_iter()
+        .map(|o| o.expect("the last scale keeps every piece"))
+        .collect();
+    Ok(out)
+}
+
+/// How many times a piece may be split in two (up to 2^6 pelts from one piece).
+pub const MAX_SPLIT_LEVELS: usize = 6;
+/// A pelt whose area distortion's 95th percentile exceeds this is split.
+pub const MAX_AREA_P95: f64 = 4.0;
+
+fn piece_quality(topo: &Topology, p: &cut::Piece, flat: &[DVec2]) -> quality::Quality {
+    let pos: Vec<glam::DVec3> = p
+        .welded
+        .iter()
+        .map(|&w| topo.positions[w as usize].as_dvec3())
+        .collect();
+    quality::measure(&pos, flat, &p.triangles)
+}
+
+/// Whether a piece's pelt folds: flipped or overlapping triangles.
+pub fn folds(topo: &Topology, p: &cut::Piece, flat: &[DVec2]) -> bool {
+    let q = piece_quality(topo, p, flat);
+    q.flipped > 0 || q.overlaps > 0
+}
+
+/// Whether a piece's layout stretches too far ([`MAX_AREA_P95`]), or its conformal refinement
+/// folded (`refine_failed`; halves refine more readily than the whole).
+pub fn stretched(topo: &Topology, p: &cut::Piece, flat: &[DVec2], refine_failed: bool) -> bool {
+    refine_failed || piece_quality(topo, p, flat).area_distortion.p95 > MAX_AREA_P95
+}
+
+/// The projection (x, y) of a relaxed piece, mirrored if most of its area came out wound against
+/// the mesh (the 3D dynamics may turn a closed piece over).
+fn oriented(p: &cut::Piece, r: &relax::Relaxed) -> Vec<DVec2> {
+    let mut q: Vec<DVec2> = r.x.iter().map(|x| DVec2::new(x[0], x[1])).collect();
+    let signed: f64 = p
+        .triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| q[i as usize]);
+            (b - a).perp_dot(c - a)
+        })
+        .sum();
+    if signed < 0.0 {
+        for v in &mut q {
+            v.x = -v.x;
+        }
+    }
+    q
+}
+
+/// Turns a flat piece so its bounding box is the smallest of 32 turns over a quarter circle (a
+/// box's area repeats every quarter turn), refined by 32 more round the best, so the packing
+/// wastes less.
+fn upright(q: &[DVec2]) -> Vec<DVec2> {
+    let area = |a: f64| {
+        let r = DVec2::from_angle(a);
+        let (lo, hi) = q.iter().fold((DVec2::MAX, DVec2::MIN), |(lo, hi), p| {
+            let p = r.rotate(*p);
+            (lo.min(p), hi.max(p))
+        });
+        (hi - lo).x * (hi - lo).y
+    };
+    let step = std::f64::consts::FRAC_PI_2 / 32.0;
+    let coarse = (0..32)
+        .map(|k| k as f64 * step)
+        .min_by(|a, b| area(*a).total_cmp(&area(*b)))
+        .unwrap_or(0.0);
+    // Then 32 turns across the best one's neighbourhood (a box's area is smooth between corners).
+    let best = (0..=32)
+        .map(|k| coarse + (k as f64 / 16.0 - 1.0) * step)
+        .min_by(|a, b| area(*a).total_cmp(&area(*b)))
+        .unwrap_or(coarse);
+    let r = DVec2::from_angle(best);
+    q.iter().map(|p| r.rotate(*p)).collect()
+}
+
+/// Packs the flat pieces (every piece at the texel density of its 3D area, turned upright) and
+/// flips v to glTF's.
+fn place(topo: &Topology, cut: &cut::Cut, flat: &[Vec<DVec2>], opts: &Options) -> Vec<Vec<Vec2>> {
+    let flat: Vec<Vec<DVec2>> = flat.iter().map(|q| upright(q)).collect();
+    let flat = &flat[..];
+    let boxes: Vec<(DVec2, DVec2)> = flat
+        .iter()
+        .map(|q| {
+            q.iter().fold((DVec2::MAX, DVec2::MIN), |(lo, hi), p| {
+                (lo.min(*p), hi.max(*p))
+            })
+        })
+        .collect();
+    let density: Vec<f64> = cut
+        .pieces
+        .iter()
+        .zip(flat)
+        .map(|(p, q)| {
+            let (mut a3, mut a2) = (0.0, 0.0);
+            for t in &p.triangles {
+                let x = t.map(|i| topo.positions[p.welded[i as usize] as usize].as_dvec3());
+                a3 += 0.5 * (x[1] - x[0]).cross(x[2] - x[0]).length();
+                let y = t.map(|i| q[i as usize]);
+                a2 += 0.5 * (y[1] - y[0]).perp_dot(y[2] - y[0]).abs();
+            }
+            (a3 / a2.max(f64::MIN_POSITIVE)).sqrt()
+        })
+        .collect();
+    let placed = pack::pack(&boxes, &density, opts.size, opts.margin);
+    flat.iter()
+        .enumerate()
+        .map(|(i, q)| {
+            q.iter()
+                .map(|p| {
+                    let u = placed.offset[i] + (*p - placed.lo[i]) * placed.scale[i];
+                    Vec2::new(u.x as f32, (1.0 - u.y) as f32)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The quality of the packed layout over all pieces.
+fn measure(topo: &Topology, cut: &cut::Cut, uv: &[Vec<Vec2>]) -> quality::Quality {
+    let (mut pos, mut q, mut tris) = (Vec::new(), Vec::new(), Vec::new());
+    for (p, u) in cut.pieces.iter().zip(uv) {
+        let base = pos.len() as u32;
+        pos.extend(
+            p.welded
+                .iter()
+                .map(|&w| topo.positions[w as usize].as_dvec3()),
+        );
+        // v back up, so the winding reads as the pieces were laid out.
+        q.extend(u.iter().map(|v| DVec2::new(v.x as f64, 1.0 - v.y as f64)));
+        tris.extend(p.triangles.iter().map(|t| t.map(|i| i + base)));
+    }
+    quality::measure(&pos, &q, &tris)
+}
+
+/// `mesh` with the unwrap's UVs as set `set` (replacing it if it exists, else appended): every
+/// split vertex that lands on more than one side of the cut is split again.
+pub fn apply(mesh: &Mesh, un: &Unwrapped, set: usize) -> Mesh {
+    let mut out = mesh.clone();
+    let mut seen: std::collections::HashMap<(u32, u32, u32), u32> = Default::default();
+    let mut new_uv: Vec<Vec2> = Vec::new();
+    let mut remap: Vec<u32> = Vec::new();
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        let Some((p, lt)) = un.cut.triangle_piece[t] else {
+            continue;
+        };
+        let local = un.cut.pieces[p as usize].triangles[lt as usize];
+        for k in 0..3 {
+            let key = (tri[k], p, local[k]);
+            let id = *seen.entry(key).or_insert_with(|| {
+                remap.push(tri[k]);
+                new_uv.push(un.uv[p as usize][local[k] as usize]);
+                remap.len() as u32 - 1
+            });
+            out.triangles[t][k] = id;
+        }
+    }
+    // Degenerate triangles keep a vertex of theirs (their UV is never seen: they cover no texel).
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        if un.cut.triangle_piece[t].is_none() {
+            for (k, &o) in tri.iter().enumerate() {
+                remap.push(o);
+                new_uv.push(Vec2::ZERO);
+                out.triangles[t][k] = remap.len() as u32 - 1;
+            }
+        }
+    }
+    out.positions = remap.iter().map(|&o| mesh.positions[o as usize]).collect();
+    out.normals = remap.iter().map(|&o| mesh.normals[o as usize]).collect();
+    out.uv_sets = mesh
+        .uv_sets
+        .iter()
+        .map(|s| remap.iter().map(|&o| s[o as usize]).collect())
+        .collect();
+    if set < out.uv_sets.len() {
+        out.uv_sets[set] = new_uv;
+    } else {
+        out.uv_sets.push(new_uv);
+    }
+    out
+}

@@ -1,0 +1,145 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! `--refine conformal`: the pelt as the starting point of a least-squares conformal map (Lévy et al.
+//! 2002) of the same piece (Piponi & Borshukov §4: "further modifications may be carried out using
+//! algorithms more suited to local refinement").
+//!
+//! Each piece's LSCM system is assembled on its own vertices (a cut vertex once per side,
+//! `maps::chart::lscm::assemble_local`), with the two boundary vertices farthest apart in the pelt
+//! pinned where the pelt put them, and solved from the pelt by the batched conjugate gradient on the
+//! GPU (`solve::gpu::cg_batched`, all pieces in one batch) or by its f64 twin (`solve::sparse::pcg`).
+//! A refined layout that folds (flipped or overlapping triangles: LSCM does not promise it will not)
+//! is dropped and the pelt kept.
+
+use super::cut::Piece;
+use super::Device;
+use crate::error::Result;
+use crate::maps::chart::lscm;
+use crate::mesh::Topology;
+use crate::solve::gpu::{cg_batched, SystemDesc};
+use crate::solve::sparse::{pcg, Csr};
+use glam::DVec2;
+
+/// Relative residual the solves aim for.
+pub const RTOL: f32 = 1e-5;
+
+/// What the refinement did to one piece.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize)]
+pub struct Refinement {
+    /// Whether the refined layout was kept (false: it folded, the pelt stays).
+    pub kept: bool,
+    /// Conjugate-gradient iterations.
+    pub iterations: u32,
+    /// Final relative residual.
+    pub residual: f64,
+}
+
+/// A system: matrix, right-hand side, warm start.
+type System = (Csr, Vec<f64>, Vec<f64>);
+
+/// A piece's LSCM system warm-started at its pelt `flat`.
+fn system(topo: &Topology, piece: &Piece, flat: &[DVec2]) -> System {
+    let b = &piece.boundary;
+    // The boundary pair farthest apart in the pelt (a few sweeps from the first vertex).
+    let far = |from: u32| {
+        *b.iter()
+            .max_by(|x, y| {
+                (flat[**x as usize] - flat[from as usize])
+                    .length_squared()
+                    .total_cmp(&(flat[**y as usize] - flat[from as usize]).length_squared())
+            })
+            .expect("a piece has a boundary")
+    };
+    let p = far(b[0]);
+    let q = far(p);
+    let mut value = vec![None; piece.welded.len()];
+    for v in [p, q] {
+        value[v as usize] = Some(flat[v as usize].to_array());
+    }
+    let (matrix, rhs) = lscm::assemble_local(
+        &piece.triangles,
+        &|k| {
+            lscm::triangle_edges_at(
+                piece.triangles[k]
+                    .map(|v| topo.positions[piece.welded[v as usize] as usize].as_dvec3()),
+            )
+        },
+        &value,
+        &|i| flat[i].to_array(),
+    );
+    let x0 = flat.iter().flat_map(|p| [p.x, p.y]).collect();
+    (matrix, rhs, x0)
+}
+
+/// Refines every piece's pelt; returns the refined coordinates (`None` where the system could not
+/// be built: fewer than two boundary vertices) and what the solver did.
+pub fn refine(
+    device: Device,
+    topo: &Topology,
+    pieces: &[Piece],
+    flats: &[Vec<DVec2>],
+) -> Result<Vec<(Option<Vec<DVec2>>, Refinement)>> {
+    let systems: Vec<Option<System>> = pieces
+        .iter()
+        .zip(flats)
+        .map(|(p, f)| (p.boundary.len() >= 2).then(|| system(topo, p, f)))
+        .collect();
+    let solved: Vec<Option<(Vec<f64>, u32, f64)>> = match device {
+        Device::Cpu => systems
+            .iter()
+            .map(|s| {
+                s.as_ref().map(|(a, b, x0)| {
+                    let mut x = x0.clone();
+                    let rep = pcg(a, b, &mut x, RTOL as f64, budget(a.rows));
+                    (x, rep.iterations, rep.residual)
+                })
+            })
+            .collect(),
+        Device::Gpu(ctx, pipes) => {
+            let present: Vec<&System> = systems.iter().flatten().collect();
+            let mats: Vec<&Csr> = present.iter().map(|s| &s.0).collect();
+            let (a, starts) = Csr::block_diagonal(&mats);
+            let b: Vec<f64> = present.iter().flat_map(|s| s.1.iter().copied()).collect();
+            let x0: Vec<f64> = present.iter().flat_map(|s| s.2.iter().copied()).collect();
+            let descs: Vec<SystemDesc> = present
+                .iter()
+                .zip(&starts)
+                .map(|(s, &r0)| SystemDesc::new(r0, s.0.rows, RTOL, budget(s.0.rows)))
+                .collect();
+            let out = cg_batched(ctx, pipes, &a, &b, &x0, &descs)?;
+            let mut it = present.iter().zip(&starts).zip(&out.reports);
+            systems
+                .iter()
+                .map(|s| {
+                    s.as_ref().map(|_| {
+                        let ((sys, &r0), rep) = it.next().expect("one report per system");
+                        let x = out.x[r0..r0 + sys.0.rows]
+                            .iter()
+                            .map(|&v| v as f64)
+                            .collect();
+                        (x, rep.iterations, rep.residual)
+                    })
+                })
+                .collect()
+        }
+    };
+    Ok(solved
+        .into_iter()
+        .map(|s| match s {
+            None => (None, Refinement::default()),
+            Some((x, iterations, residual)) => (
+                Some(x.chunks(2).map(|c| DVec2::new(c[0], c[1])).collect()),
+                Refinement {
+                    kept: false,
+                    iterations,
+                    residual,
+                },
+            ),
+        })
+        .collect())
+}
+
+/// Iteration budget of a system of `rows` unknowns (the chart solves' rule of thumb: enough for a
+/// Jacobi-preconditioned CG on a mesh Laplacian of that size).
+fn budget(rows: usize) -> u32 {
+    crate::maps::chart::default_budget(rows)
+}

@@ -1,0 +1,204 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Splitting a piece whose pelt folds into two (Piponi & Borshukov §4, end: "for alternative
+//! topologies we can use more than one frame"), and cutting each part into disks again.
+//!
+//! A pelt folds (flipped or overlapping triangles) or stretches too far when its piece is too
+//! curved for one frame: a whole closed animal, a long limb. Such a piece is split into the two
+//! regions nearest to the ends of its longest shortest path (a geodesic Voronoi split of two far
+//! seeds), each region is welded again from the mesh's own vertices, so the earlier cut through it
+//! closes up, and cut anew with the automatic cut (a region may have holes or handles). The
+//! parts are pelted on their own frames at the next level.
+
+use super::cut::{self, CutSpec, Piece};
+use crate::error::Result;
+use crate::mesh::{Mesh, Topology};
+use std::collections::{BinaryHeap, HashMap};
+use std::path::Path;
+
+/// The triangles (mesh triangle ids) of the two regions of `piece` (module docs), or `None` when
+/// the piece cannot be split (too few triangles, or one region would be empty). With `apart`
+/// (two piece-local triangles whose layouts overlap), the seeds are a corner of each instead of
+/// the ends of the longest path, so the overlap is split apart.
+pub fn halves(topo: &Topology, piece: &Piece, apart: Option<(u32, u32)>) -> Option<[Vec<u32>; 2]> {
+    if piece.triangles.len() < 8 {
+        return None;
+    }
+    let n = piece.welded.len();
+    let mut nbrs: Vec<Vec<u32>> = vec![Vec::new(); n];
+    for t in &piece.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            if !nbrs[a as usize].contains(&b) {
+                nbrs[a as usize].push(b);
+                nbrs[b as usize].push(a);
+            }
+        }
+    }
+    let len = |a: u32, b: u32| {
+        (topo.positions[piece.welded[a as usize] as usize]
+            - topo.positions[piece.welded[b as usize] as usize])
+            .length() as f64
+    };
+    let far = |from: &[u32]| {
+        let d = dijkstra(&nbrs, from, &len);
+        let v = (0..n as u32)
+            .max_by(|a, b| d[*a as usize].0.total_cmp(&d[*b as usize].0))
+            .expect("a piece has vertices");
+        (v, d)
+    };
+    let (a, b) = match apart {
+        Some((s, t)) if piece.triangles[s as usize][0] != piece.triangles[t as usize][0] => (
+            piece.triangles[s as usize][0],
+            piece.triangles[t as usize][0],
+        ),
+        _ => {
+            let (a, _) = far(&[0]);
+            (a, far(&[a]).0)
+        }
+    };
+    let (_, labels) = far(&[a, b]);
+    let mut side: Vec<bool> = piece
+        .triangles
+        .iter()
+        .map(|tri| tri.iter().filter(|&&v| labels[v as usize].1 == b).count() >= 2)
+        .collect();
+    keep_one_region_per_side(piece, &mut side);
+    let mut parts: [Vec<u32>; 2] = [Vec::new(), Vec::new()];
+    for (t, &s) in side.iter().enumerate() {
+        parts[usize::from(s)].push(piece.source[t]);
+    }
+    if parts[0].is_empty() || parts[1].is_empty() {
+        return None;
+    }
+    Some(parts)
+}
+
+/// Gives every triangle that is cut off from the largest region of its side to the other side, so
+/// each side is one connected region (no islands of a few triangles become pelts of their own).
+fn keep_one_region_per_side(piece: &Piece, side: &mut [bool]) {
+    let mut by_edge: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
+    for (t, tri) in piece.triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            by_edge
+                .entry((a.min(b), a.max(b)))
+                .or_default()
+                .push(t as u32);
+        }
+    }
+    let mut nbr: Vec<Vec<u32>> = vec![Vec::new(); side.len()];
+    for f in by_edge.values() {
+        if let [a, b] = f[..] {
+            nbr[a as usize].push(b);
+            nbr[b as usize].push(a);
+        }
+    }
+    for _ in 0..2 {
+        // Regions of equal side; all but the largest of each side flip.
+        let mut region = vec![u32::MAX; side.len()];
+        let mut sizes: Vec<(usize, bool)> = Vec::new();
+        for start in 0..side.len() {
+            if region[start] != u32::MAX {
+                continue;
+            }
+            let id = sizes.len() as u32;
+            let mut stack = vec![start as u32];
+            region[start] = id;
+            let mut count = 0;
+            while let Some(t) = stack.pop() {
+                count += 1;
+                for &u in &nbr[t as usize] {
+                    if region[u as usize] == u32::MAX && side[u as usize] == side[start] {
+                        region[u as usize] = id;
+                        stack.push(u);
+                    }
+                }
+            }
+            sizes.push((count, side[start]));
+        }
+        let largest = |s: bool| {
+            (0..sizes.len())
+                .filter(|&i| sizes[i].1 == s)
+                .max_by_key(|&i| sizes[i].0)
+        };
+        let keep = [largest(false), largest(true)];
+        let mut changed = false;
+        for t in 0..side.len() {
+            let r = region[t] as usize;
+            if Some(r) != keep[usize::from(side[t])] {
+                side[t] = !side[t];
+                changed = true;
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+}
+
+/// Multi-source Dijkstra: (distance, nearest source) per vertex.
+fn dijkstra(nbrs: &[Vec<u32>], from: &[u32], len: &dyn Fn(u32, u32) -> f64) -> Vec<(f64, u32)> {
+    let mut d = vec![(f64::INFINITY, u32::MAX); nbrs.len()];
+    let mut heap = BinaryHeap::new();
+    for &s in from {
+        d[s as usize] = (0.0, s);
+        heap.push(std::cmp::Reverse((0u64, s)));
+    }
+    while let Some(std::cmp::Reverse((_, v))) = heap.pop() {
+        let (dv, src) = d[v as usize];
+        for &w in &nbrs[v as usize] {
+            let nd = dv + len(v, w);
+            if nd < d[w as usize].0 {
+                d[w as usize] = (nd, src);
+                // Fixed-point keys keep the heap's order total; ties resolve by vertex id.
+                heap.push(std::cmp::Reverse(((nd * 1e9) as u64, w)));
+            }
+        }
+    }
+    d
+}
+
+/// Cuts the region made of mesh triangles `tris` into disks, in the whole mesh's welded ids.
+pub fn cut_region(topo: &Topology, tris: &[u32], path: &Path) -> Result<Vec<Piece>> {
+    // The region as a mesh of its own, on the welded vertices it uses.
+    let mut local: HashMap<u32, u32> = HashMap::new();
+    let mut welded = Vec::new();
+    let triangles: Vec<[u32; 3]> = tris
+        .iter()
+        .map(|&t| {
+            topo.triangles[t as usize].map(|w| {
+                *local.entry(w).or_insert_with(|| {
+                    welded.push(w);
+                    welded.len() as u32 - 1
+                })
+            })
+        })
+        .collect();
+    let positions = welded.iter().map(|&w| topo.positions[w as usize]).collect();
+    let mesh = Mesh {
+        source: path.to_path_buf(),
+        normals: vec![glam::Vec3::ZERO; welded.len()],
+        uv_sets: Vec::new(),
+        positions,
+        triangles,
+        primitives: Vec::new(),
+        material: None,
+    };
+    // A tenth of the mesh's welding distance at most (the region is no larger than the mesh): the
+    // welded vertices, further apart than that, stay apart.
+    let sub = Topology::build(&mesh, 0.1 * crate::mesh::DEFAULT_WELD_TOLERANCE);
+    let c = cut::cut(&mesh, &sub, &CutSpec::Auto, path)?;
+    // Sub-welded id -> the mesh's welded id (one region vertex per sub-welded id).
+    let mut back = vec![u32::MAX; sub.positions.len()];
+    for (v, &s) in sub.welded_of.iter().enumerate() {
+        back[s as usize] = welded[v];
+    }
+    Ok(c.pieces
+        .into_iter()
+        .map(|p| Piece {
+            welded: p.welded.iter().map(|&v| back[v as usize]).collect(),
+            source: p.source.iter().map(|&t| tris[t as usize]).collect(),
+            ..p
+        })
+        .collect())
+}
