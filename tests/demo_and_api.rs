@@ -21,6 +21,18 @@ fn demo_writes_decodable_outputs_and_a_glb_that_loads_back() {
     }
     let baked = LinearImage::load(&out.join("baked.png")).unwrap();
     assert_eq!((baked.width, baked.height), (1024, 1024));
+    // The unwrapped sheet: its own flattening (TEXCOORD_0) and the pelt's (TEXCOORD_1).
+    let sheet = decalbake::mesh::Mesh::load(&out.join("unwrapped.glb")).unwrap();
+    assert_eq!(sheet.uv_sets.len(), 2);
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("unwrap-report.json")).unwrap()).unwrap();
+    assert_eq!(
+        (
+            r["quality"]["flipped"].as_u64(),
+            r["quality"]["overlaps"].as_u64()
+        ),
+        (Some(0), Some(0))
+    );
     let preview = LinearImage::load(&out.join("preview.png")).unwrap();
     assert_eq!((preview.width, preview.height), (1024, 1024));
     // Each quadrant of the preview shows the model: its centre is not the background colour.

@@ -9,6 +9,8 @@ use std::f32::consts::PI;
 
 /// The bundled mesh.
 pub const SPOT_GLB: &[u8] = include_bytes!("../../assets/spot.glb");
+/// Keenan Crane's crumpled developable sheet (public domain), unwrapped by the demo.
+pub const CRUMPLED_GLB: &[u8] = include_bytes!("../../assets/crumpled_developable.glb");
 
 fn img(side: u32, f: impl Fn(f32, f32) -> [f32; 4]) -> LinearImage {
     let mut out = LinearImage::solid(side, side, [0.0; 4]);

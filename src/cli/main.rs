@@ -390,8 +390,31 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
     let job = Job::load(&job_path, None)?;
     let engine = engine(backend)?;
     bake(&engine, &job)?;
+    // A new UV set by pelting: the crumpled sheet, whose pelt refines to its isometric flattening.
+    // Stood up (it lies in the xz plane), so the preview's side views see its face.
+    let sheet = out.join("crumpled.glb");
+    let mut m = decalbake::mesh::Mesh::from_bytes(demo::CRUMPLED_GLB, &sheet, None)?;
+    for p in m.positions.iter_mut().chain(m.normals.iter_mut()) {
+        *p = glam::Vec3::new(p.x, -p.z, p.y);
+    }
+    let glb = decalbake::output::glb::build_glb(&m, None, 0);
+    decalbake::io::image::write_atomic(&sheet, &glb)?;
+    let args = unwrap::UnwrapArgs {
+        mesh: sheet,
+        out: out.join("unwrapped.glb"),
+        cut: "auto".into(),
+        frame: unwrap::FrameArg::Circle,
+        uv_set: None,
+        force: false,
+        size: 1024,
+        margin: 4,
+        report: Some(out.join("unwrap-report.json")),
+        preview: Some(out.join("unwrap-preview.png")),
+        cpu: false,
+    };
+    unwrap::run_with(&args, &engine)?;
     eprintln!(
-        "demo written to {} (edit job.json and run `decalbake bake {}` to re-bake)",
+        "demo written to {} (edit job.json and run `decalbake bake {}` to re-bake; `decalbake unwrap` made unwrapped.glb)",
         out.display(),
         job_path.display()
     );

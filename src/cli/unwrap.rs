@@ -66,9 +66,31 @@ fn input(path: &Path, field: &str, detail: String) -> anyhow::Error {
     .into()
 }
 
-/// Runs the command (`engine` is made on first use: the CPU twin needs none unless a preview is
-/// asked for).
+/// Runs the command (`engine` is made only when needed: the CPU twin needs none unless a preview
+/// is asked for).
 pub fn run(args: &UnwrapArgs, engine: impl Fn() -> Result<Engine>) -> Result<()> {
+    prepare(args, |args, mesh, topo, set, opts| {
+        let engine = if args.cpu && args.preview.is_none() {
+            None
+        } else {
+            Some(engine()?)
+        };
+        run_on(args, mesh, topo, set, opts, engine.as_ref())
+    })
+}
+
+/// Runs the command on an engine the caller has (the demo).
+pub fn run_with(args: &UnwrapArgs, engine: &Engine) -> Result<()> {
+    prepare(args, |args, mesh, topo, set, opts| {
+        run_on(args, mesh, topo, set, opts, Some(engine))
+    })
+}
+
+/// Loads and checks the model and the options, then hands them to `go`.
+fn prepare(
+    args: &UnwrapArgs,
+    go: impl FnOnce(&UnwrapArgs, Mesh, &Topology, usize, Options) -> Result<()>,
+) -> Result<()> {
     check_out(args)?;
     let mut mesh = Mesh::load(&args.mesh)?;
     let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
@@ -105,16 +127,24 @@ pub fn run(args: &UnwrapArgs, engine: impl Fn() -> Result<Engine>) -> Result<()>
         margin: args.margin,
         ..Options::default()
     };
-    let engine = if args.cpu && args.preview.is_none() {
-        None
-    } else {
-        Some(engine()?)
-    };
-    let device = match (&engine, args.cpu) {
+    go(args, mesh, &topo, set, opts)
+}
+
+/// The command once the model is loaded and checked, on `engine` (required for the GPU dynamics
+/// and for the preview).
+fn run_on(
+    args: &UnwrapArgs,
+    mesh: Mesh,
+    topo: &Topology,
+    set: usize,
+    opts: Options,
+    engine: Option<&Engine>,
+) -> Result<()> {
+    let device = match (engine, args.cpu) {
         (Some(e), false) => Device::Gpu(&e.ctx, e.pipelines()),
         _ => Device::Cpu,
     };
-    let un = pelt::unwrap(device, &mesh, &topo, &opts, &args.mesh)?;
+    let un = pelt::unwrap(device, &mesh, topo, &opts, &args.mesh)?;
     let out_mesh = pelt::apply(&mesh, &un, set);
     let png = mesh.material.as_ref().and_then(|m| {
         m.base_color_texture
@@ -148,7 +178,7 @@ pub fn run(args: &UnwrapArgs, engine: impl Fn() -> Result<Engine>) -> Result<()>
         v["out"] = serde_json::json!(args.out);
         decalbake::io::image::write_atomic(r, serde_json::to_string_pretty(&v)?.as_bytes())?;
     }
-    if let (Some(p), Some(engine)) = (&args.preview, &engine) {
+    if let (Some(p), Some(engine)) = (&args.preview, engine) {
         preview(engine, out_mesh, set, p)?;
     }
     Ok(())

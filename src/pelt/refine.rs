@@ -20,7 +20,7 @@ use crate::solve::sparse::{pcg, Csr};
 use glam::DVec2;
 
 /// Relative residual the solves aim for.
-pub const RTOL: f32 = 1e-5;
+pub const RTOL: f32 = 1e-6;
 
 /// What the refinement did to one piece.
 #[derive(Debug, Clone, Copy, Default, serde::Serialize)]
