@@ -147,14 +147,23 @@ enum Cmd {
         /// atomics, small dense systems per invocation against per workgroup.
         #[arg(long)]
         device: bool,
-        /// With `--linalg` or `--geodesic`: the `../shared/peers` directory, to run libigl's LSCM or
-        /// potpourri3d's log maps on the same patches / meshes and seeds.
+        /// With `--linalg`, `--geodesic` or `--unwrap`: the `../shared/peers` directory, to run
+        /// libigl's LSCM, potpourri3d's log maps, or xatlas, ARAP and harmonic maps on the same
+        /// patches / meshes and seeds.
         #[arg(long)]
         peers: Option<PathBuf>,
         /// Jobs per minute of `decalbake batch` against one `decalbake bake` process per job:
         /// the first `--decals` value is the number of jobs, at `--sizes` in turn.
         #[arg(long)]
         batch_bake: bool,
+        /// Benchmark `decalbake unwrap` on the GPU and through its CPU twin (Spot, bob, the
+        /// bunny, bob subdivided twice, or `--mesh`), with `--peers`: xatlas, libigl ARAP and
+        /// harmonic on the same meshes.
+        #[arg(long)]
+        unwrap: bool,
+        /// With `--unwrap`: skip the GPU run of meshes over this many triangles.
+        #[arg(long, default_value_t = 50_000)]
+        gpu_max_triangles: usize,
         /// With `--linalg`: chart sizes (vertices) to solve one at a time.
         #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000")]
         charts: Vec<usize>,
@@ -245,8 +254,18 @@ fn run(cli: Cli) -> Result<()> {
             peers,
             charts,
             batch_bake,
+            unwrap,
+            gpu_max_triangles,
         } => {
             let mut engine = engine(cli.backend.as_deref())?;
+            if unwrap {
+                let opts = bench::unwrap::UnwrapBenchOptions {
+                    mesh,
+                    peers,
+                    gpu_max_triangles,
+                };
+                return bench::unwrap::run(&engine, &opts, |v| println!("{v}"));
+            }
             if batch_bake {
                 let count = decals.first().copied().unwrap_or(40);
                 return bench::batch::run(&engine, count, &sizes, |v| println!("{v}"));

@@ -88,6 +88,8 @@ pub struct PieceReport {
     pub relax: relax::Relaxed,
     /// The conformal refinement (`None` with `Refine::None`).
     pub refine: Option<refine::Refinement>,
+    /// The piece's own layout (its flips and overlaps, distortion normalised by its own area).
+    pub quality: quality::Quality,
 }
 
 /// What an unwrap reports (`decalbake unwrap --report`).
@@ -245,7 +247,9 @@ pub fn unwrap(
             .pieces
             .iter()
             .zip(relaxed.into_iter().zip(refined))
-            .map(|(p, (r, rf))| PieceReport {
+            .zip(&flat)
+            .map(|((p, (r, rf)), f)| PieceReport {
+                quality: piece_quality(topo, p, f),
                 vertices: p.welded.len(),
                 triangles: p.triangles.len(),
                 boundary: p.boundary.len(),
@@ -334,8 +338,8 @@ fn pelt_without_folds(
     Ok(out)
 }
 
-/// How many times a piece may be split in two (up to 2^6 pelts from one piece).
-pub const MAX_SPLIT_LEVELS: usize = 6;
+/// How many times a piece may be split in two, one split after another.
+pub const MAX_SPLIT_LEVELS: usize = 10;
 /// A pelt whose area distortion's 95th percentile exceeds this is split.
 pub const MAX_AREA_P95: f64 = 4.0;
 

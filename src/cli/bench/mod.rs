@@ -9,3 +9,4 @@ pub mod geodesic;
 pub mod linalg;
 pub mod scale;
 pub mod strokes;
+pub mod unwrap;
