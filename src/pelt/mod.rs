@@ -171,26 +171,12 @@ pub fn unwrap(
         let t = Instant::now();
         let (relaxed, mut flats): (Vec<relax::Relaxed>, Vec<Vec<DVec2>>) =
             pelts.into_iter().unzip();
-        let mut refinements = vec![refine::Refinement::default(); todo.len()];
-        let mut apart = vec![None; todo.len()];
-        if opts.refine == Refine::Conformal {
-            for (k, (x, mut rf)) in refine::refine(device, topo, &todo, &flats)?
-                .into_iter()
-                .enumerate()
-            {
-                // Where the refinement overlaps itself, a split there lets the halves refine.
-                if let Some(x) = &x {
-                    apart[k] = quality::overlapping_pairs(x, &todo[k].triangles)
-                        .first()
-                        .copied();
-                }
-                if let Some(x) = x.filter(|x| !folds(topo, &todo[k], x)) {
-                    flats[k] = x;
-                    rf.kept = true;
-                }
-                refinements[k] = rf;
-            }
-        }
+        let (refinements, apart) = if opts.refine == Refine::Conformal {
+            refine_pelts(device, topo, &todo, &mut flats)?
+        } else {
+            let n = todo.len();
+            (vec![refine::Refinement::default(); n], vec![None; n])
+        };
         timings.refine += ms(t);
         let t = Instant::now();
         let mut next = Vec::new();
@@ -287,6 +273,36 @@ fn run(device: Device, nets: &[relax::Net], cfg: &SystemCfg) -> Result<Vec<relax
             .map(|n| relax::relax_cpu(n, cfg, None))
             .collect()),
     }
+}
+
+/// Refines every pelt (`refine`), replacing `flats[k]` where the refinement does not fold; also
+/// returns, per piece, a pair of overlapping triangles of its refinement (a split there lets the
+/// halves refine).
+#[allow(clippy::type_complexity, reason = "two per-piece lists")]
+fn refine_pelts(
+    device: Device,
+    topo: &Topology,
+    pieces: &[cut::Piece],
+    flats: &mut [Vec<DVec2>],
+) -> Result<(Vec<refine::Refinement>, Vec<Option<(u32, u32)>>)> {
+    let mut refinements = vec![refine::Refinement::default(); pieces.len()];
+    let mut apart = vec![None; pieces.len()];
+    for (k, (x, mut rf)) in refine::refine(device, topo, pieces, flats)?
+        .into_iter()
+        .enumerate()
+    {
+        if let Some(x) = &x {
+            apart[k] = quality::overlapping_pairs(x, &pieces[k].triangles)
+                .first()
+                .copied();
+        }
+        if let Some(x) = x.filter(|x| !folds(topo, &pieces[k], x)) {
+            flats[k] = x;
+            rf.kept = true;
+        }
+        refinements[k] = rf;
+    }
+    Ok((refinements, apart))
 }
 
 /// The rest-length scales tried in turn until a pelt does not fold; the last (no rest length)
