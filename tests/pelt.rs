@@ -577,3 +577,60 @@ fn developable_sheet_unwraps_to_its_flattening() {
         .fold(f64::MAX, f64::min);
     assert!(worst < 1e-3 * size, "worst {worst} of {size}");
 }
+
+/// `"uv_set": "auto"` on a mesh without UVs (the crumpled sheet with its UVs stripped): the bake
+/// unwraps it on the GPU, bakes the decal into the new set, and writes a `.glb` that carries the
+/// set (and passes the validator); the report says how the set was made. Without `"auto"` the same
+/// job is refused (exit 2) and says to add it.
+#[test]
+fn bake_with_auto_uv_set_unwraps_a_mesh_without_uvs() {
+    let dir = common::scratch("auto-uv");
+    let sheet = Mesh::load(&asset("crumpled_developable.glb")).unwrap();
+    write_mesh(&dir.join("sheet.glb"), &sheet);
+    std::fs::write(
+        dir.join("logo.png"),
+        common::test_image(32, 32, 3, false).encode_png(8),
+    )
+    .unwrap();
+    let centre = sheet.positions[sheet.positions.len() / 2];
+    let job = |uv_set: serde_json::Value| {
+        serde_json::json!({ "mesh": "sheet.glb", "uv_set": uv_set,
+            "texture": { "width": 256, "height": 256, "base": [0.5, 0.5, 0.5, 1.0] },
+            "layers": [{ "image": "logo.png", "at": centre.to_array(), "size": [0.5, 0.5] }],
+            "output": { "texture": "baked.png", "glb": "baked.glb", "report": "report.json" } })
+        .to_string()
+    };
+    std::fs::write(dir.join("plain.json"), job(serde_json::json!(0))).unwrap();
+    let (code, _, err) = common::cli(&["bake", dir.join("plain.json").to_str().unwrap()]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("\"uv_set\": \"auto\""), "{err}");
+    assert!(!dir.join("baked.png").exists());
+
+    std::fs::write(dir.join("auto.json"), job(serde_json::json!("auto"))).unwrap();
+    let (code, _, err) = common::cli(&["bake", dir.join("auto.json").to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let out = Mesh::load(&dir.join("baked.glb")).unwrap();
+    assert_eq!(out.uv_sets.len(), 1);
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap();
+    assert_eq!(r["uv_set"], 0);
+    assert_eq!(r["unwrap"]["quality"]["flipped"], 0);
+    assert_eq!(r["unwrap"]["quality"]["overlaps"], 0);
+    // The decal is in the texture: the texels it covers are not the grey base.
+    let covered = r["layers"][0]["texels_covered"].as_u64().unwrap();
+    assert!(covered > 500, "{covered} texels covered");
+    let img = decalbake::io::image::LinearImage::load(&dir.join("baked.png")).unwrap();
+    let grey = decalbake::io::image::srgb_to_linear(0.5);
+    let changed = img
+        .pixels
+        .iter()
+        .filter(|p| (p[0] - grey).abs() > 0.05 || (p[1] - grey).abs() > 0.05)
+        .count();
+    assert!(changed > 500, "{changed} texels differ from the base");
+    validate(&dir.join("baked.glb"));
+
+    std::fs::write(dir.join("bad.json"), job(serde_json::json!("automatic"))).unwrap();
+    let (code, _, err) = common::cli(&["bake", dir.join("bad.json").to_str().unwrap()]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("uv_set") && err.contains("\"auto\""), "{err}");
+}

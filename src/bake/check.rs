@@ -42,7 +42,7 @@ pub fn check_job(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<()> {
     if sets == 0 {
         return Err(Error::mesh(
                 &mesh.mesh.source,
-                "the mesh has no UV coordinates (no TEXCOORD_0), so there is no texture layout to bake into; unwrap it first (for example Blender's Smart UV Project) and export again",
+                "the mesh has no UV coordinates (no TEXCOORD_0), so there is no texture layout to bake into; give the job \"uv_set\": \"auto\" to have decalbake make one by pelting, or run `decalbake unwrap` (or Blender's Smart UV Project) first",
             ));
     }
     if job.uv_set as usize >= sets {

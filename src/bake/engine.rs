@@ -34,6 +34,8 @@ pub struct LoadedMesh {
     pub stats: MeshStats,
     /// Load, weld and upload times (ms).
     pub timings: (f64, f64, f64),
+    /// The pelting that made its UVs (`"uv_set": "auto"` on a mesh without any).
+    pub unwrap: Option<crate::pelt::UnwrapReport>,
     /// The material's base-colour texture on the GPU, uploaded by the first bake that uses it.
     pub(crate) material_texture: std::sync::OnceLock<Arc<GpuImage>>,
     /// Island masks and nearest-island maps by (UV set, width, height, supersampling).
@@ -264,6 +266,39 @@ impl Engine {
         self.prepare_mesh(mesh, t0)
     }
 
+    /// Loads the mesh of `job` and resolves `"uv_set": "auto"`: the base-colour texture's set
+    /// (0 without one), or, on a mesh without UVs, a `TEXCOORD_0` made by pelting on this engine's
+    /// GPU (`crate::pelt::unwrap` with its defaults, as `decalbake unwrap`), which the mesh then
+    /// carries into the `.glb` and its report into the bake's (`unwrap`). Returns the job with its
+    /// set resolved.
+    pub fn load_mesh_for(&self, job: &Job) -> Result<(LoadedMesh, Job)> {
+        let mut job = job.clone();
+        if !job.uv_auto {
+            return Ok((self.load_mesh(&job.mesh)?, job));
+        }
+        let t0 = Instant::now();
+        let mut mesh = Mesh::load(&job.mesh)?;
+        let mut unwrap = None;
+        if mesh.uv_sets.is_empty() {
+            let topo = Topology::build(&mesh, crate::mesh::DEFAULT_WELD_TOLERANCE);
+            topo.fill_normals(&mut mesh);
+            let dev = crate::pelt::Device::Gpu(&self.ctx, &self.pipes);
+            let opts = crate::pelt::Options {
+                size: job.width.max(job.height),
+                ..Default::default()
+            };
+            let un = crate::pelt::unwrap(dev, &mesh, &topo, &opts, &job.mesh)?;
+            mesh = crate::pelt::apply(&mesh, &un, 0);
+            unwrap = Some(un.report);
+            job.uv_set = 0;
+        } else {
+            job.uv_set = mesh.material.as_ref().map_or(0, |m| m.base_color_uv_set);
+        }
+        let mut loaded = self.prepare_mesh(mesh, t0)?;
+        loaded.unwrap = unwrap;
+        Ok((loaded, job))
+    }
+
     /// Welds and uploads a mesh already in memory.
     pub fn prepare(&self, mesh: Mesh) -> Result<LoadedMesh> {
         self.prepare_mesh(mesh, Instant::now())
@@ -291,6 +326,7 @@ impl Engine {
             bvh,
             stats,
             timings: (load, weld, upload),
+            unwrap: None,
             material_texture: std::sync::OnceLock::new(),
             islands: Mutex::new(HashMap::new()),
         })

@@ -115,6 +115,7 @@ pub(crate) fn run(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Run> 
         timings: log.timings,
         gpu_commands: log.commands,
         input_hash: None,
+        unwrap: mesh.unwrap.clone(),
     };
     Ok(Run { encoded, report })
 }

@@ -135,6 +135,9 @@ pub struct Report {
     /// bytes), which `--resume` compares before skipping a job whose outputs exist.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub input_hash: Option<String>,
+    /// `"uv_set": "auto"` on a mesh without UVs: the pelting that made the set baked into.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unwrap: Option<crate::pelt::UnwrapReport>,
 }
 
 /// What a stroke reports (the layer's `stroke` block).

@@ -387,11 +387,13 @@ fn bake_entry(
     if opts.resume && up_to_date(&job, &outputs, &hash) {
         return Ok(("skipped", names(), hash));
     }
-    let mesh = shared
+    let (mesh, uv_set) = shared
         .meshes
         .lock()
         .expect("mesh cache")
-        .get(engine, &job.mesh)?;
+        .get(engine, &job)?;
+    let mut job = job;
+    job.uv_set = uv_set;
     let mut baked = engine.bake(&mesh, &job)?;
     baked.report.input_hash = Some(hash.clone());
     // The old report goes first: a run killed between renames must not leave it vouching for a
@@ -569,30 +571,42 @@ fn write_json(path: &Path, v: &Value) -> Result<()> {
     Ok(())
 }
 
+/// A cached mesh: its path, and for `"uv_set": "auto"` the texture side its unwrap was packed for
+/// (an auto-unwrapped mesh is not the plain one).
+type MeshKey = (PathBuf, Option<u32>);
+
 /// Loaded meshes by path, least recently used first out past [`MESH_BUDGET`].
 #[derive(Default)]
 struct MeshCache {
-    /// (path, mesh, estimated bytes), most recently used last.
-    entries: Vec<(PathBuf, Arc<LoadedMesh>, u64)>,
+    /// (key, mesh, the UV set a job of that key bakes into, estimated bytes), most recently used
+    /// last.
+    entries: Vec<(MeshKey, Arc<LoadedMesh>, u32, u64)>,
 }
 
 impl MeshCache {
-    fn get(&mut self, engine: &Engine, path: &Path) -> Result<Arc<LoadedMesh>> {
-        if let Some(i) = self.entries.iter().position(|e| e.0 == path) {
+    /// The mesh of `job` and the UV set it bakes into (`"auto"` resolved).
+    fn get(&mut self, engine: &Engine, job: &Job) -> Result<(Arc<LoadedMesh>, u32)> {
+        let key = (
+            job.mesh.clone(),
+            job.uv_auto.then_some(job.width.max(job.height)),
+        );
+        if let Some(i) = self.entries.iter().position(|e| e.0 == key) {
             let e = self.entries.remove(i);
-            let mesh = e.1.clone();
+            let found = (e.1.clone(), if job.uv_auto { e.2 } else { job.uv_set });
             self.entries.push(e);
-            return Ok(mesh);
+            return Ok(found);
         }
-        let mesh = Arc::new(engine.load_mesh(path)?);
+        let (mesh, resolved) = engine.load_mesh_for(job)?;
+        let mesh = Arc::new(mesh);
         let bytes = mesh_bytes(&mesh);
         while !self.entries.is_empty()
-            && self.entries.iter().map(|e| e.2).sum::<u64>() + bytes > MESH_BUDGET
+            && self.entries.iter().map(|e| e.3).sum::<u64>() + bytes > MESH_BUDGET
         {
             self.entries.remove(0);
         }
-        self.entries.push((path.to_path_buf(), mesh.clone(), bytes));
-        Ok(mesh)
+        self.entries
+            .push((key, mesh.clone(), resolved.uv_set, bytes));
+        Ok((mesh, resolved.uv_set))
     }
 }
 

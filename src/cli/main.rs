@@ -378,7 +378,8 @@ fn engine(backend: Option<&str>) -> Result<Engine> {
 }
 
 fn bake(engine: &Engine, job: &Job) -> Result<()> {
-    let mesh = engine.load_mesh(&job.mesh)?;
+    let (mesh, job) = engine.load_mesh_for(job)?;
+    let job = &job;
     let mut baked = engine.bake(&mesh, job)?;
     let files = decalbake::output::write_outputs(engine, &mesh, job, &mut baked)?;
     let r = &baked.report;
@@ -423,6 +424,7 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
         out: out.join("unwrapped.glb"),
         cut: "auto".into(),
         frame: unwrap::FrameArg::Circle,
+        refine: unwrap::RefineArg::Conformal,
         uv_set: None,
         force: false,
         size: 1024,

@@ -25,6 +25,10 @@ pub struct UnwrapArgs {
     /// The frame the pelts are stretched on.
     #[arg(long, value_enum, default_value = "circle")]
     pub frame: FrameArg,
+    /// What follows the pelting: a least-squares conformal map from each pelt, kept where it does
+    /// not fold (conformal), or nothing (none: the pelts as the dynamics left them).
+    #[arg(long, value_enum, default_value = "conformal")]
+    pub refine: RefineArg,
     /// Which TEXCOORD_n to write (default: the next free set).
     #[arg(long)]
     pub uv_set: Option<usize>,
@@ -46,6 +50,15 @@ pub struct UnwrapArgs {
     /// Run the dynamics on the CPU twin instead of the GPU.
     #[arg(long)]
     pub cpu: bool,
+}
+
+/// `--refine`.
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum RefineArg {
+    /// The pelts as they are.
+    None,
+    /// LSCM from each pelt.
+    Conformal,
 }
 
 /// `--frame`.
@@ -125,6 +138,10 @@ fn prepare(
         },
         size: args.size,
         margin: args.margin,
+        refine: match args.refine {
+            RefineArg::None => pelt::Refine::None,
+            RefineArg::Conformal => pelt::Refine::Conformal,
+        },
         ..Options::default()
     };
     go(args, mesh, &topo, set, opts)

@@ -6,7 +6,7 @@
 //!
 //! | field | default |
 //! |---|---|
-//! | `uv_set` | `0` |
+//! | `uv_set` | `0` (a set's number, or `"auto"`: the base-colour texture's set, or on a mesh without UVs a `TEXCOORD_0` made by pelting, `crate::pelt`) |
 //! | `texture.width`, `texture.height` | `2048` |
 //! | `texture.base` | `"material"` (the material's base-colour texture; its factor as a solid colour if it has none; mid grey without a material) |
 //! | `texture.padding` | `16` texels (`"full"` fills the whole background) |
@@ -37,9 +37,9 @@ use std::path::{Path, PathBuf};
 pub struct JobFile {
     /// The mesh (`.gltf` or `.glb`).
     pub mesh: PathBuf,
-    /// Which `TEXCOORD_n` set to bake into.
+    /// Which `TEXCOORD_n` set to bake into: a number or `"auto"`.
     #[serde(default)]
-    pub uv_set: u32,
+    pub uv_set: UvSetField,
     /// The output texture.
     #[serde(default)]
     pub texture: TextureSpec,
@@ -49,6 +49,22 @@ pub struct JobFile {
     /// Output files.
     #[serde(default)]
     pub output: OutputSpec,
+}
+
+/// `uv_set`: a set's number or `"auto"`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+pub enum UvSetField {
+    /// `TEXCOORD_n`.
+    Index(u32),
+    /// `"auto"` (any other text is an error).
+    Named(String),
+}
+
+impl Default for UvSetField {
+    fn default() -> Self {
+        Self::Index(0)
+    }
 }
 
 /// Output texture settings.
@@ -386,8 +402,11 @@ pub struct Job {
     pub source: PathBuf,
     /// Mesh path.
     pub mesh: PathBuf,
-    /// UV set.
+    /// UV set (0 until resolved when `uv_auto`).
     pub uv_set: u32,
+    /// `"uv_set": "auto"`: resolved by [`crate::Engine::load_mesh_for`] (the base-colour
+    /// texture's set, or a new set by pelting on a mesh without UVs).
+    pub uv_auto: bool,
     /// Width, height.
     pub width: u32,
     /// Height.
@@ -446,6 +465,14 @@ impl Job {
 
     fn validate(f: JobFile, src: &Path, input_dir: &Path, output_dir: &Path) -> Result<Self> {
         let err = |field: &str, detail: String| Error::job(src, field, detail);
+        if let UvSetField::Named(name) = &f.uv_set {
+            if name != "auto" {
+                return Err(err(
+                    "uv_set",
+                    format!("\"{name}\" is not a UV set: give a number (TEXCOORD_n) or \"auto\""),
+                ));
+            }
+        }
         let t = &f.texture;
         for (name, v) in [("texture.width", t.width), ("texture.height", t.height)] {
             if v == 0 {
@@ -503,7 +530,11 @@ impl Job {
         Ok(Job {
             source: src.to_path_buf(),
             mesh: input_dir.join(&f.mesh),
-            uv_set: f.uv_set,
+            uv_set: match &f.uv_set {
+                UvSetField::Index(i) => *i,
+                UvSetField::Named(_) => 0,
+            },
+            uv_auto: matches!(f.uv_set, UvSetField::Named(_)),
             width: t.width,
             height: t.height,
             base,
