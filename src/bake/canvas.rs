@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! The canvas every layer composes into: a linear f32 accumulation image in two storage planes
-//! (`wgsl/shared/acc.wgsl`), filled with the base by `wgsl/bake/base_init.wgsl`; the per-layer
+//! (`wgsl/shared/acc.wgsl`), filled with the base by `wgsl/bake/base_init.wgsl` (or, for a
+//! texture transfer, by [`super::transfer`]); the per-layer
 //! statistics rows the selection stage fills; and the mesh's islands at this size
 //! ([`super::islands`]). Created once per bake, owned by it, dropped with it.
 
@@ -12,6 +13,7 @@ use super::params::{params_buffer, pbind, Params};
 use super::plan::CELL;
 use super::stage::{Cx, Log};
 use crate::error::Result;
+use crate::io::job::Base;
 use std::sync::Arc;
 use wgpu::util::DeviceExt;
 
@@ -113,7 +115,13 @@ impl Canvas {
             global,
             islands,
         };
-        canvas.fill_base(engine, images, log)?;
+        if let Base::Transfer { from_uv_set, .. } = &job.base {
+            let acc = [&canvas.acc_rg, &canvas.acc_ba];
+            let src = (&*images.base, *from_uv_set);
+            super::transfer::fill(engine, mesh, job, src, canvas.global, acc, log)?;
+        } else {
+            canvas.fill_base(engine, images, log)?;
+        }
         Ok(canvas)
     }
 

@@ -45,6 +45,19 @@ pub fn check_job(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<()> {
                 "the mesh has no UV coordinates (no TEXCOORD_0), so there is no texture layout to bake into; give the job \"uv_set\": \"auto\" to have decalbake make one by pelting, or run `decalbake unwrap` (or Blender's Smart UV Project) first",
             ));
     }
+    if let crate::io::job::Base::Transfer { from_uv_set, .. } = &job.base {
+        if *from_uv_set as usize >= sets {
+            return Err(Error::job(
+                src,
+                "texture.base.transfer.from_uv_set",
+                format!(
+                    "{from_uv_set} does not exist: {} has {sets} UV set(s) (TEXCOORD_0..TEXCOORD_{})",
+                    mesh.mesh.source.display(),
+                    sets - 1
+                ),
+            ));
+        }
+    }
     if job.uv_set as usize >= sets {
         return Err(Error::job(
             src,

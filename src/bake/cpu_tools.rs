@@ -106,3 +106,60 @@ pub fn smear_cpu(flats: &mut [LinearImage], strength: f32, carry: &mut LinearIma
         }
     }
 }
+
+/// Twin of the texture transfer (`bake/transfer.rs`: `transfer_raster.wgsl` then
+/// `transfer_resolve.wgsl`): per texel of a `size` texture laid out on `uv_set`, the mean of
+/// `source` (laid out on `from_uv_set`, bilinear, clamp to edge) at the source UV of each of its
+/// `ss`² sample centres that a non-degenerate triangle covers; `None` where none does. UVs in the
+/// first tile ([0, 1]²) only.
+pub fn transfer_cpu(
+    (mesh, topo, uv_set): (&Mesh, &Topology, u32),
+    from_uv_set: u32,
+    source: &LinearImage,
+    size: [u32; 2],
+    ss: u32,
+) -> Vec<Option<[f32; 4]>> {
+    let (uv, src) = (
+        &mesh.uv_sets[uv_set as usize],
+        &mesh.uv_sets[from_uv_set as usize],
+    );
+    let [w, h] = size;
+    let (sw, sh) = ((w * ss) as f32, (h * ss) as f32);
+    let mut sum = vec![([0f32; 4], 0u32); (w * h) as usize];
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        if topo.degenerate[t] {
+            continue;
+        }
+        let p = tri.map(|v| uv[v as usize] * Vec2::new(sw, sh));
+        let q = tri.map(|v| src[v as usize]);
+        let area = (p[1] - p[0]).perp_dot(p[2] - p[0]);
+        if area == 0.0 {
+            continue;
+        }
+        let lo = p[0].min(p[1]).min(p[2]).max(Vec2::ZERO);
+        let hi = p[0].max(p[1]).max(p[2]).min(Vec2::new(sw, sh));
+        for sy in lo.y.floor() as u32..hi.y.ceil() as u32 {
+            for sx in lo.x.floor() as u32..hi.x.ceil() as u32 {
+                let c = Vec2::new(sx as f32 + 0.5, sy as f32 + 0.5);
+                let b = [
+                    (p[2] - p[1]).perp_dot(c - p[1]) / area,
+                    (p[0] - p[2]).perp_dot(c - p[2]) / area,
+                    (p[1] - p[0]).perp_dot(c - p[0]) / area,
+                ];
+                if b.iter().any(|&x| x < 0.0) {
+                    continue;
+                }
+                let s = q[0] * b[0] + q[1] * b[1] + q[2] * b[2];
+                let v = source.bilinear(s.x, s.y, false);
+                let e = &mut sum[((sy / ss) * w + sx / ss) as usize];
+                for (acc, x) in e.0.iter_mut().zip(v) {
+                    *acc += x;
+                }
+                e.1 += 1;
+            }
+        }
+    }
+    sum.into_iter()
+        .map(|(c, n)| (n > 0).then(|| c.map(|x| x / n as f32)))
+        .collect()
+}

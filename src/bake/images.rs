@@ -126,8 +126,18 @@ pub fn upload_image(engine: &Engine, img: &LinearImage, mips: bool, label: &str)
     }
 }
 
-/// The base texture: the material's (uploaded once per mesh), an image, or a solid colour.
+/// The base texture: the material's (uploaded once per mesh), an image, or a solid colour; for a
+/// transfer, its source (which `bake::transfer` resamples).
 fn load_base(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Arc<GpuImage>> {
+    load_base_of(engine, mesh, job, &job.base)
+}
+
+fn load_base_of(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    job: &Job,
+    base: &Base,
+) -> Result<Arc<GpuImage>> {
     let solid = |c: [f32; 4]| {
         Arc::new(upload_image(
             engine,
@@ -136,7 +146,8 @@ fn load_base(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Arc<GpuIma
             "bake.base",
         ))
     };
-    Ok(match &job.base {
+    Ok(match base {
+        Base::Transfer { source, .. } => return load_base_of(engine, mesh, job, source),
         Base::Color(c) => solid(*c),
         Base::Image(p) => {
             let img = checked_image(engine, p, job, "texture.base", false)?;

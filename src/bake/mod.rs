@@ -40,6 +40,7 @@ pub mod report;
 pub mod select;
 mod stage;
 pub mod tools;
+mod transfer;
 
 pub use engine::{Baked, Engine, LoadedMesh};
 pub use images::f32_to_f16;

@@ -458,8 +458,14 @@ fn input_hash(text: &str, job: &Job, shared: &Shared) -> Result<String> {
     part(text.as_bytes());
     let mut files = vec![job.mesh.clone()];
     files.extend(gltf_external_files(&job.mesh));
-    if let decalbake::io::job::Base::Image(p) = &job.base {
-        files.push(p.clone());
+    match &job.base {
+        decalbake::io::job::Base::Image(p) => files.push(p.clone()),
+        decalbake::io::job::Base::Transfer { source, .. } => {
+            if let decalbake::io::job::Base::Image(p) = &**source {
+                files.push(p.clone());
+            }
+        }
+        _ => {}
     }
     for l in &job.layers {
         files.push(l.image.clone());

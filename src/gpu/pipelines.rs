@@ -185,6 +185,10 @@ pub struct Pipelines {
     pub stamp_filter: Kernel,
     /// Island raster.
     pub island_raster: Raster,
+    /// Texture transfer: the source texture drawn at the baked set's UVs.
+    pub transfer_raster: Raster,
+    /// Texture transfer: samples averaged into the canvas.
+    pub transfer_resolve: Kernel,
     /// Island mask reduction.
     pub island_mask: Kernel,
     /// Layer composition.
@@ -256,28 +260,14 @@ impl Pipelines {
             linalg_kernels(device);
         let [chart_scatter, chart_gather, stamp_blend] = slot_kernels(device);
         let [place_bvh, place_candidates, place_reduce] = place_kernels(device);
+        let [pelt_step, pelt_check] = pelt_kernels(device);
         Self {
             place_bvh,
             place_candidates,
             place_reduce,
             planar_coords: Kernel::new(device, "planar_coords", &[(0, Params), (1, Ro), (2, Rw)]),
-            pelt_step: Kernel::new(
-                device,
-                "pelt_step",
-                &[
-                    (0, Uniform),
-                    (1, Ro),
-                    (2, Ro),
-                    (3, Ro),
-                    (4, Ro),
-                    (5, Ro),
-                    (6, Ro),
-                    (7, Ro),
-                    (8, Rw),
-                    (9, Rw),
-                ],
-            ),
-            pelt_check: Kernel::new(device, "pelt_check", &[(0, Uniform), (1, Rw), (2, Ro)]),
+            pelt_step,
+            pelt_check,
             select_triangles: Kernel::new(
                 device,
                 "select_triangles",
@@ -309,6 +299,8 @@ impl Pipelines {
                 ],
             ),
             island_raster: rasters.island,
+            transfer_raster: rasters.transfer,
+            transfer_resolve: transfer_resolve(device),
             island_mask: Kernel::new(
                 device,
                 "island_mask",
@@ -405,12 +397,40 @@ impl Pipelines {
     }
 }
 
+/// `transfer_resolve`: a texture transfer's samples averaged per texel into the canvas.
+fn transfer_resolve(device: &wgpu::Device) -> Kernel {
+    use Bind::*;
+    let binds = [
+        (0, Params),
+        (1, Tex(false)),
+        (2, Tex(false)),
+        (10, Rw),
+        (11, Rw),
+    ];
+    Kernel::new(device, "transfer_resolve", &binds)
+}
+
+/// The pelting kernels (`wgsl/pelt/`): one step of the dynamics, the steadiness check.
+fn pelt_kernels(device: &wgpu::Device) -> [Kernel; 2] {
+    use Bind::*;
+    let step: Vec<(u32, Bind)> = [(0, Uniform)]
+        .into_iter()
+        .chain((1..8).map(|b| (b, Ro)))
+        .chain([(8, Rw), (9, Rw)])
+        .collect();
+    [
+        Kernel::new(device, "pelt_step", &step),
+        Kernel::new(device, "pelt_check", &[(0, Uniform), (1, Rw), (2, Ro)]),
+    ]
+}
+
 /// The render pipelines: the layer raster (with the format and blending it got), the tools'
-/// inverse raster into the same format, the island raster and the preview.
+/// inverse raster into the same format, the island raster, the transfer raster and the preview.
 struct Rasters {
     layer: Raster,
     flatten: Raster,
     island: Raster,
+    transfer: Raster,
     preview: Raster,
     layer_format: wgpu::TextureFormat,
     layer_blending: bool,
@@ -424,6 +444,7 @@ impl Rasters {
             layer,
             flatten: flatten_raster(device, layer_format),
             island: island_raster(device),
+            transfer: transfer_raster(device, layer_format),
             preview: preview_raster(device),
             layer_format,
             layer_blending,
@@ -531,6 +552,36 @@ fn island_raster(device: &wgpu::Device) -> Raster {
         island_layout,
         &[],
         &[Some(COVERAGE_FORMAT.into())],
+        None,
+        1,
+    )
+}
+
+/// `transfer_raster`: the source texture at the baked set's samples, into the layer format
+/// (no blending: a valid layout covers each sample once) and the coverage format.
+fn transfer_raster(device: &wgpu::Device, format: wgpu::TextureFormat) -> Raster {
+    use Bind::*;
+    let binds = [
+        (0, Params),
+        (1, Ro),
+        (2, Ro),
+        (3, Ro),
+        (4, Ro),
+        (5, Tex(true)),
+        (6, Sampler),
+    ];
+    let l = layout(
+        device,
+        "transfer_raster",
+        &binds,
+        wgpu::ShaderStages::VERTEX_FRAGMENT,
+    );
+    raster(
+        device,
+        "transfer_raster",
+        l,
+        &[],
+        &[Some(format.into()), Some(COVERAGE_FORMAT.into())],
         None,
         1,
     )

@@ -30,6 +30,14 @@ pub const KERNELS: &[(&str, &str)] = &[
         include_str!("../../wgsl/bake/select_triangles.wgsl"),
     ),
     (
+        "transfer_raster",
+        include_str!("../../wgsl/bake/transfer_raster.wgsl"),
+    ),
+    (
+        "transfer_resolve",
+        include_str!("../../wgsl/bake/transfer_resolve.wgsl"),
+    ),
+    (
         "layer_raster",
         include_str!("../../wgsl/bake/layer_raster.wgsl"),
     ),

@@ -8,7 +8,7 @@
 //! |---|---|
 //! | `uv_set` | `0` (a set's number, or `"auto"`: the base-colour texture's set, or on a mesh without UVs a `TEXCOORD_0` made by pelting, `crate::pelt`) |
 //! | `texture.width`, `texture.height` | `2048` |
-//! | `texture.base` | `"material"` (the material's base-colour texture; its factor as a solid colour if it has none; mid grey without a material) |
+//! | `texture.base` | `"material"` (the material's base-colour texture; its factor as a solid colour if it has none; mid grey without a material); also an image path, a linear RGBA colour, or `{"transfer": {"from_uv_set": N, "image": "material" or a path}}` |
 //! | `texture.padding` | `16` texels (`"full"` fills the whole background) |
 //! | `texture.samples` | `4` (2×2 supersampling; 1, 4, 9 or 16) |
 //! | layer `kind` | `"decal"` |
@@ -115,6 +115,28 @@ pub enum BaseSpec {
     Color([f32; 4]),
     /// `"material"` or an image path.
     Name(String),
+    /// `{"transfer": {"from_uv_set": 0, "image": "material"}}`.
+    Transfer {
+        /// The texture and the set it is laid out on.
+        transfer: TransferSpec,
+    },
+}
+
+/// `texture.base.transfer`: an existing texture laid out on another UV set, resampled into the set
+/// being baked (each texel's surface point looks the texture up at its UV in `from_uv_set`): the
+/// usual step after a new unwrap.
+#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TransferSpec {
+    /// The set the texture is laid out on.
+    pub from_uv_set: u32,
+    /// `"material"` (the default) or an image path.
+    #[serde(default = "material")]
+    pub image: String,
+}
+
+fn material() -> String {
+    "material".into()
 }
 
 impl Default for BaseSpec {
@@ -384,6 +406,14 @@ pub enum Base {
     Image(PathBuf),
     /// A solid linear colour.
     Color([f32; 4]),
+    /// `source` (the material's texture or an image) laid out on `from_uv_set`, resampled into
+    /// the set being baked.
+    Transfer {
+        /// The set `source` is laid out on.
+        from_uv_set: u32,
+        /// The texture (never itself a transfer or a colour).
+        source: Box<Base>,
+    },
 }
 
 /// Padding after validation.
@@ -494,6 +524,14 @@ impl Job {
         let base = match &t.base {
             BaseSpec::Name(n) if n == "material" => Base::Material,
             BaseSpec::Name(n) => Base::Image(input_dir.join(n)),
+            BaseSpec::Transfer { transfer: tr } => Base::Transfer {
+                from_uv_set: tr.from_uv_set,
+                source: Box::new(if tr.image == "material" {
+                    Base::Material
+                } else {
+                    Base::Image(input_dir.join(&tr.image))
+                }),
+            },
             BaseSpec::Color(c) => {
                 if c.iter().any(|v| !v.is_finite() || *v < 0.0 || *v > 1.0) {
                     return Err(err(
