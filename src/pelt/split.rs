@@ -62,7 +62,9 @@ pub fn halves(topo: &Topology, piece: &Piece, apart: Option<(u32, u32)>) -> Opti
         .iter()
         .map(|tri| tri.iter().filter(|&&v| labels[v as usize].1 == b).count() >= 2)
         .collect();
-    keep_one_region_per_side(piece, &mut side);
+    let nbr = triangle_neighbours(piece);
+    smooth_sides(&nbr, &mut side);
+    keep_one_region_per_side(&nbr, &mut side);
     let mut parts: [Vec<u32>; 2] = [Vec::new(), Vec::new()];
     for (t, &s) in side.iter().enumerate() {
         parts[usize::from(s)].push(piece.source[t]);
@@ -73,9 +75,8 @@ pub fn halves(topo: &Topology, piece: &Piece, apart: Option<(u32, u32)>) -> Opti
     Some(parts)
 }
 
-/// Gives every triangle that is cut off from the largest region of its side to the other side, so
-/// each side is one connected region (no islands of a few triangles become pelts of their own).
-fn keep_one_region_per_side(piece: &Piece, side: &mut [bool]) {
+/// The triangles across each triangle's edges (within the piece).
+fn triangle_neighbours(piece: &Piece) -> Vec<Vec<u32>> {
     let mut by_edge: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
     for (t, tri) in piece.triangles.iter().enumerate() {
         for k in 0..3 {
@@ -86,13 +87,44 @@ fn keep_one_region_per_side(piece: &Piece, side: &mut [bool]) {
                 .push(t as u32);
         }
     }
-    let mut nbr: Vec<Vec<u32>> = vec![Vec::new(); side.len()];
-    for f in by_edge.values() {
-        if let [a, b] = f[..] {
+    let mut nbr: Vec<Vec<u32>> = vec![Vec::new(); piece.triangles.len()];
+    let mut keys: Vec<&(u32, u32)> = by_edge.keys().collect();
+    keys.sort_unstable();
+    for k in keys {
+        if let [a, b] = by_edge[k][..] {
             nbr[a as usize].push(b);
             nbr[b as usize].push(a);
         }
     }
+    nbr
+}
+
+/// Straightens the border between the sides: a triangle with at least two of its neighbours on
+/// the other side goes over, for a few rounds. Without it the border follows the Voronoi labels'
+/// staircase and the seam shows teeth one triangle deep.
+fn smooth_sides(nbr: &[Vec<u32>], side: &mut [bool]) {
+    for _ in 0..8 {
+        let flip: Vec<usize> = (0..side.len())
+            .filter(|&t| {
+                nbr[t]
+                    .iter()
+                    .filter(|&&u| side[u as usize] != side[t])
+                    .count()
+                    >= 2
+            })
+            .collect();
+        if flip.is_empty() {
+            break;
+        }
+        for t in flip {
+            side[t] = !side[t];
+        }
+    }
+}
+
+/// Gives every triangle that is cut off from the largest region of its side to the other side, so
+/// each side is one connected region (no islands of a few triangles become pelts of their own).
+fn keep_one_region_per_side(nbr: &[Vec<u32>], side: &mut [bool]) {
     for _ in 0..2 {
         // Regions of equal side; all but the largest of each side flip.
         let mut region = vec![u32::MAX; side.len()];
