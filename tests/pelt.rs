@@ -474,9 +474,26 @@ fn unwrap_command_refuses_bad_input() {
     let (code, err) = run(&fin, &[]);
     assert_eq!(code, 2, "{err}");
     assert!(
-        err.contains("non-manifold") && err.contains("split"),
+        err.contains("non-manifold") && err.contains("--split-non-manifold"),
         "{err}"
     );
+    // Offered the split, it takes it: each triangle of the fin is a pelt of its own.
+    let report = dir.join("fin.json");
+    let (code, _, err) = common::cli(&[
+        "unwrap",
+        fin.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--cpu",
+        "--split-non-manifold",
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    assert_eq!(r["pieces"].as_array().unwrap().len(), 3);
+    assert_eq!(r["quality"]["overlaps"], 0);
+    std::fs::remove_file(&out).unwrap();
 }
 
 /// An artist's cut drawn as a polyline on the surface: the cylinder cut along a line from rim to

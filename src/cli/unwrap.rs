@@ -47,6 +47,9 @@ pub struct UnwrapArgs {
     /// Write a preview (the model wearing a checker on the new UVs) here.
     #[arg(long)]
     pub preview: Option<PathBuf>,
+    /// Open non-manifold edges (each triangle fan round them ends there) instead of refusing them.
+    #[arg(long)]
+    pub split_non_manifold: bool,
     /// Run the dynamics on the CPU twin instead of the GPU.
     #[arg(long)]
     pub cpu: bool,
@@ -138,6 +141,7 @@ fn prepare(
         },
         size: args.size,
         margin: args.margin,
+        split_non_manifold: args.split_non_manifold,
         refine: match args.refine {
             RefineArg::None => pelt::Refine::None,
             RefineArg::Conformal => pelt::Refine::Conformal,

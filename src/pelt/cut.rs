@@ -128,14 +128,31 @@ fn edge_faces(topo: &Topology) -> HashMap<(u32, u32), Vec<u32>> {
     m
 }
 
-/// Cuts `topo` into disks as `spec` says. `path` names the mesh in errors.
+/// Cuts `topo` into disks as `spec` says. `path` names the mesh in errors. A non-manifold edge is
+/// an error that says where.
 pub fn cut(mesh: &Mesh, topo: &Topology, spec: &CutSpec, path: &Path) -> Result<Cut> {
-    if let Some(e) = topo.non_manifold_edges.first() {
+    cut_with(mesh, topo, spec, false, path)
+}
+
+/// [`cut`]; with `split_non_manifold`, an edge of more than two triangles is opened for all of
+/// them (each fan of triangles round it ends there, as at a boundary) instead of refused.
+pub fn cut_with(
+    mesh: &Mesh,
+    topo: &Topology,
+    spec: &CutSpec,
+    split_non_manifold: bool,
+    path: &Path,
+) -> Result<Cut> {
+    if let Some(e) = topo
+        .non_manifold_edges
+        .first()
+        .filter(|_| !split_non_manifold)
+    {
         let p = topo.positions[e[0] as usize];
         return Err(Error::mesh(
             path,
             format!(
-                "{} non-manifold edges (more than two triangles share them), the first at vertex {} ({:.4}, {:.4}, {:.4}); pelting needs a manifold surface: split the mesh there (in Blender: Mesh > Clean Up > Split Non-Manifold) or give `--cut` a file that separates them",
+                "{} non-manifold edges (more than two triangles share them), the first at vertex {} ({:.4}, {:.4}, {:.4}); pelting needs a manifold surface: add --split-non-manifold to open those edges (every triangle fan round them becomes a separate edge), or split the mesh there yourself (in Blender: Mesh > Clean Up > Split Non-Manifold)",
                 topo.non_manifold_edges.len(),
                 e[0],
                 p.x,

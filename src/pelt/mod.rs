@@ -41,6 +41,8 @@ pub struct Options {
     pub relax: SystemCfg,
     /// What follows the pelting.
     pub refine: Refine,
+    /// Open non-manifold edges instead of refusing them (`cut::cut_with`).
+    pub split_non_manifold: bool,
 }
 
 /// What follows the pelting (`decalbake unwrap --refine`).
@@ -62,6 +64,7 @@ impl Default for Options {
             margin: 4,
             relax: SystemCfg::default(),
             refine: Refine::Conformal,
+            split_non_manifold: false,
         }
     }
 }
@@ -161,7 +164,7 @@ pub fn unwrap(
 ) -> Result<Unwrapped> {
     let mut timings = Timings::default();
     let t = Instant::now();
-    let first = cut::cut(mesh, topo, &opts.cut, path)?;
+    let first = cut::cut_with(mesh, topo, &opts.cut, opts.split_non_manifold, path)?;
     timings.cut = ms(t);
     let mut todo = first.pieces.clone();
     let mut done: Vec<(cut::Piece, relax::Relaxed, Vec<DVec2>, refine::Refinement)> = Vec::new();
@@ -196,7 +199,8 @@ pub fn unwrap(
                 Some(parts) => {
                     splits += 1;
                     for part in parts {
-                        next.extend(split::cut_region(topo, &part, path)?);
+                        let nm = opts.split_non_manifold;
+                        next.extend(split::cut_region(topo, &part, nm, path)?);
                     }
                 }
                 None => done.push((p, r, flat, rf)),

@@ -4,7 +4,8 @@
 //!
 //! Every pelt is first scaled so its UV area equals its 3D area (the same texel density on every
 //! piece), then one global scale, the largest for which every pelt's box plus `margin` texels on each
-//! side fits the `size`² texture, is found by bisection. The boxes are placed tallest first.
+//! side fits the `size`² texture, is found by bisection. The boxes are placed tallest first, in
+//! horizontal or vertical shelves, in one to three columns: whichever fits the largest scale.
 
 use glam::DVec2;
 
@@ -23,8 +24,40 @@ pub struct Placement {
 /// per own unit that gives every pelt the same texel density) into a `size`² texture with `margin`
 /// texels round each.
 pub fn pack(boxes: &[(DVec2, DVec2)], density: &[f64], size: u32, margin: u32) -> Placement {
+    // Shelf layouts differ a lot with a few large pelts: try several and keep the largest scale.
+    let mut best: Option<Placement> = None;
+    for vertical_shelves in [false, true] {
+        for num_columns in [1, 2, 3] {
+            let options = etagere::AllocatorOptions {
+                vertical_shelves,
+                num_columns,
+                ..etagere::DEFAULT_OPTIONS
+            };
+            let p = pack_with(&options, boxes, density, size, margin);
+            if best
+                .as_ref()
+                .is_none_or(|b| p.scale.first() > b.scale.first())
+            {
+                best = Some(p);
+            }
+        }
+    }
+    best.expect("six layouts tried")
+}
+
+/// [`pack`] with one allocator layout.
+fn pack_with(
+    options: &etagere::AllocatorOptions,
+    boxes: &[(DVec2, DVec2)],
+    density: &[f64],
+    size: u32,
+    margin: u32,
+) -> Placement {
     let fits = |s: f64| -> Option<Vec<DVec2>> {
-        let mut alloc = etagere::AtlasAllocator::new(etagere::size2(size as i32, size as i32));
+        let mut alloc = etagere::AtlasAllocator::with_options(
+            etagere::size2(size as i32, size as i32),
+            options,
+        );
         let mut order: Vec<usize> = (0..boxes.len()).collect();
         let dims: Vec<(i32, i32)> = boxes
             .iter()

@@ -191,7 +191,12 @@ fn dijkstra(nbrs: &[Vec<u32>], from: &[u32], len: &dyn Fn(u32, u32) -> f64) -> V
 }
 
 /// Cuts the region made of mesh triangles `tris` into disks, in the whole mesh's welded ids.
-pub fn cut_region(topo: &Topology, tris: &[u32], path: &Path) -> Result<Vec<Piece>> {
+pub fn cut_region(
+    topo: &Topology,
+    tris: &[u32],
+    split_non_manifold: bool,
+    path: &Path,
+) -> Result<Vec<Piece>> {
     // The region as a mesh of its own, on the welded vertices it uses.
     let mut local: HashMap<u32, u32> = HashMap::new();
     let mut welded = Vec::new();
@@ -219,7 +224,7 @@ pub fn cut_region(topo: &Topology, tris: &[u32], path: &Path) -> Result<Vec<Piec
     // A tenth of the mesh's welding distance at most (the region is no larger than the mesh): the
     // welded vertices, further apart than that, stay apart.
     let sub = Topology::build(&mesh, 0.1 * crate::mesh::DEFAULT_WELD_TOLERANCE);
-    let c = cut::cut(&mesh, &sub, &CutSpec::Auto, path)?;
+    let c = cut::cut_with(&mesh, &sub, &CutSpec::Auto, split_non_manifold, path)?;
     // Sub-welded id -> the mesh's welded id (one region vertex per sub-welded id).
     let mut back = vec![u32::MAX; sub.positions.len()];
     for (v, &s) in sub.welded_of.iter().enumerate() {
