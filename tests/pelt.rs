@@ -803,3 +803,111 @@ fn texture_transfer_matches_the_source() {
     assert!(p90_wrong > 0.1, "wrong set: p90 {p90_wrong}");
     eprintln!("transfer: forth median {median} p90 {p90}; back median {median2} p90 {p902}");
 }
+
+/// A float attribute of a `.glb` written by decalbake (one primitive), read from its JSON and BIN.
+fn glb_attribute(path: &Path, name: &str) -> Vec<f32> {
+    let bytes = std::fs::read(path).unwrap();
+    let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let doc: serde_json::Value = serde_json::from_slice(&bytes[20..20 + json_len]).unwrap();
+    let bin = &bytes[20 + json_len + 8..];
+    let acc = &doc["accessors"][doc["meshes"][0]["primitives"][0]["attributes"][name]
+        .as_u64()
+        .unwrap_or_else(|| panic!("no {name}")) as usize];
+    let view = &doc["bufferViews"][acc["bufferView"].as_u64().unwrap() as usize];
+    let off = view["byteOffset"].as_u64().unwrap() as usize;
+    let n = acc["count"].as_u64().unwrap() as usize;
+    bytemuck::pod_collect_to_vec(&bin[off..off + 4 * n])
+}
+
+/// `--patch` (Piponi & Borshukov §5) on Spot: the pelt (TEXCOORD_1, one pelt: the seam is the cut
+/// tree), the patch (TEXCOORD_2) and `_PELT_BLEND` (b0) in a file the validator passes. Checked
+/// from the file alone: the seam is every edge whose two triangles give it different pelt UVs; b0
+/// is 0 exactly on
+/// the vertices within 2 edges of it and 1 elsewhere (so b0 and b1 = 1 − b0 are a partition of
+/// unity, each in [0, 1]); and every triangle where the patch shows (a corner with b0 < 1) has
+/// patch UVs that are not flipped and overlap no other such triangle. A model with a handle is
+/// refused: its seams have cycles.
+#[test]
+fn patch_and_blend_function_hide_the_cut() {
+    let dir = common::scratch("patch");
+    let out = dir.join("spot.glb");
+    let (code, _, err) = common::cli(&[
+        "unwrap",
+        asset("spot.glb").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--patch",
+        "--cpu",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    validate(&out);
+    let m = Mesh::load(&out).unwrap();
+    assert_eq!(m.uv_sets.len(), 3);
+    let b0 = glb_attribute(&out, "_PELT_BLEND");
+    assert_eq!(b0.len(), m.positions.len());
+    let topo = Topology::build(&m, DEFAULT_WELD_TOLERANCE);
+    // The seam (C0): the ends of every edge whose two triangles give it different pelt UVs.
+    let mut sides: HashMap<(u32, u32), Vec<[u32; 4]>> = HashMap::new();
+    for t in &m.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            let (wa, wb) = (topo.welded_of[a as usize], topo.welded_of[b as usize]);
+            let (ua, ub) = (m.uv_sets[1][a as usize], m.uv_sets[1][b as usize]);
+            let (key, uv) = if wa < wb {
+                ((wa, wb), [ua.x, ua.y, ub.x, ub.y])
+            } else {
+                ((wb, wa), [ub.x, ub.y, ua.x, ua.y])
+            };
+            sides.entry(key).or_default().push(uv.map(f32::to_bits));
+        }
+    }
+    let mut seam: Vec<u32> = sides
+        .iter()
+        .filter(|(_, l)| l.iter().any(|u| *u != l[0]))
+        .flat_map(|(&(a, b), _)| [a, b])
+        .collect();
+    seam.sort_unstable();
+    seam.dedup();
+    assert!(seam.len() > 20, "{} seam vertices", seam.len());
+    let d = pelt::patch::rings(&topo, &seam, 10);
+    for (s, &w) in topo.welded_of.iter().enumerate() {
+        let want = if d[w as usize] <= 2 { 0.0 } else { 1.0 };
+        assert_eq!(
+            b0[s], want,
+            "vertex {s}, {} edges from the seam",
+            d[w as usize]
+        );
+    }
+    let shown: Vec<[DVec2; 3]> = m
+        .triangles
+        .iter()
+        .filter(|t| t.iter().any(|&v| b0[v as usize] < 1.0))
+        .map(|t| t.map(|v| m.uv_sets[2][v as usize].as_dvec2()))
+        .collect();
+    assert!(shown.len() > 100);
+    let flipped = shown
+        .iter()
+        .filter(|q| (q[1] - q[0]).perp_dot(q[2] - q[0]) >= 0.0)
+        .count();
+    assert_eq!(flipped, 0);
+    let overlapping = (0..shown.len())
+        .flat_map(|i| (i + 1..shown.len()).map(move |j| (i, j)))
+        .filter(|&(i, j)| {
+            let share = shown[i].iter().any(|p| shown[j].contains(p));
+            !share && overlap(&shown[i], &shown[j])
+        })
+        .count();
+    assert_eq!(overlapping, 0);
+
+    let (code, _, err) = common::cli(&[
+        "unwrap",
+        asset("bob.glb").to_str().unwrap(),
+        "--out",
+        dir.join("bob.glb").to_str().unwrap(),
+        "--patch",
+        "--cpu",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("--patch") && err.contains("tree"), "{err}");
+    assert!(!dir.join("bob.glb").exists());
+}

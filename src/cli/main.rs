@@ -425,6 +425,7 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
         cut: "auto".into(),
         frame: unwrap::FrameArg::Circle,
         refine: unwrap::RefineArg::Conformal,
+        patch: false,
         split_non_manifold: false,
         uv_set: None,
         force: false,

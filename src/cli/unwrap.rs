@@ -47,6 +47,12 @@ pub struct UnwrapArgs {
     /// Write a preview (the model wearing a checker on the new UVs) here.
     #[arg(long)]
     pub preview: Option<PathBuf>,
+    /// Also write the patch (Piponi & Borshukov §5): the band within 4 edges of the seams pelted on
+    /// its own into the next UV set, and the blend function as the vertex attribute `_PELT_BLEND`
+    /// (the pelt's weight: 0 within 2 edges of the seams, 1 from 3 on). Turns the splits off; the
+    /// seams must form a tree (a genus-0 model).
+    #[arg(long)]
+    pub patch: bool,
     /// Open non-manifold edges (each triangle fan round them ends there) instead of refusing them.
     #[arg(long)]
     pub split_non_manifold: bool,
@@ -123,6 +129,16 @@ fn prepare(
             ),
         ));
     }
+    if args.patch && set + 1 < mesh.uv_sets.len() && !args.force {
+        return Err(input(
+            &args.mesh,
+            "--uv-set",
+            format!(
+                "--patch writes TEXCOORD_{} too, which the model has; add --force to replace it",
+                set + 1
+            ),
+        ));
+    }
     if set < mesh.uv_sets.len() && !args.force {
         return Err(input(
             &args.mesh,
@@ -142,6 +158,11 @@ fn prepare(
         size: args.size,
         margin: args.margin,
         split_non_manifold: args.split_non_manifold,
+        max_split_levels: if args.patch {
+            0
+        } else {
+            pelt::MAX_SPLIT_LEVELS
+        },
         refine: match args.refine {
             RefineArg::None => pelt::Refine::None,
             RefineArg::Conformal => pelt::Refine::Conformal,
@@ -166,16 +187,37 @@ fn run_on(
         _ => Device::Cpu,
     };
     let un = pelt::unwrap(device, &mesh, topo, &opts, &args.mesh)?;
-    let out_mesh = pelt::apply(&mesh, &un, set);
+    let patch = if args.patch {
+        Some(pelt::patch::patch(device, topo, &un, &opts, &args.mesh)?)
+    } else {
+        None
+    };
+    let mut layouts = vec![(&un, set)];
+    if let Some(p) = &patch {
+        layouts.push((&p.layout, set + 1));
+    }
+    let (out_mesh, split_of) = pelt::apply_all(&mesh, &layouts);
+    let blend: Vec<f32> = patch.as_ref().map_or_else(Vec::new, |p| {
+        split_of
+            .iter()
+            .map(|&s| p.blend[topo.welded_of[s as usize] as usize])
+            .collect()
+    });
+    let extra: Vec<(&str, &[f32])> = if patch.is_some() {
+        vec![("_PELT_BLEND", &blend)]
+    } else {
+        Vec::new()
+    };
     let png = mesh.material.as_ref().and_then(|m| {
         m.base_color_texture
             .as_ref()
             .map(|t| (t.encode_png(8), m.base_color_uv_set))
     });
-    let glb = decalbake::output::glb::build_glb(
+    let glb = decalbake::output::glb::build_glb_with(
         &out_mesh,
         png.as_ref().map(|p| p.0.as_slice()),
         png.as_ref().map_or(0, |p| p.1),
+        &extra,
     );
     decalbake::io::image::write_atomic(&args.out, &glb)?;
     let q = &un.report.quality;
@@ -195,6 +237,18 @@ fn run_on(
     if let Some(r) = &args.report {
         let mut v = serde_json::to_value(&un.report)?;
         v["uv_set"] = serde_json::json!(set);
+        if let Some(p) = &patch {
+            let mut r = serde_json::to_value(&p.layout.report)?;
+            r["uv_set"] = serde_json::json!(set + 1);
+            r["triangles"] = serde_json::json!(p
+                .layout
+                .cut
+                .triangle_piece
+                .iter()
+                .filter(|t| t.is_some())
+                .count());
+            v["patch"] = r;
+        }
         v["mesh"] = serde_json::json!(args.mesh);
         v["out"] = serde_json::json!(args.out);
         decalbake::io::image::write_atomic(r, serde_json::to_string_pretty(&v)?.as_bytes())?;

@@ -18,6 +18,17 @@ fn pad4(buf: &mut Vec<u8>, fill: u8) {
 
 /// Builds GLB bytes for `m` textured with `png` on UV set `uv_set` (untextured without a PNG).
 pub fn build_glb(m: &Mesh, png: Option<&[u8]>, uv_set: u32) -> Vec<u8> {
+    build_glb_with(m, png, uv_set, &[])
+}
+
+/// [`build_glb`] with custom per-vertex scalar attributes (`_NAME`, one f32 per vertex of `m`),
+/// such as `_PELT_BLEND`.
+pub fn build_glb_with(
+    m: &Mesh,
+    png: Option<&[u8]>,
+    uv_set: u32,
+    extra: &[(&str, &[f32])],
+) -> Vec<u8> {
     let mut bin: Vec<u8> = Vec::new();
     let mut views = Vec::new();
     let mut accessors = Vec::new();
@@ -56,6 +67,13 @@ pub fn build_glb(m: &Mesh, png: Option<&[u8]>, uv_set: u32) -> Vec<u8> {
             json!({"bufferView": v, "componentType": 5126, "count": set.len(), "type": "VEC2"}),
         );
         attributes[format!("TEXCOORD_{i}")] = json!(accessors.len() - 1);
+    }
+    for (name, values) in extra {
+        let v = push_view(&mut bin, bytemuck::cast_slice(values), Some(34962));
+        accessors.push(
+            json!({"bufferView": v, "componentType": 5126, "count": values.len(), "type": "SCALAR"}),
+        );
+        attributes[*name] = json!(accessors.len() - 1);
     }
     let idx: Vec<u32> = m.triangles.iter().flatten().copied().collect();
     let v = push_view(&mut bin, bytemuck::cast_slice(&idx), Some(34963));

@@ -9,6 +9,7 @@
 pub mod cut;
 pub mod gpu;
 pub mod pack;
+pub mod patch;
 pub mod quality;
 pub mod refine;
 pub mod relax;
@@ -43,6 +44,8 @@ pub struct Options {
     pub refine: Refine,
     /// Open non-manifold edges instead of refusing them (`cut::cut_with`).
     pub split_non_manifold: bool,
+    /// How many times a piece may be split (one split after another); 0 keeps the cut's pieces.
+    pub max_split_levels: usize,
 }
 
 /// What follows the pelting (`decalbake unwrap --refine`).
@@ -65,6 +68,7 @@ impl Default for Options {
             relax: SystemCfg::default(),
             refine: Refine::Conformal,
             split_non_manifold: false,
+            max_split_levels: MAX_SPLIT_LEVELS,
         }
     }
 }
@@ -162,14 +166,39 @@ pub fn unwrap(
     opts: &Options,
     path: &Path,
 ) -> Result<Unwrapped> {
-    let mut timings = Timings::default();
     let t = Instant::now();
     let first = cut::cut_with(mesh, topo, &opts.cut, opts.split_non_manifold, path)?;
-    timings.cut = ms(t);
-    let mut todo = first.pieces.clone();
+    let cut_ms = ms(t);
+    layout(
+        device,
+        topo,
+        first.pieces,
+        first.terminals,
+        opts,
+        cut_ms,
+        path,
+    )
+}
+
+/// Pelts, refines, splits and packs `pieces` (disks, in `topo`'s welded ids) as
+/// [`unwrap`] does after its cut (`cut_ms` is that cut's time, `terminals` its tips).
+pub fn layout(
+    device: Device,
+    topo: &Topology,
+    pieces: Vec<cut::Piece>,
+    terminals: Vec<u32>,
+    opts: &Options,
+    cut_ms: f64,
+    path: &Path,
+) -> Result<Unwrapped> {
+    let mut timings = Timings {
+        cut: cut_ms,
+        ..Timings::default()
+    };
+    let mut todo = pieces;
     let mut done: Vec<(cut::Piece, relax::Relaxed, Vec<DVec2>, refine::Refinement)> = Vec::new();
     let mut splits = 0;
-    for level in 0..=MAX_SPLIT_LEVELS {
+    for level in 0..=opts.max_split_levels {
         let pelts = pelt_without_folds(device, topo, &todo, opts, &mut timings)?;
         let t = Instant::now();
         let (relaxed, mut flats): (Vec<relax::Relaxed>, Vec<Vec<DVec2>>) =
@@ -190,11 +219,12 @@ pub fn unwrap(
             .enumerate()
         {
             let refine_failed = opts.refine == Refine::Conformal && !rf.kept;
-            let halves = if level < MAX_SPLIT_LEVELS && stretched(topo, &p, &flat, refine_failed) {
-                split::halves(topo, &p, apart[k].filter(|_| !rf.kept))
-            } else {
-                None
-            };
+            let halves =
+                if level < opts.max_split_levels && stretched(topo, &p, &flat, refine_failed) {
+                    split::halves(topo, &p, apart[k].filter(|_| !rf.kept))
+                } else {
+                    None
+                };
             match halves {
                 Some(parts) => {
                     splits += 1;
@@ -220,7 +250,7 @@ pub fn unwrap(
         flat.push(f);
         refined.push(rf);
     }
-    let cut = cut::Cut::assemble(topo, pieces, first.terminals);
+    let cut = cut::Cut::assemble(topo, pieces, terminals);
     let t = Instant::now();
     let uv = place(topo, &cut, &flat, opts);
     timings.pack = ms(t);
@@ -492,33 +522,45 @@ fn measure(topo: &Topology, cut: &cut::Cut, uv: &[Vec<Vec2>]) -> quality::Qualit
 /// `mesh` with the unwrap's UVs as set `set` (replacing it if it exists, else appended): every
 /// split vertex that lands on more than one side of the cut is split again.
 pub fn apply(mesh: &Mesh, un: &Unwrapped, set: usize) -> Mesh {
+    apply_all(mesh, &[(un, set)]).0
+}
+
+/// `mesh` with several layouts' UVs, each as its set (replaced or appended, in order): an output
+/// vertex per split vertex and place in every layout. A layout that leaves a triangle out (the
+/// patch of `patch`) gives its corners (0, 0). Also returns each output vertex's split vertex.
+pub fn apply_all(mesh: &Mesh, layouts: &[(&Unwrapped, usize)]) -> (Mesh, Vec<u32>) {
     let mut out = mesh.clone();
-    let mut seen: std::collections::HashMap<(u32, u32, u32), u32> = Default::default();
-    let mut new_uv: Vec<Vec2> = Vec::new();
+    let mut seen: std::collections::HashMap<Vec<u32>, u32> = Default::default();
+    let mut new_uv: Vec<Vec<Vec2>> = vec![Vec::new(); layouts.len()];
     let mut remap: Vec<u32> = Vec::new();
     for (t, tri) in mesh.triangles.iter().enumerate() {
-        let Some((p, lt)) = un.cut.triangle_piece[t] else {
-            continue;
-        };
-        let local = un.cut.pieces[p as usize].triangles[lt as usize];
+        let places: Vec<Option<(u32, [u32; 3])>> = layouts
+            .iter()
+            .map(|(un, _)| {
+                un.cut.triangle_piece[t]
+                    .map(|(p, lt)| (p, un.cut.pieces[p as usize].triangles[lt as usize]))
+            })
+            .collect();
+        // Degenerate triangles (in no layout) keep vertices of their own.
+        let alone = places.iter().all(Option::is_none);
         for k in 0..3 {
-            let key = (tri[k], p, local[k]);
+            let mut key = vec![tri[k]];
+            for p in &places {
+                key.extend(p.map_or([u32::MAX; 2], |(p, l)| [p, l[k]]));
+            }
+            if alone {
+                key.push(t as u32);
+            }
             let id = *seen.entry(key).or_insert_with(|| {
                 remap.push(tri[k]);
-                new_uv.push(un.uv[p as usize][local[k] as usize]);
+                for (i, p) in places.iter().enumerate() {
+                    new_uv[i].push(p.map_or(Vec2::ZERO, |(p, l)| {
+                        layouts[i].0.uv[p as usize][l[k] as usize]
+                    }));
+                }
                 remap.len() as u32 - 1
             });
             out.triangles[t][k] = id;
-        }
-    }
-    // Degenerate triangles keep a vertex of theirs (their UV is never seen: they cover no texel).
-    for (t, tri) in mesh.triangles.iter().enumerate() {
-        if un.cut.triangle_piece[t].is_none() {
-            for (k, &o) in tri.iter().enumerate() {
-                remap.push(o);
-                new_uv.push(Vec2::ZERO);
-                out.triangles[t][k] = remap.len() as u32 - 1;
-            }
         }
     }
     out.positions = remap.iter().map(|&o| mesh.positions[o as usize]).collect();
@@ -528,10 +570,12 @@ pub fn apply(mesh: &Mesh, un: &Unwrapped, set: usize) -> Mesh {
         .iter()
         .map(|s| remap.iter().map(|&o| s[o as usize]).collect())
         .collect();
-    if set < out.uv_sets.len() {
-        out.uv_sets[set] = new_uv;
-    } else {
-        out.uv_sets.push(new_uv);
+    for ((_, set), uv) in layouts.iter().zip(new_uv) {
+        if *set < out.uv_sets.len() {
+            out.uv_sets[*set] = uv;
+        } else {
+            out.uv_sets.push(uv);
+        }
     }
-    out
+    (out, remap)
 }

@@ -197,6 +197,18 @@ pub fn cut_region(
     split_non_manifold: bool,
     path: &Path,
 ) -> Result<Vec<Piece>> {
+    cut_region_with(topo, tris, &CutSpec::Auto, split_non_manifold, path)
+}
+
+/// [`cut_region`] with another cut (`pelt::patch` cuts nothing: the band round the seams must be
+/// disks as it is).
+pub fn cut_region_with(
+    topo: &Topology,
+    tris: &[u32],
+    spec: &CutSpec,
+    split_non_manifold: bool,
+    path: &Path,
+) -> Result<Vec<Piece>> {
     // The region as a mesh of its own, on the welded vertices it uses.
     let mut local: HashMap<u32, u32> = HashMap::new();
     let mut welded = Vec::new();
@@ -224,7 +236,7 @@ pub fn cut_region(
     // A tenth of the mesh's welding distance at most (the region is no larger than the mesh): the
     // welded vertices, further apart than that, stay apart.
     let sub = Topology::build(&mesh, 0.1 * crate::mesh::DEFAULT_WELD_TOLERANCE);
-    let c = cut::cut_with(&mesh, &sub, &CutSpec::Auto, split_non_manifold, path)?;
+    let c = cut::cut_with(&mesh, &sub, spec, split_non_manifold, path)?;
     // Sub-welded id -> the mesh's welded id (one region vertex per sub-welded id).
     let mut back = vec![u32::MAX; sub.positions.len()];
     for (v, &s) in sub.welded_of.iter().enumerate() {
