@@ -7,7 +7,7 @@
 
 use super::engine::{Engine, IslandKey, Islands, LoadedMesh};
 use super::params::{params_buffer, pbind, Params, PARAMS_STRIDE};
-use super::plan::{split_rect, target_side, uv_tile_range, TILE_TARGET};
+use super::plan::{raster_jobs, target_side};
 use crate::error::Result;
 use crate::gpu::pipelines::make_bind_group;
 use std::sync::Arc;
@@ -59,20 +59,7 @@ fn compute(
         stats_stride: 1,
         ..Default::default()
     };
-    let range = uv_tile_range(&mesh.mesh.uv_sets[uv_set as usize]);
-    let mut jobs = Vec::new();
-    for tj in range[1]..=range[3] {
-        for ti in range[0]..=range[2] {
-            for rect in split_rect([0, 0, w as i32, h as i32], TILE_TARGET / ss) {
-                jobs.push(Params {
-                    rect_origin: [rect[0], rect[1]],
-                    rect_size: [rect[2] as u32, rect[3] as u32],
-                    tile: [ti, tj],
-                    ..global
-                });
-            }
-        }
-    }
+    let jobs = raster_jobs(&mesh.mesh.uv_sets[uv_set as usize], [w, h], global);
     let mut entries = vec![global];
     entries.extend(jobs.iter().copied());
     let pass = Pass {

@@ -2,6 +2,8 @@
 //! Raster planning: which texel rectangles a layer's triangles are drawn into, and how those raster
 //! jobs are packed into atlas targets. Plain CPU code over the selection stage's cell masks.
 
+use super::params::Params;
+
 /// Largest raster target side, in samples. A raster job covers at most `TILE_TARGET / ss` texels a side.
 pub const TILE_TARGET: u32 = 2048;
 
@@ -147,4 +149,27 @@ pub fn pack_atlas(sizes: &[[u32; 2]], ss: u32) -> (Vec<[u32; 2]>, Vec<Batch>) {
         batches.push((cur, sy + sh));
     }
     (origins, batches)
+}
+
+/// The raster jobs that cover a `size` texture laid out by `uvs` at `ss`² samples a texel: every
+/// UV tile the layout reaches, split into rectangles of at most `TILE_TARGET / ss` texels a side,
+/// each a copy of `global` with its rectangle and tile (the islands' and the texture transfer's
+/// passes).
+pub fn raster_jobs(uvs: &[glam::Vec2], size: [u32; 2], global: Params) -> Vec<Params> {
+    let [w, h] = size;
+    let range = uv_tile_range(uvs);
+    let mut jobs = Vec::new();
+    for tj in range[1]..=range[3] {
+        for ti in range[0]..=range[2] {
+            for rect in split_rect([0, 0, w as i32, h as i32], TILE_TARGET / global.ss) {
+                jobs.push(Params {
+                    rect_origin: [rect[0], rect[1]],
+                    rect_size: [rect[2] as u32, rect[3] as u32],
+                    tile: [ti, tj],
+                    ..global
+                });
+            }
+        }
+    }
+    jobs
 }

@@ -11,7 +11,7 @@
 
 use super::engine::{Engine, GpuImage, LoadedMesh};
 use super::params::{params_buffer, pbind, Params, PARAMS_STRIDE};
-use super::plan::{split_rect, target_side, uv_tile_range, TILE_TARGET};
+use super::plan::{raster_jobs, target_side};
 use super::stage::Log;
 use crate::error::Result;
 use crate::gpu::pipelines::make_bind_group;
@@ -31,20 +31,7 @@ pub fn fill(
     let (dev, pipes, g) = (&engine.ctx.device, &engine.pipes, &mesh.gpu);
     let [w, h] = global.tex_size;
     let ss = global.ss;
-    let mut jobs = Vec::new();
-    let range = uv_tile_range(&mesh.mesh.uv_sets[job.uv_set as usize]);
-    for tj in range[1]..=range[3] {
-        for ti in range[0]..=range[2] {
-            for rect in split_rect([0, 0, w as i32, h as i32], TILE_TARGET / ss) {
-                jobs.push(Params {
-                    rect_origin: [rect[0], rect[1]],
-                    rect_size: [rect[2] as u32, rect[3] as u32],
-                    tile: [ti, tj],
-                    ..global
-                });
-            }
-        }
-    }
+    let jobs = raster_jobs(&mesh.mesh.uv_sets[job.uv_set as usize], [w, h], global);
     let params = params_buffer(dev, "bake.transfer.params", &jobs);
     engine.ctx.scoped("texture transfer", || {
         let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {

@@ -20,6 +20,7 @@
 //! edges around it, and each connected piece is checked to be a disk (Euler characteristic 1, one
 //! boundary loop).
 
+use super::tips::Key;
 use crate::error::{Error, Result};
 use crate::mesh::{Mesh, Topology};
 use std::cmp::Reverse;
@@ -418,8 +419,8 @@ fn shortest_tree(
     let mut heap = BinaryHeap::new();
     dist[root as usize] = 0.0;
     parent[root as usize] = root;
-    heap.push(Reverse((Ord64(0.0), root)));
-    while let Some(Reverse((Ord64(d), v))) = heap.pop() {
+    heap.push(Reverse((Key(0.0), root)));
+    while let Some(Reverse((Key(d), v))) = heap.pop() {
         if d > dist[v as usize] {
             continue;
         }
@@ -436,23 +437,9 @@ fn shortest_tree(
             if nd < dist[w as usize] {
                 dist[w as usize] = nd;
                 parent[w as usize] = v;
-                heap.push(Reverse((Ord64(nd), w)));
+                heap.push(Reverse((Key(nd), w)));
             }
         }
-    }
-}
-
-/// f64 ordered for the heap (distances are finite).
-#[derive(PartialEq, PartialOrd, Clone, Copy)]
-struct Ord64(f64);
-impl Eq for Ord64 {}
-#[allow(
-    clippy::derive_ord_xor_partial_ord,
-    reason = "total on the finite distances used"
-)]
-impl Ord for Ord64 {
-    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
-        self.0.total_cmp(&o.0)
     }
 }
 

@@ -120,8 +120,10 @@ pub fn ball(topo: &Topology, src: u32, radius: f64) -> HashMap<u32, f64> {
     dist
 }
 
+/// A distance ordered for a binary heap (the distances used are finite), shared by the searches
+/// of `pelt`.
 #[derive(PartialEq, PartialOrd, Clone, Copy)]
-struct Key(f64);
+pub struct Key(pub f64);
 impl Eq for Key {}
 #[allow(
     clippy::derive_ord_xor_partial_ord,
