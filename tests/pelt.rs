@@ -899,6 +899,41 @@ fn patch_and_blend_function_hide_the_cut() {
         .count();
     assert_eq!(overlapping, 0);
 
+    // Both sets baked by one job: a texture and a report per set.
+    std::fs::write(
+        dir.join("logo.png"),
+        common::test_image(32, 32, 5, false).encode_png(8),
+    )
+    .unwrap();
+    let seam_point = topo.positions[seam[seam.len() / 2] as usize];
+    let job = |texture: &str| {
+        serde_json::json!({ "mesh": "spot.glb", "uv_set": [1, 2],
+            "texture": { "width": 128, "height": 128 },
+            "layers": [{ "image": "logo.png", "at": seam_point.to_array(), "size": [0.2, 0.2] }],
+            "output": { "texture": texture } })
+        .to_string()
+    };
+    std::fs::write(dir.join("both.json"), job("baked_uv{uv}.png")).unwrap();
+    let (code, _, err) = common::cli(&["bake", dir.join("both.json").to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    for set in [1, 2] {
+        let img = image::open(dir.join(format!("baked_uv{set}.png"))).unwrap();
+        assert_eq!(img.width(), 128);
+        let r: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(dir.join(format!("report-uv{set}.json"))).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(r["uv_set"], set);
+        assert!(r["layers"][0]["texels_covered"].as_u64().unwrap() > 0);
+    }
+    std::fs::write(dir.join("clash.json"), job("baked.png")).unwrap();
+    let (code, _, err) = common::cli(&["bake", dir.join("clash.json").to_str().unwrap()]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("output.texture") && err.contains("{uv}"),
+        "{err}"
+    );
+
     let (code, _, err) = common::cli(&[
         "unwrap",
         asset("bob.glb").to_str().unwrap(),

@@ -372,6 +372,14 @@ fn bake_entry(
         (None, None) => unreachable!("a manifest entry is a path or a job"),
     };
     let job = Job::parse(&text, &source, &input_dir, &out_dir)?;
+    if !job.uv_list.is_empty() {
+        return Err(decalbake::Error::Job {
+            path: source.clone(),
+            field: "uv_set".into(),
+            detail: "a list of UV sets is baked by `decalbake bake` (one texture per set); in a batch manifest give one job per set".into(),
+        }
+        .into());
+    }
     let hash = input_hash(&text, &job, shared)?;
     let outputs: Vec<PathBuf> = [
         &job.out_texture,

@@ -378,10 +378,21 @@ fn engine(backend: Option<&str>) -> Result<Engine> {
 }
 
 fn bake(engine: &Engine, job: &Job) -> Result<()> {
+    if !job.uv_list.is_empty() {
+        // One bake per set on the same loaded mesh (`decalbake unwrap --patch`: pelt and patch).
+        let (mesh, _) = engine.load_mesh_for(job)?;
+        for &set in &job.uv_list {
+            bake_loaded(engine, &mesh, &job.for_uv_set(set))?;
+        }
+        return Ok(());
+    }
     let (mesh, job) = engine.load_mesh_for(job)?;
-    let job = &job;
-    let mut baked = engine.bake(&mesh, job)?;
-    let files = decalbake::output::write_outputs(engine, &mesh, job, &mut baked)?;
+    bake_loaded(engine, &mesh, &job)
+}
+
+fn bake_loaded(engine: &Engine, mesh: &decalbake::LoadedMesh, job: &Job) -> Result<()> {
+    let mut baked = engine.bake(mesh, job)?;
+    let files = decalbake::output::write_outputs(engine, mesh, job, &mut baked)?;
     let r = &baked.report;
     for l in &r.layers {
         eprintln!(

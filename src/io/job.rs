@@ -59,6 +59,9 @@ pub enum UvSetField {
     Index(u32),
     /// `"auto"` (any other text is an error).
     Named(String),
+    /// Several sets at once (`[0, 1]`: a model with a pelt and its patch, `decalbake unwrap
+    /// --patch`): one texture per set, `{uv}` in `output.texture` naming them.
+    List(Vec<u32>),
 }
 
 impl Default for UvSetField {
@@ -437,6 +440,8 @@ pub struct Job {
     /// `"uv_set": "auto"`: resolved by [`crate::Engine::load_mesh_for`] (the base-colour
     /// texture's set, or a new set by pelting on a mesh without UVs).
     pub uv_auto: bool,
+    /// `"uv_set": [a, b, ..]`: every set to bake ([`Job::for_uv_set`]); empty for one set.
+    pub uv_list: Vec<u32>,
     /// Width, height.
     pub width: u32,
     /// Height.
@@ -462,6 +467,35 @@ pub struct Job {
 }
 
 impl Job {
+    /// The job for set `set` of a several-set job (`"uv_set": [..]`): `{uv}` in every output path
+    /// replaced by the set's number; a report, `.glb` or preview path without `{uv}` gets `-uvN`
+    /// before its extension, so the sets' files do not overwrite each other.
+    pub fn for_uv_set(&self, set: u32) -> Job {
+        let name = |p: &Option<PathBuf>, insert: bool| {
+            p.as_ref().map(|p| {
+                let text = p.to_string_lossy();
+                if text.contains("{uv}") {
+                    PathBuf::from(text.replace("{uv}", &set.to_string()))
+                } else if insert {
+                    let stem = p.file_stem().unwrap_or_default().to_string_lossy();
+                    let ext = p.extension().map(|e| format!(".{}", e.to_string_lossy()));
+                    p.with_file_name(format!("{stem}-uv{set}{}", ext.unwrap_or_default()))
+                } else {
+                    p.clone()
+                }
+            })
+        };
+        Job {
+            uv_set: set,
+            uv_list: Vec::new(),
+            out_texture: name(&self.out_texture, true),
+            out_glb: name(&self.out_glb, true),
+            out_report: name(&self.out_report, true),
+            out_preview: name(&self.out_preview, true),
+            ..self.clone()
+        }
+    }
+
     /// Reads and validates a job file. Outputs go to `out_dir` when given, else next to the job file.
     pub fn load(path: &Path, out_dir: Option<&Path>) -> Result<Self> {
         let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
@@ -500,6 +534,28 @@ impl Job {
                 return Err(err(
                     "uv_set",
                     format!("\"{name}\" is not a UV set: give a number (TEXCOORD_n) or \"auto\""),
+                ));
+            }
+        }
+        if let UvSetField::List(list) = &f.uv_set {
+            let mut sorted = list.clone();
+            sorted.sort_unstable();
+            sorted.dedup();
+            if list.is_empty() || sorted.len() != list.len() || list.len() > 8 {
+                return Err(err(
+                    "uv_set",
+                    format!("{list:?}: a list of UV sets needs 1 to 8 different set numbers"),
+                ));
+            }
+            if !f
+                .output
+                .texture
+                .as_ref()
+                .is_some_and(|t| t.to_string_lossy().contains("{uv}"))
+            {
+                return Err(err(
+                    "output.texture",
+                    "with several UV sets (\"uv_set\": [..]) the texture's name needs {uv} (for example \"baked_uv{uv}.png\"), replaced by each set's number".into(),
                 ));
             }
         }
@@ -571,8 +627,13 @@ impl Job {
             uv_set: match &f.uv_set {
                 UvSetField::Index(i) => *i,
                 UvSetField::Named(_) => 0,
+                UvSetField::List(l) => l[0],
             },
             uv_auto: matches!(f.uv_set, UvSetField::Named(_)),
+            uv_list: match &f.uv_set {
+                UvSetField::List(l) => l.clone(),
+                _ => Vec::new(),
+            },
             width: t.width,
             height: t.height,
             base,
