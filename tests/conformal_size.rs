@@ -107,6 +107,7 @@ fn cube_on_corner(n: u32) -> Mesh {
         triangles,
         primitives: vec![],
         material: None,
+        blend: Vec::new(),
     }
 }
 
@@ -138,6 +139,7 @@ fn torus(big: f32, small: f32, m: u32, n: u32) -> Mesh {
         triangles,
         primitives: vec![],
         material: None,
+        blend: Vec::new(),
     }
 }
 

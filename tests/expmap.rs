@@ -561,6 +561,7 @@ fn cone_maps_converge_to_the_unrolling() {
             triangles: tris,
             primitives: vec![],
             material: None,
+            blend: Vec::new(),
         };
         let mesh = engine.prepare(mesh).unwrap();
         let topo = &mesh.topo;
@@ -773,6 +774,7 @@ fn maps_go_around_holes_and_stay_on_their_component() {
         triangles: tris,
         primitives: vec![],
         material: None,
+        blend: Vec::new(),
     };
     let engine = engine();
     let mesh = engine.prepare(mesh).unwrap();

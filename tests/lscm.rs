@@ -102,6 +102,7 @@ fn planar_patch_is_reproduced() {
         triangles: tris,
         primitives: vec![],
         material: None,
+        blend: Vec::new(),
     };
     let engine = engine();
     let loaded = engine.prepare(mesh).unwrap();

@@ -40,6 +40,7 @@ fn hemisphere(rings: u32, segments: u32) -> Mesh {
         triangles: tris,
         primitives: vec![],
         material: None,
+        blend: Vec::new(),
     }
 }
 
@@ -910,7 +911,7 @@ fn patch_and_blend_function_hide_the_cut() {
         serde_json::json!({ "mesh": "spot.glb", "uv_set": [1, 2],
             "texture": { "width": 128, "height": 128 },
             "layers": [{ "image": "logo.png", "at": seam_point.to_array(), "size": [0.2, 0.2] }],
-            "output": { "texture": texture } })
+            "output": { "texture": texture, "preview": "blended.png" } })
         .to_string()
     };
     std::fs::write(dir.join("both.json"), job("baked_uv{uv}.png")).unwrap();
@@ -926,6 +927,46 @@ fn patch_and_blend_function_hide_the_cut() {
         assert_eq!(r["uv_set"], set);
         assert!(r["layers"][0]["texels_covered"].as_u64().unwrap() > 0);
     }
+    let blended = image::open(dir.join("blended.png")).unwrap();
+    assert_eq!(blended.width(), 1024);
+    // No colour jump across the cut in the blended rendering: at the midpoint of every seam edge,
+    // b0 · pelt + (1 − b0) · patch is the same from both of its triangles (b0 = 0 on the seam, the
+    // patch's UVs are continuous there), while the pelt alone jumps where the decal crosses.
+    let tex = |set: u32| {
+        decalbake::io::image::LinearImage::load(&dir.join(format!("baked_uv{set}.png"))).unwrap()
+    };
+    let (t1, t2) = (tex(1), tex(2));
+    let mut by_edge: HashMap<(u32, u32), Vec<([f32; 4], [f32; 4])>> = HashMap::new();
+    for t in &m.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
+            let (wa, wb) = (topo.welded_of[a], topo.welded_of[b]);
+            let mid = |set: usize| 0.5 * (m.uv_sets[set][a] + m.uv_sets[set][b]);
+            let w = 0.5 * (b0[a] + b0[b]);
+            let (p1, p2) = (mid(1), mid(2));
+            let c1 = t1.bilinear(p1.x, p1.y, false);
+            let c2 = t2.bilinear(p2.x, p2.y, false);
+            let mixed = std::array::from_fn(|i| w * c1[i] + (1.0 - w) * c2[i]);
+            by_edge
+                .entry((wa.min(wb), wa.max(wb)))
+                .or_default()
+                .push((mixed, c1));
+        }
+    }
+    let (mut blended_jump, mut pelt_jump) = (0f32, 0f32);
+    for sides in by_edge.values().filter(|l| l.len() == 2) {
+        let d = |x: [f32; 4], y: [f32; 4]| (0..3).map(|i| (x[i] - y[i]).abs()).fold(0f32, f32::max);
+        blended_jump = blended_jump.max(d(sides[0].0, sides[1].0));
+        pelt_jump = pelt_jump.max(d(sides[0].1, sides[1].1));
+    }
+    assert!(
+        blended_jump < 1e-3,
+        "blended rendering jumps by {blended_jump} across an edge"
+    );
+    assert!(
+        pelt_jump > 0.1,
+        "the pelt alone should show its seam: {pelt_jump}"
+    );
     std::fs::write(dir.join("clash.json"), job("baked.png")).unwrap();
     let (code, _, err) = common::cli(&["bake", dir.join("clash.json").to_str().unwrap()]);
     assert_eq!(code, 2, "{err}");

@@ -115,9 +115,22 @@ impl Canvas {
             global,
             islands,
         };
-        if let Base::Transfer { from_uv_set, .. } = &job.base {
+        // The material's texture belongs to its own set: baking into another, it is transferred.
+        let sets = mesh.mesh.uv_sets.len() as u32;
+        let from = match &job.base {
+            Base::Transfer { from_uv_set, .. } => Some(*from_uv_set),
+            Base::Material => mesh
+                .mesh
+                .material
+                .as_ref()
+                .filter(|m| m.base_color_texture.is_some())
+                .map(|m| m.base_color_uv_set)
+                .filter(|&s| s != job.uv_set && s < sets),
+            _ => None,
+        };
+        if let Some(from_uv_set) = from {
             let acc = [&canvas.acc_rg, &canvas.acc_ba];
-            let src = (&*images.base, *from_uv_set);
+            let src = (&*images.base, from_uv_set);
             super::transfer::fill(engine, mesh, job, src, canvas.global, acc, log)?;
         } else {
             canvas.fill_base(engine, images, log)?;

@@ -381,16 +381,37 @@ fn bake(engine: &Engine, job: &Job) -> Result<()> {
     if !job.uv_list.is_empty() {
         // One bake per set on the same loaded mesh (`decalbake unwrap --patch`: pelt and patch).
         let (mesh, _) = engine.load_mesh_for(job)?;
+        let mut textures = Vec::new();
         for &set in &job.uv_list {
-            bake_loaded(engine, &mesh, &job.for_uv_set(set))?;
+            textures.push(bake_loaded(engine, &mesh, &job.for_uv_set(set))?);
+        }
+        if let Some(p) = &job.out_preview {
+            // The first set wears the first texture, weighted by `_PELT_BLEND` when the model has
+            // it (a pelt and its patch, Piponi & Borshukov §5), the second set the rest.
+            let mut it = textures.into_iter();
+            let mut first = it.next().expect("a list has a set");
+            if mesh.mesh.blend.len() == mesh.mesh.positions.len() {
+                first.second = it.next().map(Box::new);
+            }
+            let px = decalbake::output::preview::render_texture_preview(engine, &mesh, &first)?;
+            let n = 2 * decalbake::output::preview::VIEW_SIDE;
+            let samples: Vec<u16> = px.iter().map(|&b| b as u16).collect();
+            let png = decalbake::io::image::png_bytes(n, n, 8, &samples);
+            decalbake::io::image::write_atomic(p, &png)?;
+            println!("{}", p.display());
         }
         return Ok(());
     }
     let (mesh, job) = engine.load_mesh_for(job)?;
-    bake_loaded(engine, &mesh, &job)
+    bake_loaded(engine, &mesh, &job).map(|_| ())
 }
 
-fn bake_loaded(engine: &Engine, mesh: &decalbake::LoadedMesh, job: &Job) -> Result<()> {
+/// Bakes `job` on a loaded mesh and writes its outputs; returns the texture for a preview.
+fn bake_loaded(
+    engine: &Engine,
+    mesh: &decalbake::LoadedMesh,
+    job: &Job,
+) -> Result<decalbake::output::preview::PreviewTexture> {
     let mut baked = engine.bake(mesh, job)?;
     let files = decalbake::output::write_outputs(engine, mesh, job, &mut baked)?;
     let r = &baked.report;
@@ -406,7 +427,13 @@ fn bake_loaded(engine: &Engine, mesh: &decalbake::LoadedMesh, job: &Job) -> Resu
     for f in files {
         println!("{}", f.display());
     }
-    Ok(())
+    Ok(decalbake::output::preview::PreviewTexture {
+        width: baked.width,
+        height: baked.height,
+        rgba8: baked.rgba8(),
+        uv_set: job.uv_set as usize,
+        second: None,
+    })
 }
 
 fn demo(out: &Path, backend: Option<&str>) -> Result<()> {

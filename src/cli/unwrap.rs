@@ -196,28 +196,22 @@ fn run_on(
     if let Some(p) = &patch {
         layouts.push((&p.layout, set + 1));
     }
-    let (out_mesh, split_of) = pelt::apply_all(&mesh, &layouts);
-    let blend: Vec<f32> = patch.as_ref().map_or_else(Vec::new, |p| {
-        split_of
+    let (mut out_mesh, split_of) = pelt::apply_all(&mesh, &layouts);
+    if let Some(p) = &patch {
+        out_mesh.blend = split_of
             .iter()
             .map(|&s| p.blend[topo.welded_of[s as usize] as usize])
-            .collect()
-    });
-    let extra: Vec<(&str, &[f32])> = if patch.is_some() {
-        vec![("_PELT_BLEND", &blend)]
-    } else {
-        Vec::new()
-    };
+            .collect();
+    }
     let png = mesh.material.as_ref().and_then(|m| {
         m.base_color_texture
             .as_ref()
             .map(|t| (t.encode_png(8), m.base_color_uv_set))
     });
-    let glb = decalbake::output::glb::build_glb_with(
+    let glb = decalbake::output::glb::build_glb(
         &out_mesh,
         png.as_ref().map(|p| p.0.as_slice()),
         png.as_ref().map_or(0, |p| p.1),
-        &extra,
     );
     decalbake::io::image::write_atomic(&args.out, &glb)?;
     let q = &un.report.quality;
@@ -354,6 +348,7 @@ fn preview(engine: &Engine, mesh: Mesh, set: usize, path: &Path) -> Result<()> {
         height: side,
         rgba8,
         uv_set: set,
+        second: None,
     };
     let px = decalbake::output::preview::render_texture_preview(engine, &loaded, &tex)?;
     let n = 2 * decalbake::output::preview::VIEW_SIDE;

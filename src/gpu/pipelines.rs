@@ -594,7 +594,7 @@ fn preview_raster(device: &wgpu::Device) -> Raster {
     let preview_layout = layout(
         device,
         "preview",
-        &[(0, Uniform), (1, Tex(true)), (2, Sampler)],
+        &[(0, Uniform), (1, Tex(true)), (2, Sampler), (3, Tex(true))],
         vf,
     );
     let vb = |loc: u32, fmt: wgpu::VertexFormat| -> Vec<wgpu::VertexAttribute> {
@@ -607,6 +607,8 @@ fn preview_raster(device: &wgpu::Device) -> Raster {
     let a0 = vb(0, wgpu::VertexFormat::Float32x3);
     let a1 = vb(1, wgpu::VertexFormat::Float32x3);
     let a2 = vb(2, wgpu::VertexFormat::Float32x2);
+    let a3 = vb(3, wgpu::VertexFormat::Float32x2);
+    let a4 = vb(4, wgpu::VertexFormat::Float32);
     let buffers = [
         Some(wgpu::VertexBufferLayout {
             array_stride: 12,
@@ -622,6 +624,16 @@ fn preview_raster(device: &wgpu::Device) -> Raster {
             array_stride: 8,
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &a2,
+        }),
+        Some(wgpu::VertexBufferLayout {
+            array_stride: 8,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &a3,
+        }),
+        Some(wgpu::VertexBufferLayout {
+            array_stride: 4,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &a4,
         }),
     ];
     raster(

@@ -468,8 +468,9 @@ pub struct Job {
 
 impl Job {
     /// The job for set `set` of a several-set job (`"uv_set": [..]`): `{uv}` in every output path
-    /// replaced by the set's number; a report, `.glb` or preview path without `{uv}` gets `-uvN`
-    /// before its extension, so the sets' files do not overwrite each other.
+    /// replaced by the set's number; a report or `.glb` path without `{uv}` gets `-uvN` before its
+    /// extension, so the sets' files do not overwrite each other; no preview (the sets share one,
+    /// which the caller renders).
     pub fn for_uv_set(&self, set: u32) -> Job {
         let name = |p: &Option<PathBuf>, insert: bool| {
             p.as_ref().map(|p| {
@@ -491,7 +492,8 @@ impl Job {
             out_texture: name(&self.out_texture, true),
             out_glb: name(&self.out_glb, true),
             out_report: name(&self.out_report, true),
-            out_preview: name(&self.out_preview, true),
+            // The sets share one preview (`decalbake bake` blends them by `_PELT_BLEND`).
+            out_preview: None,
             ..self.clone()
         }
     }

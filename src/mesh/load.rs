@@ -63,6 +63,9 @@ pub struct Mesh {
     pub primitives: Vec<PrimitiveInfo>,
     /// Material of the first primitive that has one (the baked texture replaces its base colour).
     pub material: Option<MaterialInfo>,
+    /// The custom attribute `_PELT_BLEND` per split vertex, when every primitive has it: the
+    /// pelt's weight of `decalbake unwrap --patch` (`crate::pelt::patch`); empty otherwise.
+    pub blend: Vec<f32>,
 }
 
 fn gltf_err(path: &Path, detail: impl std::fmt::Display) -> Error {
@@ -113,7 +116,9 @@ impl Mesh {
             triangles: Vec::new(),
             primitives: Vec::new(),
             material: None,
+            blend: Vec::new(),
         };
+        let mut per_blend: Vec<Option<Vec<f32>>> = Vec::new();
         let mut per_prim_uvs: Vec<Vec<Vec<Vec2>>> = Vec::new();
         let mut material_index: Option<usize> = None;
         let mut stack: Vec<(gltf::Node, Mat4)> =
@@ -179,6 +184,16 @@ impl Mesh {
                     sets.push(uv);
                     set += 1;
                 }
+                per_blend.push(
+                    prim.get(&gltf::Semantic::Extras("PELT_BLEND".into()))
+                        .and_then(|a| {
+                            gltf::accessor::Iter::<f32>::new(a, |b: gltf::Buffer| {
+                                buffers.get(b.index()).map(|d| &d.0[..])
+                            })
+                        })
+                        .map(|it| it.collect::<Vec<f32>>())
+                        .filter(|v| v.len() == positions.len()),
+                );
                 let m3 = Mat3::from_mat4(world);
                 let nmat = m3.inverse().transpose();
                 let flip = m3.determinant() < 0.0;
@@ -228,6 +243,9 @@ impl Mesh {
                     .flat_map(|s| s[n].iter().copied())
                     .collect(),
             );
+        }
+        if per_blend.iter().all(Option::is_some) {
+            mesh.blend = per_blend.into_iter().flatten().flatten().collect();
         }
         if let Some(mi) = material_index {
             mesh.material = Some(load_material(&document, mi, &buffers, name, base_dir)?);
@@ -315,6 +333,9 @@ impl Mesh {
                         .push((self.normals[a] + self.normals[b]).normalize_or_zero());
                     for (set, src) in out.uv_sets.iter_mut().zip(&self.uv_sets) {
                         set.push(0.5 * (src[a] + src[b]));
+                    }
+                    if !self.blend.is_empty() {
+                        out.blend.push(0.5 * (self.blend[a] + self.blend[b]));
                     }
                     (out.positions.len() - 1) as u32
                 });

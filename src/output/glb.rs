@@ -16,19 +16,9 @@ fn pad4(buf: &mut Vec<u8>, fill: u8) {
     }
 }
 
-/// Builds GLB bytes for `m` textured with `png` on UV set `uv_set` (untextured without a PNG).
+/// Builds GLB bytes for `m` textured with `png` on UV set `uv_set` (untextured without a PNG), with
+/// the custom attribute `_PELT_BLEND` when the mesh has one (`Mesh::blend`).
 pub fn build_glb(m: &Mesh, png: Option<&[u8]>, uv_set: u32) -> Vec<u8> {
-    build_glb_with(m, png, uv_set, &[])
-}
-
-/// [`build_glb`] with custom per-vertex scalar attributes (`_NAME`, one f32 per vertex of `m`),
-/// such as `_PELT_BLEND`.
-pub fn build_glb_with(
-    m: &Mesh,
-    png: Option<&[u8]>,
-    uv_set: u32,
-    extra: &[(&str, &[f32])],
-) -> Vec<u8> {
     let mut bin: Vec<u8> = Vec::new();
     let mut views = Vec::new();
     let mut accessors = Vec::new();
@@ -68,12 +58,12 @@ pub fn build_glb_with(
         );
         attributes[format!("TEXCOORD_{i}")] = json!(accessors.len() - 1);
     }
-    for (name, values) in extra {
-        let v = push_view(&mut bin, bytemuck::cast_slice(values), Some(34962));
+    if m.blend.len() == m.positions.len() {
+        let v = push_view(&mut bin, bytemuck::cast_slice(&m.blend), Some(34962));
         accessors.push(
-            json!({"bufferView": v, "componentType": 5126, "count": values.len(), "type": "SCALAR"}),
+            json!({"bufferView": v, "componentType": 5126, "count": m.blend.len(), "type": "SCALAR"}),
         );
-        attributes[*name] = json!(accessors.len() - 1);
+        attributes["_PELT_BLEND"] = json!(accessors.len() - 1);
     }
     let idx: Vec<u32> = m.triangles.iter().flatten().copied().collect();
     let v = push_view(&mut bin, bytemuck::cast_slice(&idx), Some(34963));

@@ -28,6 +28,9 @@ pub struct PreviewTexture {
     pub rgba8: Vec<u8>,
     /// The UV set it is mapped by.
     pub uv_set: usize,
+    /// A second texture blended in, weighted by `1 − mesh.blend` (the patch of a pelt, Piponi &
+    /// Borshukov §5); needs the mesh's `_PELT_BLEND` (`Mesh::blend`).
+    pub second: Option<Box<PreviewTexture>>,
 }
 
 /// Renders the preview of a bake and returns sRGB RGBA8 pixels (`2 * VIEW_SIDE` square).
@@ -37,6 +40,7 @@ pub fn render_preview(engine: &Engine, mesh: &LoadedMesh, baked: &Baked) -> Resu
         height: baked.height,
         rgba8: baked.rgba8(),
         uv_set: baked.report.uv_set as usize,
+        second: None,
     };
     render_texture_preview(engine, mesh, &tex)
 }
@@ -61,7 +65,13 @@ pub fn render_texture_preview(
             anisotropy_clamp: 8,
             ..Default::default()
         });
-        let groups = view_groups(engine, mesh, &view, &sampler);
+        let second = baked.second.as_ref().map(|t| upload_texture(engine, t));
+        let groups = view_groups(
+            engine,
+            mesh,
+            [&view, second.as_ref().unwrap_or(&view)],
+            &sampler,
+        );
         draw(engine, mesh, baked, &groups)
     })
     .and_then(|readback| ctx.map_and_read(&readback, "preview read-back"))
@@ -138,7 +148,7 @@ fn upload_texture(engine: &Engine, baked: &PreviewTexture) -> wgpu::TextureView 
 fn view_groups(
     engine: &Engine,
     mesh: &LoadedMesh,
-    view: &wgpu::TextureView,
+    [view, second]: [&wgpu::TextureView; 2],
     sampler: &wgpu::Sampler,
 ) -> Vec<(wgpu::BindGroup, wgpu::Buffer)> {
     let dev = &engine.ctx.device;
@@ -174,6 +184,7 @@ fn view_groups(
                 (0, buf.as_entire_binding()),
                 (1, wgpu::BindingResource::TextureView(view)),
                 (2, wgpu::BindingResource::Sampler(sampler)),
+                (3, wgpu::BindingResource::TextureView(second)),
             ],
         );
         groups.push((bg, buf));
@@ -191,6 +202,18 @@ fn draw(
     let (ctx, dev) = (&engine.ctx, &engine.ctx.device);
     let side = 2 * VIEW_SIDE;
     let uv_buf = &mesh.gpu.uvs[baked.uv_set];
+    let uv2_buf = &mesh.gpu.uvs[baked.second.as_ref().map_or(baked.uv_set, |t| t.uv_set)];
+    // The first texture's weight per split vertex: `_PELT_BLEND` when blending, else 1.
+    let n = mesh.mesh.positions.len();
+    let weights: Vec<f32> = match &baked.second {
+        Some(_) if mesh.mesh.blend.len() == n => mesh.mesh.blend.clone(),
+        _ => vec![1.0; n],
+    };
+    let weight_buf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("preview.weight"),
+        contents: bytemuck::cast_slice(&weights),
+        usage: wgpu::BufferUsages::VERTEX,
+    });
     let mk = |label: &str, format, samples, usage| {
         dev.create_texture(&wgpu::TextureDescriptor {
             label: Some(label),
@@ -268,6 +291,8 @@ fn draw(
         pass.set_vertex_buffer(0, mesh.gpu.split_positions.slice(..));
         pass.set_vertex_buffer(1, mesh.gpu.split_normals.slice(..));
         pass.set_vertex_buffer(2, uv_buf.slice(..));
+        pass.set_vertex_buffer(3, uv2_buf.slice(..));
+        pass.set_vertex_buffer(4, weight_buf.slice(..));
         pass.set_index_buffer(mesh.gpu.split_tris.slice(..), wgpu::IndexFormat::Uint32);
         for (k, (bg, _)) in groups.iter().enumerate() {
             let (x, y) = ((k as u32 % 2) * VIEW_SIDE, (k as u32 / 2) * VIEW_SIDE);

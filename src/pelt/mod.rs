@@ -570,6 +570,9 @@ pub fn apply_all(mesh: &Mesh, layouts: &[(&Unwrapped, usize)]) -> (Mesh, Vec<u32
         .iter()
         .map(|s| remap.iter().map(|&o| s[o as usize]).collect())
         .collect();
+    if mesh.blend.len() == mesh.positions.len() {
+        out.blend = remap.iter().map(|&o| mesh.blend[o as usize]).collect();
+    }
     for ((_, set), uv) in layouts.iter().zip(new_uv) {
         if *set < out.uv_sets.len() {
             out.uv_sets[*set] = uv;

@@ -232,6 +232,7 @@ pub fn cut_region_with(
         triangles,
         primitives: Vec::new(),
         material: None,
+        blend: Vec::new(),
     };
     // A tenth of the mesh's welding distance at most (the region is no larger than the mesh): the
     // welded vertices, further apart than that, stay apart.

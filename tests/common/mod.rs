@@ -210,5 +210,6 @@ pub fn cylinder(n: u32, m: u32) -> decalbake::mesh::Mesh {
         triangles: tris,
         primitives: vec![],
         material: None,
+        blend: Vec::new(),
     }
 }

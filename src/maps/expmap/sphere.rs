@@ -82,6 +82,7 @@ pub fn icosphere(f: u32) -> Mesh {
         triangles,
         primitives: vec![],
         material: None,
+        blend: Vec::new(),
     }
 }
 
