@@ -936,7 +936,9 @@ fn patch_and_blend_function_hide_the_cut() {
         decalbake::io::image::LinearImage::load(&dir.join(format!("baked_uv{set}.png"))).unwrap()
     };
     let (t1, t2) = (tex(1), tex(2));
-    let mut by_edge: HashMap<(u32, u32), Vec<([f32; 4], [f32; 4])>> = HashMap::new();
+    // Per welded edge, from each of its triangles: (blended colour, pelt colour).
+    type Sides = Vec<([f32; 4], [f32; 4])>;
+    let mut by_edge: HashMap<(u32, u32), Sides> = HashMap::new();
     for t in &m.triangles {
         for k in 0..3 {
             let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
