@@ -292,7 +292,7 @@ fn overlap(a: &[DVec2; 3], b: &[DVec2; 3]) -> bool {
 }
 
 /// Spot (closed, genus 0) and bob (closed, genus 1) with the automatic cut: every piece
-/// a disk, nothing flipped or overlapping after packing. The genus is asserted from the welded
+/// a disk, nothing flipped or overlapping after packing, the written file valid. The genus is asserted from the welded
 /// surface (V − E + F = 2 − 2g) so the test covers a handle.
 #[test]
 fn closed_models_become_disks() {
@@ -326,6 +326,12 @@ fn closed_models_become_disks() {
             .unwrap()
         };
         check_layout(&mesh, &un);
+        let mut filled = mesh.clone();
+        topo.fill_normals(&mut filled);
+        let out = pelt::apply(&filled, &un, mesh.uv_sets.len());
+        let glb = common::scratch(&format!("closed-{genus}")).join(file);
+        std::fs::write(&glb, decalbake::output::glb::build_glb(&out, None, 0)).unwrap();
+        validate(&glb);
         let q = &un.report.quality;
         eprintln!("{file}: {} pelts, {q:?}", un.cut.pieces.len());
     }

@@ -68,6 +68,19 @@ pub struct Mesh {
     pub blend: Vec<f32>,
 }
 
+/// The primitive's `_PELT_BLEND` (one float per vertex), if it has one of the right length.
+fn read_blend(
+    prim: &gltf::Primitive,
+    buffers: &[gltf::buffer::Data],
+    vertices: usize,
+) -> Option<Vec<f32>> {
+    let accessor = prim.get(&gltf::Semantic::Extras("PELT_BLEND".into()))?;
+    let it = gltf::accessor::Iter::<f32>::new(accessor, |b: gltf::Buffer| {
+        buffers.get(b.index()).map(|d| &d.0[..])
+    })?;
+    Some(it.collect::<Vec<f32>>()).filter(|v| v.len() == vertices)
+}
+
 fn gltf_err(path: &Path, detail: impl std::fmt::Display) -> Error {
     Error::Gltf {
         path: path.to_path_buf(),
@@ -184,16 +197,7 @@ impl Mesh {
                     sets.push(uv);
                     set += 1;
                 }
-                per_blend.push(
-                    prim.get(&gltf::Semantic::Extras("PELT_BLEND".into()))
-                        .and_then(|a| {
-                            gltf::accessor::Iter::<f32>::new(a, |b: gltf::Buffer| {
-                                buffers.get(b.index()).map(|d| &d.0[..])
-                            })
-                        })
-                        .map(|it| it.collect::<Vec<f32>>())
-                        .filter(|v| v.len() == positions.len()),
-                );
+                per_blend.push(read_blend(&prim, &buffers, positions.len()));
                 let m3 = Mat3::from_mat4(world);
                 let nmat = m3.inverse().transpose();
                 let flip = m3.determinant() < 0.0;
