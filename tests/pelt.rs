@@ -975,6 +975,28 @@ fn patch_and_blend_function_hide_the_cut() {
         pelt_jump > 0.1,
         "the pelt alone should show its seam: {pelt_jump}"
     );
+    // The same job through `decalbake batch`: the same files, and a resumed run skips it.
+    std::fs::write(dir.join("jobs.jsonl"), "\"both.json\"\n").unwrap();
+    let batch = |extra: &[&str]| {
+        let manifest = dir.join("jobs.jsonl");
+        let summary = dir.join("summary.json");
+        let mut args = vec![
+            "batch",
+            manifest.to_str().unwrap(),
+            "--summary",
+            summary.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let (code, _, err) = common::cli(&args);
+        assert_eq!(code, 0, "{err}");
+        let s: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&summary).unwrap()).unwrap();
+        s["jobs"][0]["status"].as_str().unwrap().to_string()
+    };
+    std::fs::remove_file(dir.join("blended.png")).unwrap();
+    assert_eq!(batch(&[]), "ok");
+    assert!(dir.join("blended.png").exists() && dir.join("baked_uv2.png").exists());
+    assert_eq!(batch(&["--resume"]), "skipped");
     std::fs::write(dir.join("clash.json"), job("baked.png")).unwrap();
     let (code, _, err) = common::cli(&["bake", dir.join("clash.json").to_str().unwrap()]);
     assert_eq!(code, 2, "{err}");

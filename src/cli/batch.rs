@@ -372,47 +372,47 @@ fn bake_entry(
         (None, None) => unreachable!("a manifest entry is a path or a job"),
     };
     let job = Job::parse(&text, &source, &input_dir, &out_dir)?;
-    if !job.uv_list.is_empty() {
-        return Err(decalbake::Error::Job {
-            path: source.clone(),
-            field: "uv_set".into(),
-            detail: "a list of UV sets is baked by `decalbake bake` (one texture per set); in a batch manifest give one job per set".into(),
-        }
-        .into());
-    }
     let hash = input_hash(&text, &job, shared)?;
-    let outputs: Vec<PathBuf> = [
-        &job.out_texture,
-        &job.out_glb,
-        &job.out_report,
-        &job.out_preview,
-    ]
-    .into_iter()
-    .flatten()
-    .cloned()
-    .collect();
+    // A several-set job (`"uv_set": [..]`) bakes once per set and shares one (blended) preview.
+    let jobs: Vec<Job> = if job.uv_list.is_empty() {
+        vec![job.clone()]
+    } else {
+        job.uv_list.iter().map(|&s| job.for_uv_set(s)).collect()
+    };
+    let set_preview = job.out_preview.clone().filter(|_| !job.uv_list.is_empty());
+    let outputs: Vec<PathBuf> = jobs
+        .iter()
+        .flat_map(|j| [&j.out_texture, &j.out_glb, &j.out_report, &j.out_preview])
+        .flatten()
+        .cloned()
+        .chain(set_preview.clone())
+        .collect();
     let names = || outputs.iter().map(|p| p.display().to_string()).collect();
-    if opts.resume && up_to_date(&job, &outputs, &hash) {
+    if opts.resume && jobs.iter().all(|j| up_to_date(j, &outputs, &hash)) {
         return Ok(("skipped", names(), hash));
     }
-    let (mesh, uv_set) = shared
-        .meshes
-        .lock()
-        .expect("mesh cache")
-        .get(engine, &job)?;
-    let mut job = job;
-    job.uv_set = uv_set;
-    let mut baked = engine.bake(&mesh, &job)?;
-    baked.report.input_hash = Some(hash.clone());
-    // The old report goes first: a run killed between renames must not leave it vouching for a
+    // The old reports go first: a run killed between renames must not leave one vouching for a
     // half-replaced set of outputs.
-    if let Some(r) = &job.out_report {
+    for r in jobs.iter().filter_map(|j| j.out_report.as_ref()) {
         let _ = std::fs::remove_file(r);
     }
     for dir in outputs.iter().filter_map(|p| p.parent()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    decalbake::output::write_outputs(engine, &mesh, &job, &mut baked)?;
+    let mut textures = Vec::new();
+    let mut last = None;
+    for mut j in jobs {
+        let (mesh, uv_set) = shared.meshes.lock().expect("mesh cache").get(engine, &j)?;
+        j.uv_set = uv_set;
+        let mut baked = engine.bake(&mesh, &j)?;
+        baked.report.input_hash = Some(hash.clone());
+        decalbake::output::write_outputs(engine, &mesh, &j, &mut baked)?;
+        textures.push(decalbake::output::preview::PreviewTexture::of(&baked));
+        last = Some(mesh);
+    }
+    if let (Some(p), Some(mesh)) = (&set_preview, &last) {
+        decalbake::output::preview::write_set_preview(engine, mesh, textures, p)?;
+    }
     Ok(("ok", names(), hash))
 }
 

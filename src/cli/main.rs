@@ -386,18 +386,7 @@ fn bake(engine: &Engine, job: &Job) -> Result<()> {
             textures.push(bake_loaded(engine, &mesh, &job.for_uv_set(set))?);
         }
         if let Some(p) = &job.out_preview {
-            // The first set wears the first texture, weighted by `_PELT_BLEND` when the model has
-            // it (a pelt and its patch, Piponi & Borshukov §5), the second set the rest.
-            let mut it = textures.into_iter();
-            let mut first = it.next().expect("a list has a set");
-            if mesh.mesh.blend.len() == mesh.mesh.positions.len() {
-                first.second = it.next().map(Box::new);
-            }
-            let px = decalbake::output::preview::render_texture_preview(engine, &mesh, &first)?;
-            let n = 2 * decalbake::output::preview::VIEW_SIDE;
-            let samples: Vec<u16> = px.iter().map(|&b| b as u16).collect();
-            let png = decalbake::io::image::png_bytes(n, n, 8, &samples);
-            decalbake::io::image::write_atomic(p, &png)?;
+            decalbake::output::preview::write_set_preview(engine, &mesh, textures, p)?;
             println!("{}", p.display());
         }
         return Ok(());
@@ -427,13 +416,7 @@ fn bake_loaded(
     for f in files {
         println!("{}", f.display());
     }
-    Ok(decalbake::output::preview::PreviewTexture {
-        width: baked.width,
-        height: baked.height,
-        rgba8: baked.rgba8(),
-        uv_set: job.uv_set as usize,
-        second: None,
-    })
+    Ok(decalbake::output::preview::PreviewTexture::of(&baked))
 }
 
 fn demo(out: &Path, backend: Option<&str>) -> Result<()> {

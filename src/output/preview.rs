@@ -33,16 +33,44 @@ pub struct PreviewTexture {
     pub second: Option<Box<PreviewTexture>>,
 }
 
+impl PreviewTexture {
+    /// A bake's texture on the set it was baked into.
+    pub fn of(baked: &Baked) -> Self {
+        Self {
+            width: baked.width,
+            height: baked.height,
+            rgba8: baked.rgba8(),
+            uv_set: baked.report.uv_set as usize,
+            second: None,
+        }
+    }
+}
+
 /// Renders the preview of a bake and returns sRGB RGBA8 pixels (`2 * VIEW_SIDE` square).
 pub fn render_preview(engine: &Engine, mesh: &LoadedMesh, baked: &Baked) -> Result<Vec<u8>> {
-    let tex = PreviewTexture {
-        width: baked.width,
-        height: baked.height,
-        rgba8: baked.rgba8(),
-        uv_set: baked.report.uv_set as usize,
-        second: None,
+    render_texture_preview(engine, mesh, &PreviewTexture::of(baked))
+}
+
+/// Writes the preview of a several-set bake (`"uv_set": [..]`) to `path`: the first set's texture,
+/// blended with the second's by the mesh's `_PELT_BLEND` when it has one (a pelt and its patch,
+/// Piponi & Borshukov §5).
+pub fn write_set_preview(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    textures: Vec<PreviewTexture>,
+    path: &std::path::Path,
+) -> Result<()> {
+    let mut it = textures.into_iter();
+    let Some(mut first) = it.next() else {
+        return Ok(());
     };
-    render_texture_preview(engine, mesh, &tex)
+    if mesh.mesh.blend.len() == mesh.mesh.positions.len() {
+        first.second = it.next().map(Box::new);
+    }
+    let px = render_texture_preview(engine, mesh, &first)?;
+    let n = 2 * VIEW_SIDE;
+    let samples: Vec<u16> = px.iter().map(|&b| b as u16).collect();
+    crate::io::image::write_atomic(path, &crate::io::image::png_bytes(n, n, 8, &samples))
 }
 
 /// Renders the preview of `mesh` wearing `baked` (for `decalbake unwrap`: a checker on the new UVs).
