@@ -391,21 +391,28 @@ fn bake_entry(
     if opts.resume && jobs.iter().all(|j| up_to_date(j, &outputs, &hash)) {
         return Ok(("skipped", names(), hash));
     }
+    // Every set baked before anything is written: a failed job leaves no output directory.
+    let mut baked_sets = Vec::new();
+    for mut j in jobs {
+        let (mesh, uv_set) = shared.meshes.lock().expect("mesh cache").get(engine, &j)?;
+        j.uv_set = uv_set;
+        let mut baked = engine.bake(&mesh, &j)?;
+        baked.report.input_hash = Some(hash.clone());
+        baked_sets.push((mesh, j, baked));
+    }
     // The old reports go first: a run killed between renames must not leave one vouching for a
     // half-replaced set of outputs.
-    for r in jobs.iter().filter_map(|j| j.out_report.as_ref()) {
-        let _ = std::fs::remove_file(r);
+    for (_, j, _) in &baked_sets {
+        if let Some(r) = &j.out_report {
+            let _ = std::fs::remove_file(r);
+        }
     }
     for dir in outputs.iter().filter_map(|p| p.parent()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
     let mut textures = Vec::new();
     let mut last = None;
-    for mut j in jobs {
-        let (mesh, uv_set) = shared.meshes.lock().expect("mesh cache").get(engine, &j)?;
-        j.uv_set = uv_set;
-        let mut baked = engine.bake(&mesh, &j)?;
-        baked.report.input_hash = Some(hash.clone());
+    for (mesh, j, mut baked) in baked_sets {
         decalbake::output::write_outputs(engine, &mesh, &j, &mut baked)?;
         textures.push(decalbake::output::preview::PreviewTexture::of(&baked));
         last = Some(mesh);
