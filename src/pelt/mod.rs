@@ -1,10 +1,11 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-//! Pelting (Piponi & Borshukov 2000, §3-4): new UV sets for meshes that have none or whose seams
+//! Pelting (Piponi & Borshukov 2000, §3-5): new UV sets for meshes that have none or whose seams
 //! show. The surface is cut into disks (`cut`, through its tips: `tips`), each disk is stretched on
 //! a frame by damped spring dynamics in 3D on the GPU (`relax` holds the net and its CPU twin,
-//! `gpu` the dispatch of `wgsl/pelt/pelt_relax.wgsl`) and projected, the pelts are packed into
-//! [0, 1]² (`pack`) and measured (`quality`). `decalbake unwrap` writes the result as a new
-//! `TEXCOORD_n` (`apply` builds the mesh with it).
+//! `gpu` the dispatch of `wgsl/pelt/pelt_step.wgsl` and `pelt_check.wgsl`) and projected, refined
+//! by a conformal map (`refine`), split where it folds (`split`), packed into [0, 1]² (`pack`) and
+//! measured (`quality`); `patch` adds the §5 patch and blend function. `decalbake unwrap` writes
+//! the result as new `TEXCOORD_n` sets (`apply`, `apply_all` build the mesh).
 
 pub mod cut;
 pub mod gpu;

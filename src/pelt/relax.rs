@@ -34,7 +34,8 @@
 //! Steps (symplectic Euler, all vertices from the same positions):
 //! `v ← damping · v + F(x) / m`, `x ← x + v`. Every [`SystemCfg::check_every`] steps the
 //! kinetic energy per vertex is compared with `tol²`: below it, the piece is steady and stops. The
-//! GPU kernel (`wgsl/pelt/pelt_relax.wgsl`) runs the same steps in f32, one workgroup per piece.
+//! GPU kernels (`wgsl/pelt/pelt_step.wgsl`, `pelt_check.wgsl`) run the same steps in f32, an
+//! invocation per vertex and a dispatch per step (`pelt::gpu`).
 
 use super::cut::Piece;
 use crate::mesh::Topology;
@@ -59,7 +60,7 @@ pub enum Frame {
 /// When and how the dynamics stops.
 #[derive(Debug, Clone, Copy)]
 pub struct SystemCfg {
-    /// Steps between steadiness checks (and per GPU dispatch at most).
+    /// Steps between steadiness checks (rounded down to an even number: [`SystemCfg::interval`]).
     pub check_every: u32,
     /// Most steps.
     pub max_steps: u32,
