@@ -218,23 +218,7 @@ fn run(cli: Cli) -> Result<()> {
             });
             batch_cmd(cli.backend.as_deref(), opts, &merge_summaries, summary)
         }
-        Cmd::Param { job, layer, out } => {
-            let job = Job::load(&job, None)?;
-            let engine = engine(cli.backend.as_deref())?;
-            let mesh = engine.load_mesh(&job.mesh)?;
-            let rows = engine.layer_param(&mesh, &job, layer)?;
-            let mut csv = String::from("x,y,z,distance,u,v\n");
-            for r in &rows {
-                let d = r.distance.map(|d| d.to_string()).unwrap_or_default();
-                csv.push_str(&format!(
-                    "{},{},{},{d},{},{}\n",
-                    r.position[0], r.position[1], r.position[2], r.uv[0], r.uv[1]
-                ));
-            }
-            decalbake::io::image::write_atomic(&out, csv.as_bytes())?;
-            eprintln!("{} vertices written to {}", rows.len(), out.display());
-            Ok(())
-        }
+        Cmd::Param { job, layer, out } => param(cli.backend.as_deref(), &job, layer, &out),
         Cmd::Bench {
             mesh,
             subdivide,
@@ -462,6 +446,25 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
         out.display(),
         job_path.display()
     );
+    Ok(())
+}
+
+/// `decalbake param`: a layer's local coordinates per reached vertex, as CSV.
+fn param(backend: Option<&str>, job: &Path, layer: usize, out: &Path) -> Result<()> {
+    let job = Job::load(job, None)?;
+    let engine = engine(backend)?;
+    let mesh = engine.load_mesh(&job.mesh)?;
+    let rows = engine.layer_param(&mesh, &job, layer)?;
+    let mut csv = String::from("x,y,z,distance,u,v\n");
+    for r in &rows {
+        let d = r.distance.map(|d| d.to_string()).unwrap_or_default();
+        csv.push_str(&format!(
+            "{},{},{},{d},{},{}\n",
+            r.position[0], r.position[1], r.position[2], r.uv[0], r.uv[1]
+        ));
+    }
+    decalbake::io::image::write_atomic(out, csv.as_bytes())?;
+    eprintln!("{} vertices written to {}", rows.len(), out.display());
     Ok(())
 }
 

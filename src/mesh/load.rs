@@ -238,10 +238,23 @@ impl Mesh {
         if mesh.triangles.is_empty() {
             return Err(Error::mesh(name, "the scene has no triangles (no triangle primitives in any node); decalbake needs a triangle mesh"));
         }
-        // Only UV sets every primitive has can be baked into.
+        mesh.join_primitive_attributes(per_prim_uvs, per_blend);
+        if let Some(mi) = material_index {
+            mesh.material = Some(load_material(&document, mi, &buffers, name, base_dir)?);
+        }
+        Ok(mesh)
+    }
+
+    /// The per-primitive UV sets and `_PELT_BLEND` joined over the whole mesh: only UV sets every
+    /// primitive has can be baked into, and the blend only when every primitive has one.
+    fn join_primitive_attributes(
+        &mut self,
+        per_prim_uvs: Vec<Vec<Vec<Vec2>>>,
+        per_blend: Vec<Option<Vec<f32>>>,
+    ) {
         let common = per_prim_uvs.iter().map(|s| s.len()).min().unwrap_or(0);
         for n in 0..common {
-            mesh.uv_sets.push(
+            self.uv_sets.push(
                 per_prim_uvs
                     .iter()
                     .flat_map(|s| s[n].iter().copied())
@@ -249,12 +262,8 @@ impl Mesh {
             );
         }
         if per_blend.iter().all(Option::is_some) {
-            mesh.blend = per_blend.into_iter().flatten().flatten().collect();
+            self.blend = per_blend.into_iter().flatten().flatten().collect();
         }
-        if let Some(mi) = material_index {
-            mesh.material = Some(load_material(&document, mi, &buffers, name, base_dir)?);
-        }
-        Ok(mesh)
     }
 
     /// Bounding box (min, max) of the positions.
