@@ -326,12 +326,18 @@ fn refine_pelts(
         .into_iter()
         .enumerate()
     {
-        if let Some(x) = &x {
-            apart[k] = quality::overlapping_pairs(x, &pieces[k].triangles)
+        let Some(x) = x else {
+            refinements[k] = rf;
+            continue;
+        };
+        // One measure gives both the fold test and, only where it overlaps, the pair to split at.
+        let q = piece_quality(topo, &pieces[k], &x);
+        if q.overlaps > 0 {
+            apart[k] = quality::overlapping_pairs(&x, &pieces[k].triangles)
                 .first()
                 .copied();
         }
-        if let Some(x) = x.filter(|x| !folds(topo, &pieces[k], x)) {
+        if q.flipped == 0 && q.overlaps == 0 {
             flats[k] = x;
             rf.kept = true;
         }
