@@ -1,8 +1,7 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // One step of the pelting dynamics (Piponi & Borshukov §3-4) for every vertex of every piece: an
 // invocation per vertex, all pieces in one dispatch, one dispatch per step (no barriers: llvmpipe
-// runs a barrier-heavy loop inside one workgroup an invocation batch at a time, which measured
-// 17 ms a step on Spot's 3,200 vertices against about 1 ms this way). Per vertex:
+// runs a barrier-heavy loop inside one workgroup an invocation batch at a time: see src/pelt/gpu.rs). Per vertex:
 // v <- damping * v + F(x) / m, x <- x + v, where F sums the vertex's edge springs (rest length,
 // stiffness), its frame spring (zero rest length) and its pull towards the plane z = 0. Positions
 // ping-pong between the two halves of `x` by `step.parity`; a steady piece only copies its
