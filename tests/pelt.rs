@@ -1017,3 +1017,61 @@ fn patch_and_blend_function_hide_the_cut() {
     assert!(err.contains("--patch") && err.contains("tree"), "{err}");
     assert!(!dir.join("bob.glb").exists());
 }
+
+/// A flat 12 × 12 grid in the plane z = 0 (one disk).
+fn grid(n: u32) -> Mesh {
+    let mut pos = Vec::new();
+    let mut tris = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            pos.push(Vec3::new(i as f32, j as f32, 0.0));
+        }
+    }
+    for j in 0..n {
+        for i in 0..n {
+            let a = j * (n + 1) + i;
+            let (b, c, d) = (a + 1, a + n + 1, a + n + 2);
+            tris.push([a, b, d]);
+            tris.push([a, d, c]);
+        }
+    }
+    Mesh {
+        source: "grid".into(),
+        normals: vec![Vec3::Z; pos.len()],
+        uv_sets: Vec::new(),
+        positions: pos,
+        triangles: tris,
+        primitives: vec![],
+        material: None,
+        blend: Vec::new(),
+    }
+}
+
+/// A split seeded at an overlapping pair of triangles next to each other in a corner would cut a
+/// sliver off (the two seeds' Voronoi border runs between them, one column from the edge) and
+/// leave the rest to be pelted whole again; the split falls back to the diameter's ends instead,
+/// and each side keeps at least `MIN_SHARE` of the triangles. Seeded far apart, the overlap's
+/// seeds are kept (the two sides then hold the two seeds).
+#[test]
+fn an_uneven_split_at_an_overlap_falls_back_to_halves() {
+    let mesh = grid(12);
+    let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
+    let cut = pelt::cut::cut(&mesh, &topo, &CutSpec::Auto, Path::new("grid")).unwrap();
+    assert_eq!(cut.pieces.len(), 1);
+    let p = &cut.pieces[0];
+    let n = p.triangles.len();
+    // The piece-local triangle whose first corner is the welded vertex at (x, y).
+    let at = |x: f32, y: f32| {
+        (0..n as u32)
+            .find(|&t| {
+                let w = p.welded[p.triangles[t as usize][0] as usize];
+                topo.positions[w as usize].distance(Vec3::new(x, y, 0.0)) < 1e-4
+            })
+            .unwrap()
+    };
+    let share = |parts: &[Vec<u32>; 2]| parts[0].len().min(parts[1].len()) as f64 / n as f64;
+    let near = pelt::split::halves(&topo, p, Some((at(0.0, 5.0), at(1.0, 5.0)))).unwrap();
+    assert!(share(&near) >= pelt::split::MIN_SHARE, "{}", share(&near));
+    let far = pelt::split::halves(&topo, p, Some((at(0.0, 0.0), at(11.0, 11.0)))).unwrap();
+    assert!(share(&far) > 0.3, "{}", share(&far));
+}

@@ -226,7 +226,7 @@ fn run_on(
         q.flipped,
         q.overlaps,
         q.texel_utilisation * 100.0,
-        un.report.ms.cut + un.report.ms.net + un.report.ms.relax + un.report.ms.pack + un.report.ms.measure
+        un.report.ms.total()
     );
     if let Some(r) = &args.report {
         let mut v = serde_json::to_value(&un.report)?;

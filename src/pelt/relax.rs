@@ -393,7 +393,8 @@ pub struct Relaxed {
     pub steady: bool,
     /// Energy at the start and the end.
     pub energy: [f64; 2],
-    /// The rest lengths' scale the pelt was kept at (`pelt::REST_SCALES`).
+    /// The rest lengths' scale the pelt was kept at (`pelt::REST_SCALES`, or `pelt::START_SCALES`
+    /// when a conformal refinement follows).
     pub rest_scale: f32,
 }
 
