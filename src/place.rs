@@ -243,28 +243,7 @@ pub fn closest_barycentric(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
     Vec3::new(1.0 - v - w, v, w)
 }
 
-/// Ray/triangle (Moller-Trumbore, both sides): (t, u, v), t < 0 on a miss. Twin of `ray_triangle`.
-pub fn ray_triangle(o: Vec3, d: Vec3, a: Vec3, b: Vec3, c: Vec3) -> (f32, f32, f32) {
-    let e1 = b - a;
-    let e2 = c - a;
-    let pv = d.cross(e2);
-    let det = e1.dot(pv);
-    if det.abs() < 1e-30 {
-        return (-1.0, 0.0, 0.0);
-    }
-    let inv = 1.0 / det;
-    let tv = o - a;
-    let u = tv.dot(pv) * inv;
-    if !(0.0..=1.0).contains(&u) {
-        return (-1.0, 0.0, 0.0);
-    }
-    let qv = tv.cross(e1);
-    let v = d.dot(qv) * inv;
-    if v < 0.0 || u + v > 1.0 {
-        return (-1.0, 0.0, 0.0);
-    }
-    (e2.dot(qv) * inv, u, v)
-}
+pub use crate::mesh::bvh::ray_triangle;
 
 /// CPU twin of the placement kernels: brute force over every non-degenerate triangle.
 pub fn place_cpu(topo: &Topology, query: Query) -> Placement {

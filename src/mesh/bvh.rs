@@ -133,6 +133,41 @@ impl Bvh {
         }
     }
 
+    /// Whether the ray `o + t d` hits any triangle of `topo` (both sides) for `t` in
+    /// (`tmin`, `tmax`): the walk stops at the first hit (ambient occlusion, `pelt::hidden`).
+    pub fn any_hit(&self, topo: &Topology, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> bool {
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let inv = d.recip();
+        let mut stack = vec![0usize];
+        while let Some(i) = stack.pop() {
+            let n = &self.nodes[i];
+            // Slab test (infinite reciprocals of zero components give the right answer unless the
+            // origin lies exactly on a slab, where NaN compares false and the node is visited).
+            let t1 = (Vec3::from(n.lo) - o) * inv;
+            let t2 = (Vec3::from(n.hi) - o) * inv;
+            let near = t1.min(t2).max_element().max(tmin);
+            let far = t1.max(t2).min_element().min(tmax);
+            if near > far {
+                continue;
+            }
+            let first = n.first as usize;
+            if n.count == 0 {
+                stack.extend([first, first + 1]);
+                continue;
+            }
+            for &t in &self.triangles[first..first + n.count as usize] {
+                let [a, b, c] = topo.triangles[t as usize].map(|v| topo.positions[v as usize]);
+                let (h, _, _) = ray_triangle(o, d, a, b, c);
+                if h > tmin && h < tmax {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
     /// The triangles whose (padded) leaf boxes overlap the box `lo`..`hi`, ascending: a superset of
     /// those whose own boxes overlap it.
     pub fn overlapping(&self, lo: Vec3, hi: Vec3) -> Vec<u32> {
@@ -156,4 +191,27 @@ impl Bvh {
         out.sort_unstable();
         out
     }
+}
+
+/// Ray/triangle (Moller-Trumbore, both sides): (t, u, v), t < 0 on a miss. Twin of `ray_triangle` in the placement kernels (`wgsl/place/`).
+pub fn ray_triangle(o: Vec3, d: Vec3, a: Vec3, b: Vec3, c: Vec3) -> (f32, f32, f32) {
+    let e1 = b - a;
+    let e2 = c - a;
+    let pv = d.cross(e2);
+    let det = e1.dot(pv);
+    if det.abs() < 1e-30 {
+        return (-1.0, 0.0, 0.0);
+    }
+    let inv = 1.0 / det;
+    let tv = o - a;
+    let u = tv.dot(pv) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return (-1.0, 0.0, 0.0);
+    }
+    let qv = tv.cross(e1);
+    let v = d.dot(qv) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return (-1.0, 0.0, 0.0);
+    }
+    (e2.dot(qv) * inv, u, v)
 }

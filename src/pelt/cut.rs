@@ -4,7 +4,8 @@
 //!
 //! The automatic cut is a tree-cotree cut graph (the greedy system of loops of Erickson and Whittlesey,
 //! "Greedy optimal homotopy and homology generators", 2005) pruned to the vertices it must reach:
-//! - `T`: the shortest-path tree from a root vertex over the welded edges (lengths as weights);
+//! - `T`: the shortest-path tree from a root vertex over the welded edges, each costing its length
+//!   weighted by how much a seam there would show (`hidden`: less in crevices and along creases);
 //! - the dual graph: one node per triangle plus one per boundary loop (the hole closed by a virtual
 //!   face); a maximum spanning tree of the dual edges not in `T`, by the length of the loop an edge
 //!   closes (`d(u) + |uv| + d(v)`), leaves the `2g` edges `X` whose loops generate the homology;
@@ -63,6 +64,9 @@ pub struct Cut {
     pub edges: Vec<[u32; 2]>,
     /// The terminals the automatic cut reaches (empty for other cuts).
     pub terminals: Vec<u32>,
+    /// Each welded vertex's exposure (`hidden::exposure`), where the automatic cut measured it
+    /// (empty for other cuts); the splits' cuts reuse it.
+    pub exposure: Vec<f32>,
 }
 
 impl Cut {
@@ -95,6 +99,7 @@ impl Cut {
             triangle_piece,
             edges,
             terminals,
+            exposure: Vec::new(),
         }
     }
 
@@ -144,6 +149,20 @@ pub fn cut_with(
     split_non_manifold: bool,
     path: &Path,
 ) -> Result<Cut> {
+    cut_exposed(mesh, topo, spec, split_non_manifold, None, path)
+}
+
+/// [`cut_with`] with each welded vertex's exposure given (`hidden::exposure`; measured here when
+/// `None` and the cut is automatic): a region of a mesh is cut with the whole mesh's exposure,
+/// since parts outside the region hide it too.
+pub fn cut_exposed(
+    mesh: &Mesh,
+    topo: &Topology,
+    spec: &CutSpec,
+    split_non_manifold: bool,
+    exposure: Option<&[f32]>,
+    path: &Path,
+) -> Result<Cut> {
     if let Some(e) = topo
         .non_manifold_edges
         .first()
@@ -163,10 +182,21 @@ pub fn cut_with(
         ));
     }
     let faces = edge_faces(topo);
+    let mut measured = Vec::new();
     let (opened, terminals) = match spec {
         CutSpec::Auto => {
-            let (edges, terminals) = auto_cut(topo, &faces);
-            (edges, terminals)
+            let exposure = match exposure {
+                Some(e) => e,
+                None => {
+                    measured = super::hidden::exposure(topo);
+                    &measured
+                }
+            };
+            auto_cut(
+                topo,
+                &faces,
+                &super::hidden::edge_costs(topo, &faces, exposure),
+            )
         }
         CutSpec::Seams(set) => (seam_edges(mesh, topo, &faces, *set, path)?, Vec::new()),
         CutSpec::Edges(list) => {
@@ -202,6 +232,7 @@ pub fn cut_with(
         triangle_piece,
         edges,
         terminals,
+        exposure: measured,
     })
 }
 
@@ -404,18 +435,13 @@ fn check_disk(topo: &Topology, p: &Piece, i: usize, path: &Path) -> Result<()> {
     ))
 }
 
-/// Dijkstra over the welded edges from `root`, within its component: distances and parents.
-/// Edges in `free` cost nothing: the automatic cut passes the mesh's boundary edges so, because a
+/// Dijkstra over the welded edges from `root`, within its component, by `cost` (`hidden`):
+/// distances and parents. Edges not in `cost` cost nothing: the automatic cut leaves the mesh's
+/// boundary edges out, because a
 /// path that runs along the boundary and leaves it twice would cut off the triangles between
 /// (measured: halves of Spot came back with pieces of 2 and 14 triangles), while a free boundary
 /// is left at most once by any shortest path.
-fn shortest_tree(
-    topo: &Topology,
-    root: u32,
-    free: &rustc_hash::FxHashSet<(u32, u32)>,
-    dist: &mut [f64],
-    parent: &mut [u32],
-) {
+fn shortest_tree(topo: &Topology, root: u32, cost: &Costs, dist: &mut [f64], parent: &mut [u32]) {
     let mut heap = BinaryHeap::new();
     dist[root as usize] = 0.0;
     parent[root as usize] = root;
@@ -429,11 +455,7 @@ fn shortest_tree(
             topo.adjacency_offsets[v as usize + 1] as usize,
         );
         for &w in &topo.adjacency[s..e] {
-            let nd = if free.contains(&key(v, w)) {
-                d
-            } else {
-                d + edge_len(topo, v, w)
-            };
+            let nd = d + cost.get(&key(v, w)).copied().unwrap_or(0.0);
             if nd < dist[w as usize] {
                 dist[w as usize] = nd;
                 parent[w as usize] = v;
@@ -443,8 +465,16 @@ fn shortest_tree(
     }
 }
 
-/// The automatic cut (module docs): the opened edges and the terminals.
-fn auto_cut(topo: &Topology, faces: &HashMap<(u32, u32), Vec<u32>>) -> (Vec<(u32, u32)>, Vec<u32>) {
+/// Edge costs by welded pair (smaller first).
+type Costs = rustc_hash::FxHashMap<(u32, u32), f64>;
+
+/// The automatic cut (module docs) with edge costs `cost` (`hidden::edge_costs`): the opened
+/// edges and the terminals.
+fn auto_cut(
+    topo: &Topology,
+    faces: &HashMap<(u32, u32), Vec<u32>>,
+    cost: &Costs,
+) -> (Vec<(u32, u32)>, Vec<u32>) {
     let nv = topo.positions.len();
     let used = used_vertices(topo);
     let score = super::tips::tip_score(topo);
@@ -478,13 +508,12 @@ fn auto_cut(topo: &Topology, faces: &HashMap<(u32, u32), Vec<u32>>) -> (Vec<(u32
     let mut roots: Vec<u32> = comp_root.values().copied().collect();
     roots.sort_unstable();
     let mut terminals = roots.clone();
-    let free: rustc_hash::FxHashSet<(u32, u32)> = topo
-        .boundary_edges
-        .iter()
-        .map(|e| key(e[0], e[1]))
-        .collect();
+    let mut cost = cost.clone();
+    for e in &topo.boundary_edges {
+        cost.remove(&key(e[0], e[1]));
+    }
     for &r in &roots {
-        shortest_tree(topo, r, &free, &mut dist, &mut parent);
+        shortest_tree(topo, r, &cost, &mut dist, &mut parent);
     }
     for l in &loops {
         let nearest = *l
@@ -511,7 +540,7 @@ fn auto_cut(topo: &Topology, faces: &HashMap<(u32, u32), Vec<u32>>) -> (Vec<(u32
     }
     terminals.sort_unstable();
     terminals.dedup();
-    let x = cotree_leftovers(topo, faces, &loops, &dist, &parent);
+    let x = cotree_leftovers(topo, faces, &loops, &dist, &parent, &cost);
     let edges = prune(topo, &parent, &x, &terminals, &used);
     (edges, terminals)
 }
@@ -542,13 +571,14 @@ fn used_vertices(topo: &Topology) -> Vec<bool> {
 }
 
 /// The edges left over by a maximum spanning tree of the dual graph (triangles and one virtual face
-/// per boundary loop) over the edges not in the primal tree, by the length of the loop they close.
+/// per boundary loop) over the edges not in the primal tree, by the cost of the loop they close.
 fn cotree_leftovers(
     topo: &Topology,
     faces: &HashMap<(u32, u32), Vec<u32>>,
     loops: &[Vec<u32>],
     dist: &[f64],
     parent: &[u32],
+    cost: &Costs,
 ) -> Vec<(u32, u32)> {
     let nt = topo.triangles.len() as u32;
     let mut hole_of: HashMap<(u32, u32), u32> = HashMap::new();
@@ -567,7 +597,7 @@ fn cotree_leftovers(
             } else {
                 *hole_of.get(&e)?
             };
-            let sigma = dist[e.0 as usize] + dist[e.1 as usize] + edge_len(topo, e.0, e.1);
+            let sigma = dist[e.0 as usize] + dist[e.1 as usize] + cost.get(&e).unwrap_or(&0.0);
             Some((sigma, e, f[0], other))
         })
         .collect();

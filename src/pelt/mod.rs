@@ -9,6 +9,7 @@
 
 pub mod cut;
 pub mod gpu;
+pub mod hidden;
 pub mod pack;
 pub mod patch;
 pub mod quality;
@@ -176,33 +177,41 @@ pub fn unwrap(
 ) -> Result<Unwrapped> {
     let t = Instant::now();
     let first = cut::cut_with(mesh, topo, &opts.cut, opts.split_non_manifold, path)?;
-    let cut_ms = ms(t);
-    layout(
-        device,
-        topo,
-        first.pieces,
-        first.terminals,
-        opts,
-        cut_ms,
-        path,
-    )
+    let prior = Prior {
+        terminals: first.terminals,
+        cut_ms: ms(t),
+        exposure: first.exposure,
+    };
+    layout(device, topo, first.pieces, prior, opts, path)
+}
+
+/// What the first cut leaves to [`layout`].
+#[derive(Debug, Clone, Default)]
+pub struct Prior {
+    /// The automatic cut's terminals (tips, boundary joints), for the report.
+    pub terminals: Vec<u32>,
+    /// The cut's time.
+    pub cut_ms: f64,
+    /// Each welded vertex's exposure, if the cut measured it (`hidden::exposure`; measured on the
+    /// first split otherwise).
+    pub exposure: Vec<f32>,
 }
 
 /// Pelts, refines, splits and packs `pieces` (disks, in `topo`'s welded ids) as
-/// [`unwrap`] does after its cut (`cut_ms` is that cut's time, `terminals` its tips).
+/// [`unwrap`] does after its cut (`prior`).
 pub fn layout(
     device: Device,
     topo: &Topology,
     pieces: Vec<cut::Piece>,
-    terminals: Vec<u32>,
+    prior: Prior,
     opts: &Options,
-    cut_ms: f64,
     path: &Path,
 ) -> Result<Unwrapped> {
     let mut timings = Timings {
-        cut: cut_ms,
+        cut: prior.cut_ms,
         ..Timings::default()
     };
+    let (terminals, mut exposure) = (prior.terminals, prior.exposure);
     let mut todo = pieces;
     let mut done: Vec<(cut::Piece, relax::Relaxed, Vec<DVec2>, refine::Refinement)> = Vec::new();
     let mut splits = 0;
@@ -211,12 +220,15 @@ pub fn layout(
         let (kept, parts) = one_level(device, topo, todo, opts, split_here, &mut timings)?;
         done.extend(kept);
         let t = Instant::now();
+        if !parts.is_empty() && exposure.is_empty() {
+            exposure = hidden::exposure(topo);
+        }
         let mut next = Vec::new();
         for part in parts {
             splits += 1;
             for half in part {
                 let nm = opts.split_non_manifold;
-                next.extend(split::cut_region(topo, &half, nm, path)?);
+                next.extend(split::cut_region(topo, &half, nm, &exposure, path)?);
             }
         }
         timings.cut += ms(t);

@@ -125,7 +125,7 @@ pub fn patch(
         .collect();
     let tris = enclosed(topo, &in_band);
     let pieces =
-        split::cut_region_with(topo, &tris, &CutSpec::Edges(Vec::new()), opts.split_non_manifold, path)
+        split::cut_region_with(topo, &tris, &CutSpec::Edges(Vec::new()), opts.split_non_manifold, &[], path)
             .map_err(|e| {
                 Error::mesh(
                     path,
@@ -138,7 +138,14 @@ pub fn patch(
         max_split_levels: 0,
         ..opts.clone()
     };
-    let layout = layout(device, topo, pieces, Vec::new(), &no_splits, 0.0, path)?;
+    let layout = layout(
+        device,
+        topo,
+        pieces,
+        super::Prior::default(),
+        &no_splits,
+        path,
+    )?;
     let blend = d
         .iter()
         .map(|&r| if r <= BLEND_ZERO_TO { 0.0 } else { 1.0 })

@@ -213,13 +213,22 @@ fn dijkstra(nbrs: &[Vec<u32>], from: &[u32], len: &dyn Fn(u32, u32) -> f64) -> V
 }
 
 /// Cuts the region made of mesh triangles `tris` into disks, in the whole mesh's welded ids.
+/// `exposure` is the whole mesh's (`hidden::exposure`, per welded vertex).
 pub fn cut_region(
     topo: &Topology,
     tris: &[u32],
     split_non_manifold: bool,
+    exposure: &[f32],
     path: &Path,
 ) -> Result<Vec<Piece>> {
-    cut_region_with(topo, tris, &CutSpec::Auto, split_non_manifold, path)
+    cut_region_with(
+        topo,
+        tris,
+        &CutSpec::Auto,
+        split_non_manifold,
+        exposure,
+        path,
+    )
 }
 
 /// [`cut_region`] with another cut (`pelt::patch` cuts nothing: the band round the seams must be
@@ -229,6 +238,7 @@ pub fn cut_region_with(
     tris: &[u32],
     spec: &CutSpec,
     split_non_manifold: bool,
+    exposure: &[f32],
     path: &Path,
 ) -> Result<Vec<Piece>> {
     // The region as a mesh of its own, on the welded vertices it uses.
@@ -259,12 +269,16 @@ pub fn cut_region_with(
     // A tenth of the mesh's welding distance at most (the region is no larger than the mesh): the
     // welded vertices, further apart than that, stay apart.
     let sub = Topology::build(&mesh, 0.1 * crate::mesh::DEFAULT_WELD_TOLERANCE);
-    let c = cut::cut_with(&mesh, &sub, spec, split_non_manifold, path)?;
     // Sub-welded id -> the mesh's welded id (one region vertex per sub-welded id).
     let mut back = vec![u32::MAX; sub.positions.len()];
     for (v, &s) in sub.welded_of.iter().enumerate() {
         back[s as usize] = welded[v];
     }
+    let seen: Vec<f32> = back
+        .iter()
+        .map(|&w| exposure.get(w as usize).copied().unwrap_or(1.0))
+        .collect();
+    let c = cut::cut_exposed(&mesh, &sub, spec, split_non_manifold, Some(&seen), path)?;
     Ok(c.pieces
         .into_iter()
         .map(|p| Piece {
