@@ -33,6 +33,15 @@ fn demo_writes_decodable_outputs_and_a_glb_that_loads_back() {
         ),
         (Some(0), Some(0))
     );
+    // Spot unwrapped by the automatic cut: a new set next to its own, no folds.
+    let spot = decalbake::mesh::Mesh::load(&out.join("spot-unwrapped.glb")).unwrap();
+    assert_eq!(spot.uv_sets.len(), 2);
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("spot-unwrap-report.json")).unwrap())
+            .unwrap();
+    assert_eq!(r["quality"]["flipped"], 0);
+    assert_eq!(r["quality"]["overlaps"], 0);
+    assert!(out.join("spot-unwrap-preview.png").exists());
     let preview = LinearImage::load(&out.join("preview.png")).unwrap();
     assert_eq!((preview.width, preview.height), (1024, 1024));
     // Each quadrant of the preview shows the model: its centre is not the background colour.

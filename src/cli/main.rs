@@ -441,8 +441,18 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
         cpu: false,
     };
     unwrap::run_with(&args, &engine)?;
+    // Spot itself, cut automatically (through its tips, along hidden and creased edges), pelted,
+    // refined, split where it folds and packed.
+    let spot = unwrap::UnwrapArgs {
+        mesh: out.join("spot.glb"),
+        out: out.join("spot-unwrapped.glb"),
+        report: Some(out.join("spot-unwrap-report.json")),
+        preview: Some(out.join("spot-unwrap-preview.png")),
+        ..args
+    };
+    unwrap::run_with(&spot, &engine)?;
     eprintln!(
-        "demo written to {} (edit job.json and run `decalbake bake {}` to re-bake; `decalbake unwrap` made unwrapped.glb)",
+        "demo written to {} (edit job.json and run `decalbake bake {}` to re-bake; `decalbake unwrap` made unwrapped.glb and spot-unwrapped.glb)",
         out.display(),
         job_path.display()
     );

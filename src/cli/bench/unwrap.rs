@@ -3,7 +3,9 @@
 //! the same run, per mesh (Spot, bob, the Stanford bunny from `../shared/data/meshes`, bob
 //! subdivided twice: 171k triangles), time per stage and the layout's quality; with `--peers DIR`,
 //! xatlas (whole-mesh atlas) and libigl's ARAP and harmonic maps (on a geodesic disc patch when
-//! the mesh is not a disc: `peers.py` cuts one) on the same mesh.
+//! the mesh is not a disc: `peers.py` cuts one) on the same mesh, and, where `DIR/.venv-bpy` holds
+//! Blender as a module (`setup.sh --bpy`), Blender's Smart UV Project and its angle-based unwrap
+//! (`benches/peers/blender_unwrap.py`), whose layouts are scored by our own quality measure.
 
 use super::common::{run_peers_py, SHARED_MESHES};
 use anyhow::Result;
@@ -88,7 +90,7 @@ pub fn run(engine: &Engine, opts: &UnwrapBenchOptions, emit: impl Fn(String)) ->
         if let Some(dir) = &opts.peers {
             let file = std::env::temp_dir().join(format!(
                 "decalbake-bench-unwrap-{}-{}.glb",
-                name.replace(' ', "_"),
+                name.replace(|c: char| !c.is_ascii_alphanumeric(), "_"),
                 std::process::id()
             ));
             decalbake::io::image::write_atomic(
@@ -104,8 +106,51 @@ pub fn run(engine: &Engine, opts: &UnwrapBenchOptions, emit: impl Fn(String)) ->
                     .to_string(),
                 );
             }
+            if dir.join(".venv-bpy/bin/python").exists() {
+                for method in ["smart", "angle"] {
+                    let v = blender(dir, &file, method).unwrap_or_else(|e| json!({ "error": e }));
+                    emit(
+                        json!({"bench": "unwrap", "mesh": name, "triangles": tris,
+                        "peer": "blender", "method": method, "result": v})
+                        .to_string(),
+                    );
+                }
+            }
             let _ = std::fs::remove_file(&file);
         }
     }
     Ok(())
+}
+
+/// Runs `benches/peers/blender_unwrap.py` with `method` on `file` through `DIR/.venv-bpy` and scores
+/// the layout it writes with `pelt::quality::measure` (as ours are).
+fn blender(
+    dir: &Path,
+    file: &Path,
+    method: &str,
+) -> std::result::Result<serde_json::Value, String> {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/peers/blender_unwrap.py");
+    let out_glb = file.with_extension(format!("blender-{method}.glb"));
+    let out = std::process::Command::new(dir.join(".venv-bpy/bin/python"))
+        .arg(&script)
+        .arg(file)
+        .arg(&out_glb)
+        .args(["--method", method])
+        .output()
+        .map_err(|e| e.to_string())?;
+    let text = String::from_utf8_lossy(&out.stdout);
+    let line = text.lines().rev().find(|l| l.starts_with('{'));
+    let (true, Some(line)) = (out.status.success(), line) else {
+        let err = String::from_utf8_lossy(&out.stderr);
+        return Err(err.lines().last().unwrap_or("failed").to_string());
+    };
+    let mut v: serde_json::Value = serde_json::from_str(line).map_err(|e| e.to_string())?;
+    let mesh = Mesh::load(&out_glb).map_err(|e| e.to_string());
+    let _ = std::fs::remove_file(&out_glb);
+    let mesh = mesh?;
+    let uv = mesh.uv_sets.first().ok_or("Blender wrote no UVs")?;
+    let pos: Vec<glam::DVec3> = mesh.positions.iter().map(|p| p.as_dvec3()).collect();
+    let uv: Vec<glam::DVec2> = uv.iter().map(|p| p.as_dvec2()).collect();
+    v["quality"] = json!(pelt::quality::measure(&pos, &uv, &mesh.triangles));
+    Ok(v)
 }
