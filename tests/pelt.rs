@@ -1173,3 +1173,71 @@ fn automatic_cut_runs_through_hidden_and_creased_parts() {
         );
     }
 }
+
+/// The shape packing (`pelt::pack::pack_shapes`) nests pelts in each other's bays and keeps the
+/// margin: eight right-angled triangles (half a unit square each; two make a square when one is
+/// turned half round) packed into 256² texels with a 2-texel margin come out larger than the box
+/// packing can make them (a square each), every point in [0, 1]², and no two pelts closer than
+/// twice the margin (each has the margin round it): the closest distance is between a vertex of
+/// one and an edge of the other, measured exactly.
+#[test]
+fn shape_packing_nests_pelts_and_keeps_the_margin() {
+    let points = vec![DVec2::ZERO, DVec2::X, DVec2::Y];
+    let triangles = vec![[0u32, 1, 2]];
+    let shape = pelt::pack::Shape {
+        points: &points,
+        triangles: &triangles,
+    };
+    let (size, margin) = (256u32, 2u32);
+    let density = [1.0; 8];
+    let placed = pelt::pack::pack_shapes(&[shape; 8], &density, size, margin);
+    let boxes = [(DVec2::ZERO, DVec2::ONE); 8];
+    let by_box = pelt::pack::pack(&boxes, &density, size, margin);
+    assert!(
+        placed.scale[0] > 1.1 * by_box.scale[0],
+        "{} against {}",
+        placed.scale[0],
+        by_box.scale[0]
+    );
+    let laid: Vec<Vec<DVec2>> = (0..8)
+        .map(|i| {
+            points
+                .iter()
+                .map(|&p| placed.uv(i, p) * size as f64)
+                .collect()
+        })
+        .collect();
+    for q in laid.iter().flatten() {
+        assert!(
+            q.min_element() >= 0.0 && q.max_element() <= size as f64,
+            "{q}"
+        );
+    }
+    let seg = |p: DVec2, a: DVec2, b: DVec2| {
+        let t = ((p - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+        (a + (b - a) * t).distance(p)
+    };
+    let gap = |a: &[DVec2], b: &[DVec2]| {
+        let mut d = f64::MAX;
+        for t in &triangles {
+            for k in 0..3 {
+                let (u, v) = (t[k] as usize, t[(k + 1) % 3] as usize);
+                for p in a {
+                    d = d.min(seg(*p, b[u], b[v]));
+                }
+            }
+        }
+        d
+    };
+    for i in 0..8 {
+        for j in 0..8 {
+            if i != j {
+                let d = gap(&laid[i], &laid[j]);
+                assert!(
+                    d >= 2.0 * margin as f64 - 1e-9,
+                    "pelts {i} and {j} are {d} texels apart"
+                );
+            }
+        }
+    }
+}

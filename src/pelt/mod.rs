@@ -556,14 +556,6 @@ fn upright(q: &[DVec2]) -> Vec<DVec2> {
 fn place(topo: &Topology, cut: &cut::Cut, flat: &[Vec<DVec2>], opts: &Options) -> Vec<Vec<Vec2>> {
     let flat: Vec<Vec<DVec2>> = flat.iter().map(|q| upright(q)).collect();
     let flat = &flat[..];
-    let boxes: Vec<(DVec2, DVec2)> = flat
-        .iter()
-        .map(|q| {
-            q.iter().fold((DVec2::MAX, DVec2::MIN), |(lo, hi), p| {
-                (lo.min(*p), hi.max(*p))
-            })
-        })
-        .collect();
     let density: Vec<f64> = cut
         .pieces
         .iter()
@@ -579,13 +571,21 @@ fn place(topo: &Topology, cut: &cut::Cut, flat: &[Vec<DVec2>], opts: &Options) -
             (a3 / a2.max(f64::MIN_POSITIVE)).sqrt()
         })
         .collect();
-    let placed = pack::pack(&boxes, &density, opts.size, opts.margin);
+    let shapes: Vec<pack::Shape> = flat
+        .iter()
+        .zip(&cut.pieces)
+        .map(|(q, p)| pack::Shape {
+            points: q,
+            triangles: &p.triangles,
+        })
+        .collect();
+    let placed = pack::pack_shapes(&shapes, &density, opts.size, opts.margin);
     flat.iter()
         .enumerate()
         .map(|(i, q)| {
             q.iter()
                 .map(|p| {
-                    let u = placed.offset[i] + (*p - placed.lo[i]) * placed.scale[i];
+                    let u = placed.uv(i, *p);
                     Vec2::new(u.x as f32, (1.0 - u.y) as f32)
                 })
                 .collect()
