@@ -1020,19 +1020,24 @@ fn patch_and_blend_function_hide_the_cut() {
     assert!(!dir.join("bob.glb").exists());
 }
 
-/// A flat 12 × 12 grid in the plane z = 0 (one disk).
+/// A flat n × n grid of unit squares in the plane z = 0 (one disk).
 fn grid(n: u32) -> Mesh {
+    grid_wh(n, n)
+}
+
+/// A flat w × h grid of unit squares in the plane z = 0, each cut by its (1, 1) diagonal.
+fn grid_wh(w: u32, h: u32) -> Mesh {
     let mut pos = Vec::new();
     let mut tris = Vec::new();
-    for j in 0..=n {
-        for i in 0..=n {
+    for j in 0..=h {
+        for i in 0..=w {
             pos.push(Vec3::new(i as f32, j as f32, 0.0));
         }
     }
-    for j in 0..n {
-        for i in 0..n {
-            let a = j * (n + 1) + i;
-            let (b, c, d) = (a + 1, a + n + 1, a + n + 2);
+    for j in 0..h {
+        for i in 0..w {
+            let a = j * (w + 1) + i;
+            let (b, c, d) = (a + 1, a + w + 1, a + w + 2);
             tris.push([a, b, d]);
             tris.push([a, d, c]);
         }
@@ -1240,4 +1245,68 @@ fn shape_packing_nests_pelts_and_keeps_the_margin() {
             }
         }
     }
+}
+
+/// A split's border is the shortest edge path between its ends (`pelt::split::BAND`), not the
+/// geodesic Voronoi staircase: a 24 × 8 strip split at the ends of its longest path is cut across
+/// by a border no longer than the shortest path along the edges between its two ends on the rim
+/// (the Voronoi border alone, the broken variant, zigzags and is longer).
+#[test]
+fn split_border_runs_straight() {
+    let mesh = grid_wh(24, 8);
+    let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
+    let cut = pelt::cut::cut(&mesh, &topo, &CutSpec::Auto, Path::new("strip")).unwrap();
+    let parts = pelt::split::halves(&topo, &cut.pieces[0], None).unwrap();
+    let mut part_of = vec![0; topo.triangles.len()];
+    for t in &parts[1] {
+        part_of[*t as usize] = 1;
+    }
+    let mut by_edge: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
+    for (t, tri) in topo.triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            by_edge.entry((a.min(b), a.max(b))).or_default().push(t);
+        }
+    }
+    let border: Vec<(u32, u32)> = by_edge
+        .iter()
+        .filter(|(_, t)| t.len() == 2 && part_of[t[0]] != part_of[t[1]])
+        .map(|(e, _)| *e)
+        .collect();
+    let mut degree: HashMap<u32, u32> = HashMap::new();
+    for &(a, b) in &border {
+        *degree.entry(a).or_default() += 1;
+        *degree.entry(b).or_default() += 1;
+    }
+    let ends: Vec<u32> = degree
+        .iter()
+        .filter(|(_, d)| **d == 1)
+        .map(|(v, _)| *v)
+        .collect();
+    assert_eq!(ends.len(), 2, "{border:?}");
+    let dist = |a: u32, b: u32| topo.positions[a as usize].distance(topo.positions[b as usize]);
+    let length: f32 = border.iter().map(|&(a, b)| dist(a, b)).sum();
+    // The shortest path along the edges between the two ends (Bellman-Ford: the mesh is small).
+    let mut d = vec![f32::INFINITY; topo.positions.len()];
+    d[ends[0] as usize] = 0.0;
+    for _ in 0..topo.positions.len() {
+        let mut changed = false;
+        for &(a, b) in by_edge.keys() {
+            for (u, v) in [(a, b), (b, a)] {
+                let nd = d[u as usize] + dist(u, v);
+                if nd < d[v as usize] - 1e-6 {
+                    d[v as usize] = nd;
+                    changed = true;
+                }
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+    let shortest = d[ends[1] as usize];
+    assert!(
+        length <= shortest + 1e-4,
+        "border {length} against {shortest}"
+    );
 }

@@ -65,7 +65,7 @@ pub fn halves(topo: &Topology, piece: &Piece, apart: Option<(u32, u32)>) -> Opti
             .collect();
         smooth_sides(&nbr, &mut side);
         keep_one_region_per_side(&nbr, &mut side);
-        side
+        straighten(piece, &nbrs, &len, &side).unwrap_or(side)
     };
     let mut side = match apart {
         Some((s, t)) if piece.triangles[s as usize][0] != piece.triangles[t as usize][0] => {
@@ -142,6 +142,140 @@ fn smooth_sides(nbr: &[Vec<u32>], side: &mut [bool]) {
             side[t] = !side[t];
         }
     }
+}
+
+/// How far (in edges) from the Voronoi border its straightened path may stray ([`straighten`]).
+pub const BAND: u32 = 4;
+/// The straightened path's cost per edge grows by this share per edge of distance from the old
+/// border ([`straighten`]).
+pub const NEAR: f64 = 0.05;
+
+/// The border between the sides replaced by the shortest edge path between its two ends on the
+/// piece's boundary, within [`BAND`] edges of it: the labels' border follows the geodesic
+/// Voronoi staircase (teeth several triangles deep on Spot even after `smooth_sides`), a
+/// shortest path runs as straight as the edges allow, as the automatic cut's do. Each of the two
+/// regions the path leaves takes the side most of its triangles had. `None` (the smoothed border
+/// stays) when the border does not run once from boundary to boundary or the path does not split
+/// the piece in two regions that were on different sides.
+fn straighten(
+    piece: &Piece,
+    nbrs: &[Vec<u32>],
+    len: &dyn Fn(u32, u32) -> f64,
+    side: &[bool],
+) -> Option<Vec<bool>> {
+    let n = piece.welded.len();
+    let mut by_edge: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
+    for (t, tri) in piece.triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            by_edge
+                .entry((a.min(b), a.max(b)))
+                .or_default()
+                .push(t as u32);
+        }
+    }
+    let mut on_boundary = vec![false; n];
+    for &v in &piece.boundary {
+        on_boundary[v as usize] = true;
+    }
+    let mut hop = vec![u32::MAX; n];
+    let mut queue = std::collections::VecDeque::new();
+    let mut ends = Vec::new();
+    for (&(a, b), t) in &by_edge {
+        if t.len() == 2 && side[t[0] as usize] != side[t[1] as usize] {
+            for v in [a, b] {
+                if hop[v as usize] != 0 {
+                    hop[v as usize] = 0;
+                    queue.push_back(v);
+                    if on_boundary[v as usize] {
+                        ends.push(v);
+                    }
+                }
+            }
+        }
+    }
+    ends.sort_unstable();
+    let [from, to] = ends[..] else {
+        return None;
+    };
+    while let Some(v) = queue.pop_front() {
+        for &w in &nbrs[v as usize] {
+            if hop[w as usize] == u32::MAX && hop[v as usize] < BAND {
+                hop[w as usize] = hop[v as usize] + 1;
+                queue.push_back(w);
+            }
+        }
+    }
+    // Dijkstra from one end to the other through the band's interior vertices.
+    let mut dist = vec![f64::INFINITY; n];
+    let mut parent = vec![u32::MAX; n];
+    let mut heap = BinaryHeap::new();
+    dist[from as usize] = 0.0;
+    heap.push(std::cmp::Reverse((0u64, from)));
+    while let Some(std::cmp::Reverse((_, v))) = heap.pop() {
+        if v == to {
+            break;
+        }
+        for &w in &nbrs[v as usize] {
+            let inner = !on_boundary[w as usize] || w == to;
+            let interior_edge = by_edge[&(v.min(w), v.max(w))].len() == 2;
+            if hop[w as usize] == u32::MAX || !inner || !interior_edge {
+                continue;
+            }
+            // Among paths of about the same length, the one nearest the old border (a grid has
+            // many equally short staircases, and the farthest would move the split).
+            let near = 1.0 + NEAR * (hop[v as usize] + hop[w as usize]) as f64;
+            let nd = dist[v as usize] + len(v, w) * near;
+            if nd < dist[w as usize] {
+                dist[w as usize] = nd;
+                parent[w as usize] = v;
+                heap.push(std::cmp::Reverse(((nd * 1e9) as u64, w)));
+            }
+        }
+    }
+    if parent[to as usize] == u32::MAX {
+        return None;
+    }
+    let mut cut = rustc_hash::FxHashSet::default();
+    let mut v = to;
+    while v != from {
+        let p = parent[v as usize];
+        cut.insert((v.min(p), v.max(p)));
+        v = p;
+    }
+    // The regions the path leaves, and the side most of each one's triangles had.
+    let mut region = vec![u32::MAX; side.len()];
+    let mut votes: Vec<[usize; 2]> = Vec::new();
+    for start in 0..side.len() {
+        if region[start] != u32::MAX {
+            continue;
+        }
+        let id = votes.len() as u32;
+        votes.push([0, 0]);
+        region[start] = id;
+        let mut stack = vec![start as u32];
+        while let Some(t) = stack.pop() {
+            votes[id as usize][usize::from(side[t as usize])] += 1;
+            let tri = piece.triangles[t as usize];
+            for k in 0..3 {
+                let e = (tri[k].min(tri[(k + 1) % 3]), tri[k].max(tri[(k + 1) % 3]));
+                if cut.contains(&e) {
+                    continue;
+                }
+                for &u in &by_edge[&e] {
+                    if region[u as usize] == u32::MAX {
+                        region[u as usize] = id;
+                        stack.push(u);
+                    }
+                }
+            }
+        }
+    }
+    let pick: Vec<bool> = votes.iter().map(|v| v[1] > v[0]).collect();
+    if pick.len() != 2 || pick[0] == pick[1] {
+        return None;
+    }
+    Some(region.iter().map(|&r| pick[r as usize]).collect())
 }
 
 /// Gives every triangle that is cut off from the largest region of its side to the other side, so
