@@ -213,7 +213,7 @@ pub fn layout(
     };
     let (terminals, mut exposure) = (prior.terminals, prior.exposure);
     let mut todo = pieces;
-    let mut done: Vec<(cut::Piece, relax::Relaxed, Vec<DVec2>, refine::Refinement)> = Vec::new();
+    let mut done: Vec<Done> = Vec::new();
     let mut splits = 0;
     for level in 0..=opts.max_split_levels {
         let split_here = level < opts.max_split_levels;

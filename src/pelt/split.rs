@@ -97,8 +97,8 @@ pub fn halves(topo: &Topology, piece: &Piece, apart: Option<(u32, u32)>) -> Opti
     Some(parts)
 }
 
-/// The triangles across each triangle's edges (within the piece).
-fn triangle_neighbours(piece: &Piece) -> Vec<Vec<u32>> {
+/// The piece's triangles round each of its edges (piece vertex ids, smaller first).
+fn edge_triangles(piece: &Piece) -> HashMap<(u32, u32), Vec<u32>> {
     let mut by_edge: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
     for (t, tri) in piece.triangles.iter().enumerate() {
         for k in 0..3 {
@@ -109,6 +109,12 @@ fn triangle_neighbours(piece: &Piece) -> Vec<Vec<u32>> {
                 .push(t as u32);
         }
     }
+    by_edge
+}
+
+/// The triangles across each triangle's edges (within the piece).
+fn triangle_neighbours(piece: &Piece) -> Vec<Vec<u32>> {
+    let by_edge = edge_triangles(piece);
     let mut nbr: Vec<Vec<u32>> = vec![Vec::new(); piece.triangles.len()];
     let mut keys: Vec<&(u32, u32)> = by_edge.keys().collect();
     keys.sort_unstable();
@@ -164,16 +170,7 @@ fn straighten(
     side: &[bool],
 ) -> Option<Vec<bool>> {
     let n = piece.welded.len();
-    let mut by_edge: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
-    for (t, tri) in piece.triangles.iter().enumerate() {
-        for k in 0..3 {
-            let (a, b) = (tri[k], tri[(k + 1) % 3]);
-            by_edge
-                .entry((a.min(b), a.max(b)))
-                .or_default()
-                .push(t as u32);
-        }
-    }
+    let by_edge = edge_triangles(piece);
     let mut on_boundary = vec![false; n];
     for &v in &piece.boundary {
         on_boundary[v as usize] = true;
