@@ -363,11 +363,17 @@ fn engine(backend: Option<&str>) -> Result<Engine> {
 
 fn bake(engine: &Engine, job: &Job) -> Result<()> {
     if !job.uv_list.is_empty() {
-        // One bake per set on the same loaded mesh (`decalbake unwrap --patch`: pelt and patch).
+        // One bake per set on the same loaded mesh (`decalbake unwrap --patch`: pelt and patch),
+        // every set baked before any file is written, as `decalbake batch` does.
         let (mesh, _) = engine.load_mesh_for(job)?;
-        let mut textures = Vec::new();
+        let mut baked = Vec::new();
         for &set in &job.uv_list {
-            textures.push(bake_loaded(engine, &mesh, &job.for_uv_set(set))?);
+            let j = job.for_uv_set(set);
+            baked.push((engine.bake(&mesh, &j)?, j));
+        }
+        let mut textures = Vec::new();
+        for (b, j) in baked {
+            textures.push(write_baked(engine, &mesh, &j, b)?);
         }
         if let Some(p) = &job.out_preview {
             decalbake::output::preview::write_set_preview(engine, &mesh, textures, p)?;
@@ -376,16 +382,17 @@ fn bake(engine: &Engine, job: &Job) -> Result<()> {
         return Ok(());
     }
     let (mesh, job) = engine.load_mesh_for(job)?;
-    bake_loaded(engine, &mesh, &job).map(|_| ())
+    let baked = engine.bake(&mesh, &job)?;
+    write_baked(engine, &mesh, &job, baked).map(|_| ())
 }
 
-/// Bakes `job` on a loaded mesh and writes its outputs; returns the texture for a preview.
-fn bake_loaded(
+/// Writes a bake's outputs and reports it; returns the texture for a preview.
+fn write_baked(
     engine: &Engine,
     mesh: &decalbake::LoadedMesh,
     job: &Job,
+    mut baked: decalbake::Baked,
 ) -> Result<decalbake::output::preview::PreviewTexture> {
-    let mut baked = engine.bake(mesh, job)?;
     let files = decalbake::output::write_outputs(engine, mesh, job, &mut baked)?;
     let r = &baked.report;
     for l in &r.layers {

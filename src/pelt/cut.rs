@@ -195,7 +195,7 @@ pub fn cut_exposed(
             auto_cut(
                 topo,
                 &faces,
-                &super::hidden::edge_costs(topo, &faces, exposure),
+                super::hidden::edge_costs(topo, &faces, exposure),
             )
         }
         CutSpec::Seams(set) => (seam_edges(mesh, topo, &faces, *set, path)?, Vec::new()),
@@ -473,7 +473,7 @@ type Costs = rustc_hash::FxHashMap<(u32, u32), f64>;
 fn auto_cut(
     topo: &Topology,
     faces: &HashMap<(u32, u32), Vec<u32>>,
-    cost: &Costs,
+    mut cost: Costs,
 ) -> (Vec<(u32, u32)>, Vec<u32>) {
     let nv = topo.positions.len();
     let used = used_vertices(topo);
@@ -508,7 +508,6 @@ fn auto_cut(
     let mut roots: Vec<u32> = comp_root.values().copied().collect();
     roots.sort_unstable();
     let mut terminals = roots.clone();
-    let mut cost = cost.clone();
     for e in &topo.boundary_edges {
         cost.remove(&key(e[0], e[1]));
     }

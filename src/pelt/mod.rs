@@ -295,10 +295,12 @@ pub fn layout(
 }
 
 /// The steadiness tolerance (`SystemCfg::tol2`, squared edge lengths per step) of a pelt that is
-/// only the refinement's starting point: speeds below a thousandth of an edge per step. Measured on
-/// bob subdivided twice (`decalbake unwrap --cpu`): the dynamics took half the time of the default
-/// 1e-10, the conformal refinement as many iterations (within 5 %) and the layout the same angle
-/// distortion (mean 1.009 against 1.010).
+/// only the refinement's starting point: speeds below a thousandth of an edge per step. Measured
+/// once on bob subdivided twice with the CPU twin, while this was chosen (a version that kept only
+/// eq. 1's rung before refining, so no command here repeats it): the dynamics took half the time of
+/// the default 1e-10, the conformal refinement as many iterations (within 5 %) and the layout the
+/// same angle distortion (mean 1.009 against 1.010). `decalbake bench --unwrap` reports the
+/// dynamics' share as it is now (`stages_ms.relax`).
 pub const START_TOL2: f64 = 1e-6;
 
 /// A laid-out piece: the piece, its dynamics, its layout, its refinement.
@@ -430,10 +432,12 @@ pub const REST_SCALES: [f32; 3] = [1.0, 0.5, 0.0];
 /// The ladder when a conformal refinement follows: eq. 1's rest lengths, then none (the Tutte
 /// embedding, which cannot fold). The refinement's result does not depend on its start in exact
 /// arithmetic (LSCM with two pins has one minimiser), but the f32 conjugate gradient stops at a
-/// backward error, and from a folded start the error left over is large: on the crumpled sheet
-/// 2.5 % area distortion from the folded eq. 1 pelt against 0.26 % from the Tutte one. The middle
-/// rung (½) is skipped: on bob subdivided twice 10 of 11 pieces folded at 1, and each rung is a
-/// whole relaxation.
+/// backward error, and from a folded start the error left over is large: on the crumpled sheet the
+/// layout refined from its folded eq. 1 pelt had 2.5 % area distortion (measured with `[1.0]` as
+/// this ladder; the test `developable_sheet_unwraps_to_its_flattening` allows 0.5 % and fails
+/// with it), against 0.1 % now (`decalbake unwrap assets/crumpled_developable.glb --out s.glb
+/// --report r.json`: `quality.area_distortion.max`). The middle rung (½) is skipped: on bob
+/// subdivided twice 10 of 11 pieces folded at 1, and each rung is a whole relaxation.
 pub const START_SCALES: [f32; 2] = [1.0, 0.0];
 
 /// Pelts the pieces of `sel` (each with its net): all at the first of `scales` at once, then the
