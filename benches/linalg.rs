@@ -53,7 +53,7 @@ fn linalg(c: &mut Criterion) {
     group.bench_function("lscm_chart_cpu_twin", |b| {
         b.iter(|| {
             let mut x = x0.clone();
-            decalbake::solve::sparse::pcg(&sys.matrix, &sys.rhs, &mut x, FINAL_RTOL as f64, 100_000)
+            decalbake::solve::cg::pcg(&sys.matrix, &sys.rhs, &mut x, FINAL_RTOL as f64, 100_000)
         })
     });
 

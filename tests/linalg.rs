@@ -6,8 +6,9 @@
 
 mod common;
 use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
+use decalbake::solve::cg::pcg;
 use decalbake::solve::gpu::{cg_batched, dots, spmv, GpuCsr, SystemDesc};
-use decalbake::solve::sparse::{pcg, relative_residual, CgStatus, ComplexCsr, Csr};
+use decalbake::solve::sparse::{relative_residual, CgStatus, ComplexCsr, Csr};
 
 const EPS: f64 = 5.96e-8;
 

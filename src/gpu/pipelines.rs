@@ -215,6 +215,9 @@ pub struct Pipelines {
     pub cg_packed: Kernel,
     /// `cg_packed` on 2 × 2 complex blocks (`shaders::complex_source`): LSCM systems.
     pub cg_packed_complex: Kernel,
+    /// `wgsl/solve/cg_amg.wgsl`: CG preconditioned by a multigrid V-cycle, 256 invocations per
+    /// system (large systems).
+    pub cg_amg: Kernel,
     /// CSR sparse matrix-vector product.
     pub spmv: Kernel,
     /// Batched dot products and norms.
@@ -256,7 +259,7 @@ impl Pipelines {
             wgpu::TextureFormat::Rgba16Float
         };
         let rasters = Rasters::new(device, layer_blending);
-        let [cg_batched, cg_batched_narrow, cg_packed, cg_packed_complex, spmv, dot_batched, copy] =
+        let [cg_batched, cg_batched_narrow, cg_packed, cg_packed_complex, cg_amg, spmv, dot_batched, copy] =
             linalg_kernels(device);
         let [chart_scatter, chart_gather, stamp_blend] = slot_kernels(device);
         let [place_bvh, place_candidates, place_reduce] = place_kernels(device);
@@ -362,6 +365,7 @@ impl Pipelines {
             cg_batched_narrow,
             cg_packed,
             cg_packed_complex,
+            cg_amg,
             spmv,
             dot_batched,
             copy,
@@ -695,9 +699,9 @@ fn raster(
 
 /// The linear-algebra kernels (`wgsl/solve/`), in the order of their `Pipelines` fields: the
 /// conjugate gradient's four variants (one workgroup per system, 256 and 64 wide; one system per
-/// invocation, real and on complex blocks), which share one binding list, then SpMV, batched dot
-/// products and the streaming copy.
-fn linalg_kernels(device: &wgpu::Device) -> [Kernel; 7] {
+/// invocation, real and on complex blocks), which share one binding list, the multigrid-preconditioned
+/// one (that list plus the hierarchy's), then SpMV, batched dot products and the streaming copy.
+fn linalg_kernels(device: &wgpu::Device) -> [Kernel; 8] {
     use Bind::*;
     let cg = &[
         (0, Uniform),
@@ -719,6 +723,15 @@ fn linalg_kernels(device: &wgpu::Device) -> [Kernel; 7] {
         variant("cg_batched", shaders::narrow_source("cg_batched")),
         Kernel::new(device, "cg_packed", cg),
         variant("cg_packed", shaders::complex_source()),
+        Kernel::new(
+            device,
+            "cg_amg",
+            &[
+                cg.as_slice(),
+                &[(12, Ro), (13, Ro), (14, Ro), (15, Ro), (16, Ro), (17, Rw)],
+            ]
+            .concat(),
+        ),
         Kernel::new(
             device,
             "spmv",

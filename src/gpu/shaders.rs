@@ -83,6 +83,7 @@ pub const KERNELS: &[(&str, &str)] = &[
         include_str!("../../wgsl/solve/cg_batched.wgsl"),
     ),
     ("cg_packed", include_str!("../../wgsl/solve/cg_packed.wgsl")),
+    ("cg_amg", include_str!("../../wgsl/solve/cg_amg.wgsl")),
     ("spmv", include_str!("../../wgsl/solve/spmv.wgsl")),
     (
         "dot_batched",

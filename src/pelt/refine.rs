@@ -6,7 +6,7 @@
 //! Each piece's LSCM system is assembled on its own vertices (a cut vertex once per side,
 //! `maps::chart::lscm::assemble_local`), with the two boundary vertices farthest apart in the pelt
 //! pinned where the pelt put them, and solved from the pelt by the batched conjugate gradient on the
-//! GPU (`solve::gpu::cg_batched`, all pieces in one batch) or by its f64 twin (`solve::sparse::pcg`).
+//! GPU (`solve::gpu::cg_batched`, all pieces in one batch) or by its f64 twin (`solve::cg::pcg`).
 //! A refined layout that folds (flipped or overlapping triangles: LSCM does not promise it will not)
 //! is dropped and the pelt kept.
 
@@ -15,8 +15,9 @@ use super::Device;
 use crate::error::Result;
 use crate::maps::chart::lscm;
 use crate::mesh::Topology;
+use crate::solve::cg::pcg;
 use crate::solve::gpu::{cg_batched, SystemDesc};
-use crate::solve::sparse::{pcg, Csr};
+use crate::solve::sparse::Csr;
 use glam::DVec2;
 
 /// Relative residual the solves aim for.

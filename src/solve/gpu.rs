@@ -26,7 +26,8 @@
 use crate::error::{Error, Result};
 use crate::gpu::pipelines::{Kernel, Pipelines};
 use crate::gpu::GpuContext;
-use crate::solve::sparse::{CgReport, CgStatus, ComplexCsr, Csr};
+use crate::solve::gpu_amg::AmgBatch;
+use crate::solve::sparse::{CgReport, CgStatus, ComplexCsr, Csr, PreconditionerKind};
 
 /// Loop steps one invocation may run per dispatch (lavapipe abandons invocations past about 65535).
 const LOOP_BUDGET: usize = 20_000;
@@ -41,6 +42,10 @@ pub const FIRST_SUBMIT_ITERS: u32 = 16;
 const WG: usize = 256;
 /// The class of systems solved one per invocation (`wgsl/solve/cg_packed.wgsl`).
 const PACKED: u32 = 2;
+/// The class of systems preconditioned by a multigrid V-cycle (`wgsl/solve/cg_amg.wgsl`).
+const MULTIGRID: u32 = 3;
+/// Asked for by [`SystemDesc::jacobi_only`]; replaced by a Jacobi class before any kernel runs.
+const JACOBI_ONLY: u32 = 4;
 /// Workgroup size of the packed kernel (`PACK_WG` there).
 const PACK_WG: u32 = 64;
 /// Batches with at least this many systems pack the small ones one per invocation: enough to fill
@@ -62,7 +67,9 @@ pub struct SystemDesc {
     wide: u32,
     /// Target relative residual |b - A x| / |b|.
     pub rtol: f32,
-    pad1: [f32; 3],
+    /// Set by the solver for [`MULTIGRID`] systems: first level, levels, coarsest inverse's
+    /// offset (`System` in wgsl/shared/linalg.wgsl).
+    amg: [u32; 3],
 }
 
 impl SystemDesc {
@@ -76,6 +83,15 @@ impl SystemDesc {
             ..Default::default()
         }
     }
+
+    /// The same system preconditioned by Jacobi even where it would get a V-cycle (the
+    /// benchmarks' baseline).
+    pub fn jacobi_only(self) -> Self {
+        Self {
+            wide: JACOBI_ONLY,
+            ..self
+        }
+    }
 }
 
 /// Keep in sync with `Round` in wgsl/shared/cg_state.wgsl.
@@ -86,7 +102,8 @@ struct CgRound {
     base: u32,
     /// Systems in this dispatch (the packed kernel's bound; the workgroup kernels use one group each).
     count: u32,
-    pad: u32,
+    /// Rows of the multigrid kernel's index space (`gpu_amg::AmgBatch::total`).
+    total: u32,
 }
 
 /// Keep in sync with `State` in wgsl/shared/cg_state.wgsl.
@@ -364,6 +381,8 @@ pub struct Solved {
     pub packed: u32,
     /// Whether the packed systems were solved on complex 2 × 2 blocks ([`ComplexCsr`]).
     pub complex: bool,
+    /// Systems preconditioned by a multigrid V-cycle (`cg_amg.wgsl`); the rest by Jacobi.
+    pub multigrid: u32,
 }
 
 /// Solves every system of the block-diagonal SPD matrix `a` (`systems` give each block's rows,
@@ -406,14 +425,96 @@ pub fn cg_batched(
             &pipes.cg_packed_complex,
             iters_per_dispatch(per_iter),
         )];
-        let solved = run(ctx, &gpu, &dinv, a.rows, b, x0, &halves, &classes)?;
+        let solved = run(ctx, &gpu, &dinv, a.rows, b, x0, &halves, &classes, None)?;
         return Ok(Solved {
             complex: true,
             ..solved
         });
     }
-    let gpu = GpuCsr::upload(ctx, a)?;
-    cg_batched_on(ctx, pipes, &gpu, a, b, x0, systems)
+    check_sizes(a, b, x0)?;
+    let row_len = a.max_row_len() as u32;
+    let pack = systems.len() >= PACK_MIN_SYSTEMS;
+    let dinv = jacobi(a.diagonal().into_iter());
+    let ranges: Vec<(usize, usize)> = systems
+        .iter()
+        .map(|s| (s.row0 as usize, s.n as usize))
+        .collect();
+    // Systems the packed kernel takes stay there (Jacobi); the rest of at least AMG_MIN_ROWS rows
+    // get a V-cycle when one iteration of it fits the loop limit.
+    let wants = |k: usize| {
+        systems[k].wide != JACOBI_ONLY
+            && !(pack && packed_steps(row_len, systems[k].n) <= LOOP_BUDGET)
+    };
+    let Some(mg) = AmgBatch::build(a, &ranges, wants, WG, HARD_LOOP_LIMIT, dinv.clone()) else {
+        let gpu = GpuCsr::upload(ctx, a)?;
+        let (systems, classes) = kernel_classes(pipes, row_len, systems, 0)?;
+        return run(ctx, &gpu, &dinv, a.rows, b, x0, &systems, &classes, None);
+    };
+    let systems: Vec<SystemDesc> = systems
+        .iter()
+        .zip(&mg.systems)
+        .map(|(s, h)| match h {
+            Some(h) => SystemDesc {
+                wide: MULTIGRID,
+                amg: [h.lvl0, h.nlev, h.cinv0],
+                ..*s
+            },
+            None => *s,
+        })
+        .collect();
+    let steps = mg
+        .systems
+        .iter()
+        .flatten()
+        .map(|h| h.steps)
+        .max()
+        .unwrap_or(0);
+    let gpu = GpuCsr::upload(ctx, &mg.a)?;
+    let (systems, classes) = kernel_classes(pipes, row_len, &systems, steps)?;
+    let bufs = ctx.scoped("conjugate gradient", || MultigridBuffers::upload(ctx, &mg))?;
+    run(
+        ctx,
+        &gpu,
+        &mg.weights,
+        a.rows,
+        b,
+        x0,
+        &systems,
+        &classes,
+        Some(&bufs),
+    )
+}
+
+/// The hierarchy's buffers (bindings 12-17 of `cg_amg.wgsl`).
+struct MultigridBuffers {
+    pr_ptr: wgpu::Buffer,
+    pr_cols: wgpu::Buffer,
+    pr_vals: wgpu::Buffer,
+    levels: wgpu::Buffer,
+    cinv: wgpu::Buffer,
+    vectors: wgpu::Buffer,
+    total: u32,
+}
+
+impl MultigridBuffers {
+    fn upload(ctx: &GpuContext, mg: &AmgBatch) -> Self {
+        let init =
+            |label: &str, bytes: &[u8]| ctx.storage_init(label, bytes, wgpu::BufferUsages::empty());
+        Self {
+            pr_ptr: init("cg.pr_ptr", bytemuck::cast_slice(&mg.pr.row_ptr)),
+            pr_cols: init("cg.pr_cols", bytemuck::cast_slice(&mg.pr.cols)),
+            pr_vals: init("cg.pr_vals", bytemuck::cast_slice(&f32s(&mg.pr.vals))),
+            levels: init("cg.levels", bytemuck::cast_slice(&mg.levels)),
+            cinv: init("cg.cinv", bytemuck::cast_slice(&mg.cinv)),
+            vectors: ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("cg.multigrid_vectors"),
+                size: (3 * mg.total as u64 * 4).max(16),
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            }),
+            total: mg.total as u32,
+        }
+    }
 }
 
 /// The blocks of `a` when `systems` are many (at least [`PACK_MIN_SYSTEMS`]), each starts and ends
@@ -463,24 +564,6 @@ fn check_sizes(a: &Csr, b: &[f64], x0: &[f64]) -> Result<()> {
     Ok(())
 }
 
-/// [`cg_batched`] with the matrix already on the GPU (`a` gives the diagonal and row lengths), on
-/// the real CSR.
-#[allow(clippy::too_many_arguments, reason = "the solve's inputs")]
-pub fn cg_batched_on(
-    ctx: &GpuContext,
-    pipes: &Pipelines,
-    gpu: &GpuCsr,
-    a: &Csr,
-    b: &[f64],
-    x0: &[f64],
-    systems: &[SystemDesc],
-) -> Result<Solved> {
-    check_sizes(a, b, x0)?;
-    let dinv = jacobi(a.diagonal().into_iter());
-    let (systems, classes) = kernel_classes(pipes, gpu, systems)?;
-    run(ctx, gpu, &dinv, a.rows, b, x0, &systems, &classes)
-}
-
 /// Runs the CG of `systems` (their kernel classes set) on the uploaded matrix: state and vector
 /// buffers (`rows` f32 each), one bind group per class and 65535 systems, the submissions, the
 /// read-back of x.
@@ -494,6 +577,7 @@ fn run(
     x0: &[f64],
     systems: &[SystemDesc],
     classes: &[(u32, &Kernel, u32)],
+    mg: Option<&MultigridBuffers>,
 ) -> Result<Solved> {
     let dev = &ctx.device;
     if systems.is_empty() {
@@ -504,6 +588,7 @@ fn run(
             submits: 0,
             packed: 0,
             complex: false,
+            multigrid: 0,
         });
     }
     let max_iter = systems.iter().map(|s| s.max_iter).max().unwrap_or(1);
@@ -553,28 +638,35 @@ fn run(
                         iters,
                         base: base as u32,
                         count,
-                        pad: 0,
+                        total: mg.map_or(rows as u32, |m| m.total),
                     }),
                 );
+                let mut entries = vec![
+                    (0, round.as_entire_binding()),
+                    (1, sys.as_entire_binding()),
+                    (2, gpu.row_ptr.as_entire_binding()),
+                    (3, gpu.cols.as_entire_binding()),
+                    (4, gpu.vals.as_entire_binding()),
+                    (5, bb.as_entire_binding()),
+                    (6, db.as_entire_binding()),
+                    (7, xb.as_entire_binding()),
+                    (8, rb.as_entire_binding()),
+                    (9, pb.as_entire_binding()),
+                    (10, qb.as_entire_binding()),
+                    (11, state.as_entire_binding()),
+                ];
+                if let (MULTIGRID, Some(m)) = (wide, mg) {
+                    entries.extend([
+                        (12, m.pr_ptr.as_entire_binding()),
+                        (13, m.pr_cols.as_entire_binding()),
+                        (14, m.pr_vals.as_entire_binding()),
+                        (15, m.levels.as_entire_binding()),
+                        (16, m.cinv.as_entire_binding()),
+                        (17, m.vectors.as_entire_binding()),
+                    ]);
+                }
                 groups.push((
-                    kernel.bind(
-                        dev,
-                        "cg",
-                        &[
-                            (0, round.as_entire_binding()),
-                            (1, sys.as_entire_binding()),
-                            (2, gpu.row_ptr.as_entire_binding()),
-                            (3, gpu.cols.as_entire_binding()),
-                            (4, gpu.vals.as_entire_binding()),
-                            (5, bb.as_entire_binding()),
-                            (6, db.as_entire_binding()),
-                            (7, xb.as_entire_binding()),
-                            (8, rb.as_entire_binding()),
-                            (9, pb.as_entire_binding()),
-                            (10, qb.as_entire_binding()),
-                            (11, state.as_entire_binding()),
-                        ],
-                    ),
+                    kernel.bind(dev, "cg", &entries),
                     if wide == PACKED {
                         count.div_ceil(PACK_WG)
                     } else {
@@ -596,7 +688,13 @@ fn run(
     drop(keep);
     let reports = states
         .iter()
-        .map(|s| CgReport {
+        .zip(systems)
+        .map(|(s, d)| CgReport {
+            preconditioner: if d.wide == MULTIGRID {
+                PreconditionerKind::Amg
+            } else {
+                PreconditionerKind::Jacobi
+            },
             status: match s.status {
                 2 => CgStatus::Converged,
                 3 => CgStatus::NotConverged,
@@ -613,6 +711,7 @@ fn run(
         submits,
         packed: systems.iter().filter(|s| s.wide == PACKED).count() as u32,
         complex: false,
+        multigrid: systems.iter().filter(|s| s.wide == MULTIGRID).count() as u32,
     })
 }
 
@@ -625,25 +724,31 @@ fn run(
 /// 256-wide one. Within each kernel a system's arithmetic does not depend on the rest of its
 /// batch; whether it is packed does (a lone chart would leave all lanes but one idle in the packed
 /// kernel, so it keeps a workgroup). The two orders of summation give results that agree to the
-/// solve's tolerance (tests/linalg.rs).
+/// solve's tolerance (tests/linalg.rs). Systems already marked [`MULTIGRID`] keep that class
+/// (`cg_amg`, `amg_steps` loop steps per iteration at most); `row_len` is the longest row of the
+/// batch's own matrix.
 #[allow(clippy::type_complexity)]
 fn kernel_classes<'p>(
     pipes: &'p Pipelines,
-    gpu: &GpuCsr,
+    row_len: u32,
     systems: &[SystemDesc],
+    amg_steps: usize,
 ) -> Result<(Vec<SystemDesc>, Vec<(u32, &'p Kernel, u32)>)> {
     // Iterations per dispatch per class: each
     // iteration an invocation walks its rows (ceil(n / WG)) a few times, each row's entries, plus
     // the reductions' fixed steps.
-    let row_len = 3 * gpu.max_row_len as usize + 8;
+    let max_row_len = row_len;
+    let row_len = 3 * row_len as usize + 8;
     let cost = |n: u32, wg: u32| (n as usize).div_ceil(wg as usize).max(1) * row_len + 60;
-    let packed_cost = |n: u32| packed_steps(gpu.max_row_len, n);
+    let packed_cost = |n: u32| packed_steps(max_row_len, n);
     let narrow_wg = crate::gpu::shaders::LINALG_WG_NARROW;
     let pack = systems.len() >= PACK_MIN_SYSTEMS;
     let systems: Vec<SystemDesc> = systems
         .iter()
         .map(|s| SystemDesc {
-            wide: if pack && packed_cost(s.n) <= LOOP_BUDGET {
+            wide: if s.wide == MULTIGRID {
+                MULTIGRID
+            } else if pack && packed_cost(s.n) <= LOOP_BUDGET {
                 PACKED
             } else {
                 u32::from(cost(s.n, narrow_wg) > LOOP_BUDGET / 8)
@@ -656,6 +761,7 @@ fn kernel_classes<'p>(
         (0u32, &pipes.cg_batched_narrow),
         (1u32, &pipes.cg_batched),
         (PACKED, &pipes.cg_packed),
+        (MULTIGRID, &pipes.cg_amg),
     ] {
         let Some(max_n) = systems.iter().filter(|s| s.wide == wide).map(|s| s.n).max() else {
             continue;
@@ -663,6 +769,7 @@ fn kernel_classes<'p>(
         let per_iter = match wide {
             0 => cost(max_n, narrow_wg),
             1 => cost(max_n, WG as u32),
+            MULTIGRID => amg_steps,
             _ => packed_cost(max_n),
         };
         if per_iter > HARD_LOOP_LIMIT {
@@ -670,7 +777,7 @@ fn kernel_classes<'p>(
                 stage: "conjugate gradient".into(),
                 detail: format!(
                     "a system of {max_n} unknowns (rows up to {} entries) is too large for one workgroup: one iteration would loop about {per_iter} times per invocation, past the {HARD_LOOP_LIMIT} a software driver runs reliably; split it (a smaller decal) or solve it on the CPU",
-                    gpu.max_row_len
+                    max_row_len
                 ),
             });
         }

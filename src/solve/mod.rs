@@ -1,5 +1,9 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-//! Sparse linear algebra: CSR matrices and the Jacobi-preconditioned conjugate gradient, as a plain
-//! f64 CPU twin ([`sparse`]) and as batched GPU kernels ([`gpu`]: SpMV, dot products, CG).
+//! Sparse linear algebra: CSR matrices and the preconditioned conjugate gradient (Jacobi, or a
+//! smoothed-aggregation multigrid V-cycle: [`amg`]), as a plain f64 CPU twin ([`sparse`], [`cg`]) and as
+//! batched GPU kernels ([`gpu`]: SpMV, dot products, CG).
+pub mod amg;
+pub mod cg;
 pub mod gpu;
+mod gpu_amg;
 pub mod sparse;

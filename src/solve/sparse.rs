@@ -2,7 +2,7 @@
 //! Sparse matrices on the CPU: compressed sparse rows (CSR) built from triplets, and the CPU twins of
 //! the GPU linear-algebra kernels (`wgsl/solve/spmv.wgsl`, `wgsl/solve/dot_batched.wgsl`,
 //! `wgsl/solve/cg_batched.wgsl`): the product `A x` and a Jacobi-preconditioned conjugate gradient, both in
-//! f64. They are the tests' oracles and the baseline of `decalbake bench --linalg`.
+//! f64 (the conjugate gradient itself is in [`crate::solve::cg`]). They are the tests' oracles and the baseline of `decalbake bench --linalg`.
 //!
 //! A batch of independent systems is one block-diagonal matrix: system `s` owns rows
 //! `row0 .. row0 + n` and only references columns in that range ([`Csr::block_diagonal`]).
@@ -80,6 +80,21 @@ impl Csr {
     /// Longest row.
     pub fn max_row_len(&self) -> usize {
         longest_row(&self.row_ptr)
+    }
+
+    /// Rows `row0 .. row0 + n` of a block-diagonal matrix as a matrix of their own (columns
+    /// shifted by `row0`; the block must not reference columns outside it).
+    pub fn sub_block(&self, row0: usize, n: usize) -> Csr {
+        let (s, e) = (self.row_ptr[row0] as usize, self.row_ptr[row0 + n] as usize);
+        Csr {
+            rows: n,
+            row_ptr: self.row_ptr[row0..=row0 + n]
+                .iter()
+                .map(|p| p - s as u32)
+                .collect(),
+            cols: self.cols[s..e].iter().map(|c| c - row0 as u32).collect(),
+            vals: self.vals[s..e].to_vec(),
+        }
     }
 
     /// The block-diagonal matrix of `blocks`, and each block's first row.
@@ -208,11 +223,24 @@ pub enum CgStatus {
     Breakdown,
 }
 
+/// The preconditioner a solve used.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PreconditionerKind {
+    /// 1 / dᵢ per row.
+    #[default]
+    Jacobi,
+    /// One smoothed-aggregation V-cycle ([`crate::solve::amg`]).
+    Amg,
+}
+
 /// What a solve reports.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct CgReport {
     /// Status.
     pub status: CgStatus,
+    /// The preconditioner.
+    pub preconditioner: PreconditionerKind,
     /// Iterations run.
     pub iterations: u32,
     /// Final relative residual |b - A x| / max(|b|, |(|A| |x|)|) (see [`residual_scale`]).
@@ -232,91 +260,6 @@ pub fn residual_scale(a: &Csr, b: &[f64], x: &[f64]) -> f64 {
         .sum::<f64>()
         .sqrt();
     dot(b, b).sqrt().max(ax)
-}
-
-/// Jacobi-preconditioned conjugate gradient for SPD `a`, from `x` (warm start) until
-/// |b - A x| <= `rtol` × [`residual_scale`] or `max_iter` iterations. The CPU twin of
-/// `cg_batched.wgsl` (same algorithm and stopping rule in f64, without the residual replacement f32
-/// needs).
-pub fn pcg(a: &Csr, b: &[f64], x: &mut [f64], rtol: f64, max_iter: u32) -> CgReport {
-    let n = a.rows;
-    let dinv: Vec<f64> = a
-        .diagonal()
-        .iter()
-        .map(|&d| if d != 0.0 { 1.0 / d } else { 1.0 })
-        .collect();
-    let ax = a.mul(x);
-    let mut r: Vec<f64> = (0..n).map(|i| b[i] - ax[i]).collect();
-    if dot(b, b) == 0.0 {
-        x.iter_mut().for_each(|v| *v = 0.0);
-        return CgReport {
-            status: CgStatus::Converged,
-            iterations: 0,
-            residual: 0.0,
-        };
-    }
-    let mut scale = residual_scale(a, b, x);
-    let mut z: Vec<f64> = (0..n).map(|i| dinv[i] * r[i]).collect();
-    let mut p = z.clone();
-    let mut rz = dot(&r, &z);
-    let mut res = dot(&r, &r).sqrt() / scale;
-    let mut it = 0;
-    loop {
-        if res <= rtol {
-            // Confirm against the scale of the current x.
-            scale = residual_scale(a, b, x);
-            res = dot(&r, &r).sqrt() / scale;
-            if res <= rtol {
-                break;
-            }
-        }
-        if it >= max_iter {
-            return CgReport {
-                status: CgStatus::NotConverged,
-                iterations: it,
-                residual: res,
-            };
-        }
-        let q = a.mul(&p);
-        let pq = dot(&p, &q);
-        if pq.is_nan() || pq <= 0.0 || !pq.is_finite() {
-            return CgReport {
-                status: CgStatus::Breakdown,
-                iterations: it,
-                residual: res,
-            };
-        }
-        let alpha = rz / pq;
-        for i in 0..n {
-            x[i] += alpha * p[i];
-            r[i] -= alpha * q[i];
-            z[i] = dinv[i] * r[i];
-        }
-        let rz2 = dot(&r, &z);
-        if (it + 1) % 50 == 0 {
-            // The GPU kernel refreshes its reference with each residual replacement; so does the twin.
-            scale = residual_scale(a, b, x);
-        }
-        res = dot(&r, &r).sqrt() / scale;
-        if !res.is_finite() {
-            return CgReport {
-                status: CgStatus::Breakdown,
-                iterations: it + 1,
-                residual: res,
-            };
-        }
-        let beta = rz2 / rz;
-        rz = rz2;
-        for i in 0..n {
-            p[i] = z[i] + beta * p[i];
-        }
-        it += 1;
-    }
-    CgReport {
-        status: CgStatus::Converged,
-        iterations: it,
-        residual: res,
-    }
 }
 
 /// Relative residual |b - A x| / [`residual_scale`] in f64 (the measure both solvers stop on).
@@ -347,29 +290,5 @@ mod tests {
         assert_eq!(a.cols, vec![0, 1, 0]);
         assert_eq!(a.vals, vec![3.0, 6.0, 1.0]);
         assert_eq!(a.mul(&[1.0, 2.0]), vec![15.0, 1.0]);
-    }
-
-    #[test]
-    fn pcg_solves_a_small_spd_system() {
-        // 1D Laplacian plus identity: SPD, known to converge in at most n steps in exact arithmetic.
-        let n = 20;
-        let mut t = Vec::new();
-        for i in 0..n as u32 {
-            t.push((i, i, 3.0));
-            if i > 0 {
-                t.push((i, i - 1, -1.0));
-                t.push((i - 1, i, -1.0));
-            }
-        }
-        let a = Csr::from_triplets(n, t);
-        let xs: Vec<f64> = (0..n).map(|i| (i as f64 * 0.7).sin()).collect();
-        let b = a.mul(&xs);
-        let mut x = vec![0.0; n];
-        let rep = pcg(&a, &b, &mut x, 1e-12, 100);
-        assert_eq!(rep.status, CgStatus::Converged);
-        for i in 0..n {
-            assert!((x[i] - xs[i]).abs() < 1e-10);
-        }
-        assert!(relative_residual(&a, &b, &x) <= 1e-12);
     }
 }

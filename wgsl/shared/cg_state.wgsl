@@ -18,7 +18,8 @@ struct Round {
     base: u32,
     // Systems in this dispatch (the packed kernel's bound; the workgroup kernel has one group each).
     count: u32,
-    pad2: u32,
+    // Rows of cg_amg.wgsl's index space (the batch's rows and every coarse level's).
+    total: u32,
 }
 
 // Keep in sync with `CgState` in src/solve/gpu.rs.

@@ -14,9 +14,11 @@ struct System {
     // 1: solved by the 256-wide variant, 0: by the 64-wide one (set by the host per system).
     wide: u32,
     rtol: f32,
-    pad1: f32,
-    pad2: f32,
-    pad3: f32,
+    // The multigrid hierarchy of a system solved by cg_amg.wgsl (nlev = 0: none): its first entry
+    // in `levels`, its number of levels and the offset of its coarsest inverse in `cinv`.
+    lvl0: u32,
+    nlev: u32,
+    cinv0: u32,
 }
 
 // Partials are added in two fixed-order stages: RS groups of RL consecutive invocations, then the RS

@@ -10,7 +10,7 @@
 // terms of A x (LSCM: only two pinned vertices feed b) could never get under a tight target in f32.
 // Status per system: 0 = not started, 1 = running, 2 = converged, 3 = iteration budget
 // spent (not converged), 4 = breakdown (NaN/Inf seen, or <p, Ap> <= 0: the matrix is not SPD).
-// Dispatch: (systems, 1, 1). CPU twin: `sparse::pcg` in src/solve/sparse.rs (f64).
+// Dispatch: (systems, 1, 1). CPU twin: `cg::pcg` in src/solve/cg.rs (f64).
 #import linalg
 #import cg_state
 

@@ -19,7 +19,7 @@
 // in z = u + i v). The iteration is the same CG on the same real system; each product reads one
 // column and one (a, b) for four real entries, and on lavapipe every load that differs between SIMD
 // lanes costs a loop over the lanes, so that halves the loads of an iteration.
-// CPU twin: `sparse::pcg` in src/solve/sparse.rs (f64, on the real form).
+// CPU twin: `cg::pcg` in src/solve/cg.rs (f64, on the real form).
 #import linalg
 #import cg_state
 #import cg_real

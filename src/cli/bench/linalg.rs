@@ -241,15 +241,38 @@ fn bench_charts(
         let gpu_ms = median(times);
         let out = last.expect("one repetition");
         let its = out.reports[0].iterations;
+        // The same solve preconditioned by Jacobi (the baseline of the multigrid row), below 50k
+        // unknowns (the 100k chart's took 106 s: README).
+        let jacobi = match large {
+            true => None,
+            false => {
+                let t = Instant::now();
+                let o = cg_batched(
+                    ctx,
+                    pipes,
+                    &sys.matrix,
+                    &sys.rhs,
+                    &zero,
+                    &[desc[0].jacobi_only()],
+                )?;
+                Some((o.reports[0], ms(t)))
+            }
+        };
+        let mut xj = zero.clone();
         let t = Instant::now();
-        let mut xc = zero.clone();
-        let cpu = decalbake::solve::sparse::pcg(
+        let cpu_jacobi = decalbake::solve::cg::pcg_with(
             &sys.matrix,
             &sys.rhs,
-            &mut xc,
+            &mut xj,
             FINAL_RTOL as f64,
             budget,
+            &decalbake::solve::cg::Preconditioner::jacobi(&sys.matrix),
         );
+        let cpu_jacobi_ms = ms(t);
+        let t = Instant::now();
+        let mut xc = zero.clone();
+        let cpu =
+            decalbake::solve::cg::pcg(&sys.matrix, &sys.rhs, &mut xc, FINAL_RTOL as f64, budget);
         let cpu_ms = ms(t);
         let peer = match &opts.peers {
             Some(p) => {
@@ -262,10 +285,14 @@ fn bench_charts(
         emit(serde_json::json!({
             "bench": "lscm_chart", "mesh": source, "mesh_vertices": topo.positions.len(),
             "chart_vertices": sys.vertices.len(), "chart_triangles": tris.len(), "unknowns": sys.matrix.rows, "nnz": sys.matrix.nnz(),
-            "gpu_status": out.reports[0].status, "gpu_iterations": its, "gpu_residual": out.reports[0].residual,
+            "gpu_status": out.reports[0].status, "gpu_preconditioner": out.reports[0].preconditioner,
+            "gpu_iterations": its, "gpu_residual": out.reports[0].residual,
+            "gpu_jacobi_iterations": jacobi.map(|j| j.0.iterations), "gpu_jacobi_ms": jacobi.map(|j| j.1),
             "gpu_ms": gpu_ms, "gpu_ms_per_iteration": gpu_ms / its.max(1) as f64,
             "dispatches": out.dispatches, "submits": out.submits,
-            "cpu_twin_iterations": cpu.iterations, "cpu_twin_ms": cpu_ms, "cpu_over_gpu": cpu_ms / gpu_ms,
+            "cpu_twin_preconditioner": cpu.preconditioner, "cpu_twin_iterations": cpu.iterations,
+            "cpu_twin_ms": cpu_ms, "cpu_over_gpu": cpu_ms / gpu_ms,
+            "cpu_twin_jacobi_iterations": cpu_jacobi.iterations, "cpu_twin_jacobi_ms": cpu_jacobi_ms,
             "cpu_setup_ms": setup_ms, "start": "zero", "rtol": FINAL_RTOL, "peers": peer,
         }));
     }
@@ -350,7 +377,7 @@ fn bench_batch(
     let t = Instant::now();
     for (s, x) in &systems {
         let mut xc = x.clone();
-        decalbake::solve::sparse::pcg(
+        decalbake::solve::cg::pcg(
             &s.matrix,
             &s.rhs,
             &mut xc,

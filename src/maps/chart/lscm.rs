@@ -364,7 +364,7 @@ pub fn barycentric(p: [DVec3; 3], q: DVec3) -> [f64; 3] {
 /// CPU twin: solves `sys` in f64 (Jacobi PCG to a relative residual of 1e-12) from `x0`.
 pub fn solve_cpu(sys: &System, x0: &[f64]) -> (Vec<f64>, crate::solve::sparse::CgReport) {
     let mut x = x0.to_vec();
-    let rep = crate::solve::sparse::pcg(&sys.matrix, &sys.rhs, &mut x, 1e-12, 100_000);
+    let rep = crate::solve::cg::pcg(&sys.matrix, &sys.rhs, &mut x, 1e-12, 100_000);
     (x, rep)
 }
 

@@ -254,7 +254,7 @@ impl Solver<'_> {
                 .map(|(s, x0, budget)| {
                     let mut x = x0.clone();
                     let rep =
-                        crate::solve::sparse::pcg(&s.matrix, &s.rhs, &mut x, rtol as f64, *budget);
+                        crate::solve::cg::pcg(&s.matrix, &s.rhs, &mut x, rtol as f64, *budget);
                     (x, rep)
                 })
                 .collect()),

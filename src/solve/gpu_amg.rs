@@ -1,0 +1,177 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The multigrid hierarchies ([`crate::solve::amg`]) of a batch's large systems, laid out for
+//! `wgsl/solve/cg_amg.wgsl`: one index space of `total` rows, the batch's own rows first and then
+//! every coarse level of every such system; one CSR of every level's matrix in it (the batch's
+//! matrix is its first rows, so the Jacobi kernels of the same batch read it unchanged), one CSR of
+//! the prolongators (rows `0 .. total`) and restrictions (rows `total .. 2 total`), the smoother's
+//! weights per row (1 / dᵢ on the rows of Jacobi systems), each level's (first row, rows), and the
+//! coarsest levels' dense inverses.
+
+use crate::solve::amg::{Hierarchy, AMG_MIN_ROWS, NU};
+use crate::solve::sparse::Csr;
+
+/// Where one system's hierarchy lives, and what one iteration costs.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct AmgSystem {
+    /// Its first entry in [`AmgBatch::levels`].
+    pub lvl0: u32,
+    /// Its levels, the finest (the system's own rows) and the coarsest included.
+    pub nlev: u32,
+    /// Offset of its coarsest level's inverse in [`AmgBatch::cinv`].
+    pub cinv0: u32,
+    /// Loop steps one invocation of a `wg`-wide workgroup runs per CG iteration (the lavapipe
+    /// loop cut-off's measure, `solve::gpu`).
+    pub steps: usize,
+}
+
+/// The batch's hierarchies, laid out.
+pub(crate) struct AmgBatch {
+    /// Every level's matrix, `total` rows.
+    pub a: Csr,
+    /// Prolongators then restrictions, `2 total` rows.
+    pub pr: Csr,
+    /// Smoother weight per row (Jacobi's 1 / dᵢ on other systems' rows; 0 on coarsest rows).
+    pub weights: Vec<f32>,
+    /// (first row, rows) per level.
+    pub levels: Vec<[u32; 2]>,
+    /// Dense inverses of the coarsest levels.
+    pub cinv: Vec<f32>,
+    /// Rows of the index space.
+    pub total: usize,
+    /// Per system of the batch, its hierarchy (`None`: solved with Jacobi).
+    pub systems: Vec<Option<AmgSystem>>,
+}
+
+/// Loop steps per CG iteration of one invocation of a `wg`-wide workgroup on `h`: per level the
+/// sweeps' and residual's products, the prolongation and restriction, the coarsest inverse, and
+/// the CG's own passes (with a true residual) on the finest.
+fn steps(h: &Hierarchy, wg: usize) -> usize {
+    let per = |n: usize| n.div_ceil(wg).max(1);
+    let mut s = 100;
+    for lv in &h.levels {
+        s += per(lv.a.rows) * ((2 * NU + 1) * (lv.a.max_row_len() + 2) + lv.p.max_row_len() + 2);
+        s += per(lv.r.rows) * (lv.r.max_row_len() + 2);
+    }
+    s += per(h.coarse_rows) * h.coarse_rows;
+    let fine = &h.levels[0].a;
+    s + per(fine.rows) * (2 * fine.max_row_len() + 12)
+}
+
+impl AmgBatch {
+    /// Hierarchies for the systems (`(row0, n)` of the block-diagonal `a`) that `wants` picks,
+    /// have at least [`AMG_MIN_ROWS`] rows, build one ([`Hierarchy::build`]) and iterate within
+    /// `max_steps` loop steps per invocation; `None` when no system has one. `jacobi` is 1 / dᵢ
+    /// per row of `a`.
+    pub fn build(
+        a: &Csr,
+        systems: &[(usize, usize)],
+        wants: impl Fn(usize) -> bool,
+        wg: usize,
+        max_steps: usize,
+        jacobi: Vec<f32>,
+    ) -> Option<Self> {
+        let hierarchies: Vec<Option<(Hierarchy, usize)>> = systems
+            .iter()
+            .enumerate()
+            .map(|(k, &(row0, n))| {
+                if n < AMG_MIN_ROWS || !wants(k) {
+                    return None;
+                }
+                let h = Hierarchy::build(&a.sub_block(row0, n))?;
+                let st = steps(&h, wg);
+                (st <= max_steps).then_some((h, st))
+            })
+            .collect();
+        if hierarchies.iter().all(Option::is_none) {
+            return None;
+        }
+        let mut out = Self {
+            a: a.clone(),
+            pr: Csr::default(),
+            weights: jacobi,
+            levels: Vec::new(),
+            cinv: Vec::new(),
+            total: a.rows,
+            systems: Vec::new(),
+        };
+        let (mut p_t, mut r_t) = (Vec::new(), Vec::new());
+        for (&(row0, n), h) in systems.iter().zip(&hierarchies) {
+            let Some((h, steps)) = h else {
+                out.systems.push(None);
+                continue;
+            };
+            let placed = out.lay_out(h, row0, n, *steps, &mut p_t, &mut r_t);
+            out.systems.push(Some(placed));
+        }
+        let total = out.total as u32;
+        p_t.extend(r_t.into_iter().map(|(r, c, v)| (r + total, c, v)));
+        out.pr = Csr::from_triplets(2 * out.total, p_t);
+        Some(out)
+    }
+
+    /// Appends one system's coarse levels to the index space; returns where they are.
+    fn lay_out(
+        &mut self,
+        h: &Hierarchy,
+        row0: usize,
+        n: usize,
+        steps: usize,
+        p_t: &mut Vec<(u32, u32, f64)>,
+        r_t: &mut Vec<(u32, u32, f64)>,
+    ) -> AmgSystem {
+        let lvl0 = self.levels.len() as u32;
+        let mut bases = vec![row0];
+        self.levels.push([row0 as u32, n as u32]);
+        for (i, w) in h.levels[0].w.iter().enumerate() {
+            self.weights[row0 + i] = *w as f32;
+        }
+        let rows = h.level_rows();
+        for (l, &nl) in rows.iter().enumerate().skip(1) {
+            let base = self.total;
+            bases.push(base);
+            self.levels.push([base as u32, nl as u32]);
+            self.total += nl;
+            match h.levels.get(l) {
+                Some(lv) => {
+                    for i in 0..nl {
+                        for (c, v) in lv.a.row(i) {
+                            self.a.cols.push((base + c) as u32);
+                            self.a.vals.push(v);
+                        }
+                        self.a.row_ptr.push(self.a.cols.len() as u32);
+                    }
+                    self.weights.extend(lv.w.iter().map(|&w| w as f32));
+                }
+                None => {
+                    let end = *self.a.row_ptr.last().expect("row offsets");
+                    self.a.row_ptr.extend(std::iter::repeat_n(end, nl));
+                    self.weights.extend(std::iter::repeat_n(0.0, nl));
+                }
+            }
+            self.a.rows += nl;
+        }
+        for (l, lv) in h.levels.iter().enumerate() {
+            let (fine, coarse) = (bases[l] as u32, bases[l + 1] as u32);
+            for i in 0..lv.p.rows {
+                p_t.extend(
+                    lv.p.row(i)
+                        .map(|(c, v)| (fine + i as u32, coarse + c as u32, v)),
+                );
+            }
+            for j in 0..lv.r.rows {
+                r_t.extend(
+                    lv.r.row(j)
+                        .map(|(c, v)| (coarse + j as u32, fine + c as u32, v)),
+                );
+            }
+        }
+        let cinv0 = self.cinv.len() as u32;
+        self.cinv.extend(h.coarse_inverse.iter().map(|&v| v as f32));
+        AmgSystem {
+            lvl0,
+            nlev: rows.len() as u32,
+            cinv0,
+            steps,
+        }
+    }
+}

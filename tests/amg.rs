@@ -1,0 +1,403 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The multigrid preconditioner (`decalbake::solve::amg`, `wgsl/solve/cg_amg.wgsl`): the GPU CG
+//! with a V-cycle against its f64 CPU twin, a dense direct solve and, on a plane, the analytic
+//! answer, on three LSCM systems (a jittered flat disc, a sphere cap, a chart of bob); the
+//! iterations against Jacobi's; a broken (non-symmetric) cycle failing the same checks; and
+//! systems with and without a hierarchy in one batch solving exactly as they do alone.
+//!
+//! Tolerances: both CGs stop at a normwise backward error (`residual_scale`) of `RTOL`; the
+//! forward error is then bounded by the condition number times that, and LSCM systems with two
+//! pinned vertices are poorly conditioned, so solutions are compared as
+//! max |x - x_direct| / max |x_direct| ≤ `FORWARD` = 1e-2 (measured: 3e-4 to 9e-4 for the twin,
+//! 8e-4 to 2.5e-3 for the GPU's f32; Jacobi's CG stopped at the same residual is 0.27 off on the
+//! plane).
+
+mod common;
+use decalbake::maps::chart;
+use decalbake::maps::Frame;
+use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
+use decalbake::solve::amg::{dense_solve, Hierarchy, AMG_MIN_ROWS};
+use decalbake::solve::cg::{pcg, pcg_with, Preconditioner};
+use decalbake::solve::gpu::{cg_batched, SystemDesc};
+use decalbake::solve::sparse::{CgStatus, Csr, PreconditionerKind};
+use glam::Vec3;
+
+const RTOL: f32 = 1e-6;
+const FORWARD: f64 = 1e-2;
+
+/// A disc of radius 1 in the plane z = 0: a `k` × `k` grid over [-1, 1]², interior vertices
+/// jittered (so no two triangles are alike), the triangles whose centroid lies in the disc.
+fn flat_disc(k: u32) -> Mesh {
+    let mut pos = Vec::new();
+    let h = 2.0 / k as f32;
+    for j in 0..=k {
+        for i in 0..=k {
+            let (mut x, mut y) = (-1.0 + i as f32 * h, -1.0 + j as f32 * h);
+            if i > 0 && j > 0 && i < k && j < k {
+                let s = ((i * 7919 + j * 104729) % 1000) as f32 / 1000.0 - 0.5;
+                let t = ((i * 31337 + j * 65537) % 1000) as f32 / 1000.0 - 0.5;
+                x += 0.3 * h * s;
+                y += 0.3 * h * t;
+            }
+            pos.push(Vec3::new(x, y, 0.0));
+        }
+    }
+    let mut tris = Vec::new();
+    for j in 0..k {
+        for i in 0..k {
+            let a = j * (k + 1) + i;
+            let (b, c, d) = (a + 1, a + k + 1, a + k + 2);
+            for t in [[a, b, d], [a, d, c]] {
+                let m = (pos[t[0] as usize] + pos[t[1] as usize] + pos[t[2] as usize]) / 3.0;
+                if m.length() < 1.0 {
+                    tris.push(t);
+                }
+            }
+        }
+    }
+    mesh(pos, tris, "flat disc")
+}
+
+/// The cap of the unit sphere within `angle` radians of the north pole: `rings` rings of
+/// 6 · ring vertices each (near-uniform triangles).
+fn sphere_cap(rings: u32, angle: f32) -> Mesh {
+    let mut pos = vec![Vec3::Z];
+    let mut start = vec![0u32];
+    for r in 1..=rings {
+        start.push(pos.len() as u32);
+        let theta = angle * r as f32 / rings as f32;
+        for s in 0..6 * r {
+            let phi = std::f32::consts::TAU * s as f32 / (6 * r) as f32;
+            pos.push(Vec3::new(
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            ));
+        }
+    }
+    let mut tris = Vec::new();
+    let at = |r: u32, s: u32| {
+        if r == 0 {
+            0
+        } else {
+            start[r as usize] + s % (6 * r)
+        }
+    };
+    for r in 0..rings {
+        // Walk ring r and ring r + 1 together (6r and 6r + 6 vertices).
+        let (n0, n1) = ((6 * r).max(1), 6 * r + 6);
+        let (mut i, mut j) = (0, 0);
+        while i < n0 || j < n1 {
+            let take_outer =
+                i >= n0 || (j < n1 && (j as f32 + 0.5) / n1 as f32 <= (i as f32 + 0.5) / n0 as f32);
+            if take_outer {
+                tris.push([at(r, i), at(r + 1, j), at(r + 1, j + 1)]);
+                j += 1;
+            } else {
+                tris.push([at(r, i), at(r + 1, j), at(r, i + 1)]);
+                i += 1;
+            }
+        }
+    }
+    mesh(pos, tris, "sphere cap")
+}
+
+fn mesh(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>, name: &str) -> Mesh {
+    Mesh {
+        source: name.into(),
+        normals: positions.iter().map(|p| p.normalize_or(Vec3::Z)).collect(),
+        uv_sets: Vec::new(),
+        positions,
+        triangles,
+        primitives: vec![],
+        material: None,
+        blend: Vec::new(),
+    }
+}
+
+/// The LSCM system of every triangle of `m`, the two vertices farthest apart along x held at
+/// (x, y), and every vertex's (x, y) in the system's numbering (on the plane: the exact answer,
+/// the identity map, which has zero energy and meets both pins).
+fn lscm_of(m: &Mesh) -> (Csr, Vec<f64>, Vec<f64>) {
+    let topo = Topology::build(m, DEFAULT_WELD_TOLERANCE);
+    let tris: Vec<u32> = (0..topo.triangles.len() as u32).collect();
+    // Among the vertices of triangles (the flat disc's grid has unused corners).
+    let used: Vec<u32> = topo.triangles.iter().flatten().copied().collect();
+    let ends = |f: fn(f32, f32) -> bool| {
+        used.iter()
+            .copied()
+            .reduce(|a, b| {
+                if f(topo.positions[b as usize].x, topo.positions[a as usize].x) {
+                    b
+                } else {
+                    a
+                }
+            })
+            .unwrap()
+    };
+    let (lo, hi) = (ends(|a, b| a < b), ends(|a, b| a > b));
+    let at = |v: u32| {
+        let p = topo.positions[v as usize];
+        [p.x as f64, p.y as f64]
+    };
+    let sys = chart::lscm::assemble(&topo, &tris, &[(lo, at(lo)), (hi, at(hi))], &|v| at(v));
+    // Keep the welded numbering: the system numbers vertices in order of first appearance.
+    let mut exact = vec![0.0; sys.matrix.rows];
+    for (i, &v) in sys.vertices.iter().enumerate() {
+        let p = at(v);
+        exact[2 * i] = p[0];
+        exact[2 * i + 1] = p[1];
+    }
+    (sys.matrix, sys.rhs, exact)
+}
+
+/// A chart of bob of about `target` vertices at triangle 0 (bisection on the decal's size).
+fn bob_chart(target: usize) -> (Csr, Vec<f64>) {
+    let mesh = Mesh::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/bob.glb"))
+        .unwrap();
+    let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
+    let [a, b, c] = topo.triangles[0].map(|i| topo.positions[i as usize]);
+    let n = (b - a).cross(c - a).normalize();
+    let u = (b - a).normalize();
+    let (mut lo, mut hi) = (0.01f32, 2.0f32);
+    let mut sys = None;
+    for _ in 0..30 {
+        let side = 0.5 * (lo + hi);
+        let f = Frame {
+            center: (a + b + c) / 3.0,
+            axis_u: u,
+            axis_v: n.cross(u),
+            normal: n,
+            size: [side, side],
+            depth: side,
+            up_fallback: false,
+        };
+        let (_, s, _) = chart::initial_system(&topo, &f, 0);
+        let count = s.vertices.len();
+        sys = Some(s);
+        if count < target {
+            lo = side;
+        } else if count > target + target / 10 {
+            hi = side;
+        } else {
+            break;
+        }
+    }
+    let s = sys.unwrap();
+    (s.matrix, s.rhs)
+}
+
+fn max_abs(v: impl Iterator<Item = f64>) -> f64 {
+    v.fold(0.0, |m, x| m.max(x.abs()))
+}
+
+/// max |x - reference| / max |reference|.
+fn forward_error(x: &[f64], reference: &[f64]) -> f64 {
+    max_abs(x.iter().zip(reference).map(|(a, b)| a - b)) / max_abs(reference.iter().copied())
+}
+
+/// The checks a preconditioned CG must pass on one system: converged within `budget`
+/// iterations, and its solution within [`FORWARD`] of the direct solve. Returns the iterations.
+fn check(
+    name: &str,
+    (a, b, direct): (&Csr, &[f64], &[f64]),
+    m: &Preconditioner,
+    budget: u32,
+) -> Result<u32, String> {
+    let mut x = vec![0.0; a.rows];
+    let rep = pcg_with(a, b, &mut x, RTOL as f64, budget, m);
+    let err = forward_error(&x, direct);
+    println!(
+        "{name}: {:?} {} its, forward error {err:.1e}",
+        rep.status, rep.iterations
+    );
+    if rep.status != CgStatus::Converged {
+        return Err(format!(
+            "{name}: {:?} after {} iterations",
+            rep.status, rep.iterations
+        ));
+    }
+    if err > FORWARD {
+        return Err(format!("{name}: forward error {err:.2e}"));
+    }
+    Ok(rep.iterations)
+}
+
+/// On each system: the twin's V-cycle converges to the direct solve in at most a third of
+/// Jacobi's iterations (and at most 100; the gap widens with the mesh, next test); the GPU's does too, in the twin's iterations ± 10 %,
+/// and reports the multigrid preconditioner; on the plane both match the analytic map (the
+/// identity). A cycle without its post-sweeps (not symmetric) fails the same checks.
+#[test]
+fn multigrid_cg_matches_twin_direct_and_analytic() {
+    let e = common::engine();
+    let plane = flat_disc(40);
+    let (pa, pb, exact) = lscm_of(&plane);
+    let cases = [
+        ("plane", pa, pb),
+        {
+            let (a, b, _) = lscm_of(&sphere_cap(22, 1.2));
+            ("sphere cap", a, b)
+        },
+        {
+            let (a, b) = bob_chart(1000);
+            ("bob chart", a, b)
+        },
+    ];
+    for (name, a, b) in &cases {
+        assert!(a.rows >= AMG_MIN_ROWS, "{name}: {} rows", a.rows);
+        let h = Hierarchy::build(a).expect("a hierarchy");
+        println!("{name}: levels {:?}", h.level_rows());
+        let direct = dense_solve(a, b).expect("SPD");
+        let sys = (a, &b[..], &direct[..]);
+        // Jacobi's iterations only: at this backward error its forward error on the plane is
+        // 0.27 (the pins leave the far side loosely held; the V-cycle corrects it as a whole).
+        let jacobi = pcg_with(
+            a,
+            b,
+            &mut vec![0.0; a.rows],
+            RTOL as f64,
+            100_000,
+            &Preconditioner::jacobi(a),
+        )
+        .iterations;
+        let amg = check(name, sys, &Preconditioner::Amg(Box::new(h.clone())), 100).unwrap();
+        assert!(
+            3 * amg <= jacobi,
+            "{name}: {amg} multigrid vs {jacobi} Jacobi iterations"
+        );
+        // Broken: no sweeps after the coarse correction. The cycle is then not symmetric, and
+        // the CG loses its guarantees: it must fail the checks the sound cycle passes.
+        let mut broken = h.clone();
+        broken.post_sweeps = 0;
+        assert!(
+            check(name, sys, &Preconditioner::Amg(Box::new(broken)), 2 * amg).is_err(),
+            "{name}: the broken cycle passed"
+        );
+        let g = cg_batched(
+            &e.ctx,
+            e.pipelines(),
+            a,
+            b,
+            &vec![0.0; a.rows],
+            &[SystemDesc::new(0, a.rows, RTOL, 1000)],
+        )
+        .unwrap();
+        let rep = g.reports[0];
+        let x: Vec<f64> = g.x.iter().map(|&v| v as f64).collect();
+        let err = forward_error(&x, &direct);
+        println!(
+            "{name}: GPU {:?} {} its, forward error {err:.1e}",
+            rep.status, rep.iterations
+        );
+        assert_eq!(rep.preconditioner, PreconditionerKind::Amg);
+        assert_eq!(g.multigrid, 1);
+        assert_eq!(rep.status, CgStatus::Converged);
+        assert!(
+            rep.iterations.abs_diff(amg) <= 2 + amg / 10,
+            "{name}: GPU {} vs twin {amg}",
+            rep.iterations
+        );
+        assert!(err <= FORWARD, "{name}: GPU forward error {err:.2e}");
+        if *name == "plane" {
+            let mut x_twin = vec![0.0; a.rows];
+            let twin = pcg(a, b, &mut x_twin, RTOL as f64, 100);
+            assert_eq!(twin.preconditioner, PreconditionerKind::Amg);
+            let exact_err = forward_error(&direct, &exact);
+            assert!(
+                exact_err < 1e-9,
+                "the direct solve is the identity: {exact_err:.1e}"
+            );
+            for (who, v) in [("twin", &x_twin), ("GPU", &x)] {
+                let err = forward_error(v, &exact);
+                println!("plane, {who}: {err:.1e} from the identity map");
+                assert!(
+                    err <= FORWARD,
+                    "plane, {who}: {err:.2e} from the identity map"
+                );
+            }
+        }
+    }
+}
+
+/// Systems with a hierarchy (two) and without (a small one, Jacobi) in one batch: each gets the
+/// iterations and the bits it gets alone (the hierarchies' coarse levels share one index space).
+#[test]
+fn multigrid_batches_match_lone_solves() {
+    let e = common::engine();
+    let (a1, b1, _) = lscm_of(&sphere_cap(20, 1.0));
+    let (a2, b2) = bob_chart(900);
+    let (a3, b3, _) = lscm_of(&flat_disc(8));
+    assert!(a3.rows < AMG_MIN_ROWS);
+    let (a, starts) = Csr::block_diagonal(&[&a1, &a2, &a3]);
+    let b: Vec<f64> = [b1, b2, b3].concat();
+    let descs: Vec<SystemDesc> = [&a1, &a2, &a3]
+        .iter()
+        .zip(&starts)
+        .map(|(m, &r0)| SystemDesc::new(r0, m.rows, RTOL, 2000))
+        .collect();
+    let batch = cg_batched(&e.ctx, e.pipelines(), &a, &b, &vec![0.0; a.rows], &descs).unwrap();
+    assert_eq!(batch.multigrid, 2);
+    let kinds: Vec<_> = batch.reports.iter().map(|r| r.preconditioner).collect();
+    assert_eq!(
+        kinds,
+        [
+            PreconditionerKind::Amg,
+            PreconditionerKind::Amg,
+            PreconditionerKind::Jacobi
+        ]
+    );
+    for (k, m) in [&a1, &a2, &a3].iter().enumerate() {
+        let r = starts[k]..starts[k] + m.rows;
+        let alone = cg_batched(
+            &e.ctx,
+            e.pipelines(),
+            m,
+            &b[r.clone()],
+            &vec![0.0; m.rows],
+            &[SystemDesc::new(0, m.rows, RTOL, 2000)],
+        )
+        .unwrap();
+        assert_eq!(batch.reports[k].status, CgStatus::Converged);
+        assert_eq!(
+            batch.reports[k].iterations, alone.reports[0].iterations,
+            "system {k}"
+        );
+        assert!(
+            batch.x[r] == alone.x[..],
+            "system {k}: the batch changed its bits"
+        );
+    }
+}
+
+/// What the preconditioner is for: Jacobi's iterations grow with the mesh, the V-cycle's hardly
+/// do. The flat disc at 4× and 16× the vertices (CPU twin, same tolerance, from zero).
+#[test]
+fn multigrid_iterations_hardly_grow_with_the_mesh() {
+    let mut rows = Vec::new();
+    for k in [24, 48, 96] {
+        let (a, b, _) = lscm_of(&flat_disc(k));
+        let its = |m: &Preconditioner| {
+            let mut x = vec![0.0; a.rows];
+            let rep = pcg_with(&a, &b, &mut x, RTOL as f64, 100_000, m);
+            assert_eq!(rep.status, CgStatus::Converged);
+            rep.iterations
+        };
+        let h = Hierarchy::build(&a).expect("a hierarchy");
+        let (j, m) = (
+            its(&Preconditioner::jacobi(&a)),
+            its(&Preconditioner::Amg(Box::new(h))),
+        );
+        println!(
+            "flat disc k = {k}: {} rows, Jacobi {j}, multigrid {m}",
+            a.rows
+        );
+        rows.push((j, m));
+    }
+    // Measured: Jacobi 196 -> 444 -> 1052 (× 5.4 over 15× the rows), multigrid 44 -> 63 -> 84
+    // (× 1.9); the bounds leave a margin for other platforms' rounding.
+    let (j0, m0) = rows[0];
+    let (j2, m2) = rows[2];
+    assert!(j2 >= 4 * j0, "Jacobi {j0} -> {j2}");
+    assert!(m2 * 10 <= m0 * 22, "multigrid {m0} -> {m2}");
+    assert!(10 * m2 <= j2, "at the largest: multigrid {m2}, Jacobi {j2}");
+}
