@@ -8,15 +8,15 @@
 //! Tolerances: both CGs stop at a normwise backward error (`residual_scale`) of `RTOL`; the
 //! forward error is then bounded by the condition number times that, and LSCM systems with two
 //! pinned vertices are poorly conditioned, so solutions are compared as
-//! max |x - x_direct| / max |x_direct| ≤ `FORWARD` = 1e-2 (measured: 3e-4 to 9e-4 for the twin,
-//! 8e-4 to 2.5e-3 for the GPU's f32; Jacobi's CG stopped at the same residual is 0.27 off on the
-//! plane).
+//! max |x - x_direct| / max |x_direct| ≤ `FORWARD` = 1e-2 (measured: 5e-4 to 2.8e-3 for the twin,
+//! 8e-4 to 3.1e-3 for the GPU's f32; Jacobi's CG stopped at the same residual is 0.25 off on the
+//! plane and 0.07 on bob's chart).
 
 mod common;
 use decalbake::maps::chart;
 use decalbake::maps::Frame;
 use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
-use decalbake::solve::amg::{dense_solve, Hierarchy, AMG_MIN_ROWS};
+use decalbake::solve::amg::{direct_solve, Hierarchy, AMG_MIN_ROWS};
 use decalbake::solve::cg::{pcg, pcg_with, Preconditioner};
 use decalbake::solve::gpu::{cg_batched, SystemDesc};
 use decalbake::solve::sparse::{CgStatus, Csr, PreconditionerKind};
@@ -230,16 +230,16 @@ fn check(
 #[test]
 fn multigrid_cg_matches_twin_direct_and_analytic() {
     let e = common::engine();
-    let plane = flat_disc(40);
+    let plane = flat_disc(48);
     let (pa, pb, exact) = lscm_of(&plane);
     let cases = [
         ("plane", pa, pb),
         {
-            let (a, b, _) = lscm_of(&sphere_cap(22, 1.2));
+            let (a, b, _) = lscm_of(&sphere_cap(24, 1.2));
             ("sphere cap", a, b)
         },
         {
-            let (a, b) = bob_chart(1000);
+            let (a, b) = bob_chart(1700);
             ("bob chart", a, b)
         },
     ];
@@ -247,19 +247,26 @@ fn multigrid_cg_matches_twin_direct_and_analytic() {
         assert!(a.rows >= AMG_MIN_ROWS, "{name}: {} rows", a.rows);
         let h = Hierarchy::build(a).expect("a hierarchy");
         println!("{name}: levels {:?}", h.level_rows());
-        let direct = dense_solve(a, b).expect("SPD");
+        let direct = direct_solve(a, b).expect("SPD");
         let sys = (a, &b[..], &direct[..]);
-        // Jacobi's iterations only: at this backward error its forward error on the plane is
-        // 0.27 (the pins leave the far side loosely held; the V-cycle corrects it as a whole).
+        // Jacobi's iterations only: stopped at the same backward error its forward error can be
+        // far larger (printed; the pins leave the far side loosely held, which the V-cycle
+        // corrects as a whole).
+        let mut xj = vec![0.0; a.rows];
         let jacobi = pcg_with(
             a,
             b,
-            &mut vec![0.0; a.rows],
+            &mut xj,
             RTOL as f64,
             100_000,
             &Preconditioner::jacobi(a),
-        )
-        .iterations;
+        );
+        println!(
+            "{name}: Jacobi {} its, forward error {:.1e}",
+            jacobi.iterations,
+            forward_error(&xj, &direct)
+        );
+        let jacobi = jacobi.iterations;
         let amg = check(name, sys, &Preconditioner::Amg(Box::new(h.clone())), 100).unwrap();
         assert!(
             3 * amg <= jacobi,
@@ -324,8 +331,8 @@ fn multigrid_cg_matches_twin_direct_and_analytic() {
 #[test]
 fn multigrid_batches_match_lone_solves() {
     let e = common::engine();
-    let (a1, b1, _) = lscm_of(&sphere_cap(20, 1.0));
-    let (a2, b2) = bob_chart(900);
+    let (a1, b1, _) = lscm_of(&sphere_cap(24, 1.0));
+    let (a2, b2) = bob_chart(1700);
     let (a3, b3, _) = lscm_of(&flat_disc(8));
     assert!(a3.rows < AMG_MIN_ROWS);
     let (a, starts) = Csr::block_diagonal(&[&a1, &a2, &a3]);

@@ -3,7 +3,7 @@
 //! (Jacobi) and `wgsl/solve/cg_amg.wgsl` (a multigrid V-cycle, [`crate::solve::amg`]), the
 //! tests' oracle and the benchmarks' baseline.
 
-use crate::solve::amg::Hierarchy;
+use crate::solve::amg::{Hierarchy, AMG_MIN_ROWS};
 use crate::solve::sparse::{dot, residual_scale, CgReport, CgStatus, Csr, PreconditionerKind};
 
 /// The preconditioner of a CG solve: Jacobi, or a multigrid V-cycle for systems of at least
@@ -27,9 +27,12 @@ impl Preconditioner {
         )
     }
 
-    /// The one both solvers choose for `a`: a V-cycle when [`Hierarchy::build`] gives one, else
-    /// Jacobi's.
+    /// The one both solvers choose for `a`: a V-cycle from [`AMG_MIN_ROWS`] rows on when
+    /// [`Hierarchy::build`] gives one, else Jacobi's.
     pub fn for_matrix(a: &Csr) -> Self {
+        if a.rows < AMG_MIN_ROWS {
+            return Self::jacobi(a);
+        }
         match Hierarchy::build(a) {
             Some(h) => Self::Amg(Box::new(h)),
             None => Self::jacobi(a),
