@@ -9,7 +9,7 @@
 //! forward error is then bounded by the condition number times that, and LSCM systems with two
 //! pinned vertices are poorly conditioned, so solutions are compared as
 //! max |x - x_direct| / max |x_direct| ≤ `FORWARD` = 1e-2 (measured: 5e-4 to 2.8e-3 for the twin,
-//! 8e-4 to 3.1e-3 for the GPU's f32; Jacobi's CG stopped at the same residual is 0.25 off on the
+//! 8e-4 to 3.7e-3 for the GPU's f32; Jacobi's CG stopped at the same residual is 0.25 off on the
 //! plane and 0.07 on bob's chart).
 
 mod common;
@@ -326,8 +326,24 @@ fn multigrid_cg_matches_twin_direct_and_analytic() {
     }
 }
 
-/// Systems with a hierarchy (two) and without (a small one, Jacobi) in one batch: each gets the
-/// iterations and the bits it gets alone (the hierarchies' coarse levels share one index space).
+/// One batched solve of `systems` (matrix, right-hand side) from zero.
+fn solve_batch(e: &decalbake::Engine, systems: &[(&Csr, &[f64])]) -> decalbake::solve::gpu::Solved {
+    let mats: Vec<&Csr> = systems.iter().map(|s| s.0).collect();
+    let (a, starts) = Csr::block_diagonal(&mats);
+    let b: Vec<f64> = systems.iter().flat_map(|s| s.1.iter().copied()).collect();
+    let descs: Vec<SystemDesc> = mats
+        .iter()
+        .zip(&starts)
+        .map(|(m, &r0)| SystemDesc::new(r0, m.rows, RTOL, 2000))
+        .collect();
+    cg_batched(&e.ctx, e.pipelines(), &a, &b, &vec![0.0; a.rows], &descs).unwrap()
+}
+
+/// Systems in one batch solve as they do alone in the same form: two with hierarchies (solved on
+/// complex blocks, `cg_amg`'s complex form) get the iterations and the bits they get alone (their
+/// coarse levels share one index space); with a small one (Jacobi) beside them the batch runs on
+/// the real form, where the small one gets its lone bits and the two agree with their complex
+/// solves to the solve's tolerance (the two forms sum in different orders).
 #[test]
 fn multigrid_batches_match_lone_solves() {
     let e = common::engine();
@@ -335,44 +351,52 @@ fn multigrid_batches_match_lone_solves() {
     let (a2, b2) = bob_chart(1700);
     let (a3, b3, _) = lscm_of(&flat_disc(8));
     assert!(a3.rows < AMG_MIN_ROWS);
-    let (a, starts) = Csr::block_diagonal(&[&a1, &a2, &a3]);
-    let b: Vec<f64> = [b1, b2, b3].concat();
-    let descs: Vec<SystemDesc> = [&a1, &a2, &a3]
-        .iter()
-        .zip(&starts)
-        .map(|(m, &r0)| SystemDesc::new(r0, m.rows, RTOL, 2000))
-        .collect();
-    let batch = cg_batched(&e.ctx, e.pipelines(), &a, &b, &vec![0.0; a.rows], &descs).unwrap();
-    assert_eq!(batch.multigrid, 2);
-    let kinds: Vec<_> = batch.reports.iter().map(|r| r.preconditioner).collect();
-    assert_eq!(
-        kinds,
-        [
-            PreconditionerKind::Amg,
-            PreconditionerKind::Amg,
-            PreconditionerKind::Jacobi
-        ]
-    );
-    for (k, m) in [&a1, &a2, &a3].iter().enumerate() {
-        let r = starts[k]..starts[k] + m.rows;
-        let alone = cg_batched(
-            &e.ctx,
-            e.pipelines(),
-            m,
-            &b[r.clone()],
-            &vec![0.0; m.rows],
-            &[SystemDesc::new(0, m.rows, RTOL, 2000)],
-        )
-        .unwrap();
-        assert_eq!(batch.reports[k].status, CgStatus::Converged);
-        assert_eq!(
-            batch.reports[k].iterations, alone.reports[0].iterations,
-            "system {k}"
-        );
-        assert!(
-            batch.x[r] == alone.x[..],
-            "system {k}: the batch changed its bits"
-        );
+    let sys = [(&a1, &b1[..]), (&a2, &b2[..]), (&a3, &b3[..])];
+    let alone: Vec<_> = sys.iter().map(|s| solve_batch(&e, &[*s])).collect();
+    assert!(alone[0].complex && alone[1].complex && !alone[2].complex);
+    let pair = solve_batch(&e, &sys[..2]);
+    assert!(pair.complex && pair.multigrid == 2);
+    let mixed = solve_batch(&e, &sys);
+    assert!(!mixed.complex && mixed.multigrid == 2);
+    let kinds: Vec<_> = mixed.reports.iter().map(|r| r.preconditioner).collect();
+    use PreconditionerKind::{Amg, Jacobi};
+    assert_eq!(kinds, [Amg, Amg, Jacobi]);
+    let mut row0 = 0;
+    for (k, (m, _)) in sys.iter().enumerate() {
+        let r = row0..row0 + m.rows;
+        row0 += m.rows;
+        let (one, x1) = (alone[k].reports[0], &alone[k].x[..]);
+        let rel = |x: &[f32]| {
+            let d = x
+                .iter()
+                .zip(x1)
+                .map(|(p, q)| (p - q).abs())
+                .fold(0.0, f32::max);
+            d / x1.iter().map(|v| v.abs()).fold(1e-9, f32::max)
+        };
+        assert_eq!(mixed.reports[k].status, CgStatus::Converged);
+        if k < 2 {
+            assert_eq!(pair.reports[k].iterations, one.iterations, "system {k}");
+            assert!(
+                pair.x[r.clone()] == *x1,
+                "system {k}: the batch changed its bits"
+            );
+            let d = rel(&mixed.x[r]);
+            println!(
+                "system {k}: real form {} its, complex {} its, {d:.1e} apart",
+                mixed.reports[k].iterations, one.iterations
+            );
+            assert!(
+                mixed.reports[k].iterations.abs_diff(one.iterations) <= 2 + one.iterations / 10
+            );
+            assert!(
+                d as f64 <= FORWARD,
+                "system {k}: the two forms {d:.2e} apart"
+            );
+        } else {
+            assert_eq!(mixed.reports[k].iterations, one.iterations, "system {k}");
+            assert!(mixed.x[r] == *x1, "system {k}: the batch changed its bits");
+        }
     }
 }
 

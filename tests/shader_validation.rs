@@ -40,11 +40,13 @@ fn every_wgsl_file_validates() {
         "cg_batched (narrow)".into(),
         decalbake::gpu::shaders::narrow_source("cg_batched"),
     ));
-    // The packed conjugate gradient on complex blocks.
-    sources.push((
-        "cg_packed (complex)".into(),
-        decalbake::gpu::shaders::complex_source(),
-    ));
+    // The conjugate gradients on complex blocks.
+    for name in ["cg_packed", "cg_amg"] {
+        sources.push((
+            format!("{name} (complex)"),
+            decalbake::gpu::shaders::complex_source(name),
+        ));
+    }
     for (name, src) in &sources {
         let src = src.clone();
         let module = match naga::front::wgsl::parse_str(&src) {

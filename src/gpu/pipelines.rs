@@ -218,6 +218,8 @@ pub struct Pipelines {
     /// `wgsl/solve/cg_amg.wgsl`: CG preconditioned by a multigrid V-cycle, 256 invocations per
     /// system (large systems).
     pub cg_amg: Kernel,
+    /// `cg_amg` on 2 × 2 complex blocks (`shaders::complex_source`): LSCM systems.
+    pub cg_amg_complex: Kernel,
     /// CSR sparse matrix-vector product.
     pub spmv: Kernel,
     /// Batched dot products and norms.
@@ -259,7 +261,7 @@ impl Pipelines {
             wgpu::TextureFormat::Rgba16Float
         };
         let rasters = Rasters::new(device, layer_blending);
-        let [cg_batched, cg_batched_narrow, cg_packed, cg_packed_complex, cg_amg, spmv, dot_batched, copy] =
+        let [cg_batched, cg_batched_narrow, cg_packed, cg_packed_complex, cg_amg, cg_amg_complex, spmv, dot_batched, copy] =
             linalg_kernels(device);
         let [chart_scatter, chart_gather, stamp_blend] = slot_kernels(device);
         let [place_bvh, place_candidates, place_reduce] = place_kernels(device);
@@ -366,6 +368,7 @@ impl Pipelines {
             cg_packed,
             cg_packed_complex,
             cg_amg,
+            cg_amg_complex,
             spmv,
             dot_batched,
             copy,
@@ -700,8 +703,9 @@ fn raster(
 /// The linear-algebra kernels (`wgsl/solve/`), in the order of their `Pipelines` fields: the
 /// conjugate gradient's four variants (one workgroup per system, 256 and 64 wide; one system per
 /// invocation, real and on complex blocks), which share one binding list, the multigrid-preconditioned
-/// one (that list plus the hierarchy's), then SpMV, batched dot products and the streaming copy.
-fn linalg_kernels(device: &wgpu::Device) -> [Kernel; 8] {
+/// one, real and on complex blocks (that list plus the hierarchy's), then SpMV, batched dot
+/// products and the streaming copy.
+fn linalg_kernels(device: &wgpu::Device) -> [Kernel; 9] {
     use Bind::*;
     let cg = &[
         (0, Uniform),
@@ -718,19 +722,22 @@ fn linalg_kernels(device: &wgpu::Device) -> [Kernel; 8] {
         (11, Rw),
     ];
     let variant = |name: &str, text: String| Kernel::with_source(device, name, cg, Some(text));
+    let amg = [
+        cg.as_slice(),
+        &[(12, Ro), (13, Ro), (14, Ro), (15, Ro), (16, Ro), (17, Rw)],
+    ]
+    .concat();
     [
         Kernel::new(device, "cg_batched", cg),
         variant("cg_batched", shaders::narrow_source("cg_batched")),
         Kernel::new(device, "cg_packed", cg),
-        variant("cg_packed", shaders::complex_source()),
-        Kernel::new(
+        variant("cg_packed", shaders::complex_source("cg_packed")),
+        Kernel::new(device, "cg_amg", &amg),
+        Kernel::with_source(
             device,
             "cg_amg",
-            &[
-                cg.as_slice(),
-                &[(12, Ro), (13, Ro), (14, Ro), (15, Ro), (16, Ro), (17, Rw)],
-            ]
-            .concat(),
+            &amg,
+            Some(shaders::complex_source("cg_amg")),
         ),
         Kernel::new(
             device,

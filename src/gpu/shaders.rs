@@ -177,17 +177,17 @@ pub fn narrow_source(name: &str) -> String {
     full.replace(&from, &format!("const WG: u32 = {LINALG_WG_NARROW}u;"))
 }
 
-/// The packed conjugate gradient on 2 × 2 complex blocks: `cg_packed` with the `cg_complex` import
-/// in place of `cg_real` (see the kernel's header).
-pub fn complex_source() -> String {
+/// A conjugate gradient on 2 × 2 complex blocks: kernel `name` (`cg_packed`, `cg_amg`) with the
+/// `cg_complex` import in place of `cg_real` (see the kernels' headers).
+pub fn complex_source(name: &str) -> String {
     let text = KERNELS
         .iter()
-        .find(|(n, _)| *n == "cg_packed")
-        .expect("cg_packed is a kernel")
+        .find(|(n, _)| *n == name)
+        .expect("a kernel")
         .1;
     assert!(
         text.contains("#import cg_real"),
-        "cg_packed has no `#import cg_real`"
+        "{name} has no `#import cg_real`"
     );
     resolve(&text.replace("#import cg_real", "#import cg_complex"))
 }

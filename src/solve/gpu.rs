@@ -26,7 +26,7 @@
 use crate::error::{Error, Result};
 use crate::gpu::pipelines::{Kernel, Pipelines};
 use crate::gpu::GpuContext;
-use crate::solve::gpu_amg::AmgBatch;
+use crate::solve::gpu_amg::{self, all_fit, AmgBatch};
 use crate::solve::sparse::{CgReport, CgStatus, ComplexCsr, Csr, PreconditionerKind};
 
 /// Loop steps one invocation may run per dispatch (lavapipe abandons invocations past about 65535).
@@ -445,11 +445,66 @@ pub fn cg_batched(
         systems[k].wide != JACOBI_ONLY
             && !(pack && packed_steps(row_len, systems[k].n) <= LOOP_BUDGET)
     };
-    let Some(mg) = AmgBatch::build(a, &ranges, wants, WG, HARD_LOOP_LIMIT, dinv.clone()) else {
+    let hs = gpu_amg::hierarchies(a, &ranges, wants);
+    // Every system with a hierarchy, the batch on complex blocks: the complex form of the kernel
+    // (half the loads, and systems twice as large fit the loop limit).
+    let on_blocks = all_fit(&hs, WG, HARD_LOOP_LIMIT, 2)
+        && systems.iter().all(|s| s.row0 % 2 + s.n % 2 == 0)
+        && ComplexCsr::from_real(a).is_some();
+    let unit = if on_blocks { 2 } else { 1 };
+    let limits = (WG, HARD_LOOP_LIMIT, unit);
+    let Some(mg) = AmgBatch::build(a, &ranges, hs, limits, dinv.clone()) else {
         let gpu = GpuCsr::upload(ctx, a)?;
-        let (systems, classes) = kernel_classes(pipes, row_len, systems, 0)?;
+        let (systems, classes) = kernel_classes(pipes, row_len, systems, None)?;
         return run(ctx, &gpu, &dinv, a.rows, b, x0, &systems, &classes, None);
     };
+    let steps = mg.systems.iter().flatten().map(|h| h.steps).max();
+    if let Some(c) = on_blocks.then(|| mg.complex()).flatten() {
+        let systems: Vec<SystemDesc> = systems
+            .iter()
+            .zip(&c.systems)
+            .map(|(s, &amg)| SystemDesc {
+                row0: s.row0 / 2,
+                n: s.n / 2,
+                wide: MULTIGRID,
+                amg,
+                ..*s
+            })
+            .collect();
+        let gpu = GpuCsr::upload_complex(ctx, &c.a)?;
+        let vals: Vec<f32> = c.pr.vals.iter().flatten().map(|&v| v as f32).collect();
+        let cinv: Vec<f32> = c.cinv.iter().flatten().copied().collect();
+        let bufs = ctx.scoped("conjugate gradient", || {
+            MultigridBuffers::upload(
+                ctx,
+                (&c.pr.row_ptr, &c.pr.cols, &vals),
+                &c.levels,
+                &cinv,
+                c.pr.rows / 2,
+                8,
+            )
+        })?;
+        let classes = [(
+            MULTIGRID,
+            &pipes.cg_amg_complex,
+            iters_per_dispatch(steps.unwrap_or(0)),
+        )];
+        let solved = run(
+            ctx,
+            &gpu,
+            &c.weights,
+            a.rows,
+            b,
+            x0,
+            &systems,
+            &classes,
+            Some(&bufs),
+        )?;
+        return Ok(Solved {
+            complex: true,
+            ..solved
+        });
+    }
     let systems: Vec<SystemDesc> = systems
         .iter()
         .zip(&mg.systems)
@@ -462,16 +517,20 @@ pub fn cg_batched(
             None => *s,
         })
         .collect();
-    let steps = mg
-        .systems
-        .iter()
-        .flatten()
-        .map(|h| h.steps)
-        .max()
-        .unwrap_or(0);
     let gpu = GpuCsr::upload(ctx, &mg.a)?;
-    let (systems, classes) = kernel_classes(pipes, row_len, &systems, steps)?;
-    let bufs = ctx.scoped("conjugate gradient", || MultigridBuffers::upload(ctx, &mg))?;
+    let amg = steps.map(|st| (st, &pipes.cg_amg));
+    let (systems, classes) = kernel_classes(pipes, row_len, &systems, amg)?;
+    let vals = f32s(&mg.pr.vals);
+    let bufs = ctx.scoped("conjugate gradient", || {
+        MultigridBuffers::upload(
+            ctx,
+            (&mg.pr.row_ptr, &mg.pr.cols, &vals),
+            &mg.levels,
+            &mg.cinv,
+            mg.total,
+            4,
+        )
+    })?;
     run(
         ctx,
         &gpu,
@@ -497,22 +556,32 @@ struct MultigridBuffers {
 }
 
 impl MultigridBuffers {
-    fn upload(ctx: &GpuContext, mg: &AmgBatch) -> Self {
+    /// Uploads the prolongators and restrictions (`pr`: row offsets, columns, f32 values), the
+    /// levels, the coarsest inverses and room for three vectors of `total` kernel rows of
+    /// `row_bytes` each.
+    fn upload(
+        ctx: &GpuContext,
+        pr: (&[u32], &[u32], &[f32]),
+        levels: &[[u32; 2]],
+        cinv: &[f32],
+        total: usize,
+        row_bytes: u64,
+    ) -> Self {
         let init =
             |label: &str, bytes: &[u8]| ctx.storage_init(label, bytes, wgpu::BufferUsages::empty());
         Self {
-            pr_ptr: init("cg.pr_ptr", bytemuck::cast_slice(&mg.pr.row_ptr)),
-            pr_cols: init("cg.pr_cols", bytemuck::cast_slice(&mg.pr.cols)),
-            pr_vals: init("cg.pr_vals", bytemuck::cast_slice(&f32s(&mg.pr.vals))),
-            levels: init("cg.levels", bytemuck::cast_slice(&mg.levels)),
-            cinv: init("cg.cinv", bytemuck::cast_slice(&mg.cinv)),
+            pr_ptr: init("cg.pr_ptr", bytemuck::cast_slice(pr.0)),
+            pr_cols: init("cg.pr_cols", bytemuck::cast_slice(pr.1)),
+            pr_vals: init("cg.pr_vals", bytemuck::cast_slice(pr.2)),
+            levels: init("cg.levels", bytemuck::cast_slice(levels)),
+            cinv: init("cg.cinv", bytemuck::cast_slice(cinv)),
             vectors: ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("cg.multigrid_vectors"),
-                size: (3 * mg.total as u64 * 4).max(16),
+                size: (3 * total as u64 * row_bytes).max(16),
                 usage: wgpu::BufferUsages::STORAGE,
                 mapped_at_creation: false,
             }),
-            total: mg.total as u32,
+            total: total as u32,
         }
     }
 }
@@ -725,14 +794,14 @@ fn run(
 /// batch; whether it is packed does (a lone chart would leave all lanes but one idle in the packed
 /// kernel, so it keeps a workgroup). The two orders of summation give results that agree to the
 /// solve's tolerance (tests/linalg.rs). Systems already marked [`MULTIGRID`] keep that class
-/// (`cg_amg`, `amg_steps` loop steps per iteration at most); `row_len` is the longest row of the
-/// batch's own matrix.
+/// (`amg`: the loop steps of their largest iteration and `cg_amg`); `row_len` is the longest row
+/// of the batch's own matrix.
 #[allow(clippy::type_complexity)]
 fn kernel_classes<'p>(
     pipes: &'p Pipelines,
     row_len: u32,
     systems: &[SystemDesc],
-    amg_steps: usize,
+    amg: Option<(usize, &'p Kernel)>,
 ) -> Result<(Vec<SystemDesc>, Vec<(u32, &'p Kernel, u32)>)> {
     // Iterations per dispatch per class: each
     // iteration an invocation walks its rows (ceil(n / WG)) a few times, each row's entries, plus
@@ -761,7 +830,7 @@ fn kernel_classes<'p>(
         (0u32, &pipes.cg_batched_narrow),
         (1u32, &pipes.cg_batched),
         (PACKED, &pipes.cg_packed),
-        (MULTIGRID, &pipes.cg_amg),
+        (MULTIGRID, amg.map_or(&pipes.cg_amg, |a| a.1)),
     ] {
         let Some(max_n) = systems.iter().filter(|s| s.wide == wide).map(|s| s.n).max() else {
             continue;
@@ -769,7 +838,7 @@ fn kernel_classes<'p>(
         let per_iter = match wide {
             0 => cost(max_n, narrow_wg),
             1 => cost(max_n, WG as u32),
-            MULTIGRID => amg_steps,
+            MULTIGRID => amg.map_or(0, |a| a.0),
             _ => packed_cost(max_n),
         };
         if per_iter > HARD_LOOP_LIMIT {

@@ -8,7 +8,7 @@
 //! coarsest levels' dense inverses.
 
 use crate::solve::amg::{Hierarchy, AMG_MIN_ROWS, NU};
-use crate::solve::sparse::Csr;
+use crate::solve::sparse::{ComplexCsr, Csr};
 
 /// Where one system's hierarchy lives, and what one iteration costs.
 #[derive(Debug, Clone, Copy)]
@@ -44,41 +44,80 @@ pub(crate) struct AmgBatch {
 
 /// Loop steps per CG iteration of one invocation of a `wg`-wide workgroup on `h`: per level the
 /// sweeps' and residual's products, the prolongation and restriction, the coarsest inverse, and
-/// the CG's own passes (with a true residual) on the finest.
-fn steps(h: &Hierarchy, wg: usize) -> usize {
-    let per = |n: usize| n.div_ceil(wg).max(1);
+/// the CG's own passes (with a true residual) on the finest. `unit`: real rows per kernel row (2
+/// on complex blocks, where rows and their entries both halve).
+fn steps(h: &Hierarchy, wg: usize, unit: usize) -> usize {
+    let per = |n: usize| (n / unit).div_ceil(wg).max(1);
+    let len = |m: &Csr| m.max_row_len().div_ceil(unit);
     let mut s = 100;
     for lv in &h.levels {
-        s += per(lv.a.rows) * ((2 * NU + 1) * (lv.a.max_row_len() + 2) + lv.p.max_row_len() + 2);
-        s += per(lv.r.rows) * (lv.r.max_row_len() + 2);
+        s += per(lv.a.rows) * ((2 * NU + 1) * (len(&lv.a) + 2) + len(&lv.p) + 2);
+        s += per(lv.r.rows) * (len(&lv.r) + 2);
     }
-    s += per(h.coarse_rows) * h.coarse_rows;
+    s += per(h.coarse_rows) * h.coarse_rows / unit;
     let fine = &h.levels[0].a;
-    s + per(fine.rows) * (2 * fine.max_row_len() + 12)
+    s + per(fine.rows) * (2 * len(fine) + 12)
+}
+
+/// The hierarchies of the systems (`(row0, n)` of the block-diagonal `a`) that `wants` picks and
+/// that have at least [`AMG_MIN_ROWS`] rows and build one ([`Hierarchy::build`]).
+pub(crate) fn hierarchies(
+    a: &Csr,
+    systems: &[(usize, usize)],
+    wants: impl Fn(usize) -> bool,
+) -> Vec<Option<Hierarchy>> {
+    systems
+        .iter()
+        .enumerate()
+        .map(|(k, &(row0, n))| {
+            if n < AMG_MIN_ROWS || !wants(k) {
+                return None;
+            }
+            Hierarchy::build(&a.sub_block(row0, n))
+        })
+        .collect()
+}
+
+/// Whether every system's hierarchy fits the loop limit on complex blocks (`unit` 2).
+pub(crate) fn all_fit(hs: &[Option<Hierarchy>], wg: usize, max_steps: usize, unit: usize) -> bool {
+    hs.iter()
+        .all(|h| h.as_ref().is_some_and(|h| steps(h, wg, unit) <= max_steps))
+}
+
+/// The batch's layout on complex 2 × 2 blocks ([`ComplexCsr`]): rows, levels and offsets count
+/// vertices.
+pub(crate) struct ComplexLayout {
+    /// Every level's matrix.
+    pub a: ComplexCsr,
+    /// Prolongators then restrictions.
+    pub pr: ComplexCsr,
+    /// Smoother weight per block row (the same for its two real rows: both have the diagonal a).
+    pub weights: Vec<f32>,
+    /// (first block row, block rows) per level.
+    pub levels: Vec<[u32; 2]>,
+    /// The coarsest inverses' (a, b) blocks, row-major per system.
+    pub cinv: Vec<[f32; 2]>,
+    /// Per system: (first level, levels, offset of its coarsest inverse in `cinv`).
+    pub systems: Vec<[u32; 3]>,
 }
 
 impl AmgBatch {
-    /// Hierarchies for the systems (`(row0, n)` of the block-diagonal `a`) that `wants` picks,
-    /// have at least [`AMG_MIN_ROWS`] rows, build one ([`Hierarchy::build`]) and iterate within
-    /// `max_steps` loop steps per invocation; `None` when no system has one. `jacobi` is 1 / dᵢ
-    /// per row of `a`.
+    /// The layout of the hierarchies `hs` (one per system, `(row0, n)` of the block-diagonal
+    /// `a`) whose iteration stays within `max_steps` loop steps per invocation of a `wg`-wide
+    /// workgroup, counted in kernel rows of `unit` real rows; `None` when no system has one.
+    /// `jacobi` is 1 / dᵢ per row of `a`.
     pub fn build(
         a: &Csr,
         systems: &[(usize, usize)],
-        wants: impl Fn(usize) -> bool,
-        wg: usize,
-        max_steps: usize,
+        hs: Vec<Option<Hierarchy>>,
+        (wg, max_steps, unit): (usize, usize, usize),
         jacobi: Vec<f32>,
     ) -> Option<Self> {
-        let hierarchies: Vec<Option<(Hierarchy, usize)>> = systems
-            .iter()
-            .enumerate()
-            .map(|(k, &(row0, n))| {
-                if n < AMG_MIN_ROWS || !wants(k) {
-                    return None;
-                }
-                let h = Hierarchy::build(&a.sub_block(row0, n))?;
-                let st = steps(&h, wg);
+        let hierarchies: Vec<Option<(Hierarchy, usize)>> = hs
+            .into_iter()
+            .map(|h| {
+                let h = h?;
+                let st = steps(&h, wg, unit);
                 (st <= max_steps).then_some((h, st))
             })
             .collect();
@@ -173,5 +212,38 @@ impl AmgBatch {
             cinv0,
             steps,
         }
+    }
+}
+
+impl AmgBatch {
+    /// This layout on complex 2 × 2 blocks, or `None` when a matrix is not of that form.
+    pub fn complex(&self) -> Option<ComplexLayout> {
+        if !self.total.is_multiple_of(2) {
+            return None;
+        }
+        let a = ComplexCsr::from_real(&self.a)?;
+        let pr = ComplexCsr::from_real(&self.pr)?;
+        let weights = self.weights.iter().step_by(2).copied().collect();
+        let levels = self.levels.iter().map(|l| [l[0] / 2, l[1] / 2]).collect();
+        let mut cinv = Vec::with_capacity(self.cinv.len() / 4);
+        let mut systems = Vec::new();
+        for s in self.systems.iter().flatten() {
+            let n = self.levels[(s.lvl0 + s.nlev - 1) as usize][1] as usize;
+            let real = &self.cinv[s.cinv0 as usize..s.cinv0 as usize + n * n];
+            systems.push([s.lvl0, s.nlev, cinv.len() as u32]);
+            for i in (0..n).step_by(2) {
+                for j in (0..n).step_by(2) {
+                    cinv.push([real[i * n + j], real[(i + 1) * n + j]]);
+                }
+            }
+        }
+        Some(ComplexLayout {
+            a,
+            pr,
+            weights,
+            levels,
+            cinv,
+            systems,
+        })
     }
 }

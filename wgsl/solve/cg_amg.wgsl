@@ -12,9 +12,14 @@
 // The cycle: NU damped-Jacobi sweeps, the residual restricted, the next level, the correction
 // prolonged, NU sweeps; symmetric, so the CG stays a CG. Passes are separated by storage barriers
 // (about 65 ns each per workgroup on lavapipe, ARCHITECTURE.md), a few dozen per iteration.
+// Unknowns are of type V and entries of type M (import `cg_real`: f32); the engine also builds it
+// with `cg_complex` (src/gpu/shaders.rs, `complex_source`) for LSCM systems, whose every level keeps
+// the 2 × 2 complex structure: then rows, levels and `round.total` count vertices, each unknown is
+// a (u, v) vec2 and each entry an (a, b) block, half the loads of the real form.
 // Dispatch: (systems, 1, 1). CPU twin: `amg::Hierarchy::apply` with `cg::pcg_with`.
 #import linalg
 #import cg_state
+#import cg_real
 
 // Keep in sync with `amg::NU` in src/solve/amg.rs.
 const NU: u32 = 1u;
@@ -23,49 +28,49 @@ const NU: u32 = 1u;
 @group(0) @binding(1) var<storage, read> systems: array<System>;
 @group(0) @binding(2) var<storage, read> row_ptr: array<u32>;
 @group(0) @binding(3) var<storage, read> cols: array<u32>;
-@group(0) @binding(4) var<storage, read> vals: array<f32>;
-@group(0) @binding(5) var<storage, read> b: array<f32>;
+@group(0) @binding(4) var<storage, read> vals: array<M>;
+@group(0) @binding(5) var<storage, read> b: array<V>;
 @group(0) @binding(6) var<storage, read> dinv: array<f32>;
-@group(0) @binding(7) var<storage, read_write> x: array<f32>;
-@group(0) @binding(8) var<storage, read_write> r: array<f32>;
-@group(0) @binding(9) var<storage, read_write> p: array<f32>;
-@group(0) @binding(10) var<storage, read_write> ap: array<f32>;
+@group(0) @binding(7) var<storage, read_write> x: array<V>;
+@group(0) @binding(8) var<storage, read_write> r: array<V>;
+@group(0) @binding(9) var<storage, read_write> p: array<V>;
+@group(0) @binding(10) var<storage, read_write> ap: array<V>;
 @group(0) @binding(11) var<storage, read_write> state: array<State>;
 @group(0) @binding(12) var<storage, read> pr_ptr: array<u32>;
 @group(0) @binding(13) var<storage, read> pr_cols: array<u32>;
-@group(0) @binding(14) var<storage, read> pr_vals: array<f32>;
+@group(0) @binding(14) var<storage, read> pr_vals: array<M>;
 @group(0) @binding(15) var<storage, read> levels: array<vec2<u32>>;
-@group(0) @binding(16) var<storage, read> cinv: array<f32>;
-@group(0) @binding(17) var<storage, read_write> mg: array<f32>;
+@group(0) @binding(16) var<storage, read> cinv: array<M>;
+@group(0) @binding(17) var<storage, read_write> mg: array<V>;
 
 var<workgroup> wg_status: u32;
 var<workgroup> wg_iters: u32;
 
 // Σ_k A[i, k] mg[v0 + k]: row i of the level matrices times the vector at offset v0 of mg.
-fn a_row(i: u32, v0: u32) -> f32 {
-    var s = 0.0;
+fn a_row(i: u32, v0: u32) -> V {
+    var s = V(0.0);
     let end = row_ptr[i + 1u];
     for (var k = row_ptr[i]; k < end; k++) {
-        s += vals[k] * mg[v0 + cols[k]];
+        s += mat_mul(vals[k], mg[v0 + cols[k]]);
     }
     return s;
 }
 
 // Row i of the prolongators (i < total) or restrictions (i >= total) times the vector at v0.
-fn pr_row(i: u32, v0: u32) -> f32 {
-    var s = 0.0;
+fn pr_row(i: u32, v0: u32) -> V {
+    var s = V(0.0);
     let end = pr_ptr[i + 1u];
     for (var k = pr_ptr[i]; k < end; k++) {
-        s += pr_vals[k] * mg[v0 + pr_cols[k]];
+        s += mat_mul(pr_vals[k], mg[v0 + pr_cols[k]]);
     }
     return s;
 }
 
-fn a_times_p(i: u32) -> f32 {
-    var s = 0.0;
+fn a_times_p(i: u32) -> V {
+    var s = V(0.0);
     let end = row_ptr[i + 1u];
     for (var k = row_ptr[i]; k < end; k++) {
-        s += vals[k] * p[cols[k]];
+        s += mat_mul(vals[k], p[cols[k]]);
     }
     return s;
 }
@@ -75,16 +80,20 @@ fn a_times_p(i: u32) -> f32 {
 fn true_residual(row0: u32, n: u32, lid: u32) -> vec4<f32> {
     var part = vec4<f32>(0.0);
     for (var i = row0 + lid; i < row0 + n; i += WG) {
-        var s = vec2<f32>(0.0);
+        var ax = V(0.0);
+        var ax_abs = V(0.0);
         let end = row_ptr[i + 1u];
         for (var k = row_ptr[i]; k < end; k++) {
-            let t = vals[k] * x[cols[k]];
-            s += vec2<f32>(t, abs(t));
+            let m = vals[k];
+            let xk = x[cols[k]];
+            ax += mat_mul(m, xk);
+            ax_abs += mat_abs_mul(m, xk);
         }
-        let ri = b[i] - s.x;
+        let bi = b[i];
+        let ri = bi - ax;
         r[i] = ri;
         mg[i] = ri;
-        part += vec4<f32>(0.0, ri * ri, b[i] * b[i], s.y * s.y);
+        part += vec4<f32>(0.0, vdot(ri, ri), vdot(bi, bi), vdot(ax_abs, ax_abs));
     }
     return part;
 }
@@ -126,10 +135,10 @@ fn vcycle(l0: u32, nl: u32, c0: u32, lid: u32) {
     }
     let lc = levels[l0 + nl - 1u];
     for (var h = lid; h < lc.y; h += WG) {
-        var s = 0.0;
+        var s = V(0.0);
         let row = c0 + h * lc.y;
         for (var j = 0u; j < lc.y; j++) {
-            s += cinv[row + j] * mg[lc.x + j];
+            s += mat_mul(cinv[row + j], mg[lc.x + j]);
         }
         mg[tot + lc.x + h] = s;
     }
@@ -152,7 +161,7 @@ fn precondition(sys: System, lid: u32) -> f32 {
     vcycle(sys.lvl0, sys.nlev, sys.cinv0, lid);
     var part = vec4<f32>(0.0);
     for (var i = sys.row0 + lid; i < sys.row0 + sys.n; i += WG) {
-        part.x += r[i] * mg[round.total + i];
+        part.x += vdot(r[i], mg[round.total + i]);
     }
     return reduce4(part, lid).x;
 }
@@ -207,7 +216,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         status = workgroupUniformLoad(&wg_status);
         if (status == ST_DONE && st.bnorm == 0.0) {
             for (var i = row0 + lid; i < row0 + n; i += WG) {
-                x[i] = 0.0;
+                x[i] = V(0.0);
             }
         }
         if (status == ST_RUN) {
@@ -235,7 +244,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         for (var i = row0 + lid; i < row0 + n; i += WG) {
             let q = a_times_p(i);
             ap[i] = q;
-            part.x += p[i] * q;
+            part.x += vdot(p[i], q);
         }
         let pap = reduce4(part, lid).x;
         let alpha = st.rz / pap;
@@ -247,7 +256,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
             let ri = r[i] - alpha * ap[i];
             r[i] = ri;
             mg[i] = ri;
-            part.y += ri * ri;
+            part.y += vdot(ri, ri);
         }
         if (replace) {
             storageBarrier();
