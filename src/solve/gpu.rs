@@ -26,6 +26,7 @@
 use crate::error::{Error, Result};
 use crate::gpu::pipelines::{Kernel, Pipelines};
 use crate::gpu::GpuContext;
+use crate::solve::amg::Hierarchy;
 use crate::solve::gpu_amg::{self, all_fit, AmgBatch};
 use crate::solve::sparse::{CgReport, CgStatus, ComplexCsr, Csr, PreconditionerKind};
 
@@ -434,7 +435,6 @@ pub fn cg_batched(
     check_sizes(a, b, x0)?;
     let row_len = a.max_row_len() as u32;
     let pack = systems.len() >= PACK_MIN_SYSTEMS;
-    let dinv = jacobi(a.diagonal().into_iter());
     let ranges: Vec<(usize, usize)> = systems
         .iter()
         .map(|s| (s.row0 as usize, s.n as usize))
@@ -446,11 +446,112 @@ pub fn cg_batched(
             && !(pack && packed_steps(row_len, systems[k].n) <= LOOP_BUDGET)
     };
     let hs = gpu_amg::hierarchies(a, &ranges, wants);
-    // Every system with a hierarchy, the batch on complex blocks: the complex form of the kernel
-    // (half the loads, and systems twice as large fit the loop limit).
-    let on_blocks = all_fit(&hs, WG, HARD_LOOP_LIMIT, 2)
+    // On complex blocks the V-cycle kernel reads half the loads and systems twice as large fit
+    // the loop limit, but every system of its batch must have a hierarchy: a batch that mixes
+    // the two kinds is solved as two.
+    let blocks = hs.iter().any(Option::is_some)
         && systems.iter().all(|s| s.row0 % 2 + s.n % 2 == 0)
         && ComplexCsr::from_real(a).is_some();
+    let fits: Vec<bool> = hs
+        .iter()
+        .map(|h| blocks && all_fit(std::slice::from_ref(h), WG, HARD_LOOP_LIMIT, 2))
+        .collect();
+    if fits.iter().any(|&f| f) && !fits.iter().all(|&f| f) {
+        return solve_apart(ctx, pipes, (a, b, x0), systems, hs, &fits);
+    }
+    multigrid(ctx, pipes, (a, b, x0), systems, hs, blocks)
+}
+
+/// Solves the systems whose V-cycle fits on complex blocks (`fits`) as one batch (with their
+/// hierarchies `hs`) and the rest as another (Jacobi), and puts the results back in order.
+fn solve_apart(
+    ctx: &GpuContext,
+    pipes: &Pipelines,
+    (a, b, x0): (&Csr, &[f64], &[f64]),
+    systems: &[SystemDesc],
+    hs: Vec<Option<Hierarchy>>,
+    fits: &[bool],
+) -> Result<Solved> {
+    let mut hs: Vec<Option<Hierarchy>> = hs;
+    let mut x = f32s(x0);
+    let mut reports = vec![None; systems.len()];
+    let mut total = Solved {
+        x: Vec::new(),
+        reports: Vec::new(),
+        dispatches: 0,
+        submits: 0,
+        packed: 0,
+        complex: false,
+        multigrid: 0,
+    };
+    for group in [true, false] {
+        let idx: Vec<usize> = (0..systems.len()).filter(|&k| fits[k] == group).collect();
+        let mats: Vec<Csr> = idx
+            .iter()
+            .map(|&k| a.sub_block(systems[k].row0 as usize, systems[k].n as usize))
+            .collect();
+        let (sub, starts) = Csr::block_diagonal(&mats.iter().collect::<Vec<_>>());
+        let rows = |k: usize| systems[k].row0 as usize..(systems[k].row0 + systems[k].n) as usize;
+        let sb: Vec<f64> = idx.iter().flat_map(|&k| b[rows(k)].to_vec()).collect();
+        let sx: Vec<f64> = idx.iter().flat_map(|&k| x0[rows(k)].to_vec()).collect();
+        let descs: Vec<SystemDesc> = idx
+            .iter()
+            .zip(&starts)
+            .map(|(&k, &r0)| {
+                let d = SystemDesc {
+                    row0: r0 as u32,
+                    ..systems[k]
+                };
+                if group {
+                    d
+                } else {
+                    d.jacobi_only()
+                }
+            })
+            .collect();
+        let out = if group {
+            let sub_hs = idx.iter().map(|&k| hs[k].take()).collect();
+            multigrid(ctx, pipes, (&sub, &sb, &sx), &descs, sub_hs, true)?
+        } else {
+            cg_batched(ctx, pipes, &sub, &sb, &sx, &descs)?
+        };
+        for ((&k, &r0), rep) in idx.iter().zip(&starts).zip(&out.reports) {
+            x[rows(k)].copy_from_slice(&out.x[r0..r0 + systems[k].n as usize]);
+            reports[k] = Some(*rep);
+        }
+        total.dispatches += out.dispatches;
+        total.submits += out.submits;
+        total.packed += out.packed;
+        total.multigrid += out.multigrid;
+        total.complex |= out.complex;
+    }
+    Ok(Solved {
+        x,
+        reports: reports
+            .into_iter()
+            .map(|r| r.expect("every system solved"))
+            .collect(),
+        ..total
+    })
+}
+
+/// The batch's solve once its hierarchies `hs` are known (`None`: Jacobi), on complex blocks
+/// when `blocks` and every system has one that fits there.
+fn multigrid(
+    ctx: &GpuContext,
+    pipes: &Pipelines,
+    (a, b, x0): (&Csr, &[f64], &[f64]),
+    systems: &[SystemDesc],
+    hs: Vec<Option<Hierarchy>>,
+    blocks: bool,
+) -> Result<Solved> {
+    let row_len = a.max_row_len() as u32;
+    let dinv = jacobi(a.diagonal().into_iter());
+    let ranges: Vec<(usize, usize)> = systems
+        .iter()
+        .map(|s| (s.row0 as usize, s.n as usize))
+        .collect();
+    let on_blocks = blocks && all_fit(&hs, WG, HARD_LOOP_LIMIT, 2);
     let unit = if on_blocks { 2 } else { 1 };
     let limits = (WG, HARD_LOOP_LIMIT, unit);
     let Some(mg) = AmgBatch::build(a, &ranges, hs, limits, dinv.clone()) else {
