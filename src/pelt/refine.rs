@@ -17,7 +17,7 @@ use crate::maps::chart::lscm;
 use crate::mesh::Topology;
 use crate::solve::cg::pcg;
 use crate::solve::gpu::{cg_batched, SystemDesc};
-use crate::solve::sparse::Csr;
+use crate::solve::sparse::{CgReport, Csr, PreconditionerKind};
 use glam::DVec2;
 
 /// Relative residual the solves aim for.
@@ -32,6 +32,8 @@ pub struct Refinement {
     pub iterations: u32,
     /// Final relative residual.
     pub residual: f64,
+    /// Jacobi, or a multigrid V-cycle (pieces of 1,536 vertices or more: `solve::amg`).
+    pub preconditioner: PreconditionerKind,
 }
 
 /// A system: matrix, right-hand side, warm start.
@@ -84,14 +86,14 @@ pub fn refine(
         .zip(flats)
         .map(|(p, f)| (p.boundary.len() >= 2).then(|| system(topo, p, f)))
         .collect();
-    let solved: Vec<Option<(Vec<f64>, u32, f64)>> = match device {
+    let solved: Vec<Option<(Vec<f64>, CgReport)>> = match device {
         Device::Cpu => systems
             .iter()
             .map(|s| {
                 s.as_ref().map(|(a, b, x0)| {
                     let mut x = x0.clone();
                     let rep = pcg(a, b, &mut x, RTOL as f64, budget(a.rows));
-                    (x, rep.iterations, rep.residual)
+                    (x, rep)
                 })
             })
             .collect(),
@@ -117,7 +119,7 @@ pub fn refine(
                             .iter()
                             .map(|&v| v as f64)
                             .collect();
-                        (x, rep.iterations, rep.residual)
+                        (x, *rep)
                     })
                 })
                 .collect()
@@ -127,12 +129,13 @@ pub fn refine(
         .into_iter()
         .map(|s| match s {
             None => (None, Refinement::default()),
-            Some((x, iterations, residual)) => (
+            Some((x, rep)) => (
                 Some(x.chunks(2).map(|c| DVec2::new(c[0], c[1])).collect()),
                 Refinement {
                     kept: false,
-                    iterations,
-                    residual,
+                    iterations: rep.iterations,
+                    residual: rep.residual,
+                    preconditioner: rep.preconditioner,
                 },
             ),
         })

@@ -2,7 +2,7 @@
 //! GPU sparse linear algebra: CSR matrices in storage buffers ([`GpuCsr`]), the product `A x`
 //! (`wgsl/solve/spmv.wgsl`), batched dot products and norms (`wgsl/solve/dot_batched.wgsl`) and a batched
 //! Jacobi-preconditioned conjugate gradient (`wgsl/solve/cg_batched.wgsl`), plus the streaming copy used as
-//! the bandwidth reference in benchmarks. CPU twins: [`crate::solve::sparse`].
+//! the bandwidth reference in benchmarks. CPU twins: [`crate::solve::sparse`], [`crate::solve::cg`].
 //!
 //! The solver is built around what lavapipe charges (about 80 µs per dispatch, 280 µs per
 //! submit-and-wait) and what it cannot do (an invocation that loops more than about 65535 times is
@@ -22,6 +22,11 @@
 //! Hermitian matrices: batches of them are solved on their complex 2 × 2 blocks
 //! ([`ComplexCsr`], `wgsl/shared/cg_complex.wgsl`), one column and one (a, b) read for four real
 //! entries, 2.4× faster than the packed real CSR on a stroke's charts.
+//!
+//! Large systems (from [`crate::solve::amg::AMG_MIN_ROWS`] rows) are preconditioned by a
+//! smoothed-aggregation V-cycle instead of Jacobi (`wgsl/solve/cg_amg.wgsl`, the hierarchy laid
+//! out by `src/solve/gpu_amg.rs`): 17-39× fewer iterations on LSCM charts of 10k-100k
+//! vertices, each costing about 1.7 Jacobi ones on complex blocks (README, "Linear algebra").
 
 use crate::error::{Error, Result};
 use crate::gpu::pipelines::{Kernel, Pipelines};
@@ -380,14 +385,18 @@ pub struct Solved {
     pub submits: u32,
     /// Systems solved one per invocation (`cg_packed.wgsl`); the rest had a workgroup each.
     pub packed: u32,
-    /// Whether the packed systems were solved on complex 2 × 2 blocks ([`ComplexCsr`]).
+    /// Whether the packed systems, or the V-cycle's, were solved on complex 2 × 2 blocks
+    /// ([`ComplexCsr`]).
     pub complex: bool,
     /// Systems preconditioned by a multigrid V-cycle (`cg_amg.wgsl`); the rest by Jacobi.
     pub multigrid: u32,
 }
 
 /// Solves every system of the block-diagonal SPD matrix `a` (`systems` give each block's rows,
-/// tolerance and budget) by Jacobi-preconditioned CG from the warm start `x0`, on the GPU.
+/// tolerance and budget) by preconditioned CG from the warm start `x0`, on the GPU: a multigrid
+/// V-cycle per iteration for systems of at least [`crate::solve::amg::AMG_MIN_ROWS`] rows whose
+/// hierarchy builds and fits the loop limit (`cg_amg`, on complex 2 × 2 blocks for LSCM systems;
+/// a batch that mixes such systems with others is solved as two), Jacobi for the rest.
 ///
 /// A batch of at least [`PACK_MIN_SYSTEMS`] systems whose matrix has the complex 2 × 2 block
 /// structure of LSCM systems ([`ComplexCsr`], every system on whole blocks) is solved by the packed

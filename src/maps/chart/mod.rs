@@ -42,7 +42,7 @@
 use crate::error::Result;
 use crate::maps::Frame;
 use crate::mesh::{Topology, NO_NEIGHBOR};
-use crate::solve::sparse::{CgReport, CgStatus, Csr};
+use crate::solve::sparse::{CgReport, CgStatus, Csr, PreconditionerKind};
 use lscm::System;
 use region::{RegionFix, RegionReport};
 pub mod cone;
@@ -132,6 +132,9 @@ pub struct ChartReport {
     pub residual: f64,
     /// Final status.
     pub status: CgStatus,
+    /// The final solve's preconditioner: Jacobi, or a multigrid V-cycle (charts of 1,536 vertices
+    /// or more, `solve::amg`).
+    pub preconditioner: PreconditionerKind,
     /// Whether the triangle set stopped changing within [`MAX_ROUNDS`] (always true for hybrid).
     pub settled: bool,
     /// The chart's scale at the placed point after normalisation: the median of |z − z_p| / |x − p|
@@ -593,6 +596,7 @@ impl ChartReport {
             cg_iterations_total: 0,
             residual: 0.0,
             status: CgStatus::Converged,
+            preconditioner: PreconditionerKind::Jacobi,
             settled: true,
             scale_at_point: f64::NAN,
             region,
@@ -878,6 +882,7 @@ fn finished_chart(w: &Work, rep: CgReport, sys: System) -> Chart {
             cg_iterations_total: w.iterations,
             residual: rep.residual,
             status: rep.status,
+            preconditioner: rep.preconditioner,
             settled: w.done,
             cone: w.cone,
             ..ChartReport::unassessed(w.region)
@@ -950,6 +955,7 @@ fn build_hybrid(
                 cg_iterations_total: rep.iterations,
                 residual: rep.residual,
                 status: rep.status,
+                preconditioner: rep.preconditioner,
                 cone: if whole {
                     let at: HashMap<u32, DVec2> = coords
                         .iter()
