@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! Criterion benchmarks of the GPU linear algebra on the bundled Spot: SpMV on its Laplacian (one
 //! submission, 20 products), one LSCM chart of about 1k vertices solved by the GPU CG and by the f64
-//! CPU twin, and 64 small charts batched versus one solve each. `decalbake bench --linalg` gives the
+//! CPU twin, a larger chart with the multigrid V-cycle against Jacobi (GPU and twin; the twin's
+//! V-cycle time includes its set-up), and 64 small charts batched versus one solve each. `decalbake bench --linalg` gives the
 //! larger sizes, bandwidth ratios and the libigl comparison.
 //!
 //! Run: `cargo bench --bench linalg` (set `WGPU_BACKEND=vulkan` for lavapipe).
@@ -54,6 +55,31 @@ fn linalg(c: &mut Criterion) {
         b.iter(|| {
             let mut x = x0.clone();
             decalbake::solve::cg::pcg(&sys.matrix, &sys.rhs, &mut x, FINAL_RTOL as f64, 100_000)
+        })
+    });
+
+    // A chart large enough for the multigrid V-cycle, against Jacobi on the same system.
+    let (_, big, big_x0) = chart::initial_system(&topo, &frame_at(&topo, t, 0.8), t as u32);
+    assert!(big.matrix.rows >= decalbake::solve::amg::AMG_MIN_ROWS);
+    let budget = 20 * chart::default_budget(big.matrix.rows);
+    let d = SystemDesc::new(0, big.matrix.rows, FINAL_RTOL, budget);
+    for (name, desc) in [("vcycle", d), ("jacobi", d.jacobi_only())] {
+        group.bench_function(format!("lscm_chart_{}_gpu_{name}", big.matrix.rows), |b| {
+            b.iter(|| cg_batched(ctx, pipes, &big.matrix, &big.rhs, &big_x0, &[desc]).unwrap())
+        });
+    }
+    let (m, r, rows) = (&big.matrix, &big.rhs, big.matrix.rows);
+    group.bench_function(format!("lscm_chart_{rows}_cpu_twin_vcycle"), |b| {
+        b.iter(|| {
+            let mut x = big_x0.clone();
+            decalbake::solve::cg::pcg(m, r, &mut x, FINAL_RTOL as f64, budget)
+        })
+    });
+    let jacobi = decalbake::solve::cg::Preconditioner::jacobi(m);
+    group.bench_function(format!("lscm_chart_{rows}_cpu_twin_jacobi"), |b| {
+        b.iter(|| {
+            let mut x = big_x0.clone();
+            decalbake::solve::cg::pcg_with(m, r, &mut x, FINAL_RTOL as f64, budget, &jacobi)
         })
     });
 
