@@ -411,6 +411,22 @@ fn multigrid_on_the_real_form_matches_twin_and_direct() {
     assert_eq!(rep.status, CgStatus::Converged);
     assert!(rep.iterations.abs_diff(twin) <= 2 + twin / 10);
     assert!(err <= FORWARD, "{err:.2e}");
+    // Beside a smaller system (Jacobi, the workgroup kernel; enough iterations to span several
+    // dispatches) on the real form: each kernel skips the other's system, and both get their
+    // lone bits.
+    let small = chart::lscm::shifted_laplacian(&Topology::build(&sphere_cap(20, 1.0), 1e-6), 0.01);
+    let sb = vec![1.0; small.rows];
+    let lone = solve_batch(&e, &[(&small, &sb[..])]);
+    let both = solve_batch(&e, &[(&a, &b[..]), (&small, &sb[..])]);
+    assert!(!both.complex && both.multigrid == 1);
+    assert!(both.x[..a.rows] == out.x[..] && both.x[a.rows..] == lone.x[..]);
+    assert_eq!(both.reports[1].preconditioner, PreconditionerKind::Jacobi);
+    assert_eq!(both.reports[1].iterations, lone.reports[0].iterations);
+    assert!(
+        lone.reports[0].iterations > 40 && lone.dispatches > 1,
+        "{:?}",
+        lone.reports[0]
+    );
 }
 
 /// What the preconditioner is for: Jacobi's iterations grow with the mesh, the V-cycle's hardly

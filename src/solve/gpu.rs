@@ -615,10 +615,13 @@ fn multigrid(
             ..solved
         });
     }
+    // On the real form (also when a complex layout did not hold after all: then a system whose
+    // real iteration passes the loop limit keeps Jacobi).
+    let fits_real = |h: &&gpu_amg::AmgSystem| h.steps_real <= HARD_LOOP_LIMIT;
     let systems: Vec<SystemDesc> = systems
         .iter()
         .zip(&mg.systems)
-        .map(|(s, h)| match h {
+        .map(|(s, h)| match h.as_ref().filter(fits_real) {
             Some(h) => SystemDesc {
                 wide: MULTIGRID,
                 amg: [h.lvl0, h.nlev, h.cinv0],
@@ -627,6 +630,21 @@ fn multigrid(
             None => *s,
         })
         .collect();
+    let steps = mg
+        .systems
+        .iter()
+        .flatten()
+        .filter(fits_real)
+        .map(|h| h.steps_real)
+        .max();
+    // A system left to Jacobi gets Jacobi's weights back.
+    let mut weights = mg.weights.clone();
+    for (s, h) in systems.iter().zip(&mg.systems) {
+        if h.is_some() && s.wide != MULTIGRID {
+            let r = s.row0 as usize..(s.row0 + s.n) as usize;
+            weights[r.clone()].copy_from_slice(&dinv[r]);
+        }
+    }
     let gpu = GpuCsr::upload(ctx, &mg.a)?;
     let amg = steps.map(|st| (st, &pipes.cg_amg));
     let (systems, classes) = kernel_classes(pipes, row_len, &systems, amg)?;
@@ -644,7 +662,7 @@ fn multigrid(
     run(
         ctx,
         &gpu,
-        &mg.weights,
+        &weights,
         a.rows,
         b,
         x0,

@@ -22,6 +22,8 @@ pub(crate) struct AmgSystem {
     /// Loop steps one invocation of a `wg`-wide workgroup runs per CG iteration (the lavapipe
     /// loop cut-off's measure, `solve::gpu`).
     pub steps: usize,
+    /// The same on the real form (the batch's fallback when its complex form does not hold).
+    pub steps_real: usize,
 }
 
 /// The batch's hierarchies, laid out.
@@ -113,12 +115,12 @@ impl AmgBatch {
         (wg, max_steps, unit): (usize, usize, usize),
         jacobi: Vec<f32>,
     ) -> Option<Self> {
-        let hierarchies: Vec<Option<(Hierarchy, usize)>> = hs
+        let hierarchies: Vec<Option<(Hierarchy, [usize; 2])>> = hs
             .into_iter()
             .map(|h| {
                 let h = h?;
-                let st = steps(&h, wg, unit);
-                (st <= max_steps).then_some((h, st))
+                let st = [steps(&h, wg, unit), steps(&h, wg, 1)];
+                (st[0] <= max_steps).then_some((h, st))
             })
             .collect();
         if hierarchies.iter().all(Option::is_none) {
@@ -154,7 +156,7 @@ impl AmgBatch {
         h: &Hierarchy,
         row0: usize,
         n: usize,
-        steps: usize,
+        [steps, steps_real]: [usize; 2],
         p_t: &mut Vec<(u32, u32, f64)>,
         r_t: &mut Vec<(u32, u32, f64)>,
     ) -> AmgSystem {
@@ -211,6 +213,7 @@ impl AmgBatch {
             nlev: rows.len() as u32,
             cinv0,
             steps,
+            steps_real,
         }
     }
 }

@@ -23,6 +23,8 @@
 
 // Keep in sync with `amg::NU` in src/solve/amg.rs.
 const NU: u32 = 1u;
+// The class of the systems this kernel solves (`MULTIGRID` in src/solve/gpu.rs).
+const MULTIGRID: u32 = 3u;
 
 @group(0) @binding(0) var<uniform> round: Round;
 @group(0) @binding(1) var<storage, read> systems: array<System>;
@@ -183,7 +185,8 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
     if (lid == 0u) {
         wg_status = st.status;
         wg_iters = st.iters;
-        if (sys.nlev == 0u) {
+        // Systems of the other classes belong to the Jacobi kernels.
+        if (sys.wide != MULTIGRID) {
             wg_status = ST_DONE + 100u;
         }
     }
