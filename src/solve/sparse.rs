@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-//! Sparse matrices on the CPU: compressed sparse rows (CSR) built from triplets, and the CPU twins of
-//! the GPU linear-algebra kernels (`wgsl/solve/spmv.wgsl`, `wgsl/solve/dot_batched.wgsl`,
-//! `wgsl/solve/cg_batched.wgsl`): the product `A x` and a Jacobi-preconditioned conjugate gradient, both in
-//! f64 (the conjugate gradient itself is in [`crate::solve::cg`]). They are the tests' oracles and the baseline of `decalbake bench --linalg`.
+//! Sparse matrices on the CPU: compressed sparse rows (CSR) built from triplets, their complex
+//! 2 × 2 block form, the CPU twin of `wgsl/solve/spmv.wgsl` (the product `A x`, in f64), and what a
+//! conjugate-gradient solve reports (the solve itself, twin of the CG kernels, is
+//! [`crate::solve::cg`]). They are the tests' oracles and the baseline of `decalbake bench
+//! --linalg`.
 //!
 //! A batch of independent systems is one block-diagonal matrix: system `s` owns rows
 //! `row0 .. row0 + n` and only references columns in that range ([`Csr::block_diagonal`]).
