@@ -375,33 +375,36 @@ impl Pipelines {
             chart_scatter,
             chart_gather,
             stamp_blend,
-            expmap_relax: Kernel::new(
-                device,
-                "expmap_relax",
-                &[
-                    (0, Ro),
-                    (1, Ro),
-                    (2, Ro),
-                    (3, Ro),
-                    (4, Ro),
-                    (5, Ro),
-                    (6, Ro),
-                    (7, Rw),
-                    (8, Rw),
-                    (9, Uniform),
-                    (10, Rw),
-                    (11, Rw),
-                    (12, Rw),
-                    (13, Rw),
-                    (14, Ro),
-                ],
-            ),
+            expmap_relax: expmap_relax(device),
             preview: rasters.preview,
             layer_blending: rasters.layer_blending,
             layer_format: rasters.layer_format,
             image_format,
         }
     }
+}
+
+/// `expmap_relax`: all exponential maps of a chunk, one workgroup per map.
+fn expmap_relax(device: &wgpu::Device) -> Kernel {
+    use Bind::*;
+    let binds = [
+        (0, Ro),
+        (1, Ro),
+        (2, Ro),
+        (3, Ro),
+        (4, Ro),
+        (5, Ro),
+        (6, Ro),
+        (7, Rw),
+        (8, Rw),
+        (9, Uniform),
+        (10, Rw),
+        (11, Rw),
+        (12, Rw),
+        (13, Rw),
+        (14, Ro),
+    ];
+    Kernel::new(device, "expmap_relax", &binds)
 }
 
 /// `transfer_resolve`: a texture transfer's samples averaged per texel into the canvas.
