@@ -478,10 +478,9 @@ fn solve_apart(
     pipes: &Pipelines,
     (a, b, x0): (&Csr, &[f64], &[f64]),
     systems: &[SystemDesc],
-    hs: Vec<Option<Hierarchy>>,
+    mut hs: Vec<Option<Hierarchy>>,
     fits: &[bool],
 ) -> Result<Solved> {
-    let mut hs: Vec<Option<Hierarchy>> = hs;
     let mut x = f32s(x0);
     let mut reports = vec![None; systems.len()];
     let mut total = Solved {
