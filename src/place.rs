@@ -12,11 +12,11 @@
 
 use crate::error::Result;
 use crate::gpu::pipelines::Pipelines;
+use crate::gpu::BufferInit;
 use crate::gpu::GpuContext;
 use crate::mesh::upload::GpuMesh;
 use crate::mesh::Topology;
 use glam::Vec3;
-use wgpu::util::DeviceExt;
 
 /// Workgroups per layer in `place_candidates`. Keep in sync with the WGSL constant.
 pub const PLACE_GROUPS: u32 = 32;

@@ -294,3 +294,57 @@ fn a_bad_manifest_stops_before_baking() {
         "{s}"
     );
 }
+
+/// A device lost in the middle of a job (destroyed from another thread by the batch's fault
+/// injection, `DECALBAKE_FAULT_LOSE_DEVICE=LINE:MS`) costs nothing: the job is baked again on a
+/// fresh device, the rest go on, and every output is the bytes of an undisturbed run. Without the
+/// recovery (`Devices::renew`) line 1 fails and every later job with it.
+#[test]
+fn a_lost_device_is_replaced_and_its_job_baked_again() {
+    let dir = setup("batch_device_loss");
+    let m = dir.join("manifest.jsonl");
+    let (calm, lossy) = (dir.join("calm"), dir.join("lossy"));
+    let (code, _, err) = cli(&[
+        "batch",
+        m.to_str().unwrap(),
+        "--out",
+        calm.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 3, "{err}");
+    for delay in ["0", "15"] {
+        let _ = std::fs::remove_dir_all(&lossy);
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_decalbake"))
+            .args([
+                "batch",
+                m.to_str().unwrap(),
+                "--out",
+                lossy.to_str().unwrap(),
+            ])
+            .env("DECALBAKE_FAULT_LOSE_DEVICE", format!("1:{delay}"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(3), "only line 4 fails: {err}");
+        assert!(err.contains("destroying the GPU device"), "{err}");
+        let s = summary(&lossy.join("summary.json"));
+        assert_eq!(s["device_resets"], 1, "{s}");
+        assert_eq!(
+            statuses(&s),
+            [(1, "ok"), (2, "ok"), (4, "failed"), (5, "ok")].map(|(l, s)| (l, s.to_string()))
+        );
+        // The loss lands in line 1's bake, or (when that bake beat the 15 ms) in the next one's.
+        assert!(
+            s["jobs"].as_array().unwrap()[..2]
+                .iter()
+                .any(|j| j["retried"] == true),
+            "{s}"
+        );
+        for png in ["line-1-a/a.png", "line-2/b.png", "line-5/d.png"] {
+            assert_eq!(
+                std::fs::read(lossy.join(png)).unwrap(),
+                std::fs::read(calm.join(png)).unwrap(),
+                "{png} after a device loss (delay {delay} ms)"
+            );
+        }
+    }
+}

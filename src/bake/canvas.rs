@@ -13,9 +13,9 @@ use super::params::{params_buffer, pbind, Params};
 use super::plan::CELL;
 use super::stage::{Cx, Log};
 use crate::error::Result;
+use crate::gpu::BufferInit;
 use crate::io::job::Base;
 use std::sync::Arc;
-use wgpu::util::DeviceExt;
 
 /// Counters at the start of a layer's stats row (`wgsl/bake/select_triangles.wgsl`): triangles,
 /// texel box (4), texels covered, triangles reached, texels a stroke changed (counted on its last

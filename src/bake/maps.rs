@@ -15,13 +15,13 @@ use super::params::{
 use super::place::Placed;
 use super::stage::{ms, Cx, Log};
 use crate::error::{Error, Result};
+use crate::gpu::BufferInit;
 use crate::io::job::Job;
 use crate::maps::chart::{self, ChartReport};
 use crate::maps::expmap::GeoResult;
 use crate::maps::{method, Record};
 use std::ops::Range;
 use std::time::Instant;
-use wgpu::util::DeviceExt;
 
 /// The per-chunk buffers: one coords slot (a vec4 per welded vertex) and one triangle list per
 /// layer of a chunk. Owned by the bake, reused by every chunk.

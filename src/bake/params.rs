@@ -2,8 +2,8 @@
 //! The per-dispatch `Params` block every bake kernel reads (one 256-byte slot per layer or raster job
 //! in a uniform buffer, bound at a dynamic offset), its flags, and the helpers that build it.
 
+use crate::gpu::BufferInit;
 use crate::maps::Frame;
-use wgpu::util::DeviceExt;
 
 /// Per-dispatch parameters. Keep in sync with `Params` in wgsl/shared/params.wgsl.
 #[repr(C)]

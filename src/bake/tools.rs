@@ -17,9 +17,9 @@ use super::maps::LayerMaps;
 use super::params::{params_buffer, pbind, Params, PARAMS_STRIDE};
 use super::place::Placed;
 use super::stage::Cx;
+use crate::gpu::BufferInit;
 use crate::io::job::Tool;
 use std::collections::HashMap;
-use wgpu::util::DeviceExt;
 
 pub use super::params::{FLAT_COLS, FLAT_RES};
 /// Most tool units in one chunk (the atlas then has 64 rows of cells, 4096 texels high).

@@ -155,8 +155,66 @@ struct Entry {
     text: Option<String>,
 }
 
+/// The batch's engine, replaced by a fresh one when its device is lost (a driver reset, or the
+/// fault injected by `DECALBAKE_FAULT_LOSE_DEVICE`): the job that saw the loss is baked again on
+/// the new device, once, and the meshes cached on the old one are dropped.
+pub struct Devices {
+    /// (generation, engine): the generation counts replacements.
+    current: std::sync::RwLock<(u32, Arc<Engine>)>,
+    backend: Option<String>,
+}
+
+impl Devices {
+    /// Starts with `engine`; replacements are made on `backend` (as `--backend`).
+    pub fn new(engine: Engine, backend: Option<&str>) -> Self {
+        Self {
+            current: std::sync::RwLock::new((0, Arc::new(engine))),
+            backend: backend.map(str::to_string),
+        }
+    }
+
+    /// The engine now, with its generation.
+    fn get(&self) -> (u32, Arc<Engine>) {
+        let c = self.current.read().expect("devices");
+        (c.0, c.1.clone())
+    }
+
+    /// Replaces generation `lost` with a fresh engine (a no-op when another thread already has);
+    /// the engine to retry on.
+    fn renew(&self, lost: u32) -> Result<(u32, Arc<Engine>)> {
+        let mut c = self.current.write().expect("devices");
+        if c.0 == lost {
+            let engine = Engine::new(self.backend.as_deref())
+                .context("making a fresh GPU device after the old one was lost")?;
+            eprintln!("batch: the GPU device was lost; continuing on a fresh one");
+            *c = (lost + 1, Arc::new(engine));
+        }
+        Ok((c.0, c.1.clone()))
+    }
+
+    /// The current engine's adapter.
+    pub fn adapter(&self) -> String {
+        self.get().1.ctx.adapter.clone()
+    }
+
+    /// Device replacements so far.
+    fn resets(&self) -> u32 {
+        self.current.read().expect("devices").0
+    }
+}
+
+/// Whether `e` is (or wraps) a lost device.
+fn device_lost(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        matches!(
+            c.downcast_ref::<decalbake::Error>(),
+            Some(decalbake::Error::DeviceLost { .. })
+        )
+    })
+}
+
 /// Exit code of a batch: 0, or 3 when some job failed.
-pub fn run(engine: &Engine, opts: &BatchOptions) -> Result<i32> {
+pub fn run(devices: &Devices, opts: &BatchOptions) -> Result<i32> {
     let t0 = Instant::now();
     let entries = read_manifest(&opts.manifest)?;
     let (index, count, source) = shard(opts.shard.as_deref())?;
@@ -172,13 +230,14 @@ pub fn run(engine: &Engine, opts: &BatchOptions) -> Result<i32> {
         .map(|(_, e)| e)
         .collect();
     let progress = Progress::new(opts.progress, mine.len());
-    let rows = bake_all(engine, opts, &mine, &progress);
+    let rows = bake_all(devices, opts, &mine, &progress);
     let failed = rows.iter().filter(|r| r["status"] == "failed").count();
-    let summary = summary_of(
+    let mut summary = summary_of(
         rows,
         json!({ "index": index, "count": count, "source": source }),
         t0,
     );
+    summary["device_resets"] = json!(devices.resets());
     // Shards writing into one directory keep their own summaries (`--merge-summaries` joins them).
     let name = if count > 1 {
         format!("summary-{index}.json")
@@ -204,7 +263,7 @@ pub fn run(engine: &Engine, opts: &BatchOptions) -> Result<i32> {
 /// Bakes `mine` on `opts.jobs` threads sharing the engine and the mesh cache, each taking the next
 /// job in manifest order (`--fail-fast`: no new job after a failure); their summary rows.
 fn bake_all(
-    engine: &Engine,
+    devices: &Devices,
     opts: &BatchOptions,
     mine: &[&Entry],
     progress: &Progress,
@@ -226,7 +285,19 @@ fn bake_all(
                     break;
                 }
                 let (entry, t) = (mine[k], Instant::now());
-                let mut row = match bake_entry(engine, opts, entry, &shared) {
+                let mut retried = false;
+                let (mut gen, mut engine) = devices.get();
+                let mut result = fault::lose_device_during(entry.line, &engine, || {
+                    bake_entry(&engine, gen, opts, entry, &shared)
+                });
+                if result.as_ref().is_err_and(device_lost) {
+                    retried = true;
+                    result = devices.renew(gen).and_then(|(g, e)| {
+                        (gen, engine) = (g, e);
+                        bake_entry(&engine, gen, opts, entry, &shared)
+                    });
+                }
+                let mut row = match result {
                     Ok((status, outputs, hash)) => {
                         json!({ "status": status, "outputs": outputs, "input_hash": hash })
                     }
@@ -238,6 +309,10 @@ fn bake_all(
                 row["line"] = json!(entry.line);
                 row["job"] = json!(entry.file.as_ref().map(|f| f.display().to_string()));
                 row["ms"] = json!(t.elapsed().as_secs_f64() * 1000.0);
+                if retried {
+                    // Baked again on a fresh device after the first try lost it.
+                    row["retried"] = json!(true);
+                }
                 progress.job(done.fetch_add(1, Ordering::SeqCst) + 1, mine.len(), &row);
                 rows.lock().expect("rows").push(row);
             });
@@ -338,6 +413,7 @@ fn bad_option(msg: &str) -> decalbake::Error {
 /// Bakes one job (or skips it on `--resume`): (status, outputs, input hash).
 fn bake_entry(
     engine: &Engine,
+    generation: u32,
     opts: &BatchOptions,
     entry: &Entry,
     shared: &Shared,
@@ -394,7 +470,11 @@ fn bake_entry(
     // Every set baked before anything is written: a failed job leaves no output directory.
     let mut baked_sets = Vec::new();
     for mut j in jobs {
-        let (mesh, uv_set) = shared.meshes.lock().expect("mesh cache").get(engine, &j)?;
+        let (mesh, uv_set) = shared
+            .meshes
+            .lock()
+            .expect("mesh cache")
+            .get(engine, generation, &j)?;
         j.uv_set = uv_set;
         let mut baked = engine.bake(&mesh, &j)?;
         baked.report.input_hash = Some(hash.clone());
@@ -602,11 +682,23 @@ struct MeshCache {
     /// (key, mesh, the UV set a job of that key bakes into, estimated bytes), most recently used
     /// last.
     entries: Vec<(MeshKey, Arc<LoadedMesh>, u32, u64)>,
+    /// The engine generation the meshes live on ([`Devices`]).
+    generation: u32,
 }
 
 impl MeshCache {
-    /// The mesh of `job` and the UV set it bakes into (`"auto"` resolved).
-    fn get(&mut self, engine: &Engine, job: &Job) -> Result<(Arc<LoadedMesh>, u32)> {
+    /// The mesh of `job` on `engine` (of `generation`: meshes of an older, lost device are
+    /// dropped) and the UV set it bakes into (`"auto"` resolved).
+    fn get(
+        &mut self,
+        engine: &Engine,
+        generation: u32,
+        job: &Job,
+    ) -> Result<(Arc<LoadedMesh>, u32)> {
+        if generation != self.generation {
+            self.entries.clear();
+            self.generation = generation;
+        }
         let key = (
             job.mesh.clone(),
             job.uv_auto.then_some(job.width.max(job.height)),
@@ -649,5 +741,34 @@ fn job_error(path: &Path, field: impl Into<String>, detail: impl Into<String>) -
         path: path.to_path_buf(),
         field: field.into(),
         detail: detail.into(),
+    }
+}
+
+/// Fault injection for the reliability tests: `DECALBAKE_FAULT_LOSE_DEVICE=LINE[:MS]` destroys
+/// the engine's device from another thread MS milliseconds (default 20) into the first bake of the
+/// manifest's line LINE, as a driver reset would. Unset, nothing happens.
+mod fault {
+    use decalbake::Engine;
+    use std::sync::atomic::{AtomicBool, Ordering};
+
+    static FIRED: AtomicBool = AtomicBool::new(false);
+
+    /// Runs `bake` (the job of manifest line `line`), losing the device during it when asked to.
+    pub fn lose_device_during<T>(line: usize, engine: &Engine, bake: impl FnOnce() -> T) -> T {
+        let spec = std::env::var("DECALBAKE_FAULT_LOSE_DEVICE").unwrap_or_default();
+        let mut parts = spec.split(':');
+        let target = parts.next().and_then(|l| l.parse::<usize>().ok());
+        let ms = parts.next().and_then(|m| m.parse().ok()).unwrap_or(20);
+        if target != Some(line) || FIRED.swap(true, Ordering::SeqCst) {
+            return bake();
+        }
+        std::thread::scope(|s| {
+            s.spawn(|| {
+                std::thread::sleep(std::time::Duration::from_millis(ms));
+                eprintln!("fault injection: destroying the GPU device during line {line}");
+                engine.ctx.device.destroy();
+            });
+            bake()
+        })
     }
 }

@@ -252,7 +252,8 @@ fn run(cli: Cli) -> Result<()> {
             }
             if batch_bake {
                 let count = decals.first().copied().unwrap_or(40);
-                return bench::batch::run(&engine, count, &sizes, |v| println!("{v}"));
+                let devices = batch::Devices::new(engine, cli.backend.as_deref());
+                return bench::batch::run(&devices, count, &sizes, |v| println!("{v}"));
             }
             if strokes {
                 let opts = bench::strokes::StrokeBenchOptions {
@@ -337,7 +338,7 @@ fn batch_cmd(
         let Some(opts) = opts else {
             anyhow::bail!(bad_usage("give a manifest (or --merge-summaries)"));
         };
-        batch::run(&engine(backend)?, &opts)?
+        batch::run(&batch::Devices::new(engine(backend)?, backend), &opts)?
     };
     if code != 0 {
         std::process::exit(code);

@@ -26,6 +26,35 @@ pub struct GpuContext {
     lost: Arc<Mutex<Option<String>>>,
 }
 
+/// `create_buffer_init` that survives a lost device. wgpu's own (`wgpu::util::DeviceExt`) panics
+/// when the buffer cannot be mapped, which is what happens once the device is destroyed (by a host,
+/// or from another thread in the middle of a bake); this one returns the unmapped, invalid buffer
+/// instead, so the stage's error scope or the next wait reports [`Error::DeviceLost`]. The engine
+/// imports this trait instead of wgpu's.
+pub trait BufferInit {
+    /// A buffer holding `desc.contents` (padded to a multiple of 4 bytes).
+    fn create_buffer_init(&self, desc: &wgpu::util::BufferInitDescriptor<'_>) -> wgpu::Buffer;
+}
+
+impl BufferInit for wgpu::Device {
+    fn create_buffer_init(&self, desc: &wgpu::util::BufferInitDescriptor<'_>) -> wgpu::Buffer {
+        let size = (desc.contents.len() as u64).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
+        let buffer = self.create_buffer(&wgpu::BufferDescriptor {
+            label: desc.label,
+            size: size.max(wgpu::COPY_BUFFER_ALIGNMENT),
+            usage: desc.usage,
+            mapped_at_creation: true,
+        });
+        if let Ok(mut view) = buffer.get_mapped_range_mut(..) {
+            view.slice(..desc.contents.len())
+                .copy_from_slice(desc.contents);
+            drop(view);
+            buffer.unmap();
+        }
+        buffer
+    }
+}
+
 /// Parses a backend name as accepted by `--backend` (`vulkan`, `gl`, `metal`, `dx12`, or a comma list).
 pub fn parse_backends(name: &str) -> Option<wgpu::Backends> {
     let b = wgpu::Backends::from_comma_list(name);
@@ -75,7 +104,6 @@ impl GpuContext {
         bytes: &[u8],
         extra: wgpu::BufferUsages,
     ) -> wgpu::Buffer {
-        use wgpu::util::DeviceExt;
         let pad = [0u8; 16];
         self.device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -87,7 +115,6 @@ impl GpuContext {
 
     /// A uniform buffer holding `bytes`.
     pub fn uniform_init(&self, label: &str, bytes: &[u8]) -> wgpu::Buffer {
-        use wgpu::util::DeviceExt;
         self.device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
@@ -173,7 +200,11 @@ impl GpuContext {
         let lost2 = lost.clone();
         device.set_device_lost_callback(move |reason, msg| {
             if let Ok(mut l) = lost2.lock() {
-                *l = Some(format!("{reason:?}: {msg}"));
+                *l = Some(if msg.is_empty() {
+                    format!("{reason:?} (the device was destroyed or reset; bake on a new engine)")
+                } else {
+                    format!("{reason:?}: {msg}")
+                });
             }
         });
         device.on_uncaptured_error(Arc::new(|e| {
@@ -212,13 +243,29 @@ impl GpuContext {
         let v = pollster::block_on(val.pop());
         let o = pollster::block_on(oom.pop());
         if let Some(e) = v.or(o) {
-            return Err(Error::Gpu {
-                stage: stage.to_string(),
-                detail: e.to_string(),
-            });
+            return Err(self.gpu_error(stage, e));
         }
         self.check_lost(stage)?;
         Ok(out)
+    }
+
+    /// The error for a failed GPU operation: [`Error::DeviceLost`] when the device is gone (a
+    /// destroyed device makes every later call fail validation, and the loss is the cause worth
+    /// reporting), else [`Error::Gpu`] with `detail`.
+    pub fn gpu_error(&self, stage: &str, detail: impl std::fmt::Display) -> Error {
+        match self.check_lost(stage) {
+            Err(lost) => lost,
+            Ok(()) => Error::Gpu {
+                stage: stage.to_string(),
+                detail: detail.to_string(),
+            },
+        }
+    }
+
+    /// True once the device is lost (destroyed by the host, driver reset): every later bake on
+    /// this context fails with [`Error::DeviceLost`]; make a new engine.
+    pub fn is_lost(&self) -> bool {
+        self.lost.lock().map(|l| l.is_some()).unwrap_or(true)
     }
 
     /// Returns [`Error::DeviceLost`] if the device has been lost.
@@ -236,10 +283,7 @@ impl GpuContext {
     pub fn wait(&self, stage: &str) -> Result<()> {
         self.device
             .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error::Gpu {
-                stage: stage.to_string(),
-                detail: e.to_string(),
-            })?;
+            .map_err(|e| self.gpu_error(stage, e))?;
         self.check_lost(stage)
     }
 
@@ -276,21 +320,12 @@ impl GpuContext {
         });
         self.wait(stage)?;
         rx.recv()
-            .map_err(|e| Error::Gpu {
-                stage: stage.to_string(),
-                detail: e.to_string(),
-            })?
-            .map_err(|e| Error::Gpu {
-                stage: stage.to_string(),
-                detail: e.to_string(),
-            })?;
+            .map_err(|e| self.gpu_error(stage, e))?
+            .map_err(|e| self.gpu_error(stage, e))?;
         let view = staging
             .slice(..)
             .get_mapped_range()
-            .map_err(|e| Error::Gpu {
-                stage: stage.to_string(),
-                detail: e.to_string(),
-            })?;
+            .map_err(|e| self.gpu_error(stage, e))?;
         let bytes = view.to_vec();
         drop(view);
         staging.unmap();

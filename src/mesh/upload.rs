@@ -8,8 +8,8 @@
 //! placement, layer and raster kernels read these; later solvers (geodesics, conformal maps) walk the
 //! adjacency.
 
+use crate::gpu::BufferInit;
 use crate::mesh::{Mesh, Topology};
-use wgpu::util::DeviceExt;
 
 /// GPU buffers of one mesh. Owns them; dropping frees them.
 pub struct GpuMesh {

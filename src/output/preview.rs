@@ -5,8 +5,8 @@
 use crate::bake::{Baked, Engine, LoadedMesh};
 use crate::error::Result;
 use crate::gpu::pipelines::PREVIEW_FORMAT;
+use crate::gpu::BufferInit;
 use glam::{Mat4, Vec3};
-use wgpu::util::DeviceExt;
 
 /// Side of one view in pixels.
 pub const VIEW_SIDE: u32 = 512;

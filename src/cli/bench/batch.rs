@@ -9,7 +9,6 @@ use super::common::SHARED_MESHES;
 use crate::batch::{BatchOptions, ProgressMode};
 use anyhow::{Context, Result};
 use decalbake::mesh::Mesh;
-use decalbake::Engine;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -59,7 +58,7 @@ fn write_jobs(dir: &Path, count: usize, sizes: &[u32]) -> Result<Vec<PathBuf>> {
 
 /// Runs the benchmark; one JSON line.
 pub fn run(
-    engine: &Engine,
+    devices: &crate::batch::Devices,
     count: usize,
     sizes: &[u32],
     mut emit: impl FnMut(serde_json::Value),
@@ -69,7 +68,7 @@ pub fn run(
     let batch = |jobs: usize, out: &str| -> Result<(f64, i32)> {
         let t = Instant::now();
         let code = crate::batch::run(
-            engine,
+            devices,
             &BatchOptions {
                 manifest: dir.join("manifest.jsonl"),
                 out: Some(dir.join(out)),
@@ -104,7 +103,7 @@ pub fn run(
     let separate = t.elapsed().as_secs_f64();
     let per_min = |s: f64| count as f64 * 60.0 / s;
     emit(serde_json::json!({
-        "bench": "batch", "jobs": count, "sizes": sizes, "adapter": engine.ctx.adapter,
+        "bench": "batch", "jobs": count, "sizes": sizes, "adapter": devices.adapter(),
         "batch_exit": code, "separate_failed": failed,
         "batch_s": one, "batch_jobs_per_min": per_min(one),
         "batch_jobs2_s": two, "batch_jobs2_jobs_per_min": per_min(two),

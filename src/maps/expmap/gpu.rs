@@ -4,9 +4,9 @@
 
 use crate::error::Result;
 use crate::gpu::pipelines::Pipelines;
+use crate::gpu::BufferInit;
 use crate::maps::expmap::cpu::{Options, Seed};
 use crate::mesh::{SurfaceRef, Topology};
-use wgpu::util::DeviceExt;
 
 /// One decal's map request. Keep in sync with `GeoJob` in wgsl/maps/expmap_relax.wgsl.
 #[repr(C)]
