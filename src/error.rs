@@ -42,6 +42,21 @@ pub enum Error {
         /// What wgpu said.
         detail: String,
     },
+    /// The job needs a GPU buffer larger than this device allows (its `max_buffer_size` or
+    /// `max_storage_buffer_binding_size`): a texture, mesh or layer too large for the device.
+    #[error("{what} needs {} in one GPU buffer, above this device's {limit_name} of {}; {hint}", bytes_text(*needed), bytes_text(*limit))]
+    DeviceLimit {
+        /// What needed the buffer (names the file where there is one).
+        what: String,
+        /// Bytes needed.
+        needed: u64,
+        /// The device's limit in bytes.
+        limit: u64,
+        /// wgpu's name of the limit.
+        limit_name: &'static str,
+        /// What to do.
+        hint: String,
+    },
     /// A file could not be read or written.
     #[error("{}: {action} failed: {source}", path.display())]
     Io {
@@ -101,12 +116,13 @@ pub enum Error {
 }
 
 impl Error {
-    /// True for errors caused by the user's input (files, job values), false for environment and GPU
-    /// failures. The CLI exits with code 2 for input errors and 1 for the rest.
+    /// True for errors caused by the user's input (files, job values, and a job or mesh too large
+    /// for the device: the fix is in the job), false for environment and GPU failures. The CLI exits with code 2 for input errors and 1 for the rest.
     pub fn is_input_error(&self) -> bool {
         matches!(
             self,
             Error::Io { .. }
+                | Error::DeviceLimit { .. }
                 | Error::Gltf { .. }
                 | Error::Mesh { .. }
                 | Error::Job { .. }
@@ -132,6 +148,16 @@ impl Error {
             path: path.to_path_buf(),
             detail: detail.into(),
         }
+    }
+}
+
+/// A byte count as people read it: `512 KiB`, `1.5 MiB`, `2.0 GiB`.
+pub fn bytes_text(b: u64) -> String {
+    match b {
+        0..1024 => format!("{b} bytes"),
+        1024..1_048_576 => format!("{:.0} KiB", b as f64 / 1024.0),
+        1_048_576..1_073_741_824 => format!("{:.1} MiB", b as f64 / 1_048_576.0),
+        _ => format!("{:.1} GiB", b as f64 / 1_073_741_824.0),
     }
 }
 

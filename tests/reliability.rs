@@ -101,3 +101,74 @@ fn a_device_destroyed_mid_bake_gives_device_lost_and_a_fresh_engine_bakes_the_sa
     let mesh = engine.load_mesh(&job.mesh).unwrap();
     assert_eq!(engine.bake(&mesh, &job).unwrap().texels, reference.texels);
 }
+
+/// An engine on a device whose buffer limits are `binding` (storage binding) and `buffer` (any
+/// buffer) bytes: the adapter's own limits, lowered.
+fn tight_engine(binding: u64, buffer: u64) -> decalbake::Engine {
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+        backends: wgpu::Backends::from_env().unwrap_or(wgpu::Backends::VULKAN),
+        ..wgpu::InstanceDescriptor::new_without_display_handle()
+    });
+    let adapter =
+        pollster::block_on(instance.request_adapter(&Default::default())).expect("an adapter");
+    let limits = wgpu::Limits {
+        max_storage_buffer_binding_size: binding,
+        max_buffer_size: buffer,
+        ..adapter.limits()
+    };
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        required_features: adapter.features()
+            & (wgpu::Features::FLOAT32_FILTERABLE | wgpu::Features::FLOAT32_BLENDABLE),
+        required_limits: limits,
+        ..Default::default()
+    }))
+    .unwrap();
+    decalbake::Engine::from_adapter(&adapter, device, queue).unwrap()
+}
+
+/// On a device whose buffers are smaller than the bake's budgets, the map stage works in smaller
+/// chunks and bakes the same bytes; what cannot fit at all (the canvas, the mesh's buffers) is a
+/// typed error naming the field or the mesh, never a validation failure or an abort.
+#[test]
+fn allocations_beyond_the_device_limits_are_typed_errors() {
+    let dir = scratch("tight_limits");
+    let mut job = heavy_job(&dir);
+    (job.width, job.height) = (128, 128);
+    let reference = {
+        let engine = engine();
+        let mesh = engine.load_mesh(&job.mesh).unwrap();
+        engine.bake(&mesh, &job).unwrap().texels
+    };
+    let bake = |binding: u64, buffer: u64, side: u32| {
+        let engine = tight_engine(binding, buffer);
+        let mut job = job.clone();
+        (job.width, job.height) = (side, side);
+        let r = engine
+            .load_mesh(&job.mesh)
+            .and_then(|mesh| engine.bake(&mesh, &job));
+        println!(
+            "binding {binding}, buffer {buffer}, {side}²: {:?}",
+            r.as_ref().map(|_| ())
+        );
+        r
+    };
+    // 1 MiB buffers: Spot's 24 coordinate slots (92 KiB each) go in chunks of 9; same bytes.
+    assert_eq!(bake(1 << 20, 2 << 20, 128).unwrap().texels, reference);
+    // A 256² canvas plane (512 KiB) does not fit 256 KiB: the texture size is named.
+    match bake(256 << 10, 1 << 20, 256) {
+        Err(Error::Job { field, detail, .. }) => {
+            assert_eq!(field, "texture.width");
+            assert!(detail.contains("512 KiB"), "{detail}");
+        }
+        other => panic!("expected a texture-size error, got {:?}", other.map(|_| ())),
+    }
+    // 64 KiB buffers: Spot's adjacency lists (128 KiB) do not fit: the mesh is named.
+    match bake(64 << 10, 256 << 10, 64) {
+        Err(e @ Error::DeviceLimit { .. }) => {
+            let msg = e.to_string();
+            assert!(msg.contains("spot.glb") && msg.contains("64 KiB"), "{msg}");
+            assert!(e.is_input_error());
+        }
+        other => panic!("expected DeviceLimit, got {:?}", other.map(|_| ())),
+    }
+}

@@ -19,25 +19,24 @@ pub fn check_job(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<()> {
             ));
         }
     }
-    let limits = engine.ctx.device.limits();
-    let max_binding = limits.max_storage_buffer_binding_size;
+    let (max_binding, limit_name) = engine.ctx.storage_limit();
     let texels = job.width as u64 * job.height as u64;
     if texels * 8 > max_binding {
+        let side = 1u64 << ((max_binding / 8).max(1).ilog2() / 2);
         return Err(Error::job(
-                src,
-                "texture.width",
-                format!(
-                    "{}x{} needs {} MiB per accumulation plane, above this adapter's storage binding limit of {} MiB (at most {} texels, e.g. {}x{})",
-                    job.width,
-                    job.height,
-                    (texels * 8) >> 20,
-                    max_binding >> 20,
-                    max_binding / 8,
-                    1u64 << ((max_binding / 8).ilog2() / 2),
-                    1u64 << ((max_binding / 8).ilog2() / 2)
-                ),
-            ));
+            src,
+            "texture.width",
+            format!(
+                "{}x{} needs {} per accumulation plane, above this adapter's {limit_name} of {} (at most {} texels, e.g. {side}x{side})",
+                job.width,
+                job.height,
+                crate::error::bytes_text(texels * 8),
+                crate::error::bytes_text(max_binding),
+                max_binding / 8,
+            ),
+        ));
     }
+    super::stage::check_units(super::stage::Cx { engine, mesh, job })?;
     let sets = mesh.mesh.uv_sets.len();
     if sets == 0 {
         return Err(Error::mesh(

@@ -36,6 +36,9 @@ pub struct LoadedMesh {
     pub timings: (f64, f64, f64),
     /// The pelting that made its UVs (`"uv_set": "auto"` on a mesh without any).
     pub unwrap: Option<crate::pelt::UnwrapReport>,
+    /// The most bytes one storage buffer holds on the device the mesh lives on (the map stage's
+    /// chunks fit it).
+    pub(crate) storage_limit: u64,
     /// The material's base-colour texture on the GPU, uploaded by the first bake that uses it.
     pub(crate) material_texture: std::sync::OnceLock<Arc<GpuImage>>,
     /// Island masks and nearest-island maps by (UV set, width, height, supersampling).
@@ -313,6 +316,19 @@ impl Engine {
         topo.fill_normals(&mut mesh);
         let weld = ms(t1);
         let t2 = Instant::now();
+        // The largest of the mesh's GPU buffers (16 bytes a welded vertex or triangle, 8 a split
+        // vertex's UV, 4 an adjacency entry, 32 a BVH node) must fit one storage buffer.
+        let biggest = [
+            16 * topo.positions.len().max(topo.triangles.len()),
+            8 * mesh.positions.len(),
+            4 * topo.adjacency.len(),
+            32 * bvh.nodes.len(),
+        ];
+        self.ctx.fits(
+            || format!("the mesh {}", mesh.source.display()),
+            biggest.into_iter().max().unwrap_or(0) as u64,
+            "bake on a device with larger storage buffers, or decimate the mesh",
+        )?;
         let gpu = self.ctx.scoped("mesh upload", || {
             GpuMesh::upload(&self.ctx.device, &mesh, &topo, &surface, &bvh)
         })?;
@@ -327,6 +343,7 @@ impl Engine {
             stats,
             timings: (load, weld, upload),
             unwrap: None,
+            storage_limit: self.ctx.storage_limit().0,
             material_texture: std::sync::OnceLock::new(),
             islands: Mutex::new(HashMap::new()),
         })

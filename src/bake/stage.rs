@@ -34,9 +34,23 @@ pub(crate) fn ms(t: Instant) -> f64 {
 pub(crate) const CHUNK_BUDGET: u64 = 64 << 20;
 
 /// How many units' coordinate slots and triangle lists fit [`CHUNK_BUDGET`] on `mesh` (at least
-/// one): the most units one chunk of the map stage holds.
+/// one): the most units one chunk of the map stage holds. On a device whose storage buffers hold
+/// less than the budget ([`crate::gpu::GpuContext::storage_limit`]), the chunks shrink to fit it
+/// (a unit's slot alone past the limit is [`crate::Error::DeviceLimit`], from [`check_units`]).
 pub(crate) fn unit_capacity(mesh: &LoadedMesh) -> usize {
     let g = &mesh.gpu;
     let per_unit = g.vertex_count as u64 * 16 + g.triangle_count as u64 * 4;
-    (CHUNK_BUDGET / per_unit.max(1)).max(1) as usize
+    let budget = CHUNK_BUDGET.min(mesh.storage_limit);
+    (budget / per_unit.max(1)).max(1) as usize
+}
+
+/// [`crate::Error::DeviceLimit`] when one unit's coordinate slot (16 bytes a welded vertex) does
+/// not fit a storage buffer of the engine's device.
+pub(crate) fn check_units(cx: Cx<'_>) -> crate::error::Result<()> {
+    let bytes = cx.mesh.gpu.vertex_count as u64 * 16;
+    cx.engine.ctx.fits(
+        || format!("a layer's coordinates on {}", cx.mesh.mesh.source.display()),
+        bytes,
+        "bake on a device with larger storage buffers, or on a mesh with fewer vertices",
+    )
 }

@@ -229,6 +229,37 @@ impl GpuContext {
         }
     }
 
+    /// The most bytes one storage buffer may hold and bind on this device (the smaller of
+    /// `max_buffer_size` and `max_storage_buffer_binding_size`), with the limit's name.
+    pub fn storage_limit(&self) -> (u64, &'static str) {
+        let l = self.device.limits();
+        if l.max_storage_buffer_binding_size <= l.max_buffer_size {
+            (
+                l.max_storage_buffer_binding_size,
+                "max_storage_buffer_binding_size",
+            )
+        } else {
+            (l.max_buffer_size, "max_buffer_size")
+        }
+    }
+
+    /// [`Error::DeviceLimit`] unless `bytes` fit one storage buffer ([`Self::storage_limit`]);
+    /// checked before allocating, so a job too large for the device is a typed error, not a
+    /// validation failure deep in a stage.
+    pub fn fits(&self, what: impl FnOnce() -> String, bytes: u64, hint: &str) -> Result<()> {
+        let (limit, limit_name) = self.storage_limit();
+        if bytes > limit {
+            return Err(Error::DeviceLimit {
+                what: what(),
+                needed: bytes,
+                limit,
+                limit_name,
+                hint: hint.to_string(),
+            });
+        }
+        Ok(())
+    }
+
     /// The largest 2D texture side this device accepts.
     pub fn max_texture_side(&self) -> u32 {
         self.device.limits().max_texture_dimension_2d
