@@ -383,7 +383,20 @@ impl Engine {
     }
 
     pub fn bake(&self, mesh: &LoadedMesh, job: &Job) -> Result<Baked> {
-        let run = super::run(self, mesh, job)?;
+        self.bake_with_progress(mesh, job, &|_| {})
+    }
+
+    /// [`Self::bake`], naming each stage to `on_stage` as it starts (`"images"`, `"placement"`,
+    /// `"canvas"`, `"maps, selection and compose: units a-b of n"` per chunk, `"padding and
+    /// encode"`, `"read-back"`): what a progress display shows during a long bake.
+    pub fn bake_with_progress(
+        &self,
+        mesh: &LoadedMesh,
+        job: &Job,
+        on_stage: &dyn Fn(&str),
+    ) -> Result<Baked> {
+        let run = super::run(self, mesh, job, on_stage)?;
+        on_stage("read-back");
         let t = Instant::now();
         let (w, h) = (job.width, job.height);
         let bytes = self.ctx.read_buffer(
@@ -422,7 +435,7 @@ impl Engine {
     pub fn bake_to_texture(&self, mesh: &LoadedMesh, job: &Job) -> Result<(wgpu::Texture, Report)> {
         let mut job8 = job.clone();
         job8.bit_depth = 8;
-        let run = super::run(self, mesh, &job8)?;
+        let run = super::run(self, mesh, &job8, &|_| {})?;
         let tex = self.ctx.scoped("texture output", || {
             let tex = self.ctx.device.create_texture(&wgpu::TextureDescriptor {
                 label: Some("decalbake.baked"),

@@ -59,8 +59,14 @@ pub(crate) struct Run {
     pub report: Report,
 }
 
-/// Bakes `job` onto `mesh`, stage by stage.
-pub(crate) fn run(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Run> {
+/// Bakes `job` onto `mesh`, stage by stage, naming each stage to `on_stage` as it starts (a
+/// progress display's spinner; chunks of the map stage say which layers they hold).
+pub(crate) fn run(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    job: &Job,
+    on_stage: &dyn Fn(&str),
+) -> Result<Run> {
     check::check_job(engine, mesh, job)?;
     let mut log = Log {
         timings: Timings {
@@ -74,9 +80,11 @@ pub(crate) fn run(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Run> 
     };
     let cx = Cx { engine, mesh, job };
     let t = Instant::now();
+    on_stage("images");
     let images = images::load(engine, mesh, job)?;
     log.timings.images_ms = ms(t);
     let t = Instant::now();
+    on_stage("placement");
     let placed = place::place(cx, &mut log)?;
     log.timings.placement_ms = ms(t);
     // From here on the stages work on units (a decal is one, a stroke one per stamp).
@@ -87,13 +95,15 @@ pub(crate) fn run(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Run> 
         job: &placed.job,
     };
     let t = Instant::now();
+    on_stage("canvas");
     let canvas = canvas::Canvas::new(ucx, &images, !placed.strokes.is_empty(), &mut log)?;
-    let units =
-        compose_units(ucx, &placed, &images, &canvas, &mut log).map_err(|e| placed.rename(e))?;
+    let units = compose_units(ucx, &placed, &images, &canvas, &mut log, on_stage)
+        .map_err(|e| placed.rename(e))?;
     engine.ctx.wait("compose")?;
     log.timings.compose_ms = ms(t);
 
     let t = Instant::now();
+    on_stage("padding and encode");
     let encoded = finish::pad_and_encode(cx, &canvas, &mut log)?;
     log.timings.padding_ms = ms(t);
     let stats = canvas.read_stats(engine, "stats read-back")?;
@@ -129,12 +139,19 @@ fn compose_units(
     images: &images::Images,
     canvas: &canvas::Canvas,
     log: &mut Log,
+    on_stage: &dyn Fn(&str),
 ) -> Result<Vec<LayerReport>> {
     let job = cx.job;
     let slots = maps::Slots::new(cx.engine, cx.mesh, job);
     let mut units: Vec<LayerReport> = Vec::with_capacity(job.layers.len());
     let starts = tools::chunk_starts(placed);
     for range in slots.chunks(&placed.blocks, &starts) {
+        on_stage(&format!(
+            "maps, selection and compose: units {}-{} of {}",
+            range.start + 1,
+            range.end,
+            job.layers.len()
+        ));
         let maps = maps::compute(cx, placed, &slots, range.clone(), &canvas.global, log)?;
         let stats = select::select(cx, canvas, (&slots, &maps), placed, log)?;
         let first = units.len();

@@ -95,13 +95,22 @@ impl Progress {
                 let bar = indicatif::ProgressBar::new(total as u64);
                 bar.set_style(
                     indicatif::ProgressStyle::with_template(
-                        "{bar:40} {pos}/{len} jobs, {per_sec}, ETA {eta}  {msg}",
+                        "{spinner} {bar:40} {pos}/{len} jobs, {per_sec}, ETA {eta}  {msg}",
                     )
                     .expect("a valid template"),
                 );
+                // The spinner turns while a long bake is inside one stage; `stage` names it.
+                bar.enable_steady_tick(std::time::Duration::from_millis(120));
                 Progress::Bar(bar)
             }
             _ => Progress::Lines,
+        }
+    }
+
+    /// The job of manifest line `line` entered bake stage `stage` (shown on the bar only).
+    fn stage(&self, line: usize, stage: &str) {
+        if let Progress::Bar(bar) = self {
+            bar.set_message(format!("line {line}: {stage}"));
         }
     }
 
@@ -287,14 +296,15 @@ fn bake_all(
                 let (entry, t) = (mine[k], Instant::now());
                 let mut retried = false;
                 let (mut gen, mut engine) = devices.get();
+                let stage = |s: &str| progress.stage(entry.line, s);
                 let mut result = fault::lose_device_during(entry.line, &engine, || {
-                    bake_entry(&engine, gen, opts, entry, &shared)
+                    bake_entry(&engine, gen, opts, entry, &shared, &stage)
                 });
                 if result.as_ref().is_err_and(device_lost) {
                     retried = true;
                     result = devices.renew(gen).and_then(|(g, e)| {
                         (gen, engine) = (g, e);
-                        bake_entry(&engine, gen, opts, entry, &shared)
+                        bake_entry(&engine, gen, opts, entry, &shared, &stage)
                     });
                 }
                 let mut row = match result {
@@ -417,6 +427,7 @@ fn bake_entry(
     opts: &BatchOptions,
     entry: &Entry,
     shared: &Shared,
+    on_stage: &dyn Fn(&str),
 ) -> Result<(&'static str, Vec<String>, String)> {
     let manifest_dir = opts.manifest.parent().unwrap_or(Path::new(""));
     let (source, input_dir) = match &entry.file {
@@ -476,7 +487,7 @@ fn bake_entry(
             .expect("mesh cache")
             .get(engine, generation, &j)?;
         j.uv_set = uv_set;
-        let mut baked = engine.bake(&mesh, &j)?;
+        let mut baked = engine.bake_with_progress(&mesh, &j, on_stage)?;
         baked.report.input_hash = Some(hash.clone());
         baked_sets.push((mesh, j, baked));
     }
@@ -492,6 +503,7 @@ fn bake_entry(
     }
     let mut textures = Vec::new();
     let mut last = None;
+    on_stage("writing outputs");
     for (mesh, j, mut baked) in baked_sets {
         decalbake::output::write_outputs(engine, &mesh, &j, &mut baked)?;
         textures.push(decalbake::output::preview::PreviewTexture::of(&baked));

@@ -164,6 +164,11 @@ enum Cmd {
         /// With `--unwrap`: skip the GPU run of meshes over this many triangles.
         #[arg(long, default_value_t = 50_000)]
         gpu_max_triangles: usize,
+        /// Soak: this many bakes in one process (four jobs in turn on `--mesh`, default the
+        /// bundled Spot), resident memory after every hundred and whether it stayed flat after
+        /// warm-up.
+        #[arg(long)]
+        soak: Option<usize>,
         /// With `--linalg`: chart sizes (vertices) to solve one at a time.
         #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000")]
         charts: Vec<usize>,
@@ -240,8 +245,15 @@ fn run(cli: Cli) -> Result<()> {
             batch_bake,
             unwrap,
             gpu_max_triangles,
+            soak,
         } => {
             let mut engine = engine(cli.backend.as_deref())?;
+            if let Some(bakes) = soak {
+                let mesh = mesh.unwrap_or_else(|| {
+                    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb")
+                });
+                return bench::soak::run(&engine, &mesh, bakes, |v| println!("{v}"));
+            }
             if unwrap {
                 let opts = bench::unwrap::UnwrapBenchOptions {
                     mesh,

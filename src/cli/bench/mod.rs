@@ -8,5 +8,6 @@ pub mod device;
 pub mod geodesic;
 pub mod linalg;
 pub mod scale;
+pub mod soak;
 pub mod strokes;
 pub mod unwrap;
