@@ -50,18 +50,27 @@ pub struct Canvas {
 
 impl Canvas {
     /// Allocates the canvas, fetches (or computes) the islands and fills the base.
-    /// `strokes`: whether to allocate the stroke buffer.
-    pub(crate) fn new(cx: Cx<'_>, images: &Images, strokes: bool, log: &mut Log) -> Result<Self> {
+    /// `strokes`: whether to allocate the stroke buffer. `window`: the texel rectangle x, y, w, h
+    /// the canvas holds, for one tile of a tiled bake ([`super::tiles`]; the islands are then the
+    /// tiles' business and this canvas has none); `None`: the whole texture.
+    pub(crate) fn new(
+        cx: Cx<'_>,
+        images: &Images,
+        strokes: bool,
+        window: Option<[u32; 4]>,
+        log: &mut Log,
+    ) -> Result<Self> {
         let Cx { engine, mesh, job } = cx;
         let dev = &engine.ctx.device;
         let g = &mesh.gpu;
         let (w, h, ss) = (job.width, job.height, job.ss);
-        let texels = w as u64 * h as u64;
+        let win = window.unwrap_or([0, 0, w, h]);
+        let texels = win[2] as u64 * win[3] as u64;
         let plane = |label| {
             dev.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
                 size: texels * 8,
-                usage: wgpu::BufferUsages::STORAGE,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
                 mapped_at_creation: false,
             })
         };
@@ -100,9 +109,13 @@ impl Canvas {
             stats_stride,
             cell: CELL,
             grid,
+            win,
             ..Default::default()
         };
-        let islands = islands(engine, mesh, job.uv_set, [w, h], ss, &mut log.commands)?;
+        let islands = match window {
+            None => islands(engine, mesh, job.uv_set, [w, h], ss, &mut log.commands)?,
+            Some(_) => Arc::new(Islands::none(dev)),
+        };
         let canvas = Self {
             acc_rg,
             acc_ba,
@@ -141,7 +154,7 @@ impl Canvas {
     /// `base_init`: the base image, sampled at every texel centre, into the accumulation planes.
     fn fill_base(&self, engine: &Engine, images: &Images, log: &mut Log) -> Result<()> {
         let (dev, pipes) = (&engine.ctx.device, &engine.pipes);
-        let [w, h] = self.global.tex_size;
+        let [_, _, w, h] = self.global.window();
         let base_params = params_buffer(dev, "bake.base_params", &[self.global]);
         engine.ctx.scoped("base", || {
             let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -170,6 +183,25 @@ impl Canvas {
             log.commands += 1;
             engine.ctx.queue.submit([enc.finish()]);
         })
+    }
+
+    /// The canvas window's texels, linear straight-alpha RGBA f32, read back (a float output).
+    pub fn read_linear(&self, engine: &Engine) -> Result<Vec<f32>> {
+        let [_, _, w, h] = self.global.window();
+        let bytes = w as u64 * h as u64 * 8;
+        let rg = engine
+            .ctx
+            .read_buffer(&self.acc_rg, bytes, "canvas read-back")?;
+        let ba = engine
+            .ctx
+            .read_buffer(&self.acc_ba, bytes, "canvas read-back")?;
+        let (rg, ba): (&[[f32; 2]], &[[f32; 2]]) =
+            (bytemuck::cast_slice(&rg), bytemuck::cast_slice(&ba));
+        Ok(rg
+            .iter()
+            .zip(ba)
+            .flat_map(|(a, b)| [a[0], a[1], b[0], b[1]])
+            .collect())
     }
 
     /// The stats rows, read back.

@@ -7,7 +7,13 @@ use crate::error::{Error, Result};
 use crate::io::job::Job;
 
 /// Checks `job` against `mesh` and the engine's device.
-pub fn check_job(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<()> {
+/// `window`: the tile (x, y, w, h) whose canvas this bake holds, `None` for the whole bake.
+pub fn check_job(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    job: &Job,
+    window: Option<[u32; 4]>,
+) -> Result<()> {
     let src = &job.source;
     let max_side = engine.ctx.max_texture_side();
     for (field, v) in [("texture.width", job.width), ("texture.height", job.height)] {
@@ -20,16 +26,21 @@ pub fn check_job(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<()> {
         }
     }
     let (max_binding, limit_name) = engine.ctx.storage_limit();
-    let texels = job.width as u64 * job.height as u64;
+    // The canvas holds the window, or one tile of a tiled bake, or the whole texture.
+    let [_, _, cw, ch] = window.unwrap_or_else(|| match super::tiles::tile_side(engine, job) {
+        Some(s) => [0, 0, s.min(job.width), s.min(job.height)],
+        None => [0, 0, job.width, job.height],
+    });
+    let texels = cw as u64 * ch as u64;
     if texels * 8 > max_binding {
         let side = 1u64 << ((max_binding / 8).max(1).ilog2() / 2);
         return Err(Error::job(
             src,
             "texture.width",
             format!(
-                "{}x{} needs {} per accumulation plane, above this adapter's {limit_name} of {} (at most {} texels, e.g. {side}x{side})",
-                job.width,
-                job.height,
+                "{}x{} needs {} per accumulation plane, above this adapter's {limit_name} of {} (at most {} texels, e.g. {side}x{side}); give a smaller `texture.tile`",
+                cw,
+                ch,
                 crate::error::bytes_text(texels * 8),
                 crate::error::bytes_text(max_binding),
                 max_binding / 8,

@@ -12,7 +12,7 @@ use super::images::Images;
 use super::maps::{LayerMaps, Slots};
 use super::params::{params_buffer, pbind, Params, FLAG_TOOL, PARAMS_STRIDE};
 use super::place::Placed;
-use super::plan::{pack_atlas, plan_cells, Batch, TILE_TARGET};
+use super::plan::{meets, pack_atlas, plan_cells, Batch, TILE_TARGET};
 use super::stage::{Cx, Log};
 use crate::error::Result;
 use crate::gpu::pipelines::make_bind_group;
@@ -142,9 +142,10 @@ fn flushes(
             at: jobs.iter().filter(|j| j.units.start <= last).count(),
             params: entries + params.len(),
         });
+        let [x, y, w, h] = global.window();
         params.push(Params {
-            rect_origin: [0, 0],
-            rect_size: global.tex_size,
+            rect_origin: [x as i32, y as i32],
+            rect_size: [w, h],
             blend: s.blend as u32,
             opacity: s.opacity,
             aux: last as u32,
@@ -172,10 +173,29 @@ pub(crate) fn compose(
     let blending = engine.pipes.layer_blending;
     let mut jobs = raster_jobs(job, canvas, maps, stats, placed, blending);
     let sizes: Vec<[u32; 2]> = jobs.iter().map(|j| j.params.rect_size).collect();
-    let (origins, batches) = pack_atlas(&sizes, job.ss);
+    let (origins, mut batches) = pack_atlas(&sizes, job.ss);
     for (j, o) in jobs.iter_mut().zip(&origins) {
         j.params.atlas_origin = *o;
     }
+    // A tile's canvas (`bake/tiles.rs`) draws the rectangles that meet its window, where the whole
+    // texture's bake draws them (same rectangle, same atlas place: the same samples, bit for bit),
+    // and composes their texels inside the window.
+    let win = canvas.global.window();
+    for (entries, _) in &mut batches {
+        entries.retain(|&(k, _)| {
+            let p = &jobs[k].params;
+            meets(
+                [
+                    p.rect_origin[0],
+                    p.rect_origin[1],
+                    p.rect_size[0] as i32,
+                    p.rect_size[1] as i32,
+                ],
+                win,
+            )
+        });
+    }
+    batches.retain(|(entries, _)| !entries.is_empty());
     if std::env::var("DECALBAKE_DEBUG").is_ok() {
         let covered: u64 = sizes.iter().map(|s| s[0] as u64 * s[1] as u64).sum();
         eprintln!(
@@ -185,6 +205,7 @@ pub(crate) fn compose(
         );
     }
     let (flush, flush_params) = flushes(placed, maps, &jobs, &canvas.global);
+    super::tools::check_window(canvas, maps, stats, placed, &job.source)?;
     // One entry per (raster job, unit): the rectangle's fields with the unit's own.
     // Tool stamps read their cell of the chunk's flat images (`bake/tools.rs`).
     let start = maps.range.start;
@@ -206,6 +227,7 @@ pub(crate) fn compose(
                     atlas_origin: j.params.atlas_origin,
                     flags,
                     pad,
+                    win: canvas.global.win,
                     ..p
                 }
             })
@@ -438,10 +460,10 @@ impl Recording<'_> {
                     (13, planes[1].as_entire_binding()),
                 ],
             );
-            let p = &self.canvas.global;
+            let [_, _, w, h] = self.canvas.global.window();
             pass.set_pipeline(&pipes.stroke_apply.pipeline);
             pass.set_bind_group(0, &bg, &[(f.params as u64 * PARAMS_STRIDE) as u32]);
-            pass.dispatch_workgroups(p.tex_size[0].div_ceil(8), p.tex_size[1].div_ceil(8), 1);
+            pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
             *flushed += 1;
             n += 1;
         }

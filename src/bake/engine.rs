@@ -43,6 +43,8 @@ pub struct LoadedMesh {
     pub(crate) material_texture: std::sync::OnceLock<Arc<GpuImage>>,
     /// Island masks and nearest-island maps by (UV set, width, height, supersampling).
     pub(crate) islands: Mutex<HashMap<IslandKey, Arc<Islands>>>,
+    /// The same for tiled bakes, on the CPU (`bake/tiles.rs`).
+    pub(crate) tiled_islands: Mutex<HashMap<IslandKey, Arc<super::tiles::TiledIslands>>>,
 }
 
 impl LoadedMesh {
@@ -91,6 +93,9 @@ pub struct Baked {
     pub bit_depth: u8,
     /// sRGB-encoded RGBA, row-major, top row first: 4 values a texel (0..=255 or 0..=65535).
     pub texels: Vec<u16>,
+    /// For a float output (`output.texture` ending in `.exr`): the padded canvas, linear
+    /// straight-alpha RGBA f32, 4 values a texel.
+    pub linear: Option<Vec<f32>>,
     /// The report.
     pub report: Report,
 }
@@ -346,6 +351,7 @@ impl Engine {
             storage_limit: self.ctx.storage_limit().0,
             material_texture: std::sync::OnceLock::new(),
             islands: Mutex::new(HashMap::new()),
+            tiled_islands: Mutex::new(HashMap::new()),
         })
     }
 
@@ -395,6 +401,9 @@ impl Engine {
         job: &Job,
         on_stage: &dyn Fn(&str),
     ) -> Result<Baked> {
+        if let Some(side) = super::tiles::tile_side(self, job) {
+            return super::tiles::bake(self, mesh, job, side, on_stage);
+        }
         let run = super::run(self, mesh, job, on_stage)?;
         on_stage("read-back");
         let t = Instant::now();
@@ -426,6 +435,7 @@ impl Engine {
             height: h,
             bit_depth: job.bit_depth,
             texels,
+            linear: None,
             report,
         })
     }
@@ -486,6 +496,26 @@ pub struct GpuImage {
     /// Its view.
     pub view: wgpu::TextureView,
     pub(crate) _tex: wgpu::Texture,
+}
+
+impl Islands {
+    /// No islands (a tile's canvas: the tiled bake pads on the CPU, `bake/tiles.rs`): 16-byte
+    /// placeholders for the bindings.
+    pub(crate) fn none(dev: &wgpu::Device) -> Self {
+        let buf = |label| {
+            dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: 16,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        };
+        Self {
+            mask: buf("islands.none.mask"),
+            nearest: buf("islands.none.nearest"),
+            count: 0,
+        }
+    }
 }
 
 /// (UV set, width, height, supersampling).

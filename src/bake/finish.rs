@@ -5,7 +5,7 @@
 //! packed buffer with 256-byte rows, ready for one read-back or a copy into a host texture.
 
 use super::canvas::Canvas;
-use super::params::{params_buffer, pbind, Params, FLAG_16BIT};
+use super::params::{params_buffer, pbind, Params, FLAG_16BIT, FLAG_NO_PAD};
 use super::stage::{Cx, Log};
 use crate::error::Result;
 use crate::io::job::Padding;
@@ -21,10 +21,17 @@ pub struct Encoded {
 }
 
 /// Pads and encodes the canvas.
-pub(crate) fn pad_and_encode(cx: Cx<'_>, canvas: &Canvas, log: &mut Log) -> Result<Encoded> {
+/// `pad`: pad here (false for a tile of a tiled bake, which is padded on the CPU); the encoded
+/// texels are the canvas window's.
+pub(crate) fn pad_and_encode(
+    cx: Cx<'_>,
+    canvas: &Canvas,
+    pad: bool,
+    log: &mut Log,
+) -> Result<Encoded> {
     let Cx { engine, job, .. } = cx;
     let (dev, pipes) = (&engine.ctx.device, &engine.pipes);
-    let (w, h) = (job.width, job.height);
+    let [_, _, w, h] = canvas.global.window();
     let stride = if job.bit_depth == 16 {
         (2 * w).next_multiple_of(64)
     } else {
@@ -32,7 +39,7 @@ pub(crate) fn pad_and_encode(cx: Cx<'_>, canvas: &Canvas, log: &mut Log) -> Resu
     };
     let fin = [Params {
         rect_size: [stride, 0],
-        flags: if job.bit_depth == 16 { FLAG_16BIT } else { 0 },
+        flags: if job.bit_depth == 16 { FLAG_16BIT } else { 0 } | if pad { 0 } else { FLAG_NO_PAD },
         aux: padding_radius(job.padding),
         ..canvas.global
     }];

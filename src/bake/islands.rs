@@ -59,7 +59,7 @@ fn compute(
         stats_stride: 1,
         ..Default::default()
     };
-    let jobs = raster_jobs(&mesh.mesh.uv_sets[uv_set as usize], [w, h], global);
+    let jobs = raster_jobs(&mesh.mesh.uv_sets[uv_set as usize], global);
     let mut entries = vec![global];
     entries.extend(jobs.iter().copied());
     let pass = Pass {
@@ -115,6 +115,66 @@ fn compute(
 }
 
 /// What the island passes bind.
+/// The island mask of one window (x, y, w, h) of a `size` texture: 1 per island texel, row-major
+/// over the window (a tile of a tiled bake, `bake/tiles.rs`, which assembles the tiles' masks and
+/// computes the distance transform on the CPU). The same raster as [`islands`], restricted to the
+/// window's rectangles.
+pub(crate) fn window_mask(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    (uv_set, ss): (u32, u32),
+    size: [u32; 2],
+    win: [u32; 4],
+    commands: &mut u32,
+) -> Result<Vec<u32>> {
+    let dev = &engine.ctx.device;
+    let bytes = win[2] as u64 * win[3] as u64 * 4;
+    let buf = |label, bytes: u64| {
+        dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: bytes,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    };
+    let global = Params {
+        tex_size: size,
+        ss,
+        triangle_count: mesh.gpu.triangle_count,
+        stats_stride: 1,
+        win,
+        ..Default::default()
+    };
+    let jobs = raster_jobs(&mesh.mesh.uv_sets[uv_set as usize], global);
+    let mut entries = vec![global];
+    entries.extend(jobs.iter().copied());
+    let pass = Pass {
+        engine,
+        mesh,
+        uv_set,
+        ss,
+        params: params_buffer(dev, "islands.window_params", &entries),
+        mask: buf("islands.window_mask", bytes),
+        nearest: buf("islands.window_unused", 16),
+        counter: buf("islands.window_count", 16),
+    };
+    engine.ctx.scoped("islands", || {
+        let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("islands.window"),
+        });
+        enc.clear_buffer(&pass.mask, 0, None);
+        enc.clear_buffer(&pass.counter, 0, None);
+        *commands += pass.record_raster(&jobs, &mut enc);
+        engine.ctx.queue.submit([enc.finish()]);
+    })?;
+    let m = engine
+        .ctx
+        .read_buffer(&pass.mask, bytes, "island mask read-back")?;
+    Ok(bytemuck::cast_slice(&m).to_vec())
+}
+
 struct Pass<'a> {
     engine: &'a Engine,
     mesh: &'a LoadedMesh,

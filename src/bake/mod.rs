@@ -18,6 +18,10 @@
 //!
 //! 7. [`finish`]: padding from the islands' distance transform and sRGB encoding, in one pass.
 //!
+//! A texture whose canvas does not fit one storage buffer (8192² and up on lavapipe), a job that
+//! asks for tiles (`texture.tile`) and a float (EXR) output are baked by [`tiles`]: stages 2 to 7
+//! per tile window, padding on the CPU over the assembled texture.
+//!
 //! The engine ([`Engine`]: device, pipelines, pooled targets) and the loaded mesh ([`LoadedMesh`]:
 //! GPU buffers and per-mesh caches) are in [`engine`]; [`cpu`] is the CPU twin of the whole bake.
 pub mod blend;
@@ -39,6 +43,7 @@ pub mod plan;
 pub mod report;
 pub mod select;
 mod stage;
+mod tiles;
 pub mod tools;
 mod transfer;
 
@@ -57,6 +62,8 @@ use std::time::Instant;
 pub(crate) struct Run {
     pub encoded: finish::Encoded,
     pub report: Report,
+    /// The canvas, linear RGBA f32 (unpadded), for a float (EXR) output.
+    pub linear: Option<Vec<f32>>,
 }
 
 /// Bakes `job` onto `mesh`, stage by stage, naming each stage to `on_stage` as it starts (a
@@ -67,7 +74,20 @@ pub(crate) fn run(
     job: &Job,
     on_stage: &dyn Fn(&str),
 ) -> Result<Run> {
-    check::check_job(engine, mesh, job)?;
+    run_in(engine, mesh, job, None, on_stage)
+}
+
+/// [`run`] over one window (x, y, w, h) of the texture: the canvas holds only those texels, and
+/// the encoded result is the window's, unpadded ([`tiles`] pads the assembled texture);
+/// `None`: the whole texture, padded.
+pub(crate) fn run_in(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    job: &Job,
+    window: Option<[u32; 4]>,
+    on_stage: &dyn Fn(&str),
+) -> Result<Run> {
+    check::check_job(engine, mesh, job, window)?;
     let mut log = Log {
         timings: Timings {
             load_ms: mesh.timings.0,
@@ -96,7 +116,7 @@ pub(crate) fn run(
     };
     let t = Instant::now();
     on_stage("canvas");
-    let canvas = canvas::Canvas::new(ucx, &images, !placed.strokes.is_empty(), &mut log)?;
+    let canvas = canvas::Canvas::new(ucx, &images, !placed.strokes.is_empty(), window, &mut log)?;
     let units = compose_units(ucx, &placed, &images, &canvas, &mut log, on_stage)
         .map_err(|e| placed.rename(e))?;
     engine.ctx.wait("compose")?;
@@ -104,7 +124,11 @@ pub(crate) fn run(
 
     let t = Instant::now();
     on_stage("padding and encode");
-    let encoded = finish::pad_and_encode(cx, &canvas, &mut log)?;
+    let encoded = finish::pad_and_encode(cx, &canvas, window.is_none(), &mut log)?;
+    let linear = match job.exr() {
+        true => Some(canvas.read_linear(engine)?),
+        false => None,
+    };
     log.timings.padding_ms = ms(t);
     let stats = canvas.read_stats(engine, "stats read-back")?;
     let layers = fold_reports(&placed, units, |u| canvas.row(&stats, u));
@@ -127,8 +151,13 @@ pub(crate) fn run(
         gpu_commands: log.commands,
         input_hash: None,
         unwrap: mesh.unwrap.clone(),
+        tiles: None,
     };
-    Ok(Run { encoded, report })
+    Ok(Run {
+        encoded,
+        report,
+        linear,
+    })
 }
 
 /// Stages 4 to 6 for every chunk of units: maps, selection, raster and compose. Returns each unit's

@@ -57,9 +57,23 @@ pub struct Params {
     pub cone_a: [f32; 4],
     /// A cone chart: α, β.
     pub cone_b: [f32; 4],
+    /// The canvas window (`wgsl/shared/window.wgsl`): the texel rectangle x, y, w, h the canvas
+    /// holds (a tile, `bake/tiles.rs`); w = 0: the whole texture.
+    pub win: [u32; 4],
 }
 
-const _: () = assert!(std::mem::size_of::<Params>() == 192);
+const _: () = assert!(std::mem::size_of::<Params>() == 208);
+
+impl Params {
+    /// The canvas window x, y, w, h ([`Params::win`], the whole texture when unset).
+    pub fn window(&self) -> [u32; 4] {
+        if self.win[2] == 0 {
+            [0, 0, self.tex_size[0], self.tex_size[1]]
+        } else {
+            self.win
+        }
+    }
+}
 
 /// Require front-facing triangles.
 pub const FLAG_FACING: u32 = 1;
@@ -72,6 +86,8 @@ pub const FLAG_TOOL: u32 = 8;
 /// The layer's chart is opened at a tip: its coordinates go through the cone transform in
 /// `cone_a` / `cone_b` (`wgsl/shared/cone.wgsl`).
 pub const FLAG_CONE: u32 = 16;
+/// `encode`: no padding (a tile of a tiled bake; the tiles are padded together on the CPU).
+pub const FLAG_NO_PAD: u32 = 32;
 
 /// Texels per side of a tool stamp's flat cell (`bake/tools.rs`). Keep in sync with `FLAT_RES` in
 /// `wgsl/bake/stamp_flatten.wgsl`, `stamp_filter.wgsl` and `layer_raster.wgsl`.

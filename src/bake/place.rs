@@ -195,7 +195,7 @@ impl crate::bake::Engine {
     /// Places `job`'s layers on `mesh` and expands them into units, as a bake does before its map
     /// stage.
     pub fn units(&self, mesh: &crate::bake::LoadedMesh, job: &Job) -> Result<Units> {
-        super::check::check_job(self, mesh, job)?;
+        super::check::check_job(self, mesh, job, None)?;
         let mut log = Log {
             timings: Default::default(),
             warnings: Vec::new(),

@@ -151,17 +151,26 @@ pub fn pack_atlas(sizes: &[[u32; 2]], ss: u32) -> (Vec<[u32; 2]>, Vec<Batch>) {
     (origins, batches)
 }
 
-/// The raster jobs that cover a `size` texture laid out by `uvs` at `ss`² samples a texel: every
-/// UV tile the layout reaches, split into rectangles of at most `TILE_TARGET / ss` texels a side,
+/// Whether rectangle `r` (x, y, w, h, texels) meets the canvas window `win` (x, y, w, h).
+pub fn meets(r: [i32; 4], win: [u32; 4]) -> bool {
+    let w = win.map(|v| v as i32);
+    r[0] < w[0] + w[2] && w[0] < r[0] + r[2] && r[1] < w[1] + w[3] && w[1] < r[1] + r[3]
+}
+
+/// The raster jobs that cover a texture laid out by `uvs` at `ss`² samples a texel: every UV tile
+/// the layout reaches, split into rectangles of at most `TILE_TARGET / ss` texels a side (those
+/// that meet the canvas window `global.win`: a tile draws exactly the rectangles, so exactly the
+/// samples, that the whole texture's bake draws there),
 /// each a copy of `global` with its rectangle and tile (the islands' and the texture transfer's
 /// passes).
-pub fn raster_jobs(uvs: &[glam::Vec2], size: [u32; 2], global: Params) -> Vec<Params> {
-    let [w, h] = size;
+pub fn raster_jobs(uvs: &[glam::Vec2], global: Params) -> Vec<Params> {
     let range = uv_tile_range(uvs);
     let mut jobs = Vec::new();
     for tj in range[1]..=range[3] {
         for ti in range[0]..=range[2] {
-            for rect in split_rect([0, 0, w as i32, h as i32], TILE_TARGET / global.ss) {
+            let [w, h] = global.tex_size.map(|v| v as i32);
+            let split = split_rect([0, 0, w, h], TILE_TARGET / global.ss);
+            for rect in split.into_iter().filter(|r| meets(*r, global.window())) {
                 jobs.push(Params {
                     rect_origin: [rect[0], rect[1]],
                     rect_size: [rect[2] as u32, rect[3] as u32],

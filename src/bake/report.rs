@@ -138,6 +138,9 @@ pub struct Report {
     /// `"uv_set": "auto"` on a mesh without UVs: the pelting that made the set baked into.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub unwrap: Option<crate::pelt::UnwrapReport>,
+    /// A tiled bake (`bake/tiles.rs`): [tile side, tiles]. Its stage times add up the tiles'.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tiles: Option<[u32; 2]>,
 }
 
 /// What a stroke reports (the layer's `stroke` block).

@@ -70,6 +70,47 @@ pub fn cells(maps: &LayerMaps, placed: &Placed) -> (Vec<usize>, HashMap<usize, u
     (flattened, reads)
 }
 
+/// In a tile of a tiled bake ([`super::tiles`]), a tool stamp reads the canvas around it, and that
+/// must be inside the tile's window: a stamp whose texel box (one texel of bilinear reach around
+/// it) crosses the window's border is refused, naming it ([`crate::Error::Placement`], renamed to
+/// its layer and stamp by the caller), rather than blurred with a hole. Whole-texture canvases pass.
+pub(crate) fn check_window(
+    canvas: &Canvas,
+    maps: &LayerMaps,
+    stats: &[i32],
+    placed: &Placed,
+    source: &std::path::Path,
+) -> crate::error::Result<()> {
+    let g = canvas.global;
+    let win = g.window().map(|v| v as i32);
+    if win[..] == [0, 0, g.tex_size[0] as i32, g.tex_size[1] as i32] {
+        return Ok(());
+    }
+    for u in cells(maps, placed).0 {
+        let b = &canvas.row(stats, u)[1..5];
+        if b[0] > b[2] {
+            continue;
+        }
+        // The texels the stamp may read: its box, one more each side for the bilinear fetch.
+        let reach = [b[0] - 1, b[1] - 1, b[2] - b[0] + 3, b[3] - b[1] + 3];
+        let within = reach[0] >= win[0]
+            && reach[1] >= win[1]
+            && reach[0] + reach[2] <= win[0] + win[2]
+            && reach[1] + reach[3] <= win[1] + win[3];
+        if super::plan::meets(reach, g.window()) && !within {
+            return Err(crate::Error::Placement {
+                path: source.to_path_buf(),
+                layer: u,
+                detail: format!(
+                    "this blur, smear or clone stamp (texels {}..{} x {}..{}) crosses the border of a {}x{} tile of this {}x{} texture, and a tiled bake cannot read across tiles; move the stroke off the border, or bake untiled (a texture whose canvas fits one storage buffer, without `texture.tile` or an EXR output)",
+                    b[0], b[2], b[1], b[3], win[2], win[3], g.tex_size[0], g.tex_size[1],
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
 /// Records the inverse rendering and the filter of the chunk's tool stamps into `enc`; `None` when
 /// the chunk has none.
 pub(crate) fn record(
@@ -97,6 +138,7 @@ pub(crate) fn record(
         .enumerate()
         .map(|(k, &u)| Params {
             pad: [k as u32, rows],
+            win: canvas.global.win,
             ..maps.params[u - start]
         })
         .collect();

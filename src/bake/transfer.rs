@@ -29,9 +29,8 @@ pub fn fill(
     log: &mut Log,
 ) -> Result<()> {
     let (dev, pipes, g) = (&engine.ctx.device, &engine.pipes, &mesh.gpu);
-    let [w, h] = global.tex_size;
     let ss = global.ss;
-    let jobs = raster_jobs(&mesh.mesh.uv_sets[job.uv_set as usize], [w, h], global);
+    let jobs = raster_jobs(&mesh.mesh.uv_sets[job.uv_set as usize], global);
     let params = params_buffer(dev, "bake.transfer.params", &jobs);
     engine.ctx.scoped("texture transfer", || {
         let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {

@@ -116,6 +116,7 @@ pub const SHARED: &[(&str, &str)] = &[
     ("geometry", include_str!("../../wgsl/shared/geometry.wgsl")),
     ("blend", include_str!("../../wgsl/shared/blend.wgsl")),
     ("acc", include_str!("../../wgsl/shared/acc.wgsl")),
+    ("window", include_str!("../../wgsl/shared/window.wgsl")),
     ("expmap", include_str!("../../wgsl/shared/expmap.wgsl")),
     ("linalg", include_str!("../../wgsl/shared/linalg.wgsl")),
     ("dims", include_str!("../../wgsl/shared/dims.wgsl")),

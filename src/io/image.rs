@@ -92,6 +92,13 @@ impl LinearImage {
 
     /// Decodes encoded image bytes (PNG or JPEG).
     pub fn decode(bytes: &[u8]) -> std::result::Result<Self, String> {
+        // The image crate also reads OpenEXR (for our EXR output); an image read here is sRGB
+        // colour, which a linear EXR is not.
+        match image::guess_format(bytes) {
+            Ok(image::ImageFormat::Png | image::ImageFormat::Jpeg) => {}
+            Ok(other) => return Err(format!("{other:?} images are not supported")),
+            Err(e) => return Err(e.to_string()),
+        }
         let img = image::load_from_memory(bytes).map_err(|e| e.to_string())?;
         let (width, height) = (img.width(), img.height());
         let pixels = if img.color().bytes_per_pixel() / img.color().channel_count().max(1) >= 2 {

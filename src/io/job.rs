@@ -11,6 +11,7 @@
 //! | `texture.base` | `"material"` (the material's base-colour texture; its factor as a solid colour if it has none; mid grey without a material); also an image path, a linear RGBA colour, or `{"transfer": {"from_uv_set": N, "image": "material" or a path}}` |
 //! | `texture.padding` | `16` texels (`"full"` fills the whole background) |
 //! | `texture.samples` | `4` (2×2 supersampling; 1, 4, 9 or 16) |
+//! | `texture.tile` | none: tiles of the largest power-of-two side that fits one storage buffer, only when the whole texture does not; or a multiple of 64 |
 //! | layer `kind` | `"decal"` |
 //! | layer `mask` | none |
 //! | layer `angle` | `0` degrees |
@@ -19,7 +20,7 @@
 //! | layer `blend` | `"normal"` |
 //! | layer `opacity` | `1.0` |
 //! | layer `depth` (planar) | half the larger of the two sizes |
-//! | `output.texture` | `"baked.png"` |
+//! | `output.texture` | `"baked.png"` (`.exr`: OpenEXR, linear 32-bit float) |
 //! | `output.bit_depth` | `8` |
 //! | `output.report` | `"report.json"` |
 //! | `output.glb`, `output.preview` | none |
@@ -89,6 +90,10 @@ pub struct TextureSpec {
     /// Samples per texel (a square: 1, 4, 9, 16).
     #[serde(default = "default_samples")]
     pub samples: u32,
+    /// Bake by tiles of this many texels a side (a multiple of 64); default: tiles only when the
+    /// texture does not fit one storage buffer of the device.
+    #[serde(default)]
+    pub tile: Option<u32>,
 }
 
 fn default_side() -> u32 {
@@ -106,6 +111,7 @@ impl Default for TextureSpec {
             base: BaseSpec::default(),
             padding: PaddingSpec::default(),
             samples: default_samples(),
+            tile: None,
         }
     }
 }
@@ -452,6 +458,8 @@ pub struct Job {
     pub padding: Padding,
     /// Supersampling factor per axis (sqrt of samples).
     pub ss: u32,
+    /// `texture.tile`: bake by tiles of this side (a multiple of 64).
+    pub tile: Option<u32>,
     /// Layers.
     pub layers: Vec<Layer>,
     /// Output texture path.
@@ -467,6 +475,15 @@ pub struct Job {
 }
 
 impl Job {
+    /// Whether the texture is written as OpenEXR (`output.texture` ends in `.exr`): linear RGBA,
+    /// 32-bit float, padded like the PNG; `output.bit_depth` then applies to the `.glb`'s PNG only.
+    pub fn exr(&self) -> bool {
+        self.out_texture
+            .as_ref()
+            .and_then(|p| p.extension())
+            .is_some_and(|e| e.eq_ignore_ascii_case("exr"))
+    }
+
     /// The job for set `set` of a several-set job (`"uv_set": [..]`): `{uv}` in every output path
     /// replaced by the set's number; a report or `.glb` path without `{uv}` gets `-uvN` before its
     /// extension, so the sets' files do not overwrite each other; no preview (the sets share one,
@@ -610,6 +627,12 @@ impl Job {
                 ))
             }
         };
+        if let Some(t) = t.tile.filter(|t| *t == 0 || t % 64 != 0) {
+            return Err(err(
+                "texture.tile",
+                format!("{t} is not a positive multiple of 64 texels (the bake's cell size)"),
+            ));
+        }
         if f.output.bit_depth != 8 && f.output.bit_depth != 16 {
             return Err(err(
                 "output.bit_depth",
@@ -641,6 +664,7 @@ impl Job {
             base,
             padding,
             ss,
+            tile: t.tile,
             layers,
             out_texture: out(&f.output.texture),
             bit_depth: f.output.bit_depth,

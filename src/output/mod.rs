@@ -13,6 +13,25 @@ use crate::io::job::Job;
 use std::path::PathBuf;
 use std::time::Instant;
 
+/// OpenEXR bytes of a linear RGBA f32 image (32-bit float channels, the `image` crate's encoder).
+fn exr_bytes(w: u32, h: u32, linear: &[f32], path: &std::path::Path) -> Result<Vec<u8>> {
+    use image::ImageEncoder;
+    let mut out = std::io::Cursor::new(Vec::new());
+    image::codecs::openexr::OpenExrEncoder::new(&mut out)
+        .write_image(
+            bytemuck::cast_slice(linear),
+            w,
+            h,
+            image::ExtendedColorType::Rgba32F,
+        )
+        .map_err(|e| Error::Image {
+            path: path.to_path_buf(),
+            action: "encoding",
+            detail: e.to_string(),
+        })?;
+    Ok(out.into_inner())
+}
+
 /// Files written, in order.
 pub fn write_outputs(
     engine: &Engine,
@@ -44,7 +63,11 @@ pub fn write_outputs(
         files.push((p.clone(), out));
     }
     if let Some(p) = &job.out_texture {
-        files.insert(0, (p.clone(), png));
+        let bytes = match &baked.linear {
+            Some(linear) if job.exr() => exr_bytes(baked.width, baked.height, linear, p)?,
+            _ => png,
+        };
+        files.insert(0, (p.clone(), bytes));
     }
     baked.report.timings.write_ms = t.elapsed().as_secs_f64() * 1000.0;
     if let Some(p) = &job.out_report {

@@ -3,6 +3,7 @@
 // centre (a 1x1 image for a solid colour), straight alpha. Dispatch: (ceil(W / 8), ceil(H / 8), 1).
 #import params
 #import acc
+#import window
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var base: texture_2d<f32>;
@@ -10,7 +11,8 @@
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if (gid.x >= params.tex_size.x || gid.y >= params.tex_size.y) { return; }
-    let uv = (vec2<f32>(gid.xy) + 0.5) / vec2<f32>(params.tex_size);
-    acc_store(gid.y * params.tex_size.x + gid.x, textureSampleLevel(base, samp, uv, 0.0));
+    let size = win_size();
+    if (gid.x >= size.x || gid.y >= size.y) { return; }
+    let uv = (vec2<f32>(win_origin() + gid.xy) + 0.5) / vec2<f32>(params.tex_size);
+    acc_store(gid.y * size.x + gid.x, textureSampleLevel(base, samp, uv, 0.0));
 }

@@ -6,6 +6,7 @@
 #import params
 #import blend
 #import acc
+#import window
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var layer_color: texture_2d<f32>;
@@ -31,8 +32,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (n == 0.0) { return; }
     let src = sum / n;
     if (src.a <= 0.0) { return; }
-    let tex = vec2<u32>(vec2<i32>(gid.xy) + params.rect_origin);
-    let idx = tex.y * params.tex_size.x + tex.x;
+    let idx = win_index(vec2<i32>(gid.xy) + params.rect_origin);
+    if (idx == 0xffffffffu) { return; }
     acc_store(idx, blend(params.blend, acc_load(idx), src));
     atomicAdd(&stats[params.aux * params.stats_stride + 5u], 1);
 }

@@ -2,12 +2,16 @@
 // Pads and encodes. Padding: a background texel whose nearest island texel (exact distance transform,
 // see edt_rows.wgsl) lies within `params.aux` texels (0xffffffff = any distance) takes that texel's
 // colour. Encoding: sRGB, 8 bits (one u32 per texel, RGBA8) or, with flag bit 2, 16 bits (two u32 per
-// texel, RGBA16), rows `rect_size.x` words apart; alpha stays linear. CPU twins: `nearest_island` in
+// texel, RGBA16), rows `rect_size.x` words apart; alpha stays linear. Over the canvas window only
+// (shared/window.wgsl). CPU twins: `nearest_island` in
 // src/bake/cpu.rs, `linear_to_srgb` in src/io/image.rs. Dispatch: (ceil(W / 8), ceil(H / 8), 1).
 #import params
 #import acc
+#import window
 
 const FLAG_16BIT: u32 = 4u;
+// A tile of a tiled bake: no padding here (src/bake/tiles.rs pads the whole texture on the CPU).
+const FLAG_NO_PAD: u32 = 32u;
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read_write> packed: array<u32>;
@@ -22,11 +26,13 @@ fn to_srgb(c: f32) -> f32 {
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if (gid.x >= params.tex_size.x || gid.y >= params.tex_size.y) { return; }
-    let w = params.tex_size.x;
+    // The canvas window's texels (the whole texture unless this is a tile, shared/window.wgsl).
+    let size = win_size();
+    if (gid.x >= size.x || gid.y >= size.y) { return; }
+    let w = size.x;
     let i = gid.y * w + gid.x;
     var src = i;
-    if (mask[i] == 0u) {
+    if ((params.flags & FLAG_NO_PAD) == 0u && mask[i] == 0u) {
         let n = nearest[i];
         if (n != 0xffffffffu) {
             let dx = i32(n % w) - i32(gid.x);

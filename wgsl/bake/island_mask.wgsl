@@ -4,6 +4,7 @@
 // first setter of a texel counts it in stats row `params.aux` (word 0).
 // Dispatch: (ceil(rect w / 8), ceil(rect h / 8), 1). CPU twin: `islands_cpu` in src/bake/cpu.rs.
 #import params
+#import window
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var cov: texture_2d<f32>;
@@ -21,8 +22,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     if (any) {
-        let tex = vec2<u32>(vec2<i32>(gid.xy) + params.rect_origin);
-        if (atomicExchange(&mask[tex.y * params.tex_size.x + tex.x], 1u) == 0u) {
+        let idx = win_index(vec2<i32>(gid.xy) + params.rect_origin);
+        if (idx != 0xffffffffu && atomicExchange(&mask[idx], 1u) == 0u) {
             atomicAdd(&stats[params.aux * params.stats_stride], 1u);
         }
     }

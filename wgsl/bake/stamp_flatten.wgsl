@@ -6,6 +6,7 @@
 // transparent (alpha 0 = unknown). Non-indexed draw of 3 * (triangles in the stamp's list).
 // CPU twin: `flatten_cpu` in src/bake/cpu.rs.
 #import params
+#import window
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> lists: array<u32>;
@@ -45,8 +46,10 @@ fn vs_main(@builtin(vertex_index) vi: u32) -> VsOut {
 
 fn canvas_at(x: i32, y: i32) -> vec4<f32> {
     let size = vec2<i32>(params.tex_size);
-    let p = vec2<u32>(vec2<i32>(((x % size.x) + size.x) % size.x, ((y % size.y) + size.y) % size.y));
-    let i = p.y * params.tex_size.x + p.x;
+    let p = vec2<i32>(((x % size.x) + size.x) % size.x, ((y % size.y) + size.y) % size.y);
+    // Outside the window (a tiled bake): `tools::check_windows` refuses such stamps first.
+    let i = win_index(p);
+    if (i == 0xffffffffu) { return vec4<f32>(0.0); }
     return vec4<f32>(acc_rg[i], acc_ba[i]);
 }
 

@@ -9,6 +9,7 @@
 #import params
 #import blend
 #import acc
+#import window
 
 @group(0) @binding(0) var<uniform> params: Params;
 // Word 7 of row params.aux (the stroke's last unit) counts the texels the stroke changed.
@@ -19,8 +20,8 @@
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= params.rect_size.x || gid.y >= params.rect_size.y) { return; }
-    let tex = vec2<u32>(vec2<i32>(gid.xy) + params.rect_origin);
-    let idx = tex.y * params.tex_size.x + tex.x;
+    let idx = win_index(vec2<i32>(gid.xy) + params.rect_origin);
+    if (idx == 0xffffffffu) { return; }
     let s = vec4<f32>(stroke_rg[idx], stroke_ba[idx]);
     if (s.a <= 0.0) { return; }
     stroke_rg[idx] = vec2<f32>(0.0);

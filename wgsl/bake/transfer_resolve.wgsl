@@ -5,6 +5,7 @@
 // CPU twin: `transfer_cpu` in src/bake/cpu_tools.rs.
 #import params
 #import acc
+#import window
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var color: texture_2d<f32>;
@@ -14,9 +15,8 @@
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= params.rect_size.x || gid.y >= params.rect_size.y) { return; }
     let texel = vec2<i32>(gid.xy) + params.rect_origin;
-    if (texel.x < 0 || texel.y < 0 || u32(texel.x) >= params.tex_size.x || u32(texel.y) >= params.tex_size.y) {
-        return;
-    }
+    let idx = win_index(texel);
+    if (idx == 0xffffffffu) { return; }
     var sum = vec4<f32>(0.0);
     var n = 0.0;
     for (var sy = 0u; sy < params.ss; sy = sy + 1u) {
@@ -29,6 +29,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     if (n > 0.0) {
-        acc_store(u32(texel.y) * params.tex_size.x + u32(texel.x), sum / n);
+        acc_store(idx, sum / n);
     }
 }

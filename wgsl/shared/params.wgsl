@@ -45,6 +45,8 @@ struct Params {
     // alpha (xy), beta (zw).
     cone_a: vec4<f32>,
     cone_b: vec4<f32>,
+    // The canvas window (shared/window.wgsl): x, y, w, h in texels; w = 0: the whole texture.
+    win: vec4<u32>,
 }
 
 const FLAG_FACING: u32 = 1u;

@@ -1,0 +1,239 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Bakes by tiles (`bake/tiles.rs`): byte-identical to the untiled bake where both fit (decals by
+//! every method, a continuous stroke, every padding, 8 and 16 bits, tiles that do not divide the
+//! texture); chosen automatically when the canvas does not fit the device's storage buffers; a
+//! blur stamp across a tile border is refused by name; EXR output holds the linear canvas, padded.
+
+mod common;
+use common::*;
+use decalbake::{Engine, Error, Job};
+use std::path::Path;
+
+/// Spot with decals by every method and blend mode, and a continuous paint stroke across the back.
+fn job(dir: &Path, side: [u32; 2], extra: serde_json::Value) -> Job {
+    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
+    std::fs::write(dir.join("a.png"), test_image(32, 32, 5, true).encode_png(8)).unwrap();
+    std::fs::write(
+        dir.join("b.png"),
+        test_image(24, 40, 8, false).encode_png(8),
+    )
+    .unwrap();
+    let ray = |o: [f32; 3]| serde_json::json!({ "ray": { "origin": o, "dir": [-o[0], 0.0, 0.2 - o[2]] } });
+    let mut text = serde_json::json!({ "mesh": spot,
+        "texture": { "width": side[0], "height": side[1], "padding": 8 },
+        "layers": [
+            { "image": "a.png", "at": ray([2.0, 0.1, 0.2]), "size": [0.3, 0.3], "method": "expmap" },
+            { "image": "b.png", "at": ray([-2.0, 0.2, 0.2]), "size": [0.35, 0.3], "method": "planar", "blend": "multiply" },
+            { "image": "a.png", "at": ray([0.0, 0.0, 2.2]), "size": [0.3, 0.3], "method": "lscm", "blend": "screen", "angle": 30 },
+            { "image": "b.png", "at": ray([1.4, 0.25, 1.6]), "size": [0.25, 0.25], "method": "hybrid", "opacity": 0.7 },
+            { "kind": "stroke", "image": "a.png", "size": [0.1, 0.1], "spacing": 0.2, "continuity": true,
+              "path": (0..5).map(|k| { let t = k as f32 / 4.0;
+                  serde_json::json!({ "ray": { "origin": [-0.3 + 0.6 * t, 1.5, 0.22 + 0.09 * (std::f32::consts::TAU * t).sin()], "dir": [0, -1, 0] } }) })
+                  .collect::<Vec<_>>() }
+        ],
+        "output": { "texture": "out.png" } });
+    if let serde_json::Value::Object(m) = extra {
+        for (k, v) in m {
+            text["texture"][k] = v;
+        }
+    }
+    Job::parse(&text.to_string(), &dir.join("job.json"), dir, dir).unwrap()
+}
+
+#[test]
+fn tiled_bakes_are_the_untiled_bytes() {
+    let dir = scratch("tiles_identical");
+    let engine = engine();
+    let cases = [
+        ([256, 256], 128, serde_json::json!({})),
+        ([256, 256], 64, serde_json::json!({ "padding": "full" })),
+        (
+            [200, 136],
+            128,
+            serde_json::json!({ "padding": 3, "samples": 9 }),
+        ),
+    ];
+    for (side, tile, extra) in cases {
+        let mut j = job(&dir, side, extra.clone());
+        let mesh = engine.load_mesh(&j.mesh).unwrap();
+        for depth in [8, 16] {
+            j.bit_depth = depth;
+            j.tile = None;
+            let whole = engine.bake(&mesh, &j).unwrap();
+            j.tile = Some(tile);
+            let tiled = engine.bake(&mesh, &j).unwrap();
+            let differ = whole
+                .texels
+                .iter()
+                .zip(&tiled.texels)
+                .filter(|(a, b)| a != b)
+                .count();
+            println!("{side:?} tile {tile} {extra} {depth}-bit: {differ} values differ");
+            if differ > 0 {
+                let w = side[0] as usize;
+                for (k, (a, b)) in whole
+                    .texels
+                    .iter()
+                    .zip(&tiled.texels)
+                    .enumerate()
+                    .filter(|(_, (a, b))| a != b)
+                    .take(12)
+                {
+                    let t = k / 4;
+                    println!("  texel ({}, {}) ch {}: {a} vs {b}", t % w, t / w, k % 4);
+                }
+            }
+            assert_eq!(
+                differ, 0,
+                "{side:?} in tiles of {tile}, {extra}, {depth} bits"
+            );
+            assert!(tiled.report.tiles.is_some() && whole.report.tiles.is_none());
+            assert_eq!(tiled.report.island_texels, whole.report.island_texels);
+            for (a, b) in whole.report.layers.iter().zip(&tiled.report.layers) {
+                assert_eq!(
+                    a.texels_covered, b.texels_covered,
+                    "texels covered, layer {}",
+                    a.index
+                );
+                assert!(a.texels_covered > 0, "layer {} covers nothing", a.index);
+            }
+        }
+    }
+}
+
+/// A device whose storage buffers hold 1 MiB: a 512² canvas plane (2 MiB) cannot be one buffer, so
+/// the bake goes by tiles of 256 by itself, and gives the bytes of the untiled bake on a device
+/// with room for it.
+#[test]
+fn a_texture_beyond_the_storage_limit_is_tiled_automatically() {
+    let dir = scratch("tiles_auto");
+    let mut j = job(&dir, [512, 512], serde_json::json!({}));
+    // Decals only: the small device also solves the map stage in smaller chunks, and a stroke's
+    // many charts are solved packed (16 or more in a chunk) or one per workgroup depending on the
+    // chunk, which moves their last bits (tests/linalg.rs); decals' charts are solved alike.
+    j.layers.truncate(4);
+    let reference = {
+        let engine = engine();
+        let mesh = engine.load_mesh(&j.mesh).unwrap();
+        engine.bake(&mesh, &j).unwrap()
+    };
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+        backends: wgpu::Backends::from_env().unwrap_or(wgpu::Backends::VULKAN),
+        ..wgpu::InstanceDescriptor::new_without_display_handle()
+    });
+    let adapter = pollster::block_on(instance.request_adapter(&Default::default())).unwrap();
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        required_features: adapter.features()
+            & (wgpu::Features::FLOAT32_FILTERABLE | wgpu::Features::FLOAT32_BLENDABLE),
+        required_limits: wgpu::Limits {
+            max_storage_buffer_binding_size: 1 << 20,
+            ..adapter.limits()
+        },
+        ..Default::default()
+    }))
+    .unwrap();
+    let tight = Engine::from_adapter(&adapter, device, queue).unwrap();
+    let mesh = tight.load_mesh(&j.mesh).unwrap();
+    let baked = tight.bake(&mesh, &j).unwrap();
+    assert_eq!(baked.report.tiles, Some([256, 4]));
+    let differ: Vec<usize> = (0..baked.texels.len())
+        .filter(|&k| baked.texels[k] != reference.texels[k])
+        .collect();
+    for &k in differ.iter().take(8) {
+        let t = k / 4;
+        println!(
+            "texel ({}, {}) ch {}: {} vs {}",
+            t % 512,
+            t / 512,
+            k % 4,
+            reference.texels[k],
+            baked.texels[k]
+        );
+    }
+    assert!(
+        differ.is_empty(),
+        "tiled on a small device: {} values differ",
+        differ.len()
+    );
+}
+
+/// A blur stroke inside one tile bakes as untiled; one across a tile border is refused, naming
+/// the layer and the stamp, and nothing is baked.
+#[test]
+fn a_blur_stamp_across_a_tile_border_is_refused_by_name() {
+    let dir = scratch("tiles_blur");
+    let engine = engine();
+    let j = job(&dir, [256, 256], serde_json::json!({}));
+    let blur: Job = {
+        let ray = |o: [f32; 3]| serde_json::json!({ "ray": { "origin": o, "dir": [-o[0], 0.0, 0.2 - o[2]] } });
+        let layer = serde_json::json!({ "kind": "stroke", "tool": "blur", "radius": 0.03, "image": "a.png",
+            "size": [0.15, 0.15], "spacing": 0.3, "path": [ray([2.0, 0.1, 0.1]), ray([2.0, 0.15, 0.4])] });
+        let text = serde_json::json!({ "mesh": j.mesh, "texture": { "width": 256, "height": 256 },
+            "layers": [layer] });
+        Job::parse(&text.to_string(), &dir.join("blur.json"), &dir, &dir).unwrap()
+    };
+    let mesh = engine.load_mesh(&j.mesh).unwrap();
+    // Where does the stroke land? Its texel box decides which tiles are safe.
+    let whole = engine.bake(&mesh, &blur).unwrap();
+    let b = whole.report.layers[0].texel_box;
+    println!("blur stroke texel box {b:?}");
+    // The stamps read their boxes and one texel around (bilinear): inside one tile of side t?
+    let fits = |t: i32| (b[0] - 1) / t == (b[2] + 1) / t && (b[1] - 1) / t == (b[3] + 1) / t;
+    let inside = [128, 64].into_iter().find(|&t| fits(t));
+    let across = [128, 64]
+        .into_iter()
+        .find(|&t| !fits(t))
+        .expect("a tile side the stroke crosses");
+    let mut tiled = blur.clone();
+    if let Some(t) = inside {
+        tiled.tile = Some(t as u32);
+        assert_eq!(engine.bake(&mesh, &tiled).unwrap().texels, whole.texels);
+    }
+    tiled.tile = Some(across as u32);
+    match engine.bake(&mesh, &tiled) {
+        Err(Error::Placement { layer, detail, .. }) => {
+            assert_eq!(layer, 0);
+            assert!(
+                detail.contains("stamp") && detail.contains("tile"),
+                "{detail}"
+            );
+        }
+        other => panic!("expected a refusal, got {:?}", other.map(|_| ())),
+    }
+}
+
+/// `output.texture` ending in `.exr`: the file is OpenEXR, 32-bit float linear RGBA, the padded
+/// canvas; its sRGB encoding is the PNG's within one 8-bit level (GPU and CPU `pow` differ in the
+/// last bit).
+#[test]
+fn exr_output_is_the_linear_padded_canvas() {
+    let dir = scratch("tiles_exr");
+    let engine = engine();
+    let mut j = job(&dir, [128, 128], serde_json::json!({}));
+    let mesh = engine.load_mesh(&j.mesh).unwrap();
+    let png = engine.bake(&mesh, &j).unwrap();
+    j.out_texture = Some(dir.join("out.exr"));
+    let mut exr = engine.bake(&mesh, &j).unwrap();
+    assert_eq!(
+        exr.texels, png.texels,
+        "the EXR job's 8-bit texels are the PNG job's"
+    );
+    decalbake::output::write_outputs(&engine, &mesh, &j, &mut exr).unwrap();
+    let img = image::open(dir.join("out.exr")).unwrap().into_rgba32f();
+    assert_eq!(img.dimensions(), (128, 128));
+    let linear = exr.linear.as_ref().unwrap();
+    assert_eq!(img.as_raw(), linear, "the file holds the baked floats");
+    let mut worst = 0i32;
+    for (k, v) in linear.iter().enumerate() {
+        let e = if k % 4 == 3 {
+            (v.clamp(0.0, 1.0) * 255.0).round()
+        } else {
+            (decalbake::io::image::linear_to_srgb(v.clamp(0.0, 1.0)) * 255.0).round()
+        };
+        worst = worst.max((e as i32 - png.texels[k] as i32).abs());
+    }
+    println!("EXR vs PNG: at most {worst} 8-bit levels apart");
+    assert!(worst <= 1, "{worst}");
+    // Padding reached the float image too: a background texel next to an island is not empty.
+    assert!(linear.chunks(4).filter(|t| t[3] > 0.0).count() > png.report.island_texels as usize);
+}
