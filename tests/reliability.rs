@@ -127,7 +127,8 @@ fn tight_engine(binding: u64, buffer: u64) -> decalbake::Engine {
 }
 
 /// On a device whose buffers are smaller than the bake's budgets, the map stage works in smaller
-/// chunks and bakes the same bytes; what cannot fit at all (the canvas, the mesh's buffers) is a
+/// chunks and bakes the same bytes; a texture beyond them goes by tiles; what cannot fit at all (a
+/// tile the job asks for, the mesh's buffers) is a
 /// typed error naming the field or the mesh, never a validation failure or an abort.
 #[test]
 fn allocations_beyond_the_device_limits_are_typed_errors() {
@@ -154,13 +155,23 @@ fn allocations_beyond_the_device_limits_are_typed_errors() {
     };
     // 1 MiB buffers: Spot's 24 coordinate slots (92 KiB each, with their triangle lists) go in chunks of 14; same bytes.
     assert_eq!(bake(1 << 20, 2 << 20, 128).unwrap().texels, reference);
-    // A 256² canvas plane (512 KiB) does not fit 256 KiB: the texture size is named.
-    match bake(256 << 10, 1 << 20, 256) {
+    // A 256² canvas plane (512 KiB) does not fit 256 KiB: the bake goes by tiles by itself
+    // (tests/tiles.rs checks the bytes), but tiles of 256 that the job asks for are refused.
+    assert_eq!(
+        bake(256 << 10, 1 << 20, 256).unwrap().report.tiles,
+        Some([128, 4])
+    );
+    let mut tiled = job.clone();
+    tiled.tile = Some(256);
+    (tiled.width, tiled.height) = (256, 256);
+    let engine = tight_engine(256 << 10, 1 << 20);
+    let mesh = engine.load_mesh(&tiled.mesh).unwrap();
+    match engine.bake(&mesh, &tiled) {
         Err(Error::Job { field, detail, .. }) => {
-            assert_eq!(field, "texture.width");
+            assert_eq!(field, "texture.tile");
             assert!(detail.contains("512 KiB"), "{detail}");
         }
-        other => panic!("expected a texture-size error, got {:?}", other.map(|_| ())),
+        other => panic!("expected a tile-size error, got {:?}", other.map(|_| ())),
     }
     // 64 KiB buffers: Spot's adjacency lists (128 KiB) do not fit: the mesh is named.
     match bake(64 << 10, 256 << 10, 64) {

@@ -36,7 +36,11 @@ pub fn check_job(
         let side = 1u64 << ((max_binding / 8).max(1).ilog2() / 2);
         return Err(Error::job(
             src,
-            "texture.width",
+            if job.tile.is_some() {
+                "texture.tile"
+            } else {
+                "texture.width"
+            },
             format!(
                 "{}x{} needs {} per accumulation plane, above this adapter's {limit_name} of {} (at most {} texels, e.g. {side}x{side}); give a smaller `texture.tile`",
                 cw,

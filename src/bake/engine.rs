@@ -44,7 +44,7 @@ pub struct LoadedMesh {
     /// Island masks and nearest-island maps by (UV set, width, height, supersampling).
     pub(crate) islands: Mutex<HashMap<IslandKey, Arc<Islands>>>,
     /// The same for tiled bakes, on the CPU (`bake/tiles.rs`).
-    pub(crate) tiled_islands: Mutex<HashMap<IslandKey, Arc<super::tiles::TiledIslands>>>,
+    pub(crate) tiled_islands: Mutex<HashMap<IslandKey, Arc<TiledIslands>>>,
 }
 
 impl LoadedMesh {
@@ -401,8 +401,8 @@ impl Engine {
         job: &Job,
         on_stage: &dyn Fn(&str),
     ) -> Result<Baked> {
-        if let Some(side) = super::tiles::tile_side(self, job) {
-            return super::tiles::bake(self, mesh, job, side, on_stage);
+        if let Some(tiled) = super::tiled(self, mesh, job, on_stage) {
+            return tiled;
         }
         let run = super::run(self, mesh, job, on_stage)?;
         on_stage("read-back");
@@ -516,6 +516,17 @@ impl Islands {
             count: 0,
         }
     }
+}
+
+/// The islands of a texture assembled from its tiles (`bake/tiles.rs`), on the CPU: the mask and
+/// every texel's nearest island texel (`u32::MAX`: none), over the whole texture.
+pub struct TiledIslands {
+    /// True per island texel.
+    pub mask: Vec<bool>,
+    /// Nearest island texel per texel.
+    pub nearest: Vec<u32>,
+    /// Island texels.
+    pub count: u64,
 }
 
 /// (UV set, width, height, supersampling).

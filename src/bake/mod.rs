@@ -66,6 +66,18 @@ pub(crate) struct Run {
     pub linear: Option<Vec<f32>>,
 }
 
+/// A bake by tiles ([`tiles`]) when `job` needs one (a canvas beyond one storage buffer,
+/// `texture.tile`, a float output), else `None`: the engine's one-pass bake follows.
+pub(crate) fn tiled(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    job: &Job,
+    on_stage: &dyn Fn(&str),
+) -> Option<Result<Baked>> {
+    let side = tiles::tile_side(engine, job)?;
+    Some(tiles::bake(engine, mesh, job, side, on_stage))
+}
+
 /// Bakes `job` onto `mesh`, stage by stage, naming each stage to `on_stage` as it starts (a
 /// progress display's spinner; chunks of the map stage say which layers they hold).
 pub(crate) fn run(

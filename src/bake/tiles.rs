@@ -20,23 +20,12 @@
 //! A float (EXR) output takes the same path with one tile when the texture fits, so that its
 //! linear canvas is padded by the same map. `tests/tiles.rs` compares tiled with untiled bakes.
 
-use super::engine::{Baked, Engine, IslandKey, LoadedMesh};
+use super::engine::{Baked, Engine, IslandKey, LoadedMesh, TiledIslands};
 use super::report::Report;
 use crate::error::Result;
 use crate::io::job::Job;
 use std::sync::Arc;
 use std::time::Instant;
-
-/// The islands of a texture assembled from its tiles: the mask and every texel's nearest island
-/// texel (`u32::MAX`: none), over the whole texture.
-pub struct TiledIslands {
-    /// True per island texel.
-    pub mask: Vec<bool>,
-    /// Nearest island texel per texel.
-    pub nearest: Vec<u32>,
-    /// Island texels.
-    pub count: u64,
-}
 
 /// The tile side a bake of `job` uses, if it is tiled: `texture.tile`; else, for a texture whose
 /// canvas plane does not fit one storage buffer, the largest power of two whose square does; else

@@ -169,6 +169,10 @@ enum Cmd {
         /// warm-up.
         #[arg(long)]
         soak: Option<usize>,
+        /// Bake the same `--decals` (first value, default 16) at each of `--sizes`, tiled where
+        /// the canvas does not fit one storage buffer: cost per texel against the first size.
+        #[arg(long)]
+        tiles: bool,
         /// With `--linalg`: chart sizes (vertices) to solve one at a time.
         #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000")]
         charts: Vec<usize>,
@@ -246,8 +250,16 @@ fn run(cli: Cli) -> Result<()> {
             unwrap,
             gpu_max_triangles,
             soak,
+            tiles,
         } => {
             let mut engine = engine(cli.backend.as_deref())?;
+            if tiles {
+                let mesh = mesh.unwrap_or_else(|| {
+                    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/bob.glb")
+                });
+                let n = decals.first().copied().unwrap_or(16);
+                return bench::tiles::run(&engine, &mesh, &sizes, n, reps, |v| println!("{v}"));
+            }
             if let Some(bakes) = soak {
                 let mesh = mesh.unwrap_or_else(|| {
                     Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb")

@@ -10,4 +10,5 @@ pub mod linalg;
 pub mod scale;
 pub mod soak;
 pub mod strokes;
+pub mod tiles;
 pub mod unwrap;
