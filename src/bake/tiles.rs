@@ -159,22 +159,49 @@ fn merge(mut a: Report, b: Report) -> Report {
 
 /// Pads `values` (`n` per texel) in place: each background texel whose nearest island texel lies
 /// within `radius` (`u32::MAX`: any distance) takes that texel's values, as `encode.wgsl` does.
-fn pad<T: Copy>(isl: &TiledIslands, w: u32, radius: u32, values: &mut [T], n: usize) {
+/// Rows are split between the cores (an 8192² texture has 64M texels).
+fn pad<T: Copy + Send + Sync>(isl: &TiledIslands, w: u32, radius: u32, values: &mut [T], n: usize) {
     let r2 = radius as u64 * radius as u64;
-    for i in 0..isl.mask.len() {
-        let src = isl.nearest[i];
-        if isl.mask[i] || src == u32::MAX {
-            continue;
+    let texels = isl.mask.len();
+    let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+    let band = texels.div_ceil(threads).max(1);
+    let base = Shared(values.as_mut_ptr());
+    std::thread::scope(|s| {
+        for start in (0..texels).step_by(band) {
+            let base = &base;
+            s.spawn(move || {
+                for i in start..(start + band).min(texels) {
+                    let src = isl.nearest[i];
+                    if isl.mask[i] || src == u32::MAX {
+                        continue;
+                    }
+                    let (dx, dy) = (
+                        (src % w) as i64 - (i as u32 % w) as i64,
+                        (src / w) as i64 - (i as u32 / w) as i64,
+                    );
+                    if radius == u32::MAX || (dx * dx + dy * dy) as u64 <= r2 {
+                        // SAFETY: `src` is an island texel (the distance transform points only at
+                        // those) and `i` a background texel: no thread writes an island texel,
+                        // each background texel is written by the one thread whose band holds
+                        // it, and both lie inside `values` (texels × n).
+                        unsafe {
+                            std::ptr::copy_nonoverlapping(
+                                base.0.add(src as usize * n),
+                                base.0.add(i * n),
+                                n,
+                            )
+                        };
+                    }
+                }
+            });
         }
-        let (dx, dy) = (
-            (src % w) as i64 - (i as u32 % w) as i64,
-            (src / w) as i64 - (i as u32 / w) as i64,
-        );
-        if radius == u32::MAX || (dx * dx + dy * dy) as u64 <= r2 {
-            values.copy_within(src as usize * n..src as usize * n + n, i * n);
-        }
-    }
+    });
 }
+
+/// A pointer the padding threads share (see the safety note in [`pad`]).
+struct Shared<T>(*mut T);
+// SAFETY: the threads read and write disjoint texels (see `pad`).
+unsafe impl<T: Send> Sync for Shared<T> {}
 
 /// The texture's islands, assembled from every window's mask (cached on the mesh).
 fn islands(
