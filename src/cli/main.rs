@@ -447,6 +447,11 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
     let job = Job::load(&job_path, None)?;
     let engine = engine(backend)?;
     bake(&engine, &job)?;
+    // The same texture as linear 32-bit floats (OpenEXR, padded like the PNG).
+    let mut exr = job.clone();
+    exr.out_texture = Some(out.join("baked.exr"));
+    (exr.out_glb, exr.out_report, exr.out_preview) = (None, None, None);
+    bake(&engine, &exr)?;
     // A new UV set by pelting: the crumpled sheet, whose pelt refines to its isometric flattening.
     // Stood up (it lies in the xz plane), so the preview's side views see its face.
     let sheet = out.join("crumpled.glb");
