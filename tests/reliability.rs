@@ -259,3 +259,35 @@ fn a_bake_names_its_stages_as_it_goes() {
     assert!(chunks.last().unwrap().ends_with("of 24"));
     assert_eq!(engine.bake(&mesh, &job).unwrap().texels, baked.texels);
 }
+
+/// Layer images stay on the GPU between bakes (one upload for many jobs), and a file rewritten
+/// between bakes (same path) is read again: the second bake shows the new image, the
+/// bytes a fresh engine bakes. Keyed by path alone, the cache would bake the old image.
+#[test]
+fn images_are_kept_between_bakes_and_read_again_when_rewritten() {
+    let dir = scratch("image_cache");
+    let mut job = heavy_job(&dir);
+    (job.width, job.height) = (128, 128);
+    job.layers.truncate(3);
+    let engine = engine();
+    let mesh = engine.load_mesh(&job.mesh).unwrap();
+    let first = engine.bake(&mesh, &job).unwrap();
+    assert_eq!(engine.cached_images(), 1, "one image file, read once");
+    assert_eq!(engine.bake(&mesh, &job).unwrap().texels, first.texels);
+    assert_eq!(engine.cached_images(), 1);
+    std::thread::sleep(Duration::from_millis(20));
+    std::fs::write(
+        dir.join("img.png"),
+        test_image(32, 32, 77, true).encode_png(8),
+    )
+    .unwrap();
+    let second = engine.bake(&mesh, &job).unwrap();
+    assert_ne!(second.texels, first.texels, "the rewritten image is used");
+    let fresh = {
+        let engine = common::engine();
+        let mesh = engine.load_mesh(&job.mesh).unwrap();
+        engine.bake(&mesh, &job).unwrap()
+    };
+    assert_eq!(second.texels, fresh.texels);
+    assert_eq!(engine.cached_images(), 1, "the old upload was replaced");
+}

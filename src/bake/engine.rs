@@ -160,6 +160,8 @@ pub struct Engine {
     /// reference the tests and `decalbake bench --strokes` compare the candidate lists with.
     /// Default `false`.
     pub whole_mesh_selection: bool,
+    /// Layer images and masks decoded and uploaded by earlier bakes (`bake/images.rs`).
+    pub(crate) images: Mutex<super::images::ImageCache>,
 }
 
 impl Engine {
@@ -208,7 +210,13 @@ impl Engine {
             targets: Mutex::new(HashMap::new()),
             linear_sampler,
             whole_mesh_selection: false,
+            images: Mutex::new(Default::default()),
         })
+    }
+
+    /// Layer images and masks kept on the GPU between bakes (each file once, as it was when read).
+    pub fn cached_images(&self) -> usize {
+        self.images.lock().map_or(0, |c| c.len())
     }
 
     /// The engine's compiled pipelines (for the linear-algebra entry points).
