@@ -140,34 +140,43 @@ fn host_device_api_returns_a_texture_equal_to_the_read_back() {
     assert_eq!(texture.format(), wgpu::TextureFormat::Rgba8UnormSrgb);
     // ...and reads the texture back itself.
     let row = (200 * 4u32).next_multiple_of(256);
-    let buf = device.create_buffer(&wgpu::BufferDescriptor {
-        label: None,
-        size: (row * 136) as u64,
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let mut enc = device.create_command_encoder(&Default::default());
-    enc.copy_texture_to_buffer(
-        texture.as_image_copy(),
-        wgpu::TexelCopyBufferInfo {
-            buffer: &buf,
-            layout: wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(row),
-                rows_per_image: None,
+    let read = |texture: &wgpu::Texture| {
+        let buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: None,
+            size: (row * 136) as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = device.create_command_encoder(&Default::default());
+        enc.copy_texture_to_buffer(
+            texture.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buf,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(row),
+                    rows_per_image: None,
+                },
             },
-        },
-        texture.size(),
-    );
-    queue.submit([enc.finish()]);
-    let bytes = engine.ctx.map_and_read(&buf, "test read-back").unwrap();
-    let expected = baked.rgba8();
-    for y in 0..136usize {
-        assert_eq!(
-            &bytes[y * row as usize..y * row as usize + 800],
-            &expected[y * 800..(y + 1) * 800],
-            "row {y} differs"
+            texture.size(),
         );
+        queue.submit([enc.finish()]);
+        engine.ctx.map_and_read(&buf, "test read-back").unwrap()
+    };
+    let expected = baked.rgba8();
+    // The same texture baked by tiles (assembled on the CPU, then uploaded).
+    let mut tiled = job.clone();
+    tiled.tile = Some(64);
+    let (tiled_texture, tiled_report) = engine.bake_to_texture(&mesh, &tiled).unwrap();
+    assert_eq!(tiled_report.tiles, Some([64, 12]));
+    for bytes in [read(&texture), read(&tiled_texture)] {
+        for y in 0..136usize {
+            assert_eq!(
+                &bytes[y * row as usize..y * row as usize + 800],
+                &expected[y * 800..(y + 1) * 800],
+                "row {y} differs"
+            );
+        }
     }
     assert!(baked.report.layers[0].texels_covered > 100);
     assert_eq!(

@@ -450,27 +450,33 @@ impl Engine {
 
     /// Bakes `job` onto `mesh` and returns the result as an `Rgba8UnormSrgb` texture that never leaves
     /// the GPU (usages: `TEXTURE_BINDING | COPY_SRC | COPY_DST`). The job's `bit_depth` is ignored.
+    /// A texture that is baked by tiles (beyond one storage buffer) is assembled on the CPU and
+    /// uploaded.
     pub fn bake_to_texture(&self, mesh: &LoadedMesh, job: &Job) -> Result<(wgpu::Texture, Report)> {
         let mut job8 = job.clone();
         job8.bit_depth = 8;
+        if let Some(tiled) = super::tiled(self, mesh, &job8, &|_| {}) {
+            let baked = tiled?;
+            let tex = self.ctx.scoped("texture output", || {
+                let tex = self.output_texture(job.width, job.height);
+                let bytes: Vec<u8> = baked.texels.iter().map(|&v| v as u8).collect();
+                self.ctx.queue.write_texture(
+                    tex.as_image_copy(),
+                    &bytes,
+                    wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(job.width * 4),
+                        rows_per_image: Some(job.height),
+                    },
+                    tex.size(),
+                );
+                tex
+            })?;
+            return Ok((tex, baked.report));
+        }
         let run = super::run(self, mesh, &job8, &|_| {})?;
         let tex = self.ctx.scoped("texture output", || {
-            let tex = self.ctx.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("decalbake.baked"),
-                size: wgpu::Extent3d {
-                    width: job.width,
-                    height: job.height,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::Rgba8UnormSrgb,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING
-                    | wgpu::TextureUsages::COPY_SRC
-                    | wgpu::TextureUsages::COPY_DST,
-                view_formats: &[],
-            });
+            let tex = self.output_texture(job.width, job.height);
             let mut enc = self.ctx.device.create_command_encoder(&Default::default());
             enc.copy_buffer_to_texture(
                 wgpu::TexelCopyBufferInfo {
@@ -492,6 +498,26 @@ impl Engine {
             tex
         })?;
         Ok((tex, run.report))
+    }
+
+    /// The `Rgba8UnormSrgb` texture [`Self::bake_to_texture`] hands over.
+    fn output_texture(&self, width: u32, height: u32) -> wgpu::Texture {
+        self.ctx.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("decalbake.baked"),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba8UnormSrgb,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC
+                | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        })
     }
 }
 
