@@ -161,7 +161,7 @@ pub struct Engine {
     /// Default `false`.
     pub whole_mesh_selection: bool,
     /// Layer images and masks decoded and uploaded by earlier bakes (`bake/images.rs`).
-    pub(crate) images: Mutex<super::images::ImageCache>,
+    pub(crate) images: Mutex<ImageCache>,
 }
 
 impl Engine {
@@ -561,6 +561,44 @@ pub struct TiledIslands {
     pub nearest: Vec<u32>,
     /// Island texels.
     pub count: u64,
+}
+
+/// GPU bytes of layer images kept between bakes.
+pub const IMAGE_BUDGET: u64 = 512 << 20;
+
+/// A file as it was when it was read: path, whether read raw (a mask), length and modification
+/// time, so that a file rewritten between bakes is read again.
+pub(crate) type ImageKey = (std::path::PathBuf, bool, u64, Option<std::time::SystemTime>);
+
+/// Uploaded layer images and masks by [`ImageKey`], least recently used first.
+#[derive(Default)]
+pub struct ImageCache {
+    entries: Vec<(ImageKey, Arc<GpuImage>, u64)>,
+}
+
+impl ImageCache {
+    pub(crate) fn get(&mut self, key: &ImageKey) -> Option<Arc<GpuImage>> {
+        let i = self.entries.iter().position(|e| &e.0 == key)?;
+        let e = self.entries.remove(i);
+        let found = e.1.clone();
+        self.entries.push(e);
+        Some(found)
+    }
+
+    pub(crate) fn put(&mut self, key: ImageKey, image: Arc<GpuImage>, bytes: u64) {
+        self.entries.retain(|e| e.0 .0 != key.0 || e.0 .1 != key.1);
+        while !self.entries.is_empty()
+            && self.entries.iter().map(|e| e.2).sum::<u64>() + bytes > IMAGE_BUDGET
+        {
+            self.entries.remove(0);
+        }
+        self.entries.push((key, image, bytes));
+    }
+
+    /// Images held.
+    pub fn len(&self) -> usize {
+        self.entries.len()
+    }
 }
 
 /// (UV set, width, height, supersampling).

@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! Stage 1, images: the base and every layer's image and mask decoded, checked against the
 //! adapter's limits and uploaded (layer images with premultiplied mipmaps). Each file is decoded once
-//! per bake, and layer images and masks stay on the GPU between bakes ([`ImageCache`], least
-//! recently used out past [`IMAGE_BUDGET`]: a batch of jobs sharing a logo decodes it once); the
+//! per bake, and layer images and masks stay on the GPU between bakes (the engine's
+//! [`super::engine::ImageCache`]: a batch of jobs sharing a logo decodes it once); the
 //! material's texture once per mesh.
 
 use super::engine::{Engine, GpuImage, LoadedMesh};
@@ -36,44 +36,6 @@ impl Images {
     }
 }
 
-/// GPU bytes of layer images kept between bakes.
-pub const IMAGE_BUDGET: u64 = 512 << 20;
-
-/// A file as it was when it was read: path, whether read raw (a mask), length and modification
-/// time, so that a file rewritten between bakes is read again.
-type ImageKey = (PathBuf, bool, u64, Option<std::time::SystemTime>);
-
-/// Uploaded layer images and masks by [`ImageKey`], least recently used first.
-#[derive(Default)]
-pub struct ImageCache {
-    entries: Vec<(ImageKey, Arc<GpuImage>, u64)>,
-}
-
-impl ImageCache {
-    fn get(&mut self, key: &ImageKey) -> Option<Arc<GpuImage>> {
-        let i = self.entries.iter().position(|e| &e.0 == key)?;
-        let e = self.entries.remove(i);
-        let found = e.1.clone();
-        self.entries.push(e);
-        Some(found)
-    }
-
-    fn put(&mut self, key: ImageKey, image: Arc<GpuImage>, bytes: u64) {
-        self.entries.retain(|e| e.0 .0 != key.0 || e.0 .1 != key.1);
-        while !self.entries.is_empty()
-            && self.entries.iter().map(|e| e.2).sum::<u64>() + bytes > IMAGE_BUDGET
-        {
-            self.entries.remove(0);
-        }
-        self.entries.push((key, image, bytes));
-    }
-
-    /// Images held.
-    pub fn len(&self) -> usize {
-        self.entries.len()
-    }
-}
-
 /// Loads and uploads the base and every layer's image and mask.
 pub fn load(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Images> {
     let base = load_base(engine, mesh, job)?;
@@ -83,7 +45,7 @@ pub fn load(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Images> {
             return Ok(x.clone());
         }
         let meta = std::fs::metadata(path).ok();
-        let key: ImageKey = (
+        let key: super::engine::ImageKey = (
             path.to_path_buf(),
             raw,
             meta.as_ref().map_or(0, |m| m.len()),

@@ -42,35 +42,15 @@ fn compute(
 ) -> Result<Islands> {
     let dev = &engine.ctx.device;
     let texels = w as u64 * h as u64;
+    let global = Pass::global(mesh, [w, h], ss, [0; 4]);
+    let (pass, jobs) = Pass::new(engine, mesh, (uv_set, ss), global, texels * 4);
     let buf = |label, bytes: u64| {
         dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size: bytes,
-            usage: wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_SRC
-                | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::STORAGE,
             mapped_at_creation: false,
         })
-    };
-    let global = Params {
-        tex_size: [w, h],
-        ss,
-        triangle_count: mesh.gpu.triangle_count,
-        stats_stride: 1,
-        ..Default::default()
-    };
-    let jobs = raster_jobs(&mesh.mesh.uv_sets[uv_set as usize], global);
-    let mut entries = vec![global];
-    entries.extend(jobs.iter().copied());
-    let pass = Pass {
-        engine,
-        mesh,
-        uv_set,
-        ss,
-        params: params_buffer(dev, "islands.params", &entries),
-        mask: buf("islands.mask", texels * 4),
-        nearest: buf("islands.nearest", texels * 4),
-        counter: buf("islands.count", 16),
     };
     engine.ctx.scoped("islands", || {
         let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -114,7 +94,6 @@ fn compute(
     })
 }
 
-/// What the island passes bind.
 /// The island mask of one window (x, y, w, h) of a `size` texture: 1 per island texel, row-major
 /// over the window (a tile of a tiled bake, `bake/tiles.rs`, which assembles the tiles' masks and
 /// computes the distance transform on the CPU). The same raster as [`islands`], restricted to the
@@ -129,37 +108,8 @@ pub(crate) fn window_mask(
 ) -> Result<Vec<u32>> {
     let dev = &engine.ctx.device;
     let bytes = win[2] as u64 * win[3] as u64 * 4;
-    let buf = |label, bytes: u64| {
-        dev.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size: bytes,
-            usage: wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_SRC
-                | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        })
-    };
-    let global = Params {
-        tex_size: size,
-        ss,
-        triangle_count: mesh.gpu.triangle_count,
-        stats_stride: 1,
-        win,
-        ..Default::default()
-    };
-    let jobs = raster_jobs(&mesh.mesh.uv_sets[uv_set as usize], global);
-    let mut entries = vec![global];
-    entries.extend(jobs.iter().copied());
-    let pass = Pass {
-        engine,
-        mesh,
-        uv_set,
-        ss,
-        params: params_buffer(dev, "islands.window_params", &entries),
-        mask: buf("islands.window_mask", bytes),
-        nearest: buf("islands.window_unused", 16),
-        counter: buf("islands.window_count", 16),
-    };
+    let global = Pass::global(mesh, size, ss, win);
+    let (pass, jobs) = Pass::new(engine, mesh, (uv_set, ss), global, bytes);
     engine.ctx.scoped("islands", || {
         let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("islands.window"),
@@ -175,6 +125,7 @@ pub(crate) fn window_mask(
     Ok(bytemuck::cast_slice(&m).to_vec())
 }
 
+/// What the island passes bind.
 struct Pass<'a> {
     engine: &'a Engine,
     mesh: &'a LoadedMesh,
@@ -187,7 +138,56 @@ struct Pass<'a> {
     counter: wgpu::Buffer,
 }
 
-impl Pass<'_> {
+impl<'a> Pass<'a> {
+    /// The passes' shared `Params`: a `size` texture at `ss`² samples, the canvas window `win`
+    /// (all zero: the whole texture).
+    fn global(mesh: &LoadedMesh, size: [u32; 2], ss: u32, win: [u32; 4]) -> Params {
+        Params {
+            tex_size: size,
+            ss,
+            triangle_count: mesh.gpu.triangle_count,
+            stats_stride: 1,
+            win,
+            ..Default::default()
+        }
+    }
+
+    /// The buffers (a `mask_bytes` mask and nearest map, cleared by the caller) and the raster
+    /// jobs that cover `global`'s window.
+    fn new(
+        engine: &'a Engine,
+        mesh: &'a LoadedMesh,
+        (uv_set, ss): (u32, u32),
+        global: Params,
+        mask_bytes: u64,
+    ) -> (Self, Vec<Params>) {
+        let dev = &engine.ctx.device;
+        let buf = |label, bytes: u64| {
+            dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let jobs = raster_jobs(&mesh.mesh.uv_sets[uv_set as usize], global);
+        let mut entries = vec![global];
+        entries.extend(jobs.iter().copied());
+        let pass = Pass {
+            engine,
+            mesh,
+            uv_set,
+            ss,
+            params: params_buffer(dev, "islands.params", &entries),
+            mask: buf("islands.mask", mask_bytes),
+            nearest: buf("islands.nearest", mask_bytes),
+            counter: buf("islands.count", 16),
+        };
+        (pass, jobs)
+    }
+
     /// Per raster job: `island_raster` draws every triangle into a coverage target, `island_mask`
     /// marks the texels with any covered sample. Returns the draws and dispatches recorded.
     fn record_raster(&self, jobs: &[Params], enc: &mut wgpu::CommandEncoder) -> u32 {
