@@ -348,3 +348,71 @@ fn a_lost_device_is_replaced_and_its_job_baked_again() {
         }
     }
 }
+
+/// A Slurm task run again on its own (`sbatch --array=2`) sees an array of one; with
+/// `DECALBAKE_SHARDS` its id is its shard. Merging counts each line once (a rerun that baked the
+/// whole manifest does not list lines twice) and names the shards whose summary is missing.
+#[test]
+fn a_rerun_task_keeps_its_shard_and_merging_counts_each_line_once() {
+    let dir = setup("batch_rerun");
+    let m = dir.join("manifest.jsonl");
+    let run = |out: &str, envs: &[(&str, &str)], extra: &[&str]| {
+        let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_decalbake"));
+        c.args([
+            "batch",
+            m.to_str().unwrap(),
+            "--out",
+            dir.join(out).to_str().unwrap(),
+        ])
+        .args(extra);
+        for (k, v) in envs {
+            c.env(k, v);
+        }
+        let o = c.output().unwrap();
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let slurm_rerun = [
+        ("SLURM_ARRAY_TASK_ID", "2"),
+        ("SLURM_ARRAY_TASK_MIN", "2"),
+        ("SLURM_ARRAY_TASK_COUNT", "1"),
+        ("DECALBAKE_SHARDS", "3"),
+    ];
+    let (_, err) = run("out", &slurm_rerun, &["--shard", "auto"]);
+    assert!(
+        err.contains("shard 2/3 (Slurm job array, DECALBAKE_SHARDS)"),
+        "{err}"
+    );
+    let s2 = dir.join("out/summary-2.json");
+    assert_eq!(statuses(&summary(&s2)), [(4, "failed".to_string())]);
+    // Shard 0 and a whole-manifest run: every line once, the successes kept.
+    run("out", &[], &["--shard", "0/3"]);
+    run("whole", &[], &[]);
+    let merged = dir.join("merged.json");
+    let merge = |parts: &[std::path::PathBuf]| {
+        let mut args = vec![
+            "batch",
+            "--summary",
+            merged.to_str().unwrap(),
+            "--merge-summaries",
+        ];
+        args.extend(parts.iter().map(|p| p.to_str().unwrap()));
+        cli(&args)
+    };
+    let (code, _, _) = merge(&[
+        dir.join("out/summary-0.json"),
+        dir.join("whole/summary.json"),
+    ]);
+    assert_eq!(code, 3, "line 4 failed");
+    assert_eq!(
+        statuses(&summary(&merged)),
+        [(1, "ok"), (2, "ok"), (4, "failed"), (5, "ok")].map(|(l, s)| (l, s.to_string()))
+    );
+    // Shards 0 and 2 of 3: shard 1 is missing, and the merge says so.
+    let (code, _, err) = merge(&[dir.join("out/summary-0.json"), s2]);
+    assert_eq!(code, 3);
+    assert!(err.contains("shard(s) [1]"), "{err}");
+    assert_eq!(summary(&merged)["shard"]["missing"], serde_json::json!([1]));
+}

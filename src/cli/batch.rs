@@ -376,8 +376,12 @@ fn shard(spec: Option<&str>) -> Result<(usize, usize, String)> {
     let (index, count, source) = match spec {
         None => (0, 1, "all jobs".to_string()),
         Some("auto") => {
-            if let (Some(id), Some(n)) = (env("SLURM_ARRAY_TASK_ID"), env("SLURM_ARRAY_TASK_COUNT"))
-            {
+            let slurm = env("SLURM_ARRAY_TASK_ID");
+            if let (Some(id), Some(n)) = (slurm, env("DECALBAKE_SHARDS")) {
+                // A task run again on its own (`sbatch --array=2`) sees an array of one: with
+                // DECALBAKE_SHARDS set, the task id is the shard and the count is fixed.
+                (id, n, "Slurm job array, DECALBAKE_SHARDS".into())
+            } else if let (Some(id), Some(n)) = (slurm, env("SLURM_ARRAY_TASK_COUNT")) {
                 // Arrays like --array=4-16:4 step their ids: 4, 8, 12, 16 are shards 0..3.
                 let min = env("SLURM_ARRAY_TASK_MIN").unwrap_or(0);
                 let step = env("SLURM_ARRAY_TASK_STEP").unwrap_or(1).max(1);
@@ -654,8 +658,7 @@ fn summary_of(mut rows: Vec<Value>, shard: Value, t0: Instant) -> Value {
 /// exit 3 when a job failed in any of them.
 pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<i32> {
     let t0 = Instant::now();
-    let mut rows = Vec::new();
-    let mut shards = Vec::new();
+    let (mut rows, mut shards, mut seconds) = (Vec::new(), Vec::new(), Vec::new());
     for p in inputs {
         let v: Value = serde_json::from_slice(
             &std::fs::read(p).with_context(|| format!("reading the summary {}", p.display()))?,
@@ -666,13 +669,48 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<i32> {
         };
         rows.extend(jobs.iter().cloned());
         shards.push(v["shard"].clone());
+        seconds.push(v["seconds"].as_f64().unwrap_or(0.0));
     }
+    // A line in several summaries (a task run again on its own baked the whole manifest) counts
+    // once: its last success, else its last row.
+    let mut by_line: std::collections::BTreeMap<u64, Value> = Default::default();
+    for r in rows {
+        let line = r["line"].as_u64().unwrap_or(0);
+        let keep_old = by_line
+            .get(&line)
+            .is_some_and(|old| old["status"] != "failed" && r["status"] == "failed");
+        if !keep_old {
+            by_line.insert(line, r);
+        }
+    }
+    let rows: Vec<Value> = by_line.into_values().collect();
     let failed = rows.iter().any(|r| r["status"] == "failed");
+    let missing = missing_shards(&shards);
     let mut summary = summary_of(rows, Value::Null, t0);
-    summary["shard"] = json!({ "merged": shards });
+    summary["shard"] = json!({ "merged": shards, "missing": missing });
+    // The shards ran side by side: the batch took as long as the slowest.
+    summary["seconds"] = json!(seconds.iter().cloned().fold(0.0, f64::max));
     write_json(out, &summary)?;
     eprintln!("merged {} summaries into {}", inputs.len(), out.display());
-    Ok(if failed { 3 } else { 0 })
+    if !missing.is_empty() {
+        eprintln!(
+            "merged summary: no summary from shard(s) {missing:?}: their jobs are not listed"
+        );
+    }
+    Ok(if failed || !missing.is_empty() { 3 } else { 0 })
+}
+
+/// The shard indices below the count the summaries' `shard` blocks name that none of them is
+/// (empty when the counts disagree or a summary was not sharded).
+fn missing_shards(shards: &[Value]) -> Vec<u64> {
+    let counts: std::collections::BTreeSet<u64> =
+        shards.iter().filter_map(|s| s["count"].as_u64()).collect();
+    let (Some(&n), 1) = (counts.iter().next(), counts.len()) else {
+        return Vec::new();
+    };
+    let have: std::collections::BTreeSet<u64> =
+        shards.iter().filter_map(|s| s["index"].as_u64()).collect();
+    (0..n).filter(|i| !have.contains(i)).collect()
 }
 
 fn write_json(path: &Path, v: &Value) -> Result<()> {
