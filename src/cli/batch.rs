@@ -34,6 +34,7 @@
 //! checks byte for byte.
 
 use anyhow::{bail, Context, Result};
+use decalbake::io::manifest::{Entry, EntryJob};
 use decalbake::{Engine, Job, LoadedMesh};
 use serde_json::{json, Value};
 use sha2::{Digest, Sha256};
@@ -151,17 +152,6 @@ impl Progress {
             Progress::None => {}
         }
     }
-}
-
-/// One job of the manifest.
-struct Entry {
-    /// Line number (1-based).
-    line: usize,
-    /// The job file, for a path entry (read when the job runs: one missing file fails its job,
-    /// not the batch).
-    file: Option<PathBuf>,
-    /// The job's text, for an inline job.
-    text: Option<String>,
 }
 
 /// The batch's engine, replaced by a fresh one when its device is lost (a driver reset, or the
@@ -317,7 +307,7 @@ fn bake_all(
                     }
                 };
                 row["line"] = json!(entry.line);
-                row["job"] = json!(entry.file.as_ref().map(|f| f.display().to_string()));
+                row["job"] = json!(entry.file().map(|f| f.display().to_string()));
                 row["ms"] = json!(t.elapsed().as_secs_f64() * 1000.0);
                 if retried {
                     // Baked again on a fresh device after the first try lost it.
@@ -335,35 +325,7 @@ fn bake_all(
 fn read_manifest(path: &Path) -> Result<Vec<Entry>> {
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("reading the manifest {}", path.display()))?;
-    let dir = path.parent().unwrap_or(Path::new(""));
-    let mut out = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let bad = |why: String| {
-            job_error(
-                path,
-                format!("line {}", i + 1),
-                format!("{why}; each line is a job file's path (a JSON string) or a job object"),
-            )
-        };
-        let entry = match serde_json::from_str::<Value>(line).map_err(|e| bad(e.to_string()))? {
-            Value::String(p) => Entry {
-                line: i + 1,
-                file: Some(dir.join(p)),
-                text: None,
-            },
-            v @ Value::Object(_) => Entry {
-                line: i + 1,
-                file: None,
-                text: Some(v.to_string()),
-            },
-            other => return Err(bad(format!("found {other}")).into()),
-        };
-        out.push(entry);
-    }
-    Ok(out)
+    Ok(decalbake::io::manifest::parse(&text, path)?)
 }
 
 /// (index, count, where they came from) of this process's shard.
@@ -434,8 +396,11 @@ fn bake_entry(
     on_stage: &dyn Fn(&str),
 ) -> Result<(&'static str, Vec<String>, String)> {
     let manifest_dir = opts.manifest.parent().unwrap_or(Path::new(""));
-    let (source, input_dir) = match &entry.file {
-        Some(f) => (f.clone(), f.parent().unwrap_or(Path::new("")).to_path_buf()),
+    let (source, input_dir) = match entry.file() {
+        Some(f) => (
+            f.to_path_buf(),
+            f.parent().unwrap_or(Path::new("")).to_path_buf(),
+        ),
         None => (
             PathBuf::from(format!("{}#line-{}", opts.manifest.display(), entry.line)),
             manifest_dir.to_path_buf(),
@@ -444,8 +409,7 @@ fn bake_entry(
     let out_dir = match &opts.out {
         Some(root) => {
             let stem = entry
-                .file
-                .as_ref()
+                .file()
                 .and_then(|f| f.file_stem())
                 .map(|s| format!("-{}", s.to_string_lossy()))
                 .unwrap_or_default();
@@ -453,14 +417,13 @@ fn bake_entry(
         }
         None => input_dir.clone(),
     };
-    let text = match (&entry.text, &entry.file) {
-        (Some(t), _) => t.clone(),
-        (None, Some(f)) => std::fs::read_to_string(f).map_err(|source| decalbake::Error::Io {
+    let text = match &entry.job {
+        EntryJob::Inline(t) => t.clone(),
+        EntryJob::File(f) => std::fs::read_to_string(f).map_err(|source| decalbake::Error::Io {
             path: f.clone(),
             action: "reading the job file",
             source,
         })?,
-        (None, None) => unreachable!("a manifest entry is a path or a job"),
     };
     let job = Job::parse(&text, &source, &input_dir, &out_dir)?;
     let hash = input_hash(&text, &job, shared)?;

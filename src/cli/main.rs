@@ -8,8 +8,14 @@ use decalbake::{Engine, Job};
 mod batch;
 mod bench;
 mod demo;
+mod fuzz;
 mod unwrap;
 use std::path::{Path, PathBuf};
+
+/// Counts live heap bytes and caps them while `decalbake fuzz` runs (`fuzz/alloc.rs`); otherwise
+/// `System` plus one relaxed atomic load per call.
+#[global_allocator]
+static ALLOC: fuzz::alloc::Counting = fuzz::alloc::Counting;
 
 #[derive(Parser)]
 #[command(
@@ -87,6 +93,10 @@ enum Cmd {
     /// Write a copy of a model with a new UV set made by pelting (cut to disks, stretched on frames
     /// by spring dynamics on the GPU, packed).
     Unwrap(unwrap::UnwrapArgs),
+    /// Fuzz the parsers of job files, manifests, glTF and images (no GPU, no files needed): a
+    /// mutation fuzzer whose findings (panics, hangs, allocations past a cap) are saved as inputs
+    /// under `--findings DIR/<target>/`; `--replay DIR` runs such inputs again.
+    Fuzz(fuzz::FuzzArgs),
     /// Print what the engine sees in a mesh.
     Info {
         /// A .gltf or .glb file.
@@ -200,6 +210,13 @@ fn run(cli: Cli) -> Result<()> {
             bake(&engine, &job)
         }
         Cmd::Info { mesh } => info(&mesh),
+        Cmd::Fuzz(args) => {
+            let code = fuzz::run(&args)?;
+            if code != 0 {
+                std::process::exit(code);
+            }
+            Ok(())
+        }
         Cmd::Unwrap(args) => {
             let backend = cli.backend.clone();
             unwrap::run(&args, || engine(backend.as_deref()))

@@ -4,9 +4,35 @@
 //! All colour work inside decalbake is linear RGBA in `f32`. 8-bit images are taken as sRGB-encoded and
 //! decoded with the exact sRGB transfer function; 16-bit PNGs likewise (the PNG convention), so 16-bit
 //! inputs keep their precision end to end. Output is encoded back to sRGB at 8 or 16 bits.
+//!
+//! Decoding has limits, checked from the image's header before any pixel is decoded: at most
+//! [`MAX_IMAGE_SIDE`] pixels a side and [`MAX_IMAGE_PIXELS`] pixels in all (8192², as large as
+//! the largest texture an 8K bake uses; 1 GiB as linear RGBA), and the decoder's own buffers within
+//! [`DECODER_MAX_ALLOC`]. Without them a JPEG of a few hundred bytes whose header claims 16384²
+//! decodes (the decoder fills what is missing) into 4 GiB (found by `decalbake fuzz`); within them
+//! a small file can still claim 8192² and cost about 1.5 GiB and a second and a half, which is what
+//! an 8K texture costs.
 
 use crate::error::{Error, Result};
 use std::path::Path;
+
+/// Most pixels a decoded image may have on a side.
+pub const MAX_IMAGE_SIDE: u32 = 16384;
+/// Most pixels a decoded image may have: 2²⁶ (8192 × 8192), 1 GiB as linear RGBA.
+pub const MAX_IMAGE_PIXELS: u64 = 1 << 26;
+/// Most bytes the image decoder may allocate (an 8192² image at 16 bits per RGBA channel).
+pub const DECODER_MAX_ALLOC: u64 = 512 << 20;
+
+/// An image of `width` × `height` within decalbake's limits, or what is wrong.
+pub fn check_image_size(width: u32, height: u32) -> std::result::Result<(), String> {
+    let pixels = width as u64 * height as u64;
+    if width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE || pixels > MAX_IMAGE_PIXELS {
+        return Err(format!(
+            "{width} x {height} pixels is above decalbake's image limits ({MAX_IMAGE_SIDE} pixels a side, {MAX_IMAGE_PIXELS} pixels in all, e.g. 8192 x 8192); downscale it"
+        ));
+    }
+    Ok(())
+}
 
 /// A straight-alpha, linear-light RGBA image.
 #[derive(Debug, Clone, PartialEq)]
@@ -90,7 +116,8 @@ impl LinearImage {
         })
     }
 
-    /// Decodes encoded image bytes (PNG or JPEG).
+    /// Decodes encoded image bytes (PNG or JPEG) within the limits of the module doc (checked from
+    /// the header, before decoding).
     pub fn decode(bytes: &[u8]) -> std::result::Result<Self, String> {
         // The image crate also reads OpenEXR (for our EXR output); an image read here is sRGB
         // colour, which a linear EXR is not.
@@ -99,10 +126,33 @@ impl LinearImage {
             Ok(other) => return Err(format!("{other:?} images are not supported")),
             Err(e) => return Err(e.to_string()),
         }
-        let img = image::load_from_memory(bytes).map_err(|e| e.to_string())?;
+        let reader = || {
+            let mut r = image::ImageReader::new(std::io::Cursor::new(bytes))
+                .with_guessed_format()
+                .map_err(|e| e.to_string())?;
+            let mut limits = image::Limits::default();
+            limits.max_image_width = Some(MAX_IMAGE_SIDE);
+            limits.max_image_height = Some(MAX_IMAGE_SIDE);
+            limits.max_alloc = Some(DECODER_MAX_ALLOC);
+            r.limits(limits);
+            Ok::<_, String>(r)
+        };
+        let limited = |e: image::ImageError| {
+            match e {
+            image::ImageError::Limits(_) => format!(
+                "{e} (decalbake decodes images of at most {MAX_IMAGE_SIDE} pixels a side, {MAX_IMAGE_PIXELS} pixels in all, with {} MiB for the decoder); downscale it",
+                DECODER_MAX_ALLOC >> 20
+            ),
+            e => e.to_string(),
+        }
+        };
+        let (w, h) = reader()?.into_dimensions().map_err(limited)?;
+        check_image_size(w, h)?;
+        let img = reader()?.decode().map_err(limited)?;
         let (width, height) = (img.width(), img.height());
         let pixels = if img.color().bytes_per_pixel() / img.color().channel_count().max(1) >= 2 {
-            let buf = img.to_rgba16();
+            // `into_` keeps the decoder's buffer when it is RGBA already (no second copy).
+            let buf = img.into_rgba16();
             buf.pixels()
                 .map(|p| {
                     let f = |c: u16| c as f32 / 65535.0;
@@ -115,7 +165,7 @@ impl LinearImage {
                 })
                 .collect()
         } else {
-            let buf = img.to_rgba8();
+            let buf = img.into_rgba8();
             let lut: Vec<f32> = (0..256).map(|c| srgb_to_linear(c as f32 / 255.0)).collect();
             buf.pixels()
                 .map(|p| {
@@ -151,7 +201,8 @@ impl LinearImage {
             F::R16G16B16A16 => (4, 2),
             other => return Err(format!("unsupported pixel format {other:?}")),
         };
-        let n = (data.width * data.height) as usize;
+        check_image_size(data.width, data.height)?;
+        let n = data.width as usize * data.height as usize;
         if data.pixels.len() < n * ch * bytes_per_ch {
             return Err("pixel data is shorter than width × height".into());
         }

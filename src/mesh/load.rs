@@ -7,9 +7,11 @@
 //! texture of the first textured material are read. The result keeps glTF's split vertices, which
 //! rasterization needs; [`crate::mesh::Topology`] welds them for the surface.
 
+use super::checks::{self, gltf_err};
 use crate::error::{Error, Result};
 use crate::io::image::LinearImage;
 use glam::{Mat3, Mat4, Vec2, Vec3};
+use gltf::accessor::{DataType, Dimensions};
 use std::path::{Path, PathBuf};
 
 /// One glTF primitive as it appears in the scene.
@@ -68,26 +70,31 @@ pub struct Mesh {
     pub blend: Vec<f32>,
 }
 
-/// The primitive's `_PELT_BLEND` (one float per vertex), if it has one of the right length.
+/// The primitive's `_PELT_BLEND` (one float per vertex), if it has one of the right type and length.
 fn read_blend(
     prim: &gltf::Primitive,
     buffers: &[gltf::buffer::Data],
     vertices: usize,
+    name: &Path,
 ) -> Option<Vec<f32>> {
     let accessor = prim.get(&gltf::Semantic::Extras("PELT_BLEND".into()))?;
+    let scalar = [(DataType::F32, Dimensions::Scalar)];
+    checks::accessor(&accessor, "_PELT_BLEND", &scalar, false, name)
+        .ok()
+        .filter(|&n| n == vertices)?;
     let it = gltf::accessor::Iter::<f32>::new(accessor, |b: gltf::Buffer| {
         buffers.get(b.index()).map(|d| &d.0[..])
     })?;
     Some(it.collect::<Vec<f32>>()).filter(|v| v.len() == vertices)
 }
 
-fn gltf_err(path: &Path, detail: impl std::fmt::Display) -> Error {
-    Error::Gltf {
-        path: path.to_path_buf(),
-        detail: format!(
-            "{detail}. decalbake reads glTF 2.0 (.gltf with its .bin/images, or .glb); check the file with the Khronos glTF-Validator"
-        ),
-    }
+/// What the scene's primitives hold beyond positions, normals and triangles, joined at the end
+/// ([`Mesh::join_primitive_attributes`]).
+#[derive(Default)]
+struct PerPrimitive {
+    uvs: Vec<Vec<Vec<Vec2>>>,
+    blend: Vec<Option<Vec<f32>>>,
+    material: Option<usize>,
 }
 
 impl Mesh {
@@ -104,7 +111,7 @@ impl Mesh {
     /// Loads glTF from memory. `name` is used in messages; `base` resolves external URIs (`None`
     /// allows only embedded data).
     pub fn from_bytes(bytes: &[u8], name: &Path, base: Option<&Path>) -> Result<Self> {
-        let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| gltf_err(name, e))?;
+        let gltf = checks::parse(bytes, name)?;
         let base_dir = base.map(|b| {
             if b.as_os_str().is_empty() {
                 Path::new(".")
@@ -113,8 +120,10 @@ impl Mesh {
             }
         });
         let document = gltf.document;
+        checks::uris(&document, base_dir, name)?;
         let buffers = gltf::import_buffers(&document, base_dir, gltf.blob)
             .map_err(|e| gltf_err(name, format!("loading buffers: {e}")))?;
+        checks::views(&document, &buffers, name)?;
 
         let scene = document
             .default_scene()
@@ -131,12 +140,14 @@ impl Mesh {
             material: None,
             blend: Vec::new(),
         };
-        let mut per_blend: Vec<Option<Vec<f32>>> = Vec::new();
-        let mut per_prim_uvs: Vec<Vec<Vec<Vec2>>> = Vec::new();
-        let mut material_index: Option<usize> = None;
+        let mut per = PerPrimitive::default();
         let mut stack: Vec<(gltf::Node, Mat4)> =
             scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
+        let mut seen = vec![false; document.nodes().len()];
         while let Some((node, parent)) = stack.pop() {
+            if std::mem::replace(&mut seen[node.index()], true) {
+                return Err(gltf_err(name, format!("nodes[{}] is reached twice from scenes[{}]; a glTF node hierarchy is a tree (one parent per node, no cycles)", node.index(), scene.index())));
+            }
             let local = Mat4::from_cols_array_2d(&node.transform().matrix());
             let world = parent * local;
             for child in node.children() {
@@ -153,96 +164,155 @@ impl Mesh {
                     );
                     continue;
                 }
-                let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-                let Some(pos_iter) = reader.read_positions() else {
-                    return Err(Error::mesh(
-                        name,
-                        format!(
-                            "{pname} has no POSITION attribute; re-export the mesh with positions"
-                        ),
-                    ));
-                };
-                let positions: Vec<Vec3> = pos_iter.map(Vec3::from).collect();
-                let nverts = positions.len() as u32;
-                for (i, p) in positions.iter().enumerate() {
-                    if !p.is_finite() {
-                        return Err(Error::mesh(name, format!("{pname} POSITION[{i}] is {p} (not finite); fix or remove that vertex in your modelling tool")));
-                    }
-                }
-                let indices: Vec<u32> = match reader.read_indices() {
-                    Some(ix) => ix.into_u32().collect(),
-                    None => (0..nverts).collect(),
-                };
-                if !indices.len().is_multiple_of(3) {
-                    return Err(Error::mesh(
-                        name,
-                        format!("{pname} has {} indices, not a multiple of 3", indices.len()),
-                    ));
-                }
-                if let Some((k, &bad)) = indices.iter().enumerate().find(|(_, &i)| i >= nverts) {
-                    return Err(Error::mesh(name, format!("{pname} indices[{k}] = {bad} is out of range (the primitive has {nverts} vertices); the file is corrupt, re-export it")));
-                }
-                let normals: Option<Vec<Vec3>> =
-                    reader.read_normals().map(|n| n.map(Vec3::from).collect());
-                let mut sets = Vec::new();
-                let mut set = 0;
-                while let Some(tc) = reader.read_tex_coords(set) {
-                    let uv: Vec<Vec2> = tc.into_f32().map(Vec2::from).collect();
-                    if let Some((i, u)) = uv.iter().enumerate().find(|(_, u)| !u.is_finite()) {
-                        return Err(Error::mesh(
-                            name,
-                            format!("{pname} TEXCOORD_{set}[{i}] is {u} (not finite)"),
-                        ));
-                    }
-                    sets.push(uv);
-                    set += 1;
-                }
-                per_blend.push(read_blend(&prim, &buffers, positions.len()));
-                let m3 = Mat3::from_mat4(world);
-                let nmat = m3.inverse().transpose();
-                let flip = m3.determinant() < 0.0;
-                let base = mesh.positions.len() as u32;
-                let first_triangle = mesh.triangles.len() as u32;
-                mesh.positions
-                    .extend(positions.iter().map(|p| world.transform_point3(*p)));
-                let has_normals = normals.is_some();
-                match normals {
-                    Some(n) => mesh
-                        .normals
-                        .extend(n.iter().map(|n| (nmat * *n).normalize_or_zero())),
-                    None => mesh
-                        .normals
-                        .extend(std::iter::repeat_n(Vec3::ZERO, positions.len())),
-                }
-                for t in indices.chunks_exact(3) {
-                    let tri = [base + t[0], base + t[1], base + t[2]];
-                    mesh.triangles
-                        .push(if flip { [tri[0], tri[2], tri[1]] } else { tri });
-                }
-                let material = prim.material().index();
-                if material_index.is_none() && material.is_some() {
-                    material_index = material;
-                }
-                mesh.primitives.push(PrimitiveInfo {
-                    name: pname,
-                    first_triangle,
-                    triangles: (indices.len() / 3) as u32,
-                    vertices: nverts,
-                    uv_sets: sets.len() as u32,
-                    has_normals,
-                    material,
-                });
-                per_prim_uvs.push(sets);
+                mesh.add_primitive(&prim, pname, world, &buffers, &mut per)?;
             }
         }
         if mesh.triangles.is_empty() {
             return Err(Error::mesh(name, "the scene has no triangles (no triangle primitives in any node); decalbake needs a triangle mesh"));
         }
-        mesh.join_primitive_attributes(per_prim_uvs, per_blend);
-        if let Some(mi) = material_index {
+        mesh.join_primitive_attributes(per.uvs, per.blend);
+        if let Some(mi) = per.material {
             mesh.material = Some(load_material(&document, mi, &buffers, name, base_dir)?);
         }
         Ok(mesh)
+    }
+
+    /// Appends primitive `prim` (`pname` in messages) with its node's `world` transform; its UV
+    /// sets, blend weights and material go to `per`. Every accessor is checked
+    /// ([`checks::accessor`]) before the `gltf` crate reads it.
+    fn add_primitive(
+        &mut self,
+        prim: &gltf::Primitive,
+        pname: String,
+        world: Mat4,
+        buffers: &[gltf::buffer::Data],
+        per: &mut PerPrimitive,
+    ) -> Result<()> {
+        use DataType::{F32, U16, U32, U8};
+        use Dimensions::{Scalar, Vec2 as V2, Vec3 as V3};
+        let name = self.source.clone();
+        let name = name.as_path();
+        let Some(pos_accessor) = prim.get(&gltf::Semantic::Positions) else {
+            return Err(Error::mesh(
+                name,
+                format!("{pname} has no POSITION attribute; re-export the mesh with positions"),
+            ));
+        };
+        let what = |attr: &str| format!("{pname} {attr}");
+        let nverts = checks::accessor(&pos_accessor, &what("POSITION"), &[(F32, V3)], true, name)?;
+        let same_count = |attr: &str, a: &gltf::Accessor, types: &[(DataType, Dimensions)]| {
+            let n = checks::accessor(a, &what(attr), types, false, name)?;
+            if n != nverts {
+                return Err(gltf_err(name, format!("{pname} has {nverts} POSITION elements but {n} {attr} elements; each attribute needs one per vertex")));
+            }
+            Ok(())
+        };
+        if let Some(a) = prim.get(&gltf::Semantic::Normals) {
+            same_count("NORMAL", &a, &[(F32, V3)])?;
+        }
+        let mut set = 0;
+        while let Some(a) = prim.get(&gltf::Semantic::TexCoords(set)) {
+            same_count(
+                &format!("TEXCOORD_{set}"),
+                &a,
+                &[(F32, V2), (U8, V2), (U16, V2)],
+            )?;
+            set += 1;
+        }
+        let index_types = [(U8, Scalar), (U16, Scalar), (U32, Scalar)];
+        let nindices = match prim.indices() {
+            Some(a) => checks::accessor(&a, &what("indices"), &index_types, true, name)?,
+            None => nverts,
+        };
+        if self.positions.len() + nverts > checks::MAX_ELEMENTS
+            || self.triangles.len() + nindices / 3 > checks::MAX_ELEMENTS
+        {
+            return Err(Error::mesh(name, format!("the scene has more than {} vertices or triangles (each instance of a mesh counts); decalbake loads at most that many", checks::MAX_ELEMENTS)));
+        }
+        let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+        let Some(pos_iter) = reader.read_positions() else {
+            return Err(Error::mesh(
+                name,
+                format!("{pname} has no POSITION attribute; re-export the mesh with positions"),
+            ));
+        };
+        let positions: Vec<Vec3> = pos_iter.map(Vec3::from).collect();
+        let nverts = positions.len() as u32;
+        for (i, p) in positions.iter().enumerate() {
+            if !p.is_finite() {
+                return Err(Error::mesh(name, format!("{pname} POSITION[{i}] is {p} (not finite); fix or remove that vertex in your modelling tool")));
+            }
+        }
+        let indices: Vec<u32> = match reader.read_indices() {
+            Some(ix) => ix.into_u32().collect(),
+            None => (0..nverts).collect(),
+        };
+        if !indices.len().is_multiple_of(3) {
+            return Err(Error::mesh(
+                name,
+                format!("{pname} has {} indices, not a multiple of 3", indices.len()),
+            ));
+        }
+        if let Some((k, &bad)) = indices.iter().enumerate().find(|(_, &i)| i >= nverts) {
+            return Err(Error::mesh(name, format!("{pname} indices[{k}] = {bad} is out of range (the primitive has {nverts} vertices); the file is corrupt, re-export it")));
+        }
+        let normals: Option<Vec<Vec3>> = reader.read_normals().map(|n| n.map(Vec3::from).collect());
+        let mut sets = Vec::new();
+        let mut set = 0;
+        while let Some(tc) = reader.read_tex_coords(set) {
+            let uv: Vec<Vec2> = tc.into_f32().map(Vec2::from).collect();
+            if let Some((i, u)) = uv.iter().enumerate().find(|(_, u)| !u.is_finite()) {
+                return Err(Error::mesh(
+                    name,
+                    format!("{pname} TEXCOORD_{set}[{i}] is {u} (not finite)"),
+                ));
+            }
+            sets.push(uv);
+            set += 1;
+        }
+        per.blend
+            .push(read_blend(prim, buffers, positions.len(), name));
+        let m3 = Mat3::from_mat4(world);
+        let nmat = m3.inverse().transpose();
+        let flip = m3.determinant() < 0.0;
+        let base = self.positions.len() as u32;
+        let first_triangle = self.triangles.len() as u32;
+        for (i, p) in positions.iter().enumerate() {
+            let w = world.transform_point3(*p);
+            if !w.is_finite() {
+                return Err(Error::mesh(name, format!("{pname} POSITION[{i}] is {w} after its node transforms (not finite); check the nodes' matrix, scale and translation")));
+            }
+            self.positions.push(w);
+        }
+        let has_normals = normals.is_some();
+        match normals {
+            Some(n) => self
+                .normals
+                .extend(n.iter().map(|n| (nmat * *n).normalize_or_zero())),
+            None => self
+                .normals
+                .extend(std::iter::repeat_n(Vec3::ZERO, positions.len())),
+        }
+        for t in indices.chunks_exact(3) {
+            let tri = [base + t[0], base + t[1], base + t[2]];
+            self.triangles
+                .push(if flip { [tri[0], tri[2], tri[1]] } else { tri });
+        }
+        let material = prim.material().index();
+        if per.material.is_none() && material.is_some() {
+            per.material = material;
+        }
+        self.primitives.push(PrimitiveInfo {
+            name: pname,
+            first_triangle,
+            triangles: (indices.len() / 3) as u32,
+            vertices: nverts,
+            uv_sets: sets.len() as u32,
+            has_normals,
+            material,
+        });
+        per.uvs.push(sets);
+        Ok(())
     }
 
     /// The per-primitive UV sets and `_PELT_BLEND` joined over the whole mesh: only UV sets every
@@ -297,30 +367,53 @@ fn load_material(
     if let Some(tex) = pbr.base_color_texture() {
         info.base_color_uv_set = tex.tex_coord();
         let src = tex.texture().source();
+        checks::image(document, src.index(), name)?;
         let what = format!(
             "materials[{index}] baseColorTexture (images[{}])",
             src.index()
         );
-        let data = gltf::image::Data::from_source(
-            src.source(),
-            Some(base.unwrap_or(Path::new("."))),
-            buffers,
-        )
-        .map_err(|e| Error::Image {
+        let image_err = |d: String| Error::Image {
             path: name.to_path_buf(),
             action: "decoding",
-            detail: format!("{what}: {e}"),
-        })?;
-        info.base_color_texture =
-            Some(
-                LinearImage::from_gltf(&data, true).map_err(|d| Error::Image {
-                    path: name.to_path_buf(),
-                    action: "decoding",
-                    detail: format!("{what}: {d}"),
-                })?,
-            );
+            detail: format!("{what}: {d}"),
+        };
+        info.base_color_texture = Some(match embedded_image(src.source(), buffers) {
+            // Embedded images decode with `LinearImage::decode`'s limits, checked before decoding.
+            Some(bytes) => LinearImage::decode(&bytes.map_err(image_err)?).map_err(image_err)?,
+            None => {
+                let Some(base) = base else {
+                    return Err(gltf_err(name, format!("{what} is an external file, but the mesh was read from memory with no directory to find it in")));
+                };
+                let data = gltf::image::Data::from_source(src.source(), Some(base), buffers)
+                    .map_err(|e| image_err(e.to_string()))?;
+                LinearImage::from_gltf(&data, true).map_err(image_err)?
+            }
+        });
     }
     Ok(info)
+}
+
+/// The encoded bytes of an image in a buffer view or a data URI (`None` for an external file).
+fn embedded_image<'a>(
+    src: gltf::image::Source<'a>,
+    buffers: &'a [gltf::buffer::Data],
+) -> Option<std::result::Result<std::borrow::Cow<'a, [u8]>, String>> {
+    use std::borrow::Cow;
+    match src {
+        // In range: `checks::views`.
+        gltf::image::Source::View { view, .. } => Some(Ok(Cow::Borrowed(
+            &buffers[view.buffer().index()][view.offset()..view.offset() + view.length()],
+        ))),
+        gltf::image::Source::Uri { uri, .. } => {
+            let data = uri.strip_prefix("data:")?;
+            let b64 = data.split_once(";base64,").map_or(data, |(_, b)| b);
+            Some(
+                base64::decode(b64)
+                    .map(Cow::Owned)
+                    .map_err(|e| format!("its data URI is not base64: {e}")),
+            )
+        }
+    }
 }
 
 impl Mesh {

@@ -2,11 +2,13 @@
 //! Meshes: loading ([`Mesh`]), welded surface topology ([`Topology`]), intrinsic surface data
 //! ([`surface::SurfaceData`]) and the GPU upload ([`upload::GpuMesh`]).
 pub mod bvh;
+mod checks;
 mod load;
 pub mod surface;
 mod topology;
 pub mod upload;
 
+pub use checks::MAX_ELEMENTS;
 pub use load::{MaterialInfo, Mesh, PrimitiveInfo};
 pub use surface::SurfaceData;
 pub use topology::{Topology, DEFAULT_WELD_TOLERANCE, NO_NEIGHBOR};

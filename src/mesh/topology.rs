@@ -210,7 +210,14 @@ fn weld(points: &[Vec3], eps: f32) -> (Vec<u32>, Vec<Vec3>) {
         'search: for dx in -1..=1 {
             for dy in -1..=1 {
                 for dz in -1..=1 {
-                    if let Some(ids) = grid.get(&(cx + dx, cy + dy, cz + dz)) {
+                    // Saturating: a point far beyond the tolerance's scale sits in a cell at
+                    // i64::MAX (the cast saturates), whose neighbours must not overflow.
+                    let key = (
+                        cx.saturating_add(dx),
+                        cy.saturating_add(dy),
+                        cz.saturating_add(dz),
+                    );
+                    if let Some(ids) = grid.get(&key) {
                         for &id in ids {
                             if reps[id as usize].distance_squared(*p) <= eps2 {
                                 found = Some(id);
