@@ -103,90 +103,94 @@ enum Cmd {
         mesh: PathBuf,
     },
     /// Benchmark the bake and print JSON figures.
-    Bench {
-        /// Mesh to bake onto (default: the largest mesh with UVs in ../shared/data/meshes, else the demo mesh).
-        #[arg(long)]
-        mesh: Option<PathBuf>,
-        /// Texture sides to measure.
-        #[arg(long, value_delimiter = ',', default_value = "2048,4096")]
-        sizes: Vec<u32>,
-        /// Decal counts to measure.
-        #[arg(long, value_delimiter = ',', default_value = "1,16,256")]
-        decals: Vec<usize>,
-        /// Repetitions per configuration (the median is reported).
-        #[arg(long, default_value_t = 3)]
-        reps: usize,
-        /// Midpoint subdivisions of the mesh (each multiplies the triangles by 4).
-        #[arg(long, default_value_t = 0)]
-        subdivide: u32,
-        /// Time the CPU twin too when decals × side² is at most this.
-        #[arg(long, default_value_t = 16 * 2048 * 2048)]
-        cpu_budget: u64,
-        /// Benchmark exponential maps instead of bakes (discs of about 1k, 10k and 100k vertices on
-        /// the mesh subdivided 2 and 3 times, or `--subdivide` times; then a batch of small maps).
-        #[arg(long)]
-        geodesic: bool,
-        /// Decal method of the bake benchmark's layers: `planar` (default) or `expmap` (then the
-        /// bake includes every decal's exponential map).
-        #[arg(long, default_value = "planar")]
-        method: String,
-        /// With `--geodesic`: the paper's plain update instead of the smooth mode.
-        #[arg(long)]
-        fast: bool,
-        /// Maps in the batched geodesic benchmark (charts in the batched `--linalg` one: 1024).
-        #[arg(long)]
-        batch: Option<usize>,
-        /// Benchmark the GPU linear algebra and LSCM charts instead of bakes (copy bandwidth, SpMV,
-        /// charts of about 1k, 10k and 100k vertices on the mesh subdivided `--subdivide` times
-        /// (default 3), and a batch of small charts).
-        #[arg(long)]
-        linalg: bool,
-        /// Measure whether decals keep their size: one decal at each mesh's highest vertex per method
-        /// (expmap, lscm, hybrid); `--mesh` or the shared spot, fandisk, bob and Duck.
-        #[arg(long)]
-        scale: bool,
-        /// Benchmark strokes: a stroke of `--stamps` stamps over `--mesh` (default the bundled bob,
-        /// subdivided twice unless `--subdivide` says otherwise) at the first of `--sizes`, per stamp
-        /// method, against as many separate decals and the CPU twin.
-        #[arg(long)]
-        strokes: bool,
-        /// With `--strokes`: stamps in the stroke.
-        #[arg(long, default_value_t = 1000)]
-        stamps: usize,
-        /// Measure the adapter itself: copy bandwidth, dispatch, submit + wait, workgroup barrier,
-        /// atomics, small dense systems per invocation against per workgroup.
-        #[arg(long)]
-        device: bool,
-        /// With `--linalg`, `--geodesic` or `--unwrap`: the `../shared/peers` directory, to run
-        /// libigl's LSCM, potpourri3d's log maps, or xatlas, ARAP and harmonic maps on the same
-        /// patches / meshes and seeds.
-        #[arg(long)]
-        peers: Option<PathBuf>,
-        /// Jobs per minute of `decalbake batch` against one `decalbake bake` process per job:
-        /// the first `--decals` value is the number of jobs, at `--sizes` in turn.
-        #[arg(long)]
-        batch_bake: bool,
-        /// Benchmark `decalbake unwrap` on the GPU and through its CPU twin (Spot, bob, the
-        /// bunny, bob subdivided twice, or `--mesh`), with `--peers`: xatlas, libigl ARAP and
-        /// harmonic on the same meshes.
-        #[arg(long)]
-        unwrap: bool,
-        /// With `--unwrap`: skip the GPU run of meshes over this many triangles.
-        #[arg(long, default_value_t = 50_000)]
-        gpu_max_triangles: usize,
-        /// Soak: this many bakes in one process (four jobs in turn on `--mesh`, default the
-        /// bundled Spot), resident memory after every hundred and whether it stayed flat after
-        /// warm-up.
-        #[arg(long)]
-        soak: Option<usize>,
-        /// Bake the same `--decals` (first value, default 16) at each of `--sizes`, tiled where
-        /// the canvas does not fit one storage buffer: cost per texel against the first size.
-        #[arg(long)]
-        tiles: bool,
-        /// With `--linalg`: chart sizes (vertices) to solve one at a time.
-        #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000")]
-        charts: Vec<usize>,
-    },
+    Bench(BenchArgs),
+}
+
+/// `decalbake bench`'s options.
+#[derive(clap::Args)]
+struct BenchArgs {
+    /// Mesh to bake onto (default: the largest mesh with UVs in ../shared/data/meshes, else the demo mesh).
+    #[arg(long)]
+    mesh: Option<PathBuf>,
+    /// Texture sides to measure.
+    #[arg(long, value_delimiter = ',', default_value = "2048,4096")]
+    sizes: Vec<u32>,
+    /// Decal counts to measure.
+    #[arg(long, value_delimiter = ',', default_value = "1,16,256")]
+    decals: Vec<usize>,
+    /// Repetitions per configuration (the median is reported).
+    #[arg(long, default_value_t = 3)]
+    reps: usize,
+    /// Midpoint subdivisions of the mesh (each multiplies the triangles by 4).
+    #[arg(long, default_value_t = 0)]
+    subdivide: u32,
+    /// Time the CPU twin too when decals × side² is at most this.
+    #[arg(long, default_value_t = 16 * 2048 * 2048)]
+    cpu_budget: u64,
+    /// Benchmark exponential maps instead of bakes (discs of about 1k, 10k and 100k vertices on
+    /// the mesh subdivided 2 and 3 times, or `--subdivide` times; then a batch of small maps).
+    #[arg(long)]
+    geodesic: bool,
+    /// Decal method of the bake benchmark's layers: `planar` (default) or `expmap` (then the
+    /// bake includes every decal's exponential map).
+    #[arg(long, default_value = "planar")]
+    method: String,
+    /// With `--geodesic`: the paper's plain update instead of the smooth mode.
+    #[arg(long)]
+    fast: bool,
+    /// Maps in the batched geodesic benchmark (charts in the batched `--linalg` one: 1024).
+    #[arg(long)]
+    batch: Option<usize>,
+    /// Benchmark the GPU linear algebra and LSCM charts instead of bakes (copy bandwidth, SpMV,
+    /// charts of about 1k, 10k and 100k vertices on the mesh subdivided `--subdivide` times
+    /// (default 3), and a batch of small charts).
+    #[arg(long)]
+    linalg: bool,
+    /// Measure whether decals keep their size: one decal at each mesh's highest vertex per method
+    /// (expmap, lscm, hybrid); `--mesh` or the shared spot, fandisk, bob and Duck.
+    #[arg(long)]
+    scale: bool,
+    /// Benchmark strokes: a stroke of `--stamps` stamps over `--mesh` (default the bundled bob,
+    /// subdivided twice unless `--subdivide` says otherwise) at the first of `--sizes`, per stamp
+    /// method, against as many separate decals and the CPU twin.
+    #[arg(long)]
+    strokes: bool,
+    /// With `--strokes`: stamps in the stroke.
+    #[arg(long, default_value_t = 1000)]
+    stamps: usize,
+    /// Measure the adapter itself: copy bandwidth, dispatch, submit + wait, workgroup barrier,
+    /// atomics, small dense systems per invocation against per workgroup.
+    #[arg(long)]
+    device: bool,
+    /// With `--linalg`, `--geodesic` or `--unwrap`: the `../shared/peers` directory, to run
+    /// libigl's LSCM, potpourri3d's log maps, or xatlas, ARAP and harmonic maps on the same
+    /// patches / meshes and seeds.
+    #[arg(long)]
+    peers: Option<PathBuf>,
+    /// Jobs per minute of `decalbake batch` against one `decalbake bake` process per job:
+    /// the first `--decals` value is the number of jobs, at `--sizes` in turn.
+    #[arg(long)]
+    batch_bake: bool,
+    /// Benchmark `decalbake unwrap` on the GPU and through its CPU twin (Spot, bob, the
+    /// bunny, bob subdivided twice, or `--mesh`), with `--peers`: xatlas, libigl ARAP and
+    /// harmonic on the same meshes.
+    #[arg(long)]
+    unwrap: bool,
+    /// With `--unwrap`: skip the GPU run of meshes over this many triangles.
+    #[arg(long, default_value_t = 50_000)]
+    gpu_max_triangles: usize,
+    /// Soak: this many bakes in one process (four jobs in turn on `--mesh`, default the
+    /// bundled Spot), resident memory after every hundred and whether it stayed flat after
+    /// warm-up.
+    #[arg(long)]
+    soak: Option<usize>,
+    /// Bake the same `--decals` (first value, default 16) at each of `--sizes`, tiled where
+    /// the canvas does not fit one storage buffer: cost per texel against the first size.
+    #[arg(long)]
+    tiles: bool,
+    /// With `--linalg`: chart sizes (vertices) to solve one at a time.
+    #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000")]
+    charts: Vec<usize>,
 }
 
 fn main() {
@@ -245,121 +249,121 @@ fn run(cli: Cli) -> Result<()> {
             batch_cmd(cli.backend.as_deref(), opts, &merge_summaries, summary)
         }
         Cmd::Param { job, layer, out } => param(cli.backend.as_deref(), &job, layer, &out),
-        Cmd::Bench {
+        Cmd::Bench(args) => bench_cmd(cli.backend.as_deref(), args),
+    }
+}
+
+/// `decalbake bench`: the benchmark its flags pick, JSON lines on stdout.
+fn bench_cmd(backend: Option<&str>, args: BenchArgs) -> Result<()> {
+    let BenchArgs {
+        mesh,
+        subdivide,
+        sizes,
+        decals,
+        reps,
+        cpu_budget,
+        method,
+        geodesic,
+        fast,
+        batch,
+        linalg,
+        scale,
+        strokes,
+        stamps,
+        device,
+        peers,
+        charts,
+        batch_bake,
+        unwrap,
+        gpu_max_triangles,
+        soak,
+        tiles,
+    } = args;
+    let mut engine = engine(backend)?;
+    if tiles {
+        let mesh =
+            mesh.unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/bob.glb"));
+        let n = decals.first().copied().unwrap_or(16);
+        return bench::tiles::run(&engine, &mesh, &sizes, n, reps, |v| println!("{v}"));
+    }
+    if let Some(bakes) = soak {
+        let mesh =
+            mesh.unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb"));
+        return bench::soak::run(&engine, &mesh, bakes, |v| println!("{v}"));
+    }
+    if unwrap {
+        let opts = bench::unwrap::UnwrapBenchOptions {
             mesh,
-            subdivide,
-            sizes,
-            decals,
+            peers,
+            gpu_max_triangles,
+        };
+        return bench::unwrap::run(&engine, &opts, |v| println!("{v}"));
+    }
+    if batch_bake {
+        let count = decals.first().copied().unwrap_or(40);
+        let devices = batch::Devices::new(engine, backend);
+        return bench::batch::run(&devices, count, &sizes, |v| println!("{v}"));
+    }
+    if strokes {
+        let opts = bench::strokes::StrokeBenchOptions {
+            mesh,
+            subdivide: if subdivide == 0 { 2 } else { subdivide },
+            side: sizes.first().copied().unwrap_or(2048),
+            stamps,
             reps,
             cpu_budget,
-            method,
-            geodesic,
-            fast,
-            batch,
-            linalg,
-            scale,
-            strokes,
-            stamps,
-            device,
+        };
+        bench::strokes::run(&mut engine, &opts, |v| println!("{v}"))?;
+        return Ok(());
+    }
+    if device {
+        bench::device::run(&engine, |v| println!("{v}"))?;
+        return Ok(());
+    }
+    if scale {
+        let meshes = match mesh {
+            Some(m) => vec![m],
+            None => bench::scale::default_meshes(Path::new(bench::common::SHARED_MESHES)),
+        };
+        bench::scale::run(&engine, &meshes, |v| println!("{v}"))?;
+        return Ok(());
+    }
+    if linalg {
+        let opts = bench::linalg::LinalgOptions {
+            mesh,
+            subdivide: if subdivide == 0 { 3 } else { subdivide },
+            batch: batch.unwrap_or(1024),
+            reps,
             peers,
             charts,
-            batch_bake,
-            unwrap,
-            gpu_max_triangles,
-            soak,
-            tiles,
-        } => {
-            let mut engine = engine(cli.backend.as_deref())?;
-            if tiles {
-                let mesh = mesh.unwrap_or_else(|| {
-                    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/bob.glb")
-                });
-                let n = decals.first().copied().unwrap_or(16);
-                return bench::tiles::run(&engine, &mesh, &sizes, n, reps, |v| println!("{v}"));
-            }
-            if let Some(bakes) = soak {
-                let mesh = mesh.unwrap_or_else(|| {
-                    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb")
-                });
-                return bench::soak::run(&engine, &mesh, bakes, |v| println!("{v}"));
-            }
-            if unwrap {
-                let opts = bench::unwrap::UnwrapBenchOptions {
-                    mesh,
-                    peers,
-                    gpu_max_triangles,
-                };
-                return bench::unwrap::run(&engine, &opts, |v| println!("{v}"));
-            }
-            if batch_bake {
-                let count = decals.first().copied().unwrap_or(40);
-                let devices = batch::Devices::new(engine, cli.backend.as_deref());
-                return bench::batch::run(&devices, count, &sizes, |v| println!("{v}"));
-            }
-            if strokes {
-                let opts = bench::strokes::StrokeBenchOptions {
-                    mesh,
-                    subdivide: if subdivide == 0 { 2 } else { subdivide },
-                    side: sizes.first().copied().unwrap_or(2048),
-                    stamps,
-                    reps,
-                    cpu_budget,
-                };
-                bench::strokes::run(&mut engine, &opts, |v| println!("{v}"))?;
-                return Ok(());
-            }
-            if device {
-                bench::device::run(&engine, |v| println!("{v}"))?;
-                return Ok(());
-            }
-            if scale {
-                let meshes = match mesh {
-                    Some(m) => vec![m],
-                    None => bench::scale::default_meshes(Path::new(bench::common::SHARED_MESHES)),
-                };
-                bench::scale::run(&engine, &meshes, |v| println!("{v}"))?;
-                return Ok(());
-            }
-            if linalg {
-                let opts = bench::linalg::LinalgOptions {
-                    mesh,
-                    subdivide: if subdivide == 0 { 3 } else { subdivide },
-                    batch: batch.unwrap_or(1024),
-                    reps,
-                    peers,
-                    charts,
-                };
-                bench::linalg::run(&engine, &opts, |v| println!("{v}"))?;
-                return Ok(());
-            }
-            let opts = bench::bake::BenchOptions {
-                mesh,
-                subdivide,
-                sizes,
-                decals,
-                reps,
-                cpu_budget,
-                method,
-                accuracy: if fast {
-                    decalbake::maps::expmap::Accuracy::Fast
-                } else {
-                    decalbake::maps::expmap::Accuracy::Smooth
-                },
-                peers: peers.clone(),
-            };
-            if geodesic {
-                if let Some(dir) = &opts.peers {
-                    bench::geodesic::run_sphere_accuracy(&engine, dir, |v| println!("{v}"))?;
-                }
-                bench::geodesic::run_geodesic(&engine, &opts, batch.unwrap_or(256), |v| {
-                    println!("{v}")
-                })?;
-            } else {
-                bench::bake::run(&mut engine, &opts, |v| println!("{v}"))?;
-            }
-            Ok(())
-        }
+        };
+        bench::linalg::run(&engine, &opts, |v| println!("{v}"))?;
+        return Ok(());
     }
+    let opts = bench::bake::BenchOptions {
+        mesh,
+        subdivide,
+        sizes,
+        decals,
+        reps,
+        cpu_budget,
+        method,
+        accuracy: if fast {
+            decalbake::maps::expmap::Accuracy::Fast
+        } else {
+            decalbake::maps::expmap::Accuracy::Smooth
+        },
+        peers: peers.clone(),
+    };
+    if geodesic {
+        if let Some(dir) = &opts.peers {
+            bench::geodesic::run_sphere_accuracy(&engine, dir, |v| println!("{v}"))?;
+        }
+        bench::geodesic::run_geodesic(&engine, &opts, batch.unwrap_or(256), |v| println!("{v}"))?;
+    } else {
+        bench::bake::run(&mut engine, &opts, |v| println!("{v}"))?;
+    }
+    Ok(())
 }
 
 /// `decalbake batch`: bake a manifest (`opts`), or join shard summaries into `summary`; exits
