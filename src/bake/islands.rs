@@ -43,7 +43,7 @@ fn compute(
     let dev = &engine.ctx.device;
     let texels = w as u64 * h as u64;
     let global = Pass::global(mesh, [w, h], ss, [0; 4]);
-    let (pass, jobs) = Pass::new(engine, mesh, (uv_set, ss), global, texels * 4);
+    let (pass, jobs) = Pass::new(engine, mesh, (uv_set, ss), global, [texels * 4; 2]);
     let buf = |label, bytes: u64| {
         dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
@@ -109,7 +109,8 @@ pub(crate) fn window_mask(
     let dev = &engine.ctx.device;
     let bytes = win[2] as u64 * win[3] as u64 * 4;
     let global = Pass::global(mesh, size, ss, win);
-    let (pass, jobs) = Pass::new(engine, mesh, (uv_set, ss), global, bytes);
+    // No distance transform here (the tiles' is on the CPU): a placeholder nearest map.
+    let (pass, jobs) = Pass::new(engine, mesh, (uv_set, ss), global, [bytes, 16]);
     engine.ctx.scoped("islands", || {
         let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("islands.window"),
@@ -152,14 +153,14 @@ impl<'a> Pass<'a> {
         }
     }
 
-    /// The buffers (a `mask_bytes` mask and nearest map, cleared by the caller) and the raster
-    /// jobs that cover `global`'s window.
+    /// The buffers (mask and nearest map of `[mask, nearest]` bytes; the caller clears the mask)
+    /// and the raster jobs that cover `global`'s window.
     fn new(
         engine: &'a Engine,
         mesh: &'a LoadedMesh,
         (uv_set, ss): (u32, u32),
         global: Params,
-        mask_bytes: u64,
+        [mask_bytes, nearest_bytes]: [u64; 2],
     ) -> (Self, Vec<Params>) {
         let dev = &engine.ctx.device;
         let buf = |label, bytes: u64| {
@@ -182,7 +183,7 @@ impl<'a> Pass<'a> {
             ss,
             params: params_buffer(dev, "islands.params", &entries),
             mask: buf("islands.mask", mask_bytes),
-            nearest: buf("islands.nearest", mask_bytes),
+            nearest: buf("islands.nearest", nearest_bytes),
             counter: buf("islands.count", 16),
         };
         (pass, jobs)
