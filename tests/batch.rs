@@ -49,6 +49,18 @@ fn summary(path: &Path) -> Value {
     serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
 }
 
+/// `decalbake batch --summary OUT --merge-summaries PARTS..`: (exit code, stdout, stderr).
+fn merge(out: &Path, parts: &[std::path::PathBuf]) -> (i32, String, String) {
+    let mut args = vec![
+        "batch",
+        "--summary",
+        out.to_str().unwrap(),
+        "--merge-summaries",
+    ];
+    args.extend(parts.iter().map(|p| p.to_str().unwrap()));
+    cli(&args)
+}
+
 fn statuses(s: &Value) -> Vec<(u64, String)> {
     s["jobs"]
         .as_array()
@@ -182,14 +194,7 @@ fn shards_cover_the_manifest_once_and_merge() {
         parts.push(out.join(format!("summary-{i}.json")));
     }
     let merged = dir.join("merged.json");
-    let mut args = vec![
-        "batch",
-        "--summary",
-        merged.to_str().unwrap(),
-        "--merge-summaries",
-    ];
-    args.extend(parts.iter().map(|p| p.to_str().unwrap()));
-    let (code, _, err) = cli(&args);
+    let (code, _, err) = merge(&merged, &parts);
     assert_eq!(code, 3, "a shard had a failure: {err}");
     let (a, b) = (summary(&merged), summary(&full.join("summary.json")));
     assert_eq!(statuses(&a), statuses(&b));
@@ -232,21 +237,22 @@ fn shards_cover_the_manifest_once_and_merge() {
         }
     }
     // A Slurm array task: index minus the array's first index, count from Slurm.
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_decalbake"))
-        .args([
+    let slurm = dir.join("slurm");
+    let (_, _, err) = cli_env(
+        &[
             "batch",
             m.to_str().unwrap(),
             "--out",
-            dir.join("slurm").to_str().unwrap(),
+            slurm.to_str().unwrap(),
             "--shard",
             "auto",
-        ])
-        .env("SLURM_ARRAY_TASK_ID", "8")
-        .env("SLURM_ARRAY_TASK_MIN", "7")
-        .env("SLURM_ARRAY_TASK_COUNT", "4")
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
+        ],
+        &[
+            ("SLURM_ARRAY_TASK_ID", "8"),
+            ("SLURM_ARRAY_TASK_MIN", "7"),
+            ("SLURM_ARRAY_TASK_COUNT", "4"),
+        ],
+    );
     assert!(err.contains("shard 1/4 (Slurm job array)"), "{err}");
     assert_eq!(
         statuses(&summary(&dir.join("slurm/summary-1.json"))),
@@ -313,18 +319,17 @@ fn a_lost_device_is_replaced_and_its_job_baked_again() {
     assert_eq!(code, 3, "{err}");
     for delay in ["0", "15"] {
         let _ = std::fs::remove_dir_all(&lossy);
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_decalbake"))
-            .args([
+        let fault = format!("1:{delay}");
+        let (code, _, err) = cli_env(
+            &[
                 "batch",
                 m.to_str().unwrap(),
                 "--out",
                 lossy.to_str().unwrap(),
-            ])
-            .env("DECALBAKE_FAULT_LOSE_DEVICE", format!("1:{delay}"))
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(3), "only line 4 fails: {err}");
+            ],
+            &[("DECALBAKE_FAULT_LOSE_DEVICE", &fault)],
+        );
+        assert_eq!(code, 3, "only line 4 fails: {err}");
         assert!(err.contains("destroying the GPU device"), "{err}");
         let s = summary(&lossy.join("summary.json"));
         assert_eq!(s["device_resets"], 1, "{s}");
@@ -357,22 +362,11 @@ fn a_rerun_task_keeps_its_shard_and_merging_counts_each_line_once() {
     let dir = setup("batch_rerun");
     let m = dir.join("manifest.jsonl");
     let run = |out: &str, envs: &[(&str, &str)], extra: &[&str]| {
-        let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_decalbake"));
-        c.args([
-            "batch",
-            m.to_str().unwrap(),
-            "--out",
-            dir.join(out).to_str().unwrap(),
-        ])
-        .args(extra);
-        for (k, v) in envs {
-            c.env(k, v);
-        }
-        let o = c.output().unwrap();
-        (
-            o.status.code(),
-            String::from_utf8_lossy(&o.stderr).into_owned(),
-        )
+        let out = dir.join(out);
+        let mut args = vec!["batch", m.to_str().unwrap(), "--out", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let (code, _, err) = cli_env(&args, envs);
+        (code, err)
     };
     let slurm_rerun = [
         ("SLURM_ARRAY_TASK_ID", "2"),
@@ -391,27 +385,20 @@ fn a_rerun_task_keeps_its_shard_and_merging_counts_each_line_once() {
     run("out", &[], &["--shard", "0/3"]);
     run("whole", &[], &[]);
     let merged = dir.join("merged.json");
-    let merge = |parts: &[std::path::PathBuf]| {
-        let mut args = vec![
-            "batch",
-            "--summary",
-            merged.to_str().unwrap(),
-            "--merge-summaries",
-        ];
-        args.extend(parts.iter().map(|p| p.to_str().unwrap()));
-        cli(&args)
-    };
-    let (code, _, _) = merge(&[
-        dir.join("out/summary-0.json"),
-        dir.join("whole/summary.json"),
-    ]);
+    let (code, _, _) = merge(
+        &merged,
+        &[
+            dir.join("out/summary-0.json"),
+            dir.join("whole/summary.json"),
+        ],
+    );
     assert_eq!(code, 3, "line 4 failed");
     assert_eq!(
         statuses(&summary(&merged)),
         [(1, "ok"), (2, "ok"), (4, "failed"), (5, "ok")].map(|(l, s)| (l, s.to_string()))
     );
     // Shards 0 and 2 of 3: shard 1 is missing, and the merge says so.
-    let (code, _, err) = merge(&[dir.join("out/summary-0.json"), s2]);
+    let (code, _, err) = merge(&merged, &[dir.join("out/summary-0.json"), s2]);
     assert_eq!(code, 3);
     assert!(err.contains("shard(s) [1]"), "{err}");
     assert_eq!(summary(&merged)["shard"]["missing"], serde_json::json!([1]));

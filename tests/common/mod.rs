@@ -152,8 +152,14 @@ pub fn test_image(w: u32, h: u32, seed: u32, alpha: bool) -> LinearImage {
 
 /// Runs the CLI, returning (exit code, stdout, stderr).
 pub fn cli(args: &[&str]) -> (i32, String, String) {
+    cli_env(args, &[])
+}
+
+/// Runs the CLI with `envs` added to its environment: (exit code, stdout, stderr).
+pub fn cli_env(args: &[&str], envs: &[(&str, &str)]) -> (i32, String, String) {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_decalbake"))
         .args(args)
+        .envs(envs.iter().copied())
         .output()
         .expect("runs the CLI");
     (
