@@ -1310,3 +1310,32 @@ fn split_border_runs_straight() {
         "border {length} against {shortest}"
     );
 }
+
+/// The engine hands a finished bake's canvas to the next bake of the same size
+/// (`bake::engine::BufferPool`); a transferred base leaves the texels no triangle covers as they
+/// start, so it must start from a cleared canvas, not the last bake's: a transfer baked right after
+/// a solid red bake equals the same transfer on a fresh engine, byte for byte (without the clear,
+/// every background texel of the second is the first's red).
+#[test]
+fn a_transfer_after_another_bake_starts_from_a_clear_canvas() {
+    let dir = common::scratch("transfer_pool");
+    let spot = Mesh::load(&asset("spot.glb")).unwrap();
+    let material = serde_json::json!({"transfer": {"from_uv_set": 0}});
+    let fresh = {
+        let engine = common::engine();
+        let loaded = engine.prepare(spot.clone()).unwrap();
+        transfer_bake(&engine, &loaded, &dir, material.clone(), 0, 64)
+    };
+    let engine = common::engine();
+    let loaded = engine.prepare(spot).unwrap();
+    let red = serde_json::json!([1.0, 0.0, 0.0, 1.0]);
+    let first = transfer_bake(&engine, &loaded, &dir, red, 0, 64);
+    assert_eq!(&first.texels[..4], &[255, 0, 0, 255]);
+    let after = transfer_bake(&engine, &loaded, &dir, material, 0, 64);
+    let background = fresh.texels.chunks(4).filter(|t| t[3] == 0).count();
+    assert!(background > 100, "{background} transparent texels");
+    assert!(
+        fresh.texels == after.texels,
+        "the second bake kept the first's texels"
+    );
+}

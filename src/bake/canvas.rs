@@ -74,7 +74,19 @@ impl Canvas {
                 mapped_at_creation: false,
             })
         };
-        let (acc_rg, acc_ba) = (plane("bake.acc_rg"), plane("bake.acc_ba"));
+        // The accumulation planes come from the engine's pool: the base fill below writes every
+        // texel, and a transferred base clears them first.
+        let usage = wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST;
+        let (acc_rg, new_rg) = engine.pooled_buffer("bake.acc_rg", texels * 8, usage);
+        let (acc_ba, new_ba) = engine.pooled_buffer("bake.acc_ba", texels * 8, usage);
+        let reused = [acc_rg.clone(), acc_ba.clone()]
+            .into_iter()
+            .zip([new_rg, new_ba])
+            .filter(|(_, new)| !new)
+            .map(|(b, _)| b)
+            .collect::<Vec<_>>();
         // wgpu zero-fills new buffers: the stroke buffer starts transparent.
         let stroke = strokes.then(|| [plane("bake.stroke_rg"), plane("bake.stroke_ba")]);
         let carry = strokes.then(|| {
@@ -142,6 +154,15 @@ impl Canvas {
             _ => None,
         };
         if let Some(from_uv_set) = from {
+            if !reused.is_empty() {
+                engine.ctx.scoped("canvas clear", || {
+                    let mut enc = dev.create_command_encoder(&Default::default());
+                    for b in &reused {
+                        enc.clear_buffer(b, 0, None);
+                    }
+                    engine.ctx.queue.submit([enc.finish()]);
+                })?;
+            }
             let acc = [&canvas.acc_rg, &canvas.acc_ba];
             let src = (&*images.base, from_uv_set);
             super::transfer::fill(engine, mesh, job, src, canvas.global, acc, log)?;

@@ -336,6 +336,27 @@ fn record_distortion(
     maps.range.len() as u32
 }
 
+/// The part of raster rectangle `p` inside the canvas window `win` (x, y, w, h texels), in
+/// samples relative to the rectangle's atlas origin: the scissor of its draws. A tile of a tiled
+/// bake (`bake/tiles.rs`) rasterizes only its own part of a rectangle that straddles tile borders;
+/// the viewport stays the whole rectangle's, so the samples drawn are exactly the whole bake's
+/// (the scissor test discards fragments and changes no interpolation), and `compose.wgsl` reads
+/// only the samples of texels inside the window. For a whole-texture canvas it is the rectangle.
+fn scissor(p: &Params, win: [u32; 4], ss: u32) -> [u32; 4] {
+    let (r0, rs) = (p.rect_origin, p.rect_size);
+    let x0 = r0[0].max(win[0] as i32);
+    let y0 = r0[1].max(win[1] as i32);
+    let x1 = (r0[0] + rs[0] as i32).min((win[0] + win[2]) as i32);
+    let y1 = (r0[1] + rs[1] as i32).min((win[1] + win[3]) as i32);
+    let (w, h) = ((x1 - x0).max(0) as u32, (y1 - y0).max(0) as u32);
+    [
+        (x0 - r0[0]) as u32 * ss,
+        (y0 - r0[1]) as u32 * ss,
+        w * ss,
+        h * ss,
+    ]
+}
+
 /// What recording a batch reads.
 struct Recording<'a> {
     engine: &'a Engine,
@@ -370,7 +391,29 @@ impl Recording<'_> {
         let tg = engine.targets([TILE_TARGET, used_h.next_power_of_two().max(64)]);
         {
             let views = [&tg.color_view, &tg.cov_view];
-            let mut pass = crate::gpu::cleared_pass(enc, "bake.layer_raster", &views);
+            let win = self.canvas.global.window();
+            // A tile clears its parts of its rectangles (it keeps few of a batch's), a whole
+            // bake the target (measured: a tiled 8192² bake's compose 1.80 s → 1.62 s without
+            // its 42 whole-target clears, the 4096² bake's 6 within noise).
+            let whole = win[2] == self.job.width && win[3] == self.job.height;
+            let mut pass = match whole {
+                true => crate::gpu::cleared_pass(enc, "bake.layer_raster", &views),
+                false => {
+                    let mut pass = crate::gpu::render_pass(
+                        enc,
+                        "bake.layer_raster",
+                        &views,
+                        wgpu::LoadOp::Load,
+                    );
+                    pass.set_pipeline(&pipes.atlas_clear.pipeline);
+                    for &(k, origin) in batch {
+                        let [sx, sy, sw, sh] = scissor(&self.jobs[k].params, win, ss);
+                        pass.set_scissor_rect(origin[0] + sx, origin[1] + sy, sw, sh);
+                        pass.draw(0..3, 0..1);
+                    }
+                    pass
+                }
+            };
             pass.set_pipeline(&pipes.layer_raster.pipeline);
             for &(k, origin) in batch {
                 let rj = &self.jobs[k];
@@ -384,7 +427,10 @@ impl Recording<'_> {
                     0.0,
                     1.0,
                 );
-                pass.set_scissor_rect(origin[0], origin[1], jw, jh);
+                // A tile's window clips the scissor, never the viewport: the samples inside
+                // are the whole bake's, bit for bit (see `scissor`).
+                let [sx, sy, sw, sh] = scissor(p, win, ss);
+                pass.set_scissor_rect(origin[0] + sx, origin[1] + sy, sw, sh);
                 for (e, i) in rj.units.clone().enumerate() {
                     if self.placed.sources[i] {
                         continue;

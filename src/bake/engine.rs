@@ -162,6 +162,80 @@ pub struct Engine {
     pub whole_mesh_selection: bool,
     /// Layer images and masks decoded and uploaded by earlier bakes (`bake/images.rs`).
     pub(crate) images: Mutex<ImageCache>,
+    /// Canvas-sized buffers of finished bakes, for the next bake or tile ([`BufferPool`]).
+    pub(crate) buffers: Mutex<BufferPool>,
+}
+
+/// Copies an encoded window (x, y, w, h; rows `stride` words apart in `words`: RGBA8 in one word,
+/// RGBA16 in two) into `texels` (4 values a texel, rows `tex_w` texels wide) at its place. Row
+/// bands on every core: a tile's 16M texels are 64 MiB of fresh memory to write.
+pub(crate) fn unpack_rows(
+    texels: &mut [u16],
+    tex_w: u32,
+    win: [u32; 4],
+    words: &[u32],
+    stride: u32,
+    depth: u8,
+) {
+    let [x, y, w, h] = win.map(|v| v as usize);
+    let (tex_w, stride) = (tex_w as usize, stride as usize);
+    let rows = &mut texels[y * tex_w * 4..(y + h) * tex_w * 4];
+    let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+    let band = h.div_ceil(threads).max(1);
+    std::thread::scope(|s| {
+        for (b, chunk) in rows.chunks_mut(band * tex_w * 4).enumerate() {
+            s.spawn(move || {
+                for (r, row) in chunk.chunks_exact_mut(tex_w * 4).enumerate() {
+                    let src = &words[(b * band + r) * stride..];
+                    let dst = &mut row[x * 4..(x + w) * 4];
+                    if depth == 16 {
+                        for (d, word) in dst.chunks_exact_mut(2).zip(&src[..2 * w]) {
+                            d[0] = (word & 0xffff) as u16;
+                            d[1] = (word >> 16) as u16;
+                        }
+                    } else {
+                        for (d, word) in dst.chunks_exact_mut(4).zip(&src[..w]) {
+                            d.copy_from_slice(&word.to_le_bytes().map(u16::from));
+                        }
+                    }
+                }
+            });
+        }
+    });
+}
+
+/// Large buffers handed back by a finished bake (the canvas planes, the encoded texture) for the
+/// next bake of the same size, or the next tile of a tiled one: a fresh 128 MiB buffer costs the
+/// device a zero-fill and, on lavapipe, the host its page faults (190 ms for a 4096² canvas's two
+/// planes, and up to 700 ms when the host is short of free pages, measured with the tiled bench).
+/// A taken buffer holds its last user's bytes: the taker overwrites or clears it. At most
+/// [`BufferPool::BYTES`] are kept, the most recently returned first.
+#[derive(Default)]
+pub(crate) struct BufferPool {
+    free: Vec<wgpu::Buffer>,
+}
+
+impl BufferPool {
+    /// The most bytes kept: a 4096² canvas (two 128 MiB planes) and its encode (64 MiB, or 128 MiB
+    /// at 16 bits), twice over, for two bakes of different sizes or two threads.
+    pub const BYTES: u64 = 768 << 20;
+
+    /// A free buffer of exactly `size` bytes and `usage`, if one is kept.
+    pub fn take(&mut self, size: u64, usage: wgpu::BufferUsages) -> Option<wgpu::Buffer> {
+        let k = self
+            .free
+            .iter()
+            .rposition(|b| b.size() == size && b.usage() == usage)?;
+        Some(self.free.remove(k))
+    }
+
+    /// Keeps `buffer` for a later [`Self::take`], dropping the oldest beyond [`Self::BYTES`].
+    pub fn give(&mut self, buffer: wgpu::Buffer) {
+        self.free.push(buffer);
+        while self.free.iter().map(|b| b.size()).sum::<u64>() > Self::BYTES {
+            self.free.remove(0);
+        }
+    }
 }
 
 impl Engine {
@@ -208,6 +282,7 @@ impl Engine {
             ctx,
             pipes,
             targets: Mutex::new(HashMap::new()),
+            buffers: Mutex::new(BufferPool::default()),
             linear_sampler,
             whole_mesh_selection: false,
             images: Mutex::new(Default::default()),
@@ -363,6 +438,41 @@ impl Engine {
         })
     }
 
+    /// A buffer of `size` bytes and `usage` from the pool ([`BufferPool`]; it holds a previous
+    /// bake's bytes), or a new one (zero-filled); `true` when it is new.
+    pub(crate) fn pooled_buffer(
+        &self,
+        label: &str,
+        size: u64,
+        usage: wgpu::BufferUsages,
+    ) -> (wgpu::Buffer, bool) {
+        let kept = self
+            .buffers
+            .lock()
+            .expect("buffer pool poisoned")
+            .take(size, usage);
+        match kept {
+            Some(b) => (b, false),
+            None => (
+                self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size,
+                    usage,
+                    mapped_at_creation: false,
+                }),
+                true,
+            ),
+        }
+    }
+
+    /// Hands buffers back to the pool once no submitted work reads or writes them.
+    pub(crate) fn return_buffers(&self, buffers: impl IntoIterator<Item = wgpu::Buffer>) {
+        let mut pool = self.buffers.lock().expect("buffer pool poisoned");
+        for b in buffers {
+            pool.give(b);
+        }
+    }
+
     pub(crate) fn targets(&self, size: [u32; 2]) -> Arc<Targets> {
         let mut pool = self.targets.lock().expect("target pool poisoned");
         pool.entry(size)
@@ -416,26 +526,14 @@ impl Engine {
         on_stage("read-back");
         let t = Instant::now();
         let (w, h) = (job.width, job.height);
-        let bytes = self.ctx.read_buffer(
-            &run.encoded.packed,
-            run.encoded.packed_size,
-            "encode read-back",
-        )?;
-        let words: &[u32] = bytemuck::cast_slice(&bytes);
-        let mut texels = Vec::with_capacity((w * h * 4) as usize);
-        for y in 0..h {
-            let row = &words[(y * run.encoded.stride) as usize..];
-            if job.bit_depth == 16 {
-                for &word in &row[..(2 * w) as usize] {
-                    texels.push((word & 0xffff) as u16);
-                    texels.push((word >> 16) as u16);
-                }
-            } else {
-                for &word in &row[..w as usize] {
-                    texels.extend(word.to_le_bytes().map(u16::from));
-                }
-            }
-        }
+        let mut texels = vec![0u16; (w * h * 4) as usize];
+        let e = &run.encoded;
+        self.ctx
+            .read_buffer_with(&e.packed, e.packed_size, "encode read-back", |bytes| {
+                let words = bytemuck::cast_slice(bytes);
+                unpack_rows(&mut texels, w, [0, 0, w, h], words, e.stride, job.bit_depth)
+            })?;
+        self.return_buffers([run.encoded.packed.clone()]);
         let mut report = run.report;
         report.timings.encode_ms += ms(t);
         Ok(Baked {
@@ -497,6 +595,7 @@ impl Engine {
             self.ctx.queue.submit([enc.finish()]);
             tex
         })?;
+        self.return_buffers([run.encoded.packed.clone()]);
         Ok((tex, run.report))
     }
 

@@ -45,12 +45,10 @@ pub(crate) fn pad_and_encode(
     }];
     let fin_params = params_buffer(dev, "bake.final_params", &fin);
     let packed_size = stride as u64 * h as u64 * 4;
-    let packed = dev.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("bake.packed"),
-        size: packed_size,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
+    // Every word a reader reads (w texels a row, never the row padding) is written below, so a
+    // buffer from the pool serves as well as a new one.
+    let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+    let (packed, _) = engine.pooled_buffer("bake.packed", packed_size, usage);
     engine.ctx.scoped("padding and encode", || {
         let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("bake.finish"),

@@ -143,6 +143,8 @@ pub(crate) fn run_in(
     };
     log.timings.padding_ms = ms(t);
     let stats = canvas.read_stats(engine, "stats read-back")?;
+    // Submitted work that reads the planes is queued ahead of any later user's.
+    engine.return_buffers([canvas.acc_rg.clone(), canvas.acc_ba.clone()]);
     let layers = fold_reports(&placed, units, |u| canvas.row(&stats, u));
     // A stroke's stamps can raise the same warning many times: keep each once, in order.
     let mut seen = std::collections::HashSet::new();

@@ -20,7 +20,7 @@
 //! A float (EXR) output takes the same path with one tile when the texture fits, so that its
 //! linear canvas is padded by the same map. `tests/tiles.rs` compares tiled with untiled bakes.
 
-use super::engine::{Baked, Engine, IslandKey, LoadedMesh, TiledIslands};
+use super::engine::{unpack_rows, Baked, Engine, IslandKey, LoadedMesh, TiledIslands};
 use super::report::Report;
 use crate::error::Result;
 use crate::io::job::Job;
@@ -72,19 +72,14 @@ pub(crate) fn bake(
         let stage = |s: &str| on_stage(&format!("tile {}/{}: {s}", k + 1, wins.len()));
         let run = super::run_in(engine, mesh, job, Some(win), &stage)?;
         let t = Instant::now();
-        let bytes = engine.ctx.read_buffer(
-            &run.encoded.packed,
-            run.encoded.packed_size,
-            "encode read-back",
-        )?;
-        place_tile(
-            &mut texels,
-            w,
-            win,
-            bytemuck::cast_slice(&bytes),
-            run.encoded.stride,
-            job.bit_depth,
-        );
+        let e = &run.encoded;
+        engine
+            .ctx
+            .read_buffer_with(&e.packed, e.packed_size, "encode read-back", |bytes| {
+                let words = bytemuck::cast_slice(bytes);
+                unpack_rows(&mut texels, w, win, words, e.stride, job.bit_depth)
+            })?;
+        engine.return_buffers([run.encoded.packed.clone()]);
         if let (Some(all), Some(tile)) = (linear.as_mut(), &run.linear) {
             for row in 0..win[3] as usize {
                 let src = &tile[row * win[2] as usize * 4..][..win[2] as usize * 4];
@@ -121,26 +116,6 @@ pub(crate) fn bake(
     })
 }
 
-/// Copies a tile's packed encode (rows `stride` words apart: RGBA8 in one word, RGBA16 in two)
-/// into the texture's texels at its window.
-fn place_tile(texels: &mut [u16], w: u32, win: [u32; 4], words: &[u32], stride: u32, depth: u8) {
-    for row in 0..win[3] as usize {
-        let src = &words[row * stride as usize..];
-        let at = ((win[1] as usize + row) * w as usize + win[0] as usize) * 4;
-        let dst = &mut texels[at..at + win[2] as usize * 4];
-        if depth == 16 {
-            for (d, word) in dst.chunks_exact_mut(2).zip(&src[..2 * win[2] as usize]) {
-                d[0] = (word & 0xffff) as u16;
-                d[1] = (word >> 16) as u16;
-            }
-        } else {
-            for (d, word) in dst.chunks_exact_mut(4).zip(&src[..win[2] as usize]) {
-                d.copy_from_slice(&word.to_le_bytes().map(u16::from));
-            }
-        }
-    }
-}
-
 /// Two tiles' reports as one: the first's, with the texels each layer covered added up (the
 /// rest, placement, maps and triangles, is the same in every tile) and the stage times summed.
 fn merge(mut a: Report, b: Report) -> Report {
@@ -162,6 +137,10 @@ fn merge(mut a: Report, b: Report) -> Report {
 /// Rows are split between the cores (an 8192² texture has 64M texels).
 fn pad<T: Copy + Send + Sync>(isl: &TiledIslands, w: u32, radius: u32, values: &mut [T], n: usize) {
     let r2 = radius as u64 * radius as u64;
+    // |src − i| = |dy·w + dx| with |dx| < w: beyond (radius + 1)·w − 1, |dy| > radius.
+    let far = (radius as u64 + 1)
+        .saturating_mul(w as u64)
+        .saturating_sub(1);
     let texels = isl.mask.len();
     let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
     let band = texels.div_ceil(threads).max(1);
@@ -175,9 +154,15 @@ fn pad<T: Copy + Send + Sync>(isl: &TiledIslands, w: u32, radius: u32, values: &
                     if isl.mask[i] || src == u32::MAX {
                         continue;
                     }
+                    // Indices further apart than `far` are more than `radius` rows apart: no
+                    // division needed to reject them (most background texels, for small radii).
+                    if (src as i64 - i as i64).unsigned_abs() > far {
+                        continue;
+                    }
+                    let (sy, y) = (src / w, i as u32 / w);
                     let (dx, dy) = (
-                        (src % w) as i64 - (i as u32 % w) as i64,
-                        (src / w) as i64 - (i as u32 / w) as i64,
+                        (src - sy * w) as i64 - (i as u32 - y * w) as i64,
+                        sy as i64 - y as i64,
                     );
                     if radius == u32::MAX || (dx * dx + dy * dy) as u64 <= r2 {
                         // SAFETY: `src` is an island texel (the distance transform points only at

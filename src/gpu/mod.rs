@@ -71,6 +71,21 @@ pub fn cleared_pass<'e>(
     label: &str,
     views: &[&wgpu::TextureView],
 ) -> wgpu::RenderPass<'e> {
+    render_pass(
+        enc,
+        label,
+        views,
+        wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+    )
+}
+
+/// A render pass onto `views` that starts from their contents (`load`: keep them) or cleared.
+pub fn render_pass<'e>(
+    enc: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    views: &[&wgpu::TextureView],
+    load: wgpu::LoadOp<wgpu::Color>,
+) -> wgpu::RenderPass<'e> {
     let attachments: Vec<Option<wgpu::RenderPassColorAttachment>> = views
         .iter()
         .map(|view| {
@@ -79,7 +94,7 @@ pub fn cleared_pass<'e>(
                 depth_slice: None,
                 resolve_target: None,
                 ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                    load,
                     store: wgpu::StoreOp::Store,
                 },
             })
@@ -331,6 +346,31 @@ impl GpuContext {
         size: u64,
         stage: &str,
     ) -> Result<Vec<u8>> {
+        self.read_range_with(src, offset, size, stage, |b| b.to_vec())
+    }
+
+    /// Copies `size` bytes of `src` (which needs `COPY_SRC`) to the CPU and hands them to `f`
+    /// while mapped, without the copy into a `Vec` that [`Self::read_buffer`] makes (a tile's
+    /// 64 MiB encode is unpacked straight from the mapping).
+    pub fn read_buffer_with<R>(
+        &self,
+        src: &wgpu::Buffer,
+        size: u64,
+        stage: &str,
+        f: impl FnOnce(&[u8]) -> R,
+    ) -> Result<R> {
+        self.read_range_with(src, 0, size, stage, f)
+    }
+
+    /// [`Self::read_buffer_with`] from `offset` (a multiple of 4).
+    fn read_range_with<R>(
+        &self,
+        src: &wgpu::Buffer,
+        offset: u64,
+        size: u64,
+        stage: &str,
+        f: impl FnOnce(&[u8]) -> R,
+    ) -> Result<R> {
         let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("decalbake.readback"),
             size,
@@ -340,11 +380,21 @@ impl GpuContext {
         let mut enc = self.device.create_command_encoder(&Default::default());
         enc.copy_buffer_to_buffer(src, offset, &staging, 0, size);
         self.queue.submit([enc.finish()]);
-        self.map_and_read(&staging, stage)
+        self.map_with(&staging, stage, f)
     }
 
     /// Maps an already-filled `MAP_READ` buffer and returns its contents.
     pub fn map_and_read(&self, staging: &wgpu::Buffer, stage: &str) -> Result<Vec<u8>> {
+        self.map_with(staging, stage, |b| b.to_vec())
+    }
+
+    /// Maps an already-filled `MAP_READ` buffer and hands its contents to `f`.
+    fn map_with<R>(
+        &self,
+        staging: &wgpu::Buffer,
+        stage: &str,
+        f: impl FnOnce(&[u8]) -> R,
+    ) -> Result<R> {
         let (tx, rx) = std::sync::mpsc::channel();
         staging.slice(..).map_async(wgpu::MapMode::Read, move |r| {
             let _ = tx.send(r);
@@ -357,9 +407,9 @@ impl GpuContext {
             .slice(..)
             .get_mapped_range()
             .map_err(|e| self.gpu_error(stage, e))?;
-        let bytes = view.to_vec();
+        let out = f(&view);
         drop(view);
         staging.unmap();
-        Ok(bytes)
+        Ok(out)
     }
 }

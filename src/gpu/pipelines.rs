@@ -179,6 +179,8 @@ pub struct Pipelines {
     pub select_triangles: Kernel,
     /// Layer raster.
     pub layer_raster: Raster,
+    /// Clears the layer raster's targets inside the scissor (a tile's raster rectangles).
+    pub atlas_clear: Raster,
     /// Inverse rendering of the canvas into tool stamps' flat space.
     pub stamp_flatten: Raster,
     /// The tools' filters on the flat atlas (blur, smear).
@@ -290,6 +292,7 @@ impl Pipelines {
                 ],
             ),
             layer_raster: rasters.layer,
+            atlas_clear: rasters.clear,
             stamp_flatten: rasters.flatten,
             stamp_filter: Kernel::new(
                 device,
@@ -434,10 +437,12 @@ fn pelt_kernels(device: &wgpu::Device) -> [Kernel; 2] {
     ]
 }
 
-/// The render pipelines: the layer raster (with the format and blending it got), the tools'
+/// The render pipelines: the layer raster (with the format and blending it got) and its targets'
+/// clear, the tools'
 /// inverse raster into the same format, the island raster, the transfer raster and the preview.
 struct Rasters {
     layer: Raster,
+    clear: Raster,
     flatten: Raster,
     island: Raster,
     transfer: Raster,
@@ -450,8 +455,18 @@ impl Rasters {
     /// `layer_blending`: whether f32 targets blend on this device.
     fn new(device: &wgpu::Device, layer_blending: bool) -> Self {
         let (layer, layer_format, layer_blending) = layer_raster(device, layer_blending);
+        let clear = raster(
+            device,
+            "atlas_clear",
+            layout(device, "atlas_clear", &[], wgpu::ShaderStages::VERTEX),
+            &[],
+            &[Some(layer_format.into()), Some(COVERAGE_FORMAT.into())],
+            None,
+            1,
+        );
         Self {
             layer,
+            clear,
             flatten: flatten_raster(device, layer_format),
             island: island_raster(device),
             transfer: transfer_raster(device, layer_format),

@@ -42,6 +42,10 @@ pub const KERNELS: &[(&str, &str)] = &[
         include_str!("../../wgsl/bake/layer_raster.wgsl"),
     ),
     (
+        "atlas_clear",
+        include_str!("../../wgsl/bake/atlas_clear.wgsl"),
+    ),
+    (
         "island_raster",
         include_str!("../../wgsl/bake/island_raster.wgsl"),
     ),
