@@ -105,25 +105,10 @@ fn a_device_destroyed_mid_bake_gives_device_lost_and_a_fresh_engine_bakes_the_sa
 /// An engine on a device whose buffer limits are `binding` (storage binding) and `buffer` (any
 /// buffer) bytes: the adapter's own limits, lowered.
 fn tight_engine(binding: u64, buffer: u64) -> decalbake::Engine {
-    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
-        backends: wgpu::Backends::from_env().unwrap_or(wgpu::Backends::VULKAN),
-        ..wgpu::InstanceDescriptor::new_without_display_handle()
-    });
-    let adapter =
-        pollster::block_on(instance.request_adapter(&Default::default())).expect("an adapter");
-    let limits = wgpu::Limits {
-        max_storage_buffer_binding_size: binding,
-        max_buffer_size: buffer,
-        ..adapter.limits()
-    };
-    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-        required_features: adapter.features()
-            & (wgpu::Features::FLOAT32_FILTERABLE | wgpu::Features::FLOAT32_BLENDABLE),
-        required_limits: limits,
-        ..Default::default()
-    }))
-    .unwrap();
-    decalbake::Engine::from_adapter(&adapter, device, queue).unwrap()
+    common::engine_with_limits(|l| {
+        l.max_storage_buffer_binding_size = binding;
+        l.max_buffer_size = buffer;
+    })
 }
 
 /// On a device whose buffers are smaller than the bake's budgets, the map stage works in smaller

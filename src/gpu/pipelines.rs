@@ -219,9 +219,11 @@ pub struct Pipelines {
     pub cg_packed_complex: Kernel,
     /// `wgsl/solve/cg_amg.wgsl`: CG preconditioned by a multigrid V-cycle, 256 invocations per
     /// system (large systems).
-    pub cg_amg: Kernel,
+    pub cg_amg: Option<Kernel>,
+    /// (`None` on a device with fewer than [`AMG_STORAGE_BUFFERS`] storage buffers a stage, such
+    /// as wgpu's GL backend's 16: the solver then uses Jacobi.)
     /// `cg_amg` on 2 × 2 complex blocks (`shaders::complex_source`): LSCM systems.
-    pub cg_amg_complex: Kernel,
+    pub cg_amg_complex: Option<Kernel>,
     /// CSR sparse matrix-vector product.
     pub spmv: Kernel,
     /// Batched dot products and norms.
@@ -263,8 +265,14 @@ impl Pipelines {
             wgpu::TextureFormat::Rgba16Float
         };
         let rasters = Rasters::new(device, layer_blending);
-        let [cg_batched, cg_batched_narrow, cg_packed, cg_packed_complex, cg_amg, cg_amg_complex, spmv, dot_batched, copy] =
-            linalg_kernels(device);
+        let (
+            [cg_batched, cg_batched_narrow, cg_packed, cg_packed_complex, spmv, dot_batched, copy],
+            amg,
+        ) = linalg_kernels(device);
+        let (cg_amg, cg_amg_complex) = match amg {
+            Some([real, complex]) => (Some(real), Some(complex)),
+            None => (None, None),
+        };
         let [chart_scatter, chart_gather, stamp_blend] = slot_kernels(device);
         let [place_bvh, place_candidates, place_reduce] = place_kernels(device);
         let [pelt_step, pelt_check] = pelt_kernels(device);
@@ -720,10 +728,10 @@ fn raster(
 
 /// The linear-algebra kernels (`wgsl/solve/`), in the order of their `Pipelines` fields: the
 /// conjugate gradient's four variants (one workgroup per system, 256 and 64 wide; one system per
-/// invocation, real and on complex blocks), which share one binding list, the multigrid-preconditioned
-/// one, real and on complex blocks (that list plus the hierarchy's), then SpMV, batched dot
-/// products and the streaming copy.
-fn linalg_kernels(device: &wgpu::Device) -> [Kernel; 9] {
+/// invocation, real and on complex blocks), which share one binding list, then SpMV, batched dot
+/// products and the streaming copy; and the multigrid-preconditioned one, real and on complex
+/// blocks (that list plus the hierarchy's), where the device binds that many storage buffers.
+fn linalg_kernels(device: &wgpu::Device) -> ([Kernel; 7], Option<[Kernel; 2]>) {
     use Bind::*;
     let cg = &[
         (0, Uniform),
@@ -745,18 +753,23 @@ fn linalg_kernels(device: &wgpu::Device) -> [Kernel; 9] {
         &[(12, Ro), (13, Ro), (14, Ro), (15, Ro), (16, Ro), (17, Rw)],
     ]
     .concat();
-    [
+    let amg =
+        (device.limits().max_storage_buffers_per_shader_stage >= AMG_STORAGE_BUFFERS).then(|| {
+            [
+                Kernel::new(device, "cg_amg", &amg),
+                Kernel::with_source(
+                    device,
+                    "cg_amg",
+                    &amg,
+                    Some(shaders::complex_source("cg_amg")),
+                ),
+            ]
+        });
+    let kernels = [
         Kernel::new(device, "cg_batched", cg),
         variant("cg_batched", shaders::narrow_source("cg_batched")),
         Kernel::new(device, "cg_packed", cg),
         variant("cg_packed", shaders::complex_source("cg_packed")),
-        Kernel::new(device, "cg_amg", &amg),
-        Kernel::with_source(
-            device,
-            "cg_amg",
-            &amg,
-            Some(shaders::complex_source("cg_amg")),
-        ),
         Kernel::new(
             device,
             "spmv",
@@ -764,8 +777,12 @@ fn linalg_kernels(device: &wgpu::Device) -> [Kernel; 9] {
         ),
         Kernel::new(device, "dot_batched", &[(0, Ro), (1, Ro), (2, Ro), (3, Rw)]),
         Kernel::new(device, "copy", &[(0, Uniform), (1, Ro), (2, Rw)]),
-    ]
+    ];
+    (kernels, amg)
 }
+
+/// Storage buffers `cg_amg.wgsl` binds (the CG's 11 and the hierarchy's 6).
+pub const AMG_STORAGE_BUFFERS: u32 = 17;
 
 /// The placement kernels (`src/place.rs`): `place_bvh`, `place_candidates`, `place_reduce`.
 fn place_kernels(device: &wgpu::Device) -> [Kernel; 3] {

@@ -451,7 +451,8 @@ pub fn cg_batched(
     // Systems the packed kernel takes stay there (Jacobi); the rest of at least AMG_MIN_ROWS rows
     // get a V-cycle when one iteration of it fits the loop limit.
     let wants = |k: usize| {
-        systems[k].wide != JACOBI_ONLY
+        pipes.cg_amg.is_some()
+            && systems[k].wide != JACOBI_ONLY
             && !(pack && packed_steps(row_len, systems[k].n) <= LOOP_BUDGET)
     };
     let hs = gpu_amg::hierarchies(a, &ranges, wants);
@@ -595,7 +596,7 @@ fn multigrid(
         })?;
         let classes = [(
             MULTIGRID,
-            &pipes.cg_amg_complex,
+            amg_kernel(pipes.cg_amg_complex.as_ref()),
             iters_per_dispatch(steps.unwrap_or(0)),
         )];
         let solved = run(
@@ -645,7 +646,7 @@ fn multigrid(
         }
     }
     let gpu = GpuCsr::upload(ctx, &mg.a)?;
-    let amg = steps.map(|st| (st, &pipes.cg_amg));
+    let amg = steps.map(|st| (st, amg_kernel(pipes.cg_amg.as_ref())));
     let (systems, classes) = kernel_classes(pipes, row_len, &systems, amg)?;
     let vals = f32s(&mg.pr.vals);
     let bufs = ctx.scoped("conjugate gradient", || {
@@ -669,6 +670,12 @@ fn multigrid(
         &classes,
         Some(&bufs),
     )
+}
+
+/// A multigrid kernel: present whenever a hierarchy was built (none are without it, see `wants`
+/// in [`cg_batched`]).
+fn amg_kernel(k: Option<&Kernel>) -> &Kernel {
+    k.expect("hierarchies are built only where the device has the multigrid kernel")
 }
 
 /// The hierarchy's buffers (bindings 12-17 of `cg_amg.wgsl`).
@@ -954,14 +961,15 @@ fn kernel_classes<'p>(
         .collect();
     let mut classes = Vec::new();
     for (wide, kernel) in [
-        (0u32, &pipes.cg_batched_narrow),
-        (1u32, &pipes.cg_batched),
-        (PACKED, &pipes.cg_packed),
-        (MULTIGRID, amg.map_or(&pipes.cg_amg, |a| a.1)),
+        (0u32, Some(&pipes.cg_batched_narrow)),
+        (1u32, Some(&pipes.cg_batched)),
+        (PACKED, Some(&pipes.cg_packed)),
+        (MULTIGRID, amg.map(|a| a.1).or(pipes.cg_amg.as_ref())),
     ] {
         let Some(max_n) = systems.iter().filter(|s| s.wide == wide).map(|s| s.n).max() else {
             continue;
         };
+        let kernel = amg_kernel(kernel);
         let per_iter = match wide {
             0 => cost(max_n, narrow_wg),
             1 => cost(max_n, WG as u32),

@@ -13,6 +13,27 @@ pub fn engine() -> Engine {
     Engine::new(None).expect("a GPU adapter (install mesa-vulkan-drivers for lavapipe)")
 }
 
+/// An engine on a device whose limits are the adapter's as `lower` changes them (a smaller
+/// device than the one the tests run on: tight buffers, fewer storage buffers a stage).
+pub fn engine_with_limits(lower: impl FnOnce(&mut wgpu::Limits)) -> Engine {
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+        backends: wgpu::Backends::from_env().unwrap_or(wgpu::Backends::VULKAN),
+        ..wgpu::InstanceDescriptor::new_without_display_handle()
+    });
+    let adapter =
+        pollster::block_on(instance.request_adapter(&Default::default())).expect("an adapter");
+    let mut limits = adapter.limits();
+    lower(&mut limits);
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        required_features: adapter.features()
+            & (wgpu::Features::FLOAT32_FILTERABLE | wgpu::Features::FLOAT32_BLENDABLE),
+        required_limits: limits,
+        ..Default::default()
+    }))
+    .unwrap();
+    Engine::from_adapter(&adapter, device, queue).unwrap()
+}
+
 /// A fresh scratch directory for one test.
 pub fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("decalbake-test-{name}-{}", std::process::id()));
