@@ -28,6 +28,7 @@ mod frame;
 pub mod hybrid;
 pub mod lscm;
 pub mod planar;
+pub mod ribbon;
 pub mod stamp;
 
 pub use frame::Frame;

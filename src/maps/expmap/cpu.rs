@@ -97,8 +97,9 @@ pub fn transfer(r: Vec3, nr: Vec3, q: Vec3, seed: &Seed) -> [f32; 2] {
     [v.dot(seed.e1), v.dot(seed.e2)]
 }
 
+/// A Dijkstra heap entry: (distance, vertex), smallest distance first, ties to the lower vertex.
 #[derive(PartialEq)]
-struct Item(f32, u32);
+pub(crate) struct Item(pub f32, pub u32);
 impl Eq for Item {}
 impl Ord for Item {
     fn cmp(&self, o: &Self) -> Ordering {

@@ -1,0 +1,314 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The extended exponential map of a curve (Sun et al. 2013, "Texture Brush", section 3): every
+//! surface point near a curve γ gets u, the arc length of its foot point on γ (plus the tangential
+//! offset past γ's ends), and v, its signed geodesic distance to γ (positive on the left of γ seen
+//! from outside the surface, that is along N × T). Strips along γ are then laid out like the plane
+//! along a straight line: the coordinates of a ribbon layer (issue 13).
+//!
+//! This is the CPU twin, the reference a GPU relaxation is to be compared with; it is not yet
+//! wired into bakes (see the README, "Ribbons"). The algorithm is the exponential map's
+//! (Schmidt et al. 2006, section 4.2; [`crate::maps::expmap::cpu::dem_cpu`]) with the seed point
+//! replaced by the curve:
+//! 1. **Seeds**: the vertices of every triangle γ crosses get their exact foot on γ's polyline (the
+//!    nearest point of the pieces in their triangles) and their offset from it, read in γ's frame
+//!    there (T along γ, B = N × T).
+//! 2. **Propagation**: Dijkstra on graph distance from the seeds (Bellman-Ford's fixed point, as the
+//!    exponential map's relaxation); a vertex q reached from its upwind neighbour r takes r's foot
+//!    and r's offset plus the edge r→q laid into r's tangent plane and turned into the foot's plane
+//!    (the paper's update, [`crate::maps::expmap::cpu::transfer`]).
+//! 3. **Sliding**: the foot then slides along γ by the offset's tangential part, the offset re-read
+//!    in the new foot's frame ([`slide`]), so that the foot is the nearest point of γ and not the
+//!    root of q's Dijkstra path (which wanders along γ by a few edges). On a plane this is exact for
+//!    γ's polyline; on curved surfaces it treats the strip between the two feet as flat, an error of
+//!    the order of the offset times the curvature that shrinks with the strip's width.
+//! 4. **Reading**: the offset is read against the smooth curve the polyline samples, each piece as
+//!    the circular arc its knots' turning stands for (`Framed::fermi`), not against the polyline,
+//!    whose corners would put an error of |v| times half the turning angle into u.
+//!
+//! Tested against analytic Fermi coordinates (`tests/ribbon.rs`): a circular arc on a plane (1.6e-5
+//! for chords of 0.01) and a helix on a cylinder (converging under refinement).
+//!
+//! What is left to build (issue 13): the GPU relaxation and its comparison with this twin, the
+//! harmonic repair of highly curved parts (section 3, steps 4-5), the `ribbon` layer kind.
+
+use crate::maps::expmap::cpu::{transfer, Item, Seed};
+use crate::mesh::Topology;
+use glam::{Vec2, Vec3};
+use std::collections::BinaryHeap;
+
+/// A curve on the surface: a polyline whose pieces each lie in one triangle (a stroke's
+/// `SurfacePath`, `bake/kinds/stroke/path.rs`, has this shape).
+#[derive(Debug, Clone)]
+pub struct Curve {
+    /// Polyline points, model units.
+    pub points: Vec<Vec3>,
+    /// Per piece (`points[k]` to `points[k + 1]`): the welded triangle it lies in.
+    pub triangles: Vec<u32>,
+}
+
+/// One piece's frame: start point, unit tangent, unit normal (its triangle's), N × T, length and
+/// arc length at its start.
+#[derive(Debug, Clone, Copy)]
+struct Piece {
+    start: Vec3,
+    t: Vec3,
+    n: Vec3,
+    b: Vec3,
+    len: f32,
+    arc: f32,
+}
+
+/// The curve as framed pieces (zero-length pieces dropped).
+struct Framed {
+    pieces: Vec<Piece>,
+    length: f32,
+}
+
+impl Framed {
+    fn new(topo: &Topology, c: &Curve) -> Self {
+        let mut pieces = Vec::new();
+        let mut arc = 0.0;
+        for (k, &tri) in c.triangles.iter().enumerate() {
+            let (a, b) = (c.points[k], c.points[k + 1]);
+            let len = (b - a).length();
+            if len <= 0.0 {
+                continue;
+            }
+            let [i, j, l] = topo.triangles[tri as usize].map(|v| topo.positions[v as usize]);
+            let n = (j - i).cross(l - i).normalize_or_zero();
+            let t = ((b - a) - n * (b - a).dot(n)).normalize_or(b - a);
+            pieces.push(Piece {
+                start: a,
+                t,
+                n,
+                b: n.cross(t),
+                len,
+                arc,
+            });
+            arc += len;
+        }
+        Self {
+            pieces,
+            length: arc,
+        }
+    }
+
+    /// The piece holding arc length `s` (the last one at the end).
+    fn piece_at(&self, s: f32) -> usize {
+        self.pieces
+            .partition_point(|p| p.arc <= s)
+            .clamp(1, self.pieces.len())
+            - 1
+    }
+
+    /// The point at arc length `s` on the line of piece `k`.
+    fn point_on(&self, k: usize, s: f32) -> Vec3 {
+        let p = &self.pieces[k];
+        p.start + p.t * (s - p.arc)
+    }
+
+    /// (u, v) of the point at offset `off` (piece `k`'s frame) from the foot at arc length `s`.
+    /// The polyline samples a smooth curve; reading the offset against the polyline itself would
+    /// leave an error of |v| times half the turning angle at each knot (beside a convex corner no
+    /// perpendicular foot exists, beside a concave one two do: 2.5e-3 in the plane test's strip).
+    /// So the piece is read as the circular arc through its two ends with the curvature its knots
+    /// stand for (turning angle over the mean length of the two pieces there, averaged over its two
+    /// knots): v is the signed distance to that arc and u the arc length of the point's radial
+    /// foot on it, scaled so that the piece keeps its length (u stays continuous from piece to
+    /// piece). Past γ's ends the offset continues straight: u = s + x, v = y.
+    fn fermi(&self, k: usize, s: f32, off: Vec2) -> [f32; 2] {
+        let p = &self.pieces[k];
+        let last = self.pieces.len() - 1;
+        let past_end =
+            (k == 0 && s <= 0.0 && off.x < 0.0) || (k == last && s >= self.length && off.x > 0.0);
+        let kappa = self.curvature(k);
+        if past_end || kappa.abs() * p.len < 1e-5 {
+            return [s + off.x, off.y];
+        }
+        // In the piece's frame from its start: the point, the arc's centre.
+        let at = Vec2::new(s - p.arc + off.x, off.y);
+        let r = 1.0 / kappa.abs();
+        let h = (r * r - 0.25 * p.len * p.len).max(0.0).sqrt() * kappa.signum();
+        let c = Vec2::new(0.5 * p.len, h);
+        let angle = |q: Vec2| (-c).perp_dot(q - c).atan2((-c).dot(q - c));
+        let end = angle(Vec2::new(p.len, 0.0));
+        let u = p.arc + p.len * angle(at) / end;
+        let v = (r - (at - c).length()) * kappa.signum();
+        [u, v]
+    }
+
+    /// The signed curvature piece `k` stands for: the turning angles at its knots (towards B
+    /// positive) over the mean lengths of the pieces there, averaged.
+    fn curvature(&self, k: usize) -> f32 {
+        let turn =
+            |a: &Piece, b: &Piece| b.t.dot(a.b).atan2(b.t.dot(a.t)) / (0.5 * (a.len + b.len));
+        let p = &self.pieces[k];
+        let before = (k > 0).then(|| turn(&self.pieces[k - 1], p));
+        let after = self.pieces.get(k + 1).map(|q| turn(p, q));
+        match (before, after) {
+            (Some(a), Some(b)) => 0.5 * (a + b),
+            (Some(a), None) | (None, Some(a)) => a,
+            (None, None) => 0.0,
+        }
+    }
+
+    /// Foot of `x` on piece `k`: arc length and offset (along T, along B) in its frame.
+    fn foot_on(&self, k: usize, x: Vec3) -> (f32, Vec2) {
+        let p = &self.pieces[k];
+        let along = (x - p.start).dot(p.t).clamp(0.0, p.len);
+        let d = x - (p.start + p.t * along);
+        (p.arc + along, Vec2::new(d.dot(p.t), d.dot(p.b)))
+    }
+}
+
+/// The extended exponential map over the vertices it reached.
+#[derive(Debug, Clone)]
+pub struct RibbonMap {
+    /// Graph distance from γ per welded vertex (`f32::INFINITY` where not reached): the
+    /// propagation order.
+    pub dist: Vec<f32>,
+    /// (u, v) per welded vertex, model units: arc length of the foot plus the tangential offset,
+    /// and the signed offset along N × T.
+    pub uv: Vec<[f32; 2]>,
+    /// Arc length of each vertex's foot on γ.
+    pub foot: Vec<f32>,
+    /// Upwind neighbour (`u32::MAX` for seed vertices and unreached ones).
+    pub parent: Vec<u32>,
+    /// γ's length (the polyline's).
+    pub length: f32,
+}
+
+impl RibbonMap {
+    /// Whether vertex `v` was reached.
+    pub fn reached(&self, v: usize) -> bool {
+        self.dist[v].is_finite()
+    }
+}
+
+/// Slides the foot at arc length `s` on piece `k`, with offset `off` in piece `k`'s frame, along
+/// γ until the offset has no tangential part, or γ ends: each step moves the foot by the
+/// tangential part, subtracts the move (the chord between the feet, read in the old frame) and
+/// turns the offset by the angle between the two pieces' tangents. Returns the new piece, arc
+/// length and offset (in the new piece's frame). At most 8 steps (beside a convex corner of the
+/// polyline no foot has a zero tangential part).
+fn slide(c: &Framed, mut k: usize, mut s: f32, mut off: Vec2) -> (usize, f32, Vec2) {
+    for _ in 0..8 {
+        let s2 = (s + off.x).clamp(0.0, c.length);
+        if (s2 - s).abs() <= 1e-7 * c.length {
+            break;
+        }
+        let k2 = c.piece_at(s2);
+        let (a, b) = (&c.pieces[k], &c.pieces[k2]);
+        let chord = c.point_on(k2, s2) - c.point_on(k, s);
+        let d = off - Vec2::new(chord.dot(a.t), chord.dot(a.b));
+        let phi = b.t.dot(a.b).atan2(b.t.dot(a.t));
+        off = Vec2::from_angle(-phi).rotate(d);
+        (k, s) = (k2, s2);
+    }
+    (k, s, off)
+}
+
+/// The extended exponential map of `curve` on `topo`, over the vertices within graph distance
+/// `reach` of it (and one ring more: the vertices a strip of half-width `reach` needs). A curve
+/// with no piece of positive length reaches nothing.
+pub fn ribbon_cpu(topo: &Topology, curve: &Curve, reach: f32) -> RibbonMap {
+    let n = topo.positions.len();
+    let framed = Framed::new(topo, curve);
+    let mut map = RibbonMap {
+        dist: vec![f32::INFINITY; n],
+        uv: vec![[0.0; 2]; n],
+        foot: vec![0.0; n],
+        parent: vec![u32::MAX; n],
+        length: framed.length,
+    };
+    if framed.pieces.is_empty() {
+        return map;
+    }
+    // Per vertex: the offset from its foot, in the frame of the foot's piece.
+    let mut off = vec![Vec2::ZERO; n];
+    let mut piece = vec![0u32; n];
+    seed(topo, curve, &framed, &mut map, (&mut off, &mut piece));
+    let mut done = vec![false; n];
+    let mut heap = BinaryHeap::new();
+    for v in 0..n {
+        if map.dist[v].is_finite() {
+            heap.push(Item(map.dist[v], v as u32));
+        }
+    }
+    while let Some(Item(d, q)) = heap.pop() {
+        let q = q as usize;
+        if done[q] || d > map.dist[q] {
+            continue;
+        }
+        done[q] = true;
+        if map.parent[q] != u32::MAX {
+            let r = map.parent[q] as usize;
+            let k = piece[r] as usize;
+            let p = &framed.pieces[k];
+            let frame = Seed {
+                triangle: 0,
+                point: p.start,
+                normal: p.n,
+                e1: p.t,
+                e2: p.b,
+            };
+            let (pr, pq) = (topo.positions[r], topo.positions[q]);
+            let t = Vec2::from(transfer(pr, topo.normals[r], pq, &frame));
+            let (kq, s, o) = slide(&framed, k, map.foot[r], off[r] + t);
+            (piece[q], map.foot[q], off[q]) = (kq as u32, s, o);
+        }
+        if map.dist[q] > reach {
+            continue;
+        }
+        let (a, b) = (
+            topo.adjacency_offsets[q] as usize,
+            topo.adjacency_offsets[q + 1] as usize,
+        );
+        for &w in &topo.adjacency[a..b] {
+            let wi = w as usize;
+            let key = map.dist[q] + (topo.positions[wi] - topo.positions[q]).length();
+            // Ties go to the lower neighbour id, as in the exponential map's twin.
+            let better = key < map.dist[wi] || (key == map.dist[wi] && (q as u32) < map.parent[wi]);
+            if !done[wi] && better {
+                map.dist[wi] = key;
+                map.parent[wi] = q as u32;
+                heap.push(Item(key, w));
+            }
+        }
+    }
+    for v in 0..n {
+        if map.reached(v) {
+            map.uv[v] = framed.fermi(piece[v] as usize, map.foot[v], off[v]);
+        }
+    }
+    map
+}
+
+/// Step 1: the vertices of γ's triangles, each at its nearest foot among the pieces in its
+/// triangles, slid to the nearest point of γ.
+fn seed(
+    topo: &Topology,
+    curve: &Curve,
+    framed: &Framed,
+    map: &mut RibbonMap,
+    (off, piece): (&mut [Vec2], &mut [u32]),
+) {
+    // Pieces per triangle, by framed index (zero-length pieces have none).
+    let mut k = 0;
+    for (i, &tri) in curve.triangles.iter().enumerate() {
+        if (curve.points[i + 1] - curve.points[i]).length() <= 0.0 {
+            continue;
+        }
+        for v in topo.triangles[tri as usize] {
+            let v = v as usize;
+            let (s, o) = framed.foot_on(k, topo.positions[v]);
+            let (kf, s, o) = slide(framed, k, s, o);
+            let d = o.length();
+            if d < map.dist[v] {
+                (map.dist[v], map.foot[v], off[v]) = (d, s, o);
+                piece[v] = kf as u32;
+            }
+        }
+        k += 1;
+    }
+}
