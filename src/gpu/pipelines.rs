@@ -207,6 +207,8 @@ pub struct Pipelines {
     pub encode: Kernel,
     /// Exponential-map relaxation.
     pub expmap_relax: Kernel,
+    /// The extended exponential map of a curve (`wgsl/maps/ribbon_relax.wgsl`).
+    pub ribbon_relax: Kernel,
     /// Per-layer distortion partials.
     pub distortion: Kernel,
     /// Batched Jacobi-preconditioned conjugate gradient, 256 invocations per system.
@@ -387,12 +389,22 @@ impl Pipelines {
             chart_gather,
             stamp_blend,
             expmap_relax: expmap_relax(device),
+            ribbon_relax: ribbon_relax(device),
             preview: rasters.preview,
             layer_blending: rasters.layer_blending,
             layer_format: rasters.layer_format,
             image_format,
         }
     }
+}
+
+/// `ribbon_relax`: one curve's extended exponential map, one workgroup.
+fn ribbon_relax(device: &wgpu::Device) -> Kernel {
+    use Bind::*;
+    let mut binds = vec![(0, Uniform)];
+    binds.extend((1..=7).map(|b| (b, Ro)));
+    binds.extend((8..=11).map(|b| (b, Rw)));
+    Kernel::new(device, "ribbon_relax", &binds)
 }
 
 /// `expmap_relax`: all exponential maps of a chunk, one workgroup per map.

@@ -79,6 +79,10 @@ pub const KERNELS: &[(&str, &str)] = &[
         include_str!("../../wgsl/maps/expmap_relax.wgsl"),
     ),
     (
+        "ribbon_relax",
+        include_str!("../../wgsl/maps/ribbon_relax.wgsl"),
+    ),
+    (
         "distortion",
         include_str!("../../wgsl/maps/distortion.wgsl"),
     ),

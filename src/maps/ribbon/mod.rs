@@ -5,8 +5,9 @@
 //! from outside the surface, that is along N × T). Strips along γ are then laid out like the plane
 //! along a straight line: the coordinates of a ribbon layer (issue 13).
 //!
-//! This is the CPU twin, the reference a GPU relaxation is to be compared with; it is not yet
-//! wired into bakes (see the README, "Ribbons"). The algorithm is the exponential map's
+//! [`ribbon_cpu`] is the CPU twin; [`gpu`] computes the same fixed point by parallel relaxation
+//! (`wgsl/maps/ribbon_relax.wgsl`). Neither is wired into bakes yet (see the README, "Ribbons").
+//! The algorithm is the exponential map's
 //! (Schmidt et al. 2006, section 4.2; [`crate::maps::expmap::cpu::dem_cpu`]) with the seed point
 //! replaced by the curve:
 //! 1. **Seeds**: the vertices of every triangle γ crosses get their exact foot on γ's polyline (the
@@ -28,8 +29,8 @@
 //! Tested against analytic Fermi coordinates (`tests/ribbon.rs`): a circular arc on a plane (1.6e-5
 //! for chords of 0.01) and a helix on a cylinder (converging under refinement).
 //!
-//! What is left to build (issue 13): the GPU relaxation and its comparison with this twin, the
-//! harmonic repair of highly curved parts (section 3, steps 4-5), the `ribbon` layer kind.
+//! What is left to build (issue 13): the harmonic repair of highly curved parts (section 3, steps
+//! 4-5) and the `ribbon` layer kind that bakes with these coordinates.
 
 use crate::maps::expmap::cpu::{transfer, Item, Seed};
 use crate::mesh::Topology;
@@ -46,26 +47,61 @@ pub struct Curve {
     pub triangles: Vec<u32>,
 }
 
-/// One piece's frame: start point, unit tangent, unit normal (its triangle's), N × T, length and
-/// arc length at its start.
+pub mod gpu;
+
+/// One piece's frame: start point, unit tangent, unit normal (its triangle's), N × T, length, arc
+/// length at its start and the curvature it stands for ([`Framed::curvature`]).
 #[derive(Debug, Clone, Copy)]
-struct Piece {
+pub(crate) struct Piece {
     start: Vec3,
     t: Vec3,
     n: Vec3,
     b: Vec3,
     len: f32,
     arc: f32,
+    kappa: f32,
+}
+
+/// A piece as the GPU reads it. Keep in sync with `Piece` in `wgsl/maps/ribbon_relax.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct GpuPiece {
+    start: [f32; 4],
+    t: [f32; 4],
+    n: [f32; 4],
+    b: [f32; 4],
+}
+
+impl From<&Piece> for GpuPiece {
+    fn from(p: &Piece) -> Self {
+        Self {
+            start: p.start.extend(p.arc).to_array(),
+            t: p.t.extend(p.len).to_array(),
+            n: p.n.extend(p.kappa).to_array(),
+            b: p.b.extend(0.0).to_array(),
+        }
+    }
 }
 
 /// The curve as framed pieces (zero-length pieces dropped).
-struct Framed {
-    pieces: Vec<Piece>,
-    length: f32,
+pub(crate) struct Framed {
+    pub(crate) pieces: Vec<Piece>,
+    pub(crate) length: f32,
+}
+
+/// A seed vertex (a vertex of a triangle the curve crosses): its foot's piece and arc length, its
+/// offset in that piece's frame and its distance (the offset's length).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SeedFoot {
+    pub vertex: u32,
+    pub piece: u32,
+    pub s: f32,
+    pub off: Vec2,
+    pub dist: f32,
 }
 
 impl Framed {
-    fn new(topo: &Topology, c: &Curve) -> Self {
+    pub(crate) fn new(topo: &Topology, c: &Curve) -> Self {
         let mut pieces = Vec::new();
         let mut arc = 0.0;
         for (k, &tri) in c.triangles.iter().enumerate() {
@@ -84,13 +120,18 @@ impl Framed {
                 b: n.cross(t),
                 len,
                 arc,
+                kappa: 0.0,
             });
             arc += len;
         }
-        Self {
+        let mut framed = Self {
             pieces,
             length: arc,
+        };
+        for k in 0..framed.pieces.len() {
+            framed.pieces[k].kappa = framed.curvature(k);
         }
+        framed
     }
 
     /// The piece holding arc length `s` (the last one at the end).
@@ -121,7 +162,7 @@ impl Framed {
         let last = self.pieces.len() - 1;
         let past_end =
             (k == 0 && s <= 0.0 && off.x < 0.0) || (k == last && s >= self.length && off.x > 0.0);
-        let kappa = self.curvature(k);
+        let kappa = p.kappa;
         if past_end || kappa.abs() * p.len < 1e-5 {
             return [s + off.x, off.y];
         }
@@ -227,7 +268,12 @@ pub fn ribbon_cpu(topo: &Topology, curve: &Curve, reach: f32) -> RibbonMap {
     // Per vertex: the offset from its foot, in the frame of the foot's piece.
     let mut off = vec![Vec2::ZERO; n];
     let mut piece = vec![0u32; n];
-    seed(topo, curve, &framed, &mut map, (&mut off, &mut piece));
+    let mut is_seed = vec![false; n];
+    for f in seeds(topo, curve, &framed) {
+        let v = f.vertex as usize;
+        (map.dist[v], map.foot[v], off[v], piece[v]) = (f.dist, f.s, f.off, f.piece);
+        is_seed[v] = true;
+    }
     let mut done = vec![false; n];
     let mut heap = BinaryHeap::new();
     for v in 0..n {
@@ -269,7 +315,8 @@ pub fn ribbon_cpu(topo: &Topology, curve: &Curve, reach: f32) -> RibbonMap {
             let key = map.dist[q] + (topo.positions[wi] - topo.positions[q]).length();
             // Ties go to the lower neighbour id, as in the exponential map's twin.
             let better = key < map.dist[wi] || (key == map.dist[wi] && (q as u32) < map.parent[wi]);
-            if !done[wi] && better {
+            // Seeds are final (their feet are exact).
+            if !done[wi] && !is_seed[wi] && better {
                 map.dist[wi] = key;
                 map.parent[wi] = q as u32;
                 heap.push(Item(key, w));
@@ -285,30 +332,30 @@ pub fn ribbon_cpu(topo: &Topology, curve: &Curve, reach: f32) -> RibbonMap {
 }
 
 /// Step 1: the vertices of γ's triangles, each at its nearest foot among the pieces in its
-/// triangles, slid to the nearest point of γ.
-fn seed(
-    topo: &Topology,
-    curve: &Curve,
-    framed: &Framed,
-    map: &mut RibbonMap,
-    (off, piece): (&mut [Vec2], &mut [u32]),
-) {
-    // Pieces per triangle, by framed index (zero-length pieces have none).
+/// triangles, slid to the nearest point of γ; each vertex once, in vertex order.
+pub(crate) fn seeds(topo: &Topology, curve: &Curve, framed: &Framed) -> Vec<SeedFoot> {
+    let mut best: std::collections::BTreeMap<u32, SeedFoot> = Default::default();
+    // `k` counts framed pieces (zero-length pieces have none).
     let mut k = 0;
     for (i, &tri) in curve.triangles.iter().enumerate() {
         if (curve.points[i + 1] - curve.points[i]).length() <= 0.0 {
             continue;
         }
         for v in topo.triangles[tri as usize] {
-            let v = v as usize;
-            let (s, o) = framed.foot_on(k, topo.positions[v]);
-            let (kf, s, o) = slide(framed, k, s, o);
-            let d = o.length();
-            if d < map.dist[v] {
-                (map.dist[v], map.foot[v], off[v]) = (d, s, o);
-                piece[v] = kf as u32;
+            let (s, o) = framed.foot_on(k, topo.positions[v as usize]);
+            let (kf, s, off) = slide(framed, k, s, o);
+            let f = SeedFoot {
+                vertex: v,
+                piece: kf as u32,
+                s,
+                off,
+                dist: off.length(),
+            };
+            if best.get(&v).is_none_or(|b| f.dist < b.dist) {
+                best.insert(v, f);
             }
         }
         k += 1;
     }
+    best.into_values().collect()
 }

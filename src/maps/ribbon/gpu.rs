@@ -1,0 +1,310 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! GPU side of the extended exponential map of a curve: the candidate strip and the seeds (CPU
+//! set-up, proportional to the strip) and the relaxation (`wgsl/maps/ribbon_relax.wgsl`, one
+//! workgroup, rounds of sweeps until one changes nothing), whose fixed point is the CPU twin's
+//! ([`super::ribbon_cpu`]).
+
+use super::{seeds, Curve, Framed, GpuPiece};
+use crate::error::Result;
+use crate::gpu::pipelines::Pipelines;
+use crate::gpu::{BufferInit, GpuContext};
+use crate::mesh::{SurfaceRef, Topology};
+use glam::Vec3;
+use std::collections::HashMap;
+
+/// Keep in sync with `RibbonJob` in `wgsl/maps/ribbon_relax.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct RibbonJob {
+    cand_count: u32,
+    halo_count: u32,
+    seed_count: u32,
+    piece_count: u32,
+    reach: f32,
+    length: f32,
+    sweeps: u32,
+    init: u32,
+}
+
+/// Keep in sync with `SeedState` in `wgsl/maps/ribbon_relax.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct GpuSeed {
+    vertex: u32,
+    piece: u32,
+    s: f32,
+    dist: f32,
+    off: [f32; 2],
+    pad: [f32; 2],
+}
+
+/// How the relaxation went.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct RibbonStatus {
+    /// Sweeps run (the last changed nothing when converged).
+    pub sweeps: u32,
+    /// Whether a sweep changed nothing within the sweep limit.
+    pub converged: bool,
+    /// Vertices that received coordinates.
+    pub reached: u32,
+    /// Vertices the relaxation worked on (the strip's candidates).
+    pub candidates: u32,
+    /// Dispatches issued.
+    pub dispatches: u32,
+}
+
+/// Loop iterations one invocation may run in a dispatch, well under lavapipe's cut-off (65535).
+const LOOP_BUDGET: u32 = 20_000;
+
+/// Pieces by cell of a uniform grid: the distance from a point to the curve in constant time for
+/// short pieces.
+struct Grid {
+    cell: f32,
+    cells: HashMap<[i32; 3], Vec<usize>>,
+}
+
+impl Grid {
+    fn new(framed: &Framed, cell: f32) -> Self {
+        let mut cells: HashMap<[i32; 3], Vec<usize>> = HashMap::new();
+        let at = |p: Vec3| (p / cell).floor().as_ivec3();
+        for (k, p) in framed.pieces.iter().enumerate() {
+            let (a, b) = (at(p.start), at(p.start + p.t * p.len));
+            let (lo, hi) = (a.min(b), a.max(b));
+            for x in lo.x..=hi.x {
+                for y in lo.y..=hi.y {
+                    for z in lo.z..=hi.z {
+                        cells.entry([x, y, z]).or_default().push(k);
+                    }
+                }
+            }
+        }
+        Self { cell, cells }
+    }
+
+    /// Whether `x` is within one cell of a piece.
+    fn near(&self, framed: &Framed, x: Vec3) -> bool {
+        let c = (x / self.cell).floor().as_ivec3();
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let Some(ks) = self.cells.get(&[c.x + dx, c.y + dy, c.z + dz]) else {
+                        continue;
+                    };
+                    for &k in ks {
+                        let p = &framed.pieces[k];
+                        let along = (x - p.start).dot(p.t).clamp(0.0, p.len);
+                        if (x - (p.start + p.t * along)).length() <= self.cell {
+                            return true;
+                        }
+                    }
+                }
+            }
+        }
+        false
+    }
+}
+
+/// The vertices the map can reach: connected to the seeds through vertices within Euclidean
+/// distance 1.5 × `reach` of the curve (a vertex within graph distance `reach` is within that
+/// Euclidean distance, and so is every vertex on its path from the seeds), and the ring around
+/// those (reached from them, as the twin reaches one ring past `reach`); then the next ring,
+/// only reset. Cost proportional to the result.
+fn candidates(topo: &Topology, framed: &Framed, seeds: &[u32], reach: f32) -> (Vec<u32>, Vec<u32>) {
+    let grid = Grid::new(framed, 1.5 * reach.max(1e-12));
+    let mut inside = std::collections::HashSet::new();
+    let mut out = Vec::new();
+    let mut stack: Vec<u32> = seeds.to_vec();
+    for &v in seeds {
+        inside.insert(v);
+        out.push(v);
+    }
+    let neighbours = |v: u32| {
+        let (a, b) = (
+            topo.adjacency_offsets[v as usize] as usize,
+            topo.adjacency_offsets[v as usize + 1] as usize,
+        );
+        &topo.adjacency[a..b]
+    };
+    while let Some(v) = stack.pop() {
+        for &q in neighbours(v) {
+            if !inside.contains(&q) && grid.near(framed, topo.positions[q as usize]) {
+                inside.insert(q);
+                out.push(q);
+                stack.push(q);
+            }
+        }
+    }
+    // The ring past the ball is reached too (from vertices within `reach`: the twin reaches one
+    // ring past them); the ring past that is only reset.
+    let ring = |from: &[u32], inside: &mut std::collections::HashSet<u32>| {
+        let mut next = Vec::new();
+        for &v in from {
+            for &q in neighbours(v) {
+                if inside.insert(q) {
+                    next.push(q);
+                }
+            }
+        }
+        next
+    };
+    let first = ring(&out, &mut inside);
+    let halo = ring(&first, &mut inside);
+    out.extend(first);
+    (out, halo)
+}
+
+/// Computes the map of `curve` within `reach` into `coords` (one vec4 per welded vertex: u, v,
+/// graph distance, 1 where reached; the candidates' and their ring's entries are overwritten,
+/// others left as they are), on the GPU.
+pub fn run(
+    ctx: &GpuContext,
+    pipes: &Pipelines,
+    mesh: SurfaceRef<'_>,
+    curve: &Curve,
+    reach: f32,
+    coords: &wgpu::Buffer,
+) -> Result<RibbonStatus> {
+    let (topo, gpu) = (mesh.topo, mesh.gpu);
+    let framed = Framed::new(topo, curve);
+    if framed.pieces.is_empty() {
+        return Ok(RibbonStatus::default());
+    }
+    let seeds: Vec<GpuSeed> = seeds(topo, curve, &framed)
+        .iter()
+        .map(|f| GpuSeed {
+            vertex: f.vertex,
+            piece: f.piece,
+            s: f.s,
+            dist: f.dist,
+            off: f.off.to_array(),
+            pad: [0.0; 2],
+        })
+        .collect();
+    let seed_vertices: Vec<u32> = seeds.iter().map(|s| s.vertex).collect();
+    let (cands, halo) = candidates(topo, &framed, &seed_vertices, reach);
+    let pieces: Vec<GpuPiece> = framed.pieces.iter().map(GpuPiece::from).collect();
+    let list: Vec<u32> = cands.iter().chain(&halo).copied().collect();
+    // Per sweep an invocation visits ceil(candidates / 256) vertices, with about 40 loop steps
+    // each (neighbours, the slide's steps, the piece searches).
+    let sweeps = (LOOP_BUDGET / (cands.len() as u32).div_ceil(256).max(1) / 40).clamp(1, 1024);
+    let max_sweeps = 4 * cands.len() as u32 + 16;
+    let job = |init: u32| RibbonJob {
+        cand_count: cands.len() as u32,
+        halo_count: halo.len() as u32,
+        seed_count: seeds.len() as u32,
+        piece_count: pieces.len() as u32,
+        reach,
+        length: framed.length,
+        sweeps,
+        init,
+    };
+    let device = &ctx.device;
+    let nv = gpu.vertex_count as u64;
+    let bind = ctx.scoped("ribbon map", || {
+        let ro = |label, bytes: &[u8]| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytes,
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        };
+        let pieces_buf = ro("ribbon.pieces", bytemuck::cast_slice(&pieces));
+        let list_buf = ro("ribbon.candidates", bytemuck::cast_slice(&list));
+        let seeds_buf = ro("ribbon.seeds", bytemuck::cast_slice(&seeds));
+        let plain = |label, size: u64| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size.max(16),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        };
+        let state = plain("ribbon.state", nv * 16);
+        let link = plain("ribbon.link", nv * 8);
+        let status = plain("ribbon.status", 16);
+        let uniform = |init| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("ribbon.job"),
+                contents: bytemuck::bytes_of(&job(init)),
+                usage: wgpu::BufferUsages::UNIFORM,
+            })
+        };
+        let group = |u: &wgpu::Buffer| {
+            pipes.ribbon_relax.bind(
+                device,
+                "ribbon.relax",
+                &[
+                    (0, u.as_entire_binding()),
+                    (1, gpu.positions.as_entire_binding()),
+                    (2, gpu.normals.as_entire_binding()),
+                    (3, gpu.adjacency_offsets.as_entire_binding()),
+                    (4, gpu.adjacency.as_entire_binding()),
+                    (5, pieces_buf.as_entire_binding()),
+                    (6, list_buf.as_entire_binding()),
+                    (7, seeds_buf.as_entire_binding()),
+                    (8, state.as_entire_binding()),
+                    (9, link.as_entire_binding()),
+                    (10, coords.as_entire_binding()),
+                    (11, status.as_entire_binding()),
+                ],
+            )
+        };
+        (group(&uniform(1)), group(&uniform(0)), status)
+    })?;
+    let (first, more, status) = bind;
+    let mut dispatches = 0;
+    loop {
+        ctx.scoped("ribbon map", || {
+            let mut enc = device.create_command_encoder(&Default::default());
+            {
+                let mut pass = enc.begin_compute_pass(&Default::default());
+                pass.set_pipeline(&pipes.ribbon_relax.pipeline);
+                for k in 0..4 {
+                    let bg = if dispatches == 0 && k == 0 {
+                        &first
+                    } else {
+                        &more
+                    };
+                    pass.set_bind_group(0, bg, &[]);
+                    pass.dispatch_workgroups(1, 1, 1);
+                }
+            }
+            ctx.queue.submit([enc.finish()]);
+        })?;
+        dispatches += 4;
+        let s = ctx.read_buffer(&status, 16, "ribbon status read-back")?;
+        let s: &[u32] = bytemuck::cast_slice(&s);
+        if s[1] != 0 || s[0] >= max_sweeps {
+            return Ok(RibbonStatus {
+                sweeps: s[0],
+                converged: s[1] != 0,
+                reached: s[2],
+                candidates: cands.len() as u32,
+                dispatches,
+            });
+        }
+    }
+}
+
+/// [`run`] into a fresh buffer, read back (tests, `decalbake param`, benchmarks): per welded
+/// vertex (u, v, graph distance, 1 where reached, else 0).
+pub fn ribbon_gpu(
+    ctx: &GpuContext,
+    pipes: &Pipelines,
+    mesh: SurfaceRef<'_>,
+    curve: &Curve,
+    reach: f32,
+) -> Result<(Vec<[f32; 4]>, RibbonStatus)> {
+    let size = mesh.gpu.vertex_count as u64 * 16;
+    let coords = ctx.scoped("ribbon map", || {
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ribbon.coords"),
+            size: size.max(16),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        })
+    })?;
+    let status = run(ctx, pipes, mesh, curve, reach, &coords)?;
+    let bytes = ctx.read_buffer(&coords, size, "ribbon read-back")?;
+    Ok((bytemuck::cast_slice(&bytes).to_vec(), status))
+}

@@ -1,0 +1,246 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+// The extended exponential map of a curve (Sun et al. 2013, section 3) by parallel relaxation, one
+// workgroup for one curve. CPU twin: `ribbon_cpu` in src/maps/ribbon/mod.rs, whose fixed point this
+// is (the same seeds, upwind rule, update, slide and reading; float functions differ in the last
+// bits). Every sweep, each candidate vertex that is not a seed takes the neighbour that minimises
+// (graph distance + edge length) among neighbours within `reach` (ties: the lower id), carries that
+// neighbour's foot and offset across the edge (the exponential map's update, shared/expmap.wgsl)
+// and slides the foot along the curve; sweeps repeat until one changes nothing (Bellman-Ford:
+// in-place, unordered updates settle on the serial Dijkstra tree). Then each reached vertex's
+// offset is read against the arc its piece stands for: (u, v, graph distance, 1) in `coords`.
+// Candidates (the vertices near the curve, plus one ring that is only reset) come from the CPU,
+// so the work is proportional to the strip. Rounds: `job.init` seeds; each dispatch runs at most
+// `job.sweeps` sweeps (lavapipe abandons invocations that loop more than 65535 times); the host
+// dispatches rounds until `status[1]` says converged.
+// Dispatch: (1, 1, 1) per round.
+#import expmap
+
+const WG: u32 = 256u;
+const INF: f32 = 3.0e38;
+const NONE: u32 = 0xffffffffu;
+// `link.x` of a seed vertex: final, never updated.
+const SEED: u32 = 0xfffffffeu;
+
+// Keep in sync with `RibbonJob` in src/maps/ribbon/gpu.rs.
+struct RibbonJob {
+    cand_count: u32,
+    halo_count: u32,
+    seed_count: u32,
+    piece_count: u32,
+    reach: f32,
+    length: f32,
+    sweeps: u32,
+    init: u32,
+}
+
+// Keep in sync with `GpuPiece` in src/maps/ribbon/mod.rs: start (xyz) and arc length there; unit
+// tangent and length; the triangle's normal and the curvature the piece stands for; N x T.
+struct Piece {
+    start: vec4<f32>,
+    t: vec4<f32>,
+    n: vec4<f32>,
+    b: vec4<f32>,
+}
+
+// Keep in sync with `GpuSeed` in src/maps/ribbon/gpu.rs.
+struct SeedState {
+    vertex: u32,
+    piece: u32,
+    s: f32,
+    dist: f32,
+    off: vec2<f32>,
+    pad: vec2<f32>,
+}
+
+@group(0) @binding(0) var<uniform> job: RibbonJob;
+@group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> normals: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> adj_offsets: array<u32>;
+@group(0) @binding(4) var<storage, read> adjacency: array<u32>;
+@group(0) @binding(5) var<storage, read> pieces: array<Piece>;
+// The candidates, then the ring around them.
+@group(0) @binding(6) var<storage, read> candidates: array<u32>;
+@group(0) @binding(7) var<storage, read> seeds: array<SeedState>;
+// Per vertex: (foot arc length, offset x, offset y, graph distance).
+@group(0) @binding(8) var<storage, read_write> state: array<vec4<f32>>;
+// Per vertex: (upwind neighbour or NONE / SEED, the foot's piece).
+@group(0) @binding(9) var<storage, read_write> link: array<vec2<u32>>;
+@group(0) @binding(10) var<storage, read_write> coords: array<vec4<f32>>;
+// Sweeps so far, converged, vertices reached, 0.
+@group(0) @binding(11) var<storage, read_write> status: array<u32>;
+
+// The piece holding arc length s (partition point of the pieces' start arcs, the last at the end).
+// Twin of `Framed::piece_at`.
+fn piece_at(s: f32) -> u32 {
+    var lo = 0u;
+    var hi = job.piece_count;
+    loop {
+        if (lo >= hi) { break; }
+        let mid = (lo + hi) / 2u;
+        if (pieces[mid].start.w <= s) { lo = mid + 1u; } else { hi = mid; }
+    }
+    return clamp(lo, 1u, job.piece_count) - 1u;
+}
+
+fn point_on(k: u32, s: f32) -> vec3<f32> {
+    let p = pieces[k];
+    return p.start.xyz + p.t.xyz * (s - p.start.w);
+}
+
+fn rotate2(v: vec2<f32>, a: f32) -> vec2<f32> {
+    let c = cos(a);
+    let s = sin(a);
+    return vec2<f32>(c * v.x - s * v.y, s * v.x + c * v.y);
+}
+
+struct Foot {
+    piece: u32,
+    s: f32,
+    off: vec2<f32>,
+}
+
+// Slides the foot along the curve until the offset has no tangential part. Twin of `slide`.
+fn slide(k0: u32, s0: f32, off0: vec2<f32>) -> Foot {
+    var k = k0;
+    var s = s0;
+    var off = off0;
+    for (var i = 0u; i < 8u; i++) {
+        let s2 = clamp(s + off.x, 0.0, job.length);
+        if (abs(s2 - s) <= 1e-7 * job.length) { break; }
+        let k2 = piece_at(s2);
+        let a = pieces[k];
+        let b = pieces[k2];
+        let chord = point_on(k2, s2) - point_on(k, s);
+        let d = off - vec2<f32>(dot(chord, a.t.xyz), dot(chord, a.b.xyz));
+        let phi = atan2(dot(b.t.xyz, a.b.xyz), dot(b.t.xyz, a.t.xyz));
+        off = rotate2(d, -phi);
+        k = k2;
+        s = s2;
+    }
+    return Foot(k, s, off);
+}
+
+// (u, v) of the offset `off` from the foot at s on piece k, read against the arc the piece stands
+// for. Twin of `Framed::fermi`.
+fn fermi(k: u32, s: f32, off: vec2<f32>) -> vec2<f32> {
+    let p = pieces[k];
+    let len = p.t.w;
+    let kappa = p.n.w;
+    let last = job.piece_count - 1u;
+    let past_end = (k == 0u && s <= 0.0 && off.x < 0.0) || (k == last && s >= job.length && off.x > 0.0);
+    if (past_end || abs(kappa) * len < 1e-5) { return vec2<f32>(s + off.x, off.y); }
+    let at = vec2<f32>(s - p.start.w + off.x, off.y);
+    let r = 1.0 / abs(kappa);
+    let h = sqrt(max(r * r - 0.25 * len * len, 0.0)) * sign(kappa);
+    let c = vec2<f32>(0.5 * len, h);
+    let sc = -c;
+    let qa = at - c;
+    let qe = vec2<f32>(len, 0.0) - c;
+    let angle = atan2(sc.x * qa.y - sc.y * qa.x, dot(sc, qa));
+    let end = atan2(sc.x * qe.y - sc.y * qe.x, dot(sc, qe));
+    return vec2<f32>(p.start.w + len * angle / end, (r - length(qa)) * sign(kappa));
+}
+
+var<workgroup> changed: atomic<u32>;
+var<workgroup> any_changed: u32;
+var<workgroup> done_before: u32;
+var<workgroup> reached: atomic<u32>;
+
+@compute @workgroup_size(256)
+fn main(@builtin(local_invocation_index) lid: u32) {
+    if (lid == 0u) {
+        done_before = 0u;
+        if (job.init == 0u) { done_before = status[1]; }
+        atomicStore(&reached, 0u);
+    }
+    if (workgroupUniformLoad(&done_before) != 0u) { return; }
+    let all = job.cand_count + job.halo_count;
+    if (job.init != 0u) {
+        for (var i = lid; i < all; i += WG) {
+            let v = candidates[i];
+            state[v] = vec4<f32>(0.0, 0.0, 0.0, INF);
+            link[v] = vec2<u32>(NONE, 0u);
+            coords[v] = vec4<f32>(0.0);
+        }
+        storageBarrier();
+        workgroupBarrier();
+        // A vertex in several pieces' triangles keeps its nearest foot (the CPU lists the seeds so
+        // that each vertex appears once, with that foot).
+        for (var i = lid; i < job.seed_count; i += WG) {
+            let sd = seeds[i];
+            state[sd.vertex] = vec4<f32>(sd.s, sd.off, sd.dist);
+            link[sd.vertex] = vec2<u32>(SEED, sd.piece);
+        }
+        if (lid == 0u) {
+            status[0] = 0u;
+            status[1] = 0u;
+            status[2] = 0u;
+        }
+        storageBarrier();
+        workgroupBarrier();
+    }
+    var sweeps = 0u;
+    var converged = false;
+    loop {
+        if (sweeps >= job.sweeps) { break; }
+        if (lid == 0u) { atomicStore(&changed, 0u); }
+        workgroupBarrier();
+        for (var i = lid; i < job.cand_count; i += WG) {
+            let q = candidates[i];
+            let old_link = link[q];
+            if (old_link.x == SEED) { continue; }
+            let pq = positions[q].xyz;
+            var best = INF;
+            var best_r = NONE;
+            for (var e = adj_offsets[q]; e < adj_offsets[q + 1u]; e++) {
+                let r = adjacency[e];
+                let dr = state[r].w;
+                if (dr > job.reach) { continue; }
+                let key = dr + length(pq - positions[r].xyz);
+                if (key < best || (key == best && r < best_r)) {
+                    best = key;
+                    best_r = r;
+                }
+            }
+            if (best_r == NONE) { continue; }
+            let sr = state[best_r];
+            let k = link[best_r].y;
+            let p = pieces[k];
+            let t = transfer(positions[best_r].xyz, normals[best_r].xyz, pq, p.n.xyz, p.t.xyz, p.b.xyz);
+            let f = slide(k, sr.x, sr.yz + t);
+            let next = vec4<f32>(f.s, f.off, best);
+            let next_link = vec2<u32>(best_r, f.piece);
+            if (any(next != state[q]) || any(next_link != old_link)) {
+                state[q] = next;
+                link[q] = next_link;
+                atomicStore(&changed, 1u);
+            }
+        }
+        storageBarrier();
+        workgroupBarrier();
+        if (lid == 0u) { any_changed = atomicLoad(&changed); }
+        sweeps += 1u;
+        if (workgroupUniformLoad(&any_changed) == 0u) {
+            converged = true;
+            break;
+        }
+    }
+    if (converged) {
+        for (var i = lid; i < job.cand_count; i += WG) {
+            let v = candidates[i];
+            let st = state[v];
+            if (st.w < INF) {
+                coords[v] = vec4<f32>(fermi(link[v].y, st.x, st.yz), st.w, 1.0);
+                atomicAdd(&reached, 1u);
+            }
+        }
+    }
+    workgroupBarrier();
+    if (lid == 0u) {
+        status[0] += sweeps;
+        if (converged) {
+            status[1] = 1u;
+            status[2] = atomicLoad(&reached);
+        }
+    }
+}
