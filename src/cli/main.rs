@@ -3,6 +3,7 @@
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
+use decalbake::mesh::Mesh;
 use decalbake::{Engine, Job};
 
 mod batch;
@@ -188,6 +189,11 @@ struct BenchArgs {
     /// the canvas does not fit one storage buffer: cost per texel against the first size.
     #[arg(long)]
     tiles: bool,
+    /// Benchmark the extended exponential map of a curve (ribbons' map) on the GPU against its
+    /// CPU twin: `--mesh` subdivided `--subdivide` times, or bob and the shared bunny subdivided
+    /// twice; a curve of `--stamps` pieces.
+    #[arg(long)]
+    ribbons: bool,
     /// With `--linalg`: chart sizes (vertices) to solve one at a time.
     #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000")]
     charts: Vec<usize>,
@@ -278,8 +284,18 @@ fn bench_cmd(backend: Option<&str>, args: BenchArgs) -> Result<()> {
         gpu_max_triangles,
         soak,
         tiles,
+        ribbons,
     } = args;
     let mut engine = engine(backend)?;
+    if ribbons {
+        return bench::ribbons::run(
+            &engine,
+            ribbon_meshes(mesh, subdivide)?,
+            stamps,
+            reps,
+            |v| println!("{v}"),
+        );
+    }
     if tiles {
         let mesh =
             mesh.unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/bob.glb"));
@@ -364,6 +380,22 @@ fn bench_cmd(backend: Option<&str>, args: BenchArgs) -> Result<()> {
         bench::bake::run(&mut engine, &opts, |v| println!("{v}"))?;
     }
     Ok(())
+}
+
+/// `decalbake bench --ribbons`'s meshes: `mesh` subdivided `subdivide` times, or the bundled bob
+/// and the shared bunny (when `../shared/data/meshes` has it) subdivided twice.
+fn ribbon_meshes(mesh: Option<PathBuf>, subdivide: u32) -> Result<Vec<(String, Mesh, u32)>> {
+    if let Some(p) = mesh {
+        return Ok(vec![(p.display().to_string(), Mesh::load(&p)?, subdivide)]);
+    }
+    let bob = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/bob.glb");
+    let mut out = vec![("bob".to_string(), Mesh::load(&bob)?, 2)];
+    let bunny = Path::new(bench::common::SHARED_MESHES).join("stanford_bunny.glb");
+    match bunny.exists() {
+        true => out.push(("stanford_bunny".into(), Mesh::load(&bunny)?, 2)),
+        false => eprintln!("{} not found: bob only", bunny.display()),
+    }
+    Ok(out)
 }
 
 /// `decalbake batch`: bake a manifest (`opts`), or join shard summaries into `summary`; exits

@@ -7,6 +7,7 @@ pub mod common;
 pub mod device;
 pub mod geodesic;
 pub mod linalg;
+pub mod ribbons;
 pub mod scale;
 pub mod soak;
 pub mod strokes;

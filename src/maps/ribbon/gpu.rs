@@ -51,6 +51,8 @@ pub struct RibbonStatus {
     pub candidates: u32,
     /// Dispatches issued.
     pub dispatches: u32,
+    /// Milliseconds of CPU set-up (the curve's frames, the seeds, the strip's candidates).
+    pub setup_ms: f64,
 }
 
 /// Loop iterations one invocation may run in a dispatch, well under lavapipe's cut-off (65535).
@@ -153,18 +155,46 @@ fn candidates(topo: &Topology, framed: &Framed, seeds: &[u32], reach: f32) -> (V
     (out, halo)
 }
 
+/// The relaxation's per-vertex state (foot and offset, upwind link), one entry per welded vertex
+/// of a mesh. Allocate once per mesh and reuse: the kernel resets only the entries of the strip it
+/// works on, so a map costs what its strip costs, not what the mesh does.
+pub struct Scratch {
+    state: wgpu::Buffer,
+    link: wgpu::Buffer,
+}
+
+impl Scratch {
+    /// Scratch for a mesh of `vertex_count` welded vertices.
+    pub fn new(ctx: &GpuContext, vertex_count: u32) -> Result<Self> {
+        let plain = |label, size: u64| {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size.max(16),
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        };
+        let nv = vertex_count as u64;
+        ctx.scoped("ribbon map", || Self {
+            state: plain("ribbon.state", nv * 16),
+            link: plain("ribbon.link", nv * 8),
+        })
+    }
+}
+
 /// Computes the map of `curve` within `reach` into `coords` (one vec4 per welded vertex: u, v,
 /// graph distance, 1 where reached; the candidates' and their ring's entries are overwritten,
-/// others left as they are), on the GPU.
+/// others left as they are), on the GPU, with `scratch` made for this mesh.
 pub fn run(
     ctx: &GpuContext,
     pipes: &Pipelines,
     mesh: SurfaceRef<'_>,
-    curve: &Curve,
-    reach: f32,
+    (curve, reach): (&Curve, f32),
     coords: &wgpu::Buffer,
+    scratch: &Scratch,
 ) -> Result<RibbonStatus> {
     let (topo, gpu) = (mesh.topo, mesh.gpu);
+    let t = std::time::Instant::now();
     let framed = Framed::new(topo, curve);
     if framed.pieces.is_empty() {
         return Ok(RibbonStatus::default());
@@ -184,6 +214,7 @@ pub fn run(
     let (cands, halo) = candidates(topo, &framed, &seed_vertices, reach);
     let pieces: Vec<GpuPiece> = framed.pieces.iter().map(GpuPiece::from).collect();
     let list: Vec<u32> = cands.iter().chain(&halo).copied().collect();
+    let setup_ms = t.elapsed().as_secs_f64() * 1e3;
     // Per sweep an invocation visits ceil(candidates / 256) vertices, with about 40 loop steps
     // each (neighbours, the slide's steps, the piece searches).
     let sweeps = (LOOP_BUDGET / (cands.len() as u32).div_ceil(256).max(1) / 40).clamp(1, 1024);
@@ -199,7 +230,7 @@ pub fn run(
         init,
     };
     let device = &ctx.device;
-    let nv = gpu.vertex_count as u64;
+    let (state, link) = (&scratch.state, &scratch.link);
     let bind = ctx.scoped("ribbon map", || {
         let ro = |label, bytes: &[u8]| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -219,8 +250,6 @@ pub fn run(
                 mapped_at_creation: false,
             })
         };
-        let state = plain("ribbon.state", nv * 16);
-        let link = plain("ribbon.link", nv * 8);
         let status = plain("ribbon.status", 16);
         let uniform = |init| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -281,6 +310,7 @@ pub fn run(
                 reached: s[2],
                 candidates: cands.len() as u32,
                 dispatches,
+                setup_ms,
             });
         }
     }
@@ -304,7 +334,8 @@ pub fn ribbon_gpu(
             mapped_at_creation: false,
         })
     })?;
-    let status = run(ctx, pipes, mesh, curve, reach, &coords)?;
+    let scratch = Scratch::new(ctx, mesh.gpu.vertex_count)?;
+    let status = run(ctx, pipes, mesh, (curve, reach), &coords, &scratch)?;
     let bytes = ctx.read_buffer(&coords, size, "ribbon read-back")?;
     Ok((bytemuck::cast_slice(&bytes).to_vec(), status))
 }
