@@ -56,7 +56,14 @@ fn demo_writes_decodable_outputs_and_a_glb_that_loads_back() {
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
     let layers = report["layers"].as_array().unwrap();
-    assert_eq!(layers.len(), 7);
+    assert_eq!(layers.len(), 8);
+    // The ribbon along the flank painted a strip.
+    assert_eq!(layers[7]["kind"], "ribbon");
+    assert!(
+        layers[7]["texels_covered"].as_u64().unwrap() > 500,
+        "{}",
+        layers[7]
+    );
     // The horn tip's decal is a cone chart.
     assert!(layers[4]["chart"]["cone"]["k"].as_f64().unwrap() < 0.8);
     assert_eq!(layers[5]["kind"], "stroke");

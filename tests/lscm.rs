@@ -40,6 +40,7 @@ fn frame_at(topo: &Topology, at: Vec3, up: [f32; 3], size: [f32; 2]) -> (Frame, 
         hybrid_threshold: 1.1,
         cg_max_iterations: None,
         stroke: None,
+        ribbon: None,
     };
     (Frame::new(&p, &job_layer), p.triangle)
 }

@@ -289,3 +289,207 @@ fn gpu_relaxation_matches_the_twin() {
     let (gap, n) = gpu_against_twin(&engine, spot, back, 0.12);
     assert!(n > 100 && gap < 1e-5, "spot: {n} vertices, gap {gap:.2e}");
 }
+
+/// Writes the flat grid over [−1, 1]² as a GLB whose UVs are its positions ((x + 1) / 2,
+/// (1 − y) / 2), and a 16-bit image whose linear red is its x coordinate and green its y (pixel
+/// centres), so a baked texel's colour says which image point it shows.
+fn flat_scene(dir: &std::path::Path) {
+    let m = plane(48);
+    let pos: Vec<[f32; 3]> = m.positions.iter().map(|p| p.to_array()).collect();
+    let uvs: Vec<[f32; 2]> = m
+        .positions
+        .iter()
+        .map(|p| [(p.x + 1.0) / 2.0, (1.0 - p.y) / 2.0])
+        .collect();
+    let idx: Vec<u32> = m.triangles.iter().flatten().copied().collect();
+    common::write_glb(&dir.join("plane.glb"), &pos, Some(&uvs), &idx);
+    let (w, h) = (256u32, 64u32);
+    let img = decalbake::io::image::LinearImage {
+        width: w,
+        height: h,
+        pixels: (0..h)
+            .flat_map(|y| {
+                (0..w).map(move |x| {
+                    [
+                        (x as f32 + 0.5) / w as f32,
+                        (y as f32 + 0.5) / h as f32,
+                        0.0,
+                        1.0,
+                    ]
+                })
+            })
+            .collect(),
+    };
+    std::fs::write(dir.join("grad.png"), img.encode_png(16)).unwrap();
+}
+
+/// A ribbon job on the flat scene along the arc of radius 0.6 (θ from −π/3 to π/3, 121 points).
+fn arc_job(dir: &std::path::Path, extra: serde_json::Value) -> decalbake::Job {
+    let path: Vec<[f32; 3]> = (0..=120)
+        .map(|k| {
+            let t = -PI / 3.0 + 2.0 * PI / 3.0 * k as f32 / 120.0;
+            [0.6 * t.cos(), 0.6 * t.sin(), 0.0]
+        })
+        .collect();
+    let mut layer = serde_json::json!({ "kind": "ribbon", "image": "grad.png", "path": path,
+        "width": 0.2 });
+    for (k, v) in extra.as_object().unwrap() {
+        layer[k] = v.clone();
+    }
+    let text = serde_json::json!({ "mesh": "plane.glb",
+        "texture": { "width": 256, "height": 256, "padding": 0, "base": [0.0, 0.0, 1.0, 1.0] },
+        "output": { "bit_depth": 16 },
+        "layers": [layer] })
+    .to_string();
+    decalbake::Job::parse(&text, &dir.join("job.json"), dir, dir).unwrap()
+}
+
+/// The image point each texel of a ribbon bake shows against the analytic one. A ribbon along a
+/// circular arc of radius R on the flat grid (whose UVs are its positions) maps the point at
+/// radius ρ and angle θ to u = R (θ − θ0) along and v = R − ρ across the curve (Fermi
+/// coordinates); the image (a gradient: red = image x, green = image y) then shows x = u / L,
+/// y = 1/2 − v / w with `"repeat": "stretch"`, x = frac(u / p) (p = w × the image's aspect,
+/// 256 / 64) with `"tile"`, and y = 1/2 − (v − w/2) / w for `"align": "left"`, mirrored
+/// (1/2 + (v − w/2) / w) with `"flip"`. Checked at texel centres inside the strip, away from its
+/// edges and the tiles' seams by a texel and a half: within 6e-3 of the image (measured 3.9e-3 to
+/// 4.7e-3, the larger for the left-aligned strip, twice as far from the curve; in model units
+/// under a tenth of a texel; the curve is the polyline through the 121 path points, 1° apart, so
+/// it sits up to 2e-5 inside the circle). Covered texels outside the strip: none. Mirroring the
+/// image's y (flip's sign left out) or tiling with a period 1 % too long fails the check.
+#[test]
+fn ribbon_bakes_show_the_image_at_the_fermi_coordinates() {
+    let engine = common::engine();
+    let dir = common::scratch("ribbon_bake");
+    flat_scene(&dir);
+    let (r, w, l) = (0.6f32, 0.2f32, 0.6 * 2.0 * PI / 3.0);
+    let cases: [(&str, serde_json::Value); 4] = [
+        ("stretch", serde_json::json!({})),
+        ("tile", serde_json::json!({ "repeat": "tile" })),
+        ("left", serde_json::json!({ "align": "left" })),
+        (
+            "left, flipped",
+            serde_json::json!({ "align": "left", "flip": true }),
+        ),
+    ];
+    for (name, extra) in cases {
+        let job = arc_job(&dir, extra);
+        let mesh = engine.load_mesh(&job.mesh).unwrap();
+        let baked = engine.bake(&mesh, &job).unwrap();
+        let texel = 2.0 / 256.0;
+        let (mut worst, mut n, mut stray) = (0.0f32, 0, 0);
+        for ty in 0..256u32 {
+            for tx in 0..256u32 {
+                let p = Vec2::new(
+                    -1.0 + (tx as f32 + 0.5) * texel,
+                    1.0 - (ty as f32 + 0.5) * texel,
+                );
+                let (rho, t) = (p.length(), p.y.atan2(p.x));
+                let (u, v) = (r * (t + PI / 3.0), r - rho);
+                let c = baked.linear(tx, ty);
+                let painted = c[2] < 0.5;
+                let (lo, hi) = match name {
+                    "stretch" | "tile" => (-w / 2.0, w / 2.0),
+                    _ => (0.0, w),
+                };
+                let margin = 1.5 * texel;
+                let inside = u > margin && u < l - margin && v > lo + margin && v < hi - margin;
+                let outside = u < -margin || u > l + margin || v < lo - margin || v > hi + margin;
+                if outside && painted {
+                    stray += 1;
+                }
+                if !inside {
+                    continue;
+                }
+                let across = (v - (lo + hi) / 2.0) / w;
+                let want_y = if name.ends_with("flipped") {
+                    0.5 + across
+                } else {
+                    0.5 - across
+                };
+                let want_x = match name {
+                    "tile" => {
+                        let f = (u / (w * 4.0)).fract();
+                        if !(0.03..=0.97).contains(&f) {
+                            continue;
+                        }
+                        f
+                    }
+                    _ => u / l,
+                };
+                let e = (c[0] - want_x).abs().max((c[1] - want_y).abs());
+                worst = worst.max(e);
+                n += 1;
+            }
+        }
+        eprintln!("{name}: {n} texels inside, max error {worst:.2e}, {stray} painted outside");
+        assert!(n > 1000, "{name}: {n} texels checked");
+        assert!(worst < 6e-3, "{name}: max error {worst:.2e}");
+        assert_eq!(stray, 0, "{name}: texels painted outside the strip");
+    }
+}
+
+/// Bad ribbon layers are refused with exit 2, the layer and field named, and no output written.
+#[test]
+fn bad_ribbons_are_refused_by_field() {
+    let dir = common::scratch("ribbon_bad");
+    flat_scene(&dir);
+    let two = serde_json::json!([[0.0, 0.0, 0.0], [0.3, 0.0, 0.0]]);
+    let cases = [
+        (
+            serde_json::json!({ "path": [[0.0, 0.0, 0.0]] }),
+            "layers[0].path",
+        ),
+        (
+            serde_json::json!({ "path": two, "width": -1.0 }),
+            "layers[0].width",
+        ),
+        (
+            serde_json::json!({ "path": two, "repeat": "loop" }),
+            "layers[0].repeat",
+        ),
+        (
+            serde_json::json!({ "path": two, "align": "up" }),
+            "layers[0].align",
+        ),
+        (
+            serde_json::json!({ "path": two, "size": [1.0, 1.0] }),
+            "layers[0].size",
+        ),
+        (
+            serde_json::json!({ "path": two, "method": "lscm" }),
+            "layers[0].method",
+        ),
+        (
+            serde_json::json!({ "path": two, "spacing": 0.5 }),
+            "layers[0].spacing",
+        ),
+        (
+            serde_json::json!({ "path": [[0.0, 0.0, 5.0], [0.3, 0.0, 0.0]] }),
+            "path[0]",
+        ),
+    ];
+    for (extra, field) in cases {
+        let mut layer = serde_json::json!({ "kind": "ribbon", "image": "grad.png" });
+        for (k, v) in extra.as_object().unwrap() {
+            layer[k] = v.clone();
+        }
+        let job = serde_json::json!({ "mesh": "plane.glb", "layers": [layer],
+            "output": { "texture": "out.png" } });
+        let path = dir.join("bad.json");
+        std::fs::write(&path, job.to_string()).unwrap();
+        let (code, _, err) = common::cli(&["bake", path.to_str().unwrap()]);
+        assert_eq!(code, 2, "{field}: {err}");
+        assert!(err.contains(field), "{field} not named: {err}");
+        assert!(!dir.join("out.png").exists(), "{field}: output written");
+    }
+    // A decal with a ribbon's field is refused too.
+    let job = serde_json::json!({ "mesh": "plane.glb", "layers": [{ "image": "grad.png",
+        "at": [0.0, 0.0, 0.0], "size": [0.2, 0.2], "width": 0.1 }] });
+    std::fs::write(dir.join("decal.json"), job.to_string()).unwrap();
+    let (code, _, err) = common::cli(&["bake", dir.join("decal.json").to_str().unwrap()]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("layers[0].width") && err.contains("ribbons"),
+        "{err}"
+    );
+}

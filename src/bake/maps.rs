@@ -10,7 +10,7 @@
 
 use super::engine::{Engine, LoadedMesh};
 use super::params::{
-    params_buffer, pbind, Params, FLAG_CONE, FLAG_FACING, FLAG_MASK, PARAMS_STRIDE,
+    params_buffer, pbind, Params, FLAG_CONE, FLAG_FACING, FLAG_MASK, FLAG_REPEAT, PARAMS_STRIDE,
 };
 use super::place::Placed;
 use super::stage::{ms, Cx, Log};
@@ -179,6 +179,7 @@ pub(crate) fn compute(
     maps.buffer = params_buffer(&engine.ctx.device, "bake.layer_params", &maps.params);
     direct_pass(cx, placed, slots, &maps, log)?;
     direct_reach(cx, placed, &mut maps);
+    ribbon_pass(cx, placed, slots, &mut maps, log)?;
     blend_reach(placed, &mut maps);
     blend_pass(cx, placed, slots, &maps, log)?;
     Ok(maps)
@@ -188,7 +189,10 @@ pub(crate) fn compute(
 fn layer_params(job: &Job, placed: &Placed, i: usize, start: usize, global: &Params) -> Params {
     let l = &job.layers[i];
     let f = Params::of_frame(&placed.frames[i]);
+    // A tiled ribbon repeats its image along x (`FLAG_REPEAT`, the count in `cone_a[3]`).
+    let repeats = placed.ribbons[i].as_ref().map_or(0.0, |r| r.repeats);
     Params {
+        cone_a: [0.0, 0.0, 0.0, repeats],
         center: f.center,
         axis_u: f.axis_u,
         axis_v: f.axis_v,
@@ -201,9 +205,58 @@ fn layer_params(job: &Job, placed: &Placed, i: usize, start: usize, global: &Par
             FLAG_FACING
         } else {
             0
-        } | if l.mask.is_some() { FLAG_MASK } else { 0 },
+        } | if l.mask.is_some() { FLAG_MASK } else { 0 }
+            | if repeats > 0.0 { FLAG_REPEAT } else { 0 },
         ..*global
     }
+}
+
+/// The ribbon units' maps: each curve's extended exponential map on the GPU
+/// ([`crate::maps::ribbon::gpu::run`]) straight into its slot as the unit's image coordinates;
+/// their reach is the strip's candidates.
+fn ribbon_pass(
+    cx: Cx<'_>,
+    placed: &Placed,
+    slots: &Slots,
+    maps: &mut LayerMaps,
+    log: &mut Log,
+) -> Result<()> {
+    use crate::maps::ribbon::gpu::{run, Output, Scratch};
+    let Cx { engine, mesh, .. } = cx;
+    let start = maps.range.start;
+    let units: Vec<usize> = maps
+        .range
+        .clone()
+        .filter(|&i| placed.ribbons[i].is_some())
+        .collect();
+    if units.is_empty() {
+        return Ok(());
+    }
+    let scratch = Scratch::new(&engine.ctx, mesh.gpu.vertex_count)?;
+    for i in units {
+        let r = placed.ribbons[i].as_ref().expect("filtered");
+        let out = Output {
+            slot: (i - start) as u32,
+            xform: r.xform,
+        };
+        let (status, cands) = run(
+            &engine.ctx,
+            &engine.pipes,
+            mesh.surface_ref(),
+            (&r.curve, r.reach),
+            (&slots.coords, out),
+            &scratch,
+        )?;
+        log.commands += status.dispatches;
+        if !status.converged {
+            log.warnings.push(format!(
+                "layer {}: the ribbon's map did not converge in {} sweeps; the ribbon may be incomplete",
+                placed.origin[i].0, status.sweeps
+            ));
+        }
+        maps.reach[i - start] = Some(cands);
+    }
+    Ok(())
 }
 
 /// The exponential maps of every layer whose method uses one: one dispatch, one workgroup per map.

@@ -52,11 +52,20 @@ impl Engine {
                 ),
             )
         })?;
-        if layer.kind != crate::io::job::LayerKind::Decal {
+        let refused = match layer.kind {
+            crate::io::job::LayerKind::Decal => None,
+            crate::io::job::LayerKind::Stroke => {
+                Some("this layer is a stroke (its stamps' charts are in the bake report)")
+            }
+            crate::io::job::LayerKind::Ribbon => {
+                Some("this layer is a ribbon (not exported yet: issue 13)")
+            }
+        };
+        if let Some(why) = refused {
             return Err(Error::job(
                 &job.source,
                 format!("layers[{index}].kind"),
-                "`decalbake param` exports a decal's map; this layer is a stroke (its stamps' charts are in the bake report)",
+                format!("`decalbake param` exports a decal's map; {why}"),
             ));
         }
         let query = match &layer.at {
@@ -79,7 +88,7 @@ impl Engine {
         let mut cone = None;
         // Every method but planar starts from the layer's exponential map, as in the bake.
         let expmap = match layer.method {
-            Method::Planar => Vec::new(),
+            Method::Planar | Method::Ribbon => Vec::new(),
             _ => {
                 let seed = frame.seed(&placement);
                 self.expmaps(mesh, &[(seed, frame.expmap_options(layer))])?
@@ -151,6 +160,8 @@ impl Engine {
                 }
                 rows.sort_by_key(|r| r.vertex);
             }
+            // Ribbon layers are refused above (their kind).
+            Method::Ribbon => {}
             Method::Planar => {
                 let coords = crate::maps::planar::planar_coords(topo, &frame);
                 // Selection needs UVs only for the texel box, which param does not use.

@@ -88,6 +88,9 @@ pub const FLAG_TOOL: u32 = 8;
 pub const FLAG_CONE: u32 = 16;
 /// `encode`: no padding (a tile of a tiled bake; the tiles are padded together on the CPU).
 pub const FLAG_NO_PAD: u32 = 32;
+/// A tiled ribbon (`"repeat": "tile"`): the image repeats `cone_a[3]` times along its x
+/// (`wgsl/bake/layer_raster.wgsl`).
+pub const FLAG_REPEAT: u32 = 64;
 
 /// Texels per side of a tool stamp's flat cell (`bake/tools.rs`). Keep in sync with `FLAT_RES` in
 /// `wgsl/bake/stamp_flatten.wgsl`, `stamp_filter.wgsl` and `layer_raster.wgsl`.

@@ -37,6 +37,8 @@ pub struct Placed {
     pub blocks: Vec<Range<usize>>,
     /// The strokes, in job order.
     pub strokes: Vec<StrokeGroup>,
+    /// Per unit: a ribbon's curve and image mapping (the map stage's ribbon pass).
+    pub ribbons: Vec<Option<crate::bake::kinds::ribbon::RibbonUnit>>,
 }
 
 /// A stroke's units, composed through the stroke buffer and then onto the canvas.
@@ -78,6 +80,7 @@ pub(crate) fn place(cx: Cx<'_>, log: &mut Log) -> Result<Placed> {
         clone_of: Vec::new(),
         blocks: Vec::new(),
         strokes: Vec::new(),
+        ribbons: Vec::new(),
     };
     let mut at = 0;
     for (i, (l, q)) in job.layers.iter().zip(&per_layer).enumerate() {
@@ -100,6 +103,7 @@ pub(crate) fn place(cx: Cx<'_>, log: &mut Log) -> Result<Placed> {
             placed.job.layers.push(u.layer);
             placed.origin.push((i, k));
             placed.hidden.push(u.hidden);
+            placed.ribbons.push(u.ribbon);
             placed.sources.push(u.source);
             placed.clone_of.push(u.clone_of.map(|c| c + first));
             placed.blends.push(u.blend.map(|mut b| {

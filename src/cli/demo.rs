@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! The built-in demo scene: Keenan Crane's "Spot" (public domain, bundled in `assets/`) with four
 //! decals generated in code, one per blend style, a conformal decal on a horn tip (a cone chart), a painted stroke over the UV seam along its back,
-//! and a blur stroke across the edges of the badge and a black patch beside it. `decalbake demo` writes the scene's files (mesh,
+//! a blur stroke across the edges of the badge and a black patch beside it, and a ribbon of
+//! stripes tiled along a wave on the other flank. `decalbake demo` writes the scene's files (mesh,
 //! decal PNGs, job file) next to its outputs, so the job can be edited and re-run with `decalbake bake`.
 
 use decalbake::io::image::{srgb_to_linear, LinearImage};
@@ -125,6 +126,18 @@ fn stroke_path() -> (Vec<serde_json::Value>, Vec<f32>) {
         .unzip()
 }
 
+/// The demo ribbon's path: rays from Spot's right, a wave along its flank below the rings decal.
+fn ribbon_path() -> Vec<serde_json::Value> {
+    (0..11)
+        .map(|k| {
+            let t = k as f32 / 10.0;
+            let z = 0.05 + 0.65 * t;
+            let y = -0.22 + 0.04 * (t * 2.0 * PI).sin();
+            serde_json::json!({ "ray": { "origin": [-1.5, y, z], "dir": [1, 0, 0] } })
+        })
+        .collect()
+}
+
 /// The demo job (paths relative to the demo directory).
 pub fn job_json() -> String {
     let (path, pressure) = stroke_path();
@@ -154,7 +167,11 @@ pub fn job_json() -> String {
               "size": [0.1, 0.1], "spacing": 0.15, "flow": 0.8, "opacity": 0.95, "method": "lscm" },
             { "kind": "stroke", "tool": "blur", "radius": 0.025, "image": "decals/brush.png",
               "path": blur_path,
-              "size": [0.09, 0.09], "spacing": 0.2 }
+              "size": [0.09, 0.09], "spacing": 0.2 },
+            // Stripes tiled along a wave on the right flank: a ribbon (the curve's extended
+            // exponential map).
+            { "kind": "ribbon", "image": "decals/stripes.png", "path": ribbon_path(),
+              "width": 0.09, "repeat": "tile" }
         ],
         "output": { "texture": "baked.png", "bit_depth": 8, "glb": "baked.glb", "report": "report.json", "preview": "preview.png" }
     }))

@@ -6,6 +6,9 @@ use crate::error::{Error, Result};
 use serde::Deserialize;
 use std::path::Path;
 
+/// Largest decal or texture value accepted before "absurd": guards against typos such as 1e30.
+pub const MAX_SIZE_MODEL_UNITS: f32 = 1.0e6;
+
 /// Where a layer goes.
 #[derive(Debug, Clone, Deserialize, serde::Serialize, PartialEq)]
 #[serde(untagged)]

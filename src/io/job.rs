@@ -185,8 +185,10 @@ pub struct LayerSpec {
     /// Placement (decals; strokes use `path`).
     #[serde(default)]
     pub at: Option<AtSpec>,
-    /// Width and height on the surface, model units (a stroke's stamp at full pressure).
-    pub size: [f32; 2],
+    /// Width and height on the surface, model units (a stroke's stamp at full pressure); not for
+    /// ribbons, whose length is their curve's and whose width is `width`.
+    #[serde(default)]
+    pub size: Option<[f32; 2]>,
     /// Degrees, counter-clockwise seen from outside.
     #[serde(default)]
     pub angle: f32,
@@ -256,6 +258,18 @@ pub struct LayerSpec {
     /// Clone stroke: the source point (like `at`).
     #[serde(default)]
     pub source: Option<AtSpec>,
+    /// Ribbon: the strip's width, model units.
+    #[serde(default)]
+    pub width: Option<f32>,
+    /// Ribbon: `"stretch"` (default) or `"tile"`.
+    #[serde(default)]
+    pub repeat: Option<String>,
+    /// Ribbon: `"center"` (default), `"left"` or `"right"`.
+    #[serde(default)]
+    pub align: Option<String>,
+    /// Ribbon: mirror the image across the curve.
+    #[serde(default)]
+    pub flip: Option<bool>,
 }
 
 fn default_kind() -> String {
@@ -314,8 +328,7 @@ impl Default for OutputSpec {
     }
 }
 
-/// Largest decal or texture value accepted before "absurd": guards against typos such as 1e30.
-pub const MAX_SIZE_MODEL_UNITS: f32 = 1.0e6;
+pub use super::at::MAX_SIZE_MODEL_UNITS;
 
 /// How a layer's local coordinates are computed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -330,6 +343,9 @@ pub enum Method {
     /// Exponential map with its most distorted triangles re-solved conformally (Schmidt et al.
     /// 2006, section 5.1).
     Hybrid,
+    /// A ribbon's curve map (Sun et al. 2013, section 3); set by `"kind": "ribbon"`, not a
+    /// `method` a job names.
+    Ribbon,
 }
 
 impl Method {
@@ -355,6 +371,8 @@ pub enum LayerKind {
     Decal,
     /// Stamps of an image along a surface path (Maillot 3D paint).
     Stroke,
+    /// An image laid along a surface curve (Sun et al., Texture Brush).
+    Ribbon,
 }
 
 impl LayerKind {
@@ -362,8 +380,9 @@ impl LayerKind {
         match s {
             "decal" => Ok(LayerKind::Decal),
             "stroke" => Ok(LayerKind::Stroke),
+            "ribbon" => Ok(LayerKind::Ribbon),
             other => Err(format!(
-                "\"{other}\" is not a layer kind this build knows; use \"decal\" or \"stroke\""
+                "\"{other}\" is not a layer kind this build knows; use \"decal\", \"stroke\" or \"ribbon\""
             )),
         }
     }
@@ -404,6 +423,8 @@ pub struct Layer {
     pub cg_max_iterations: Option<u32>,
     /// The stroke of a `"stroke"` layer (`None` for decals).
     pub stroke: Option<Box<super::stroke::Stroke>>,
+    /// The ribbon of a `"ribbon"` layer.
+    pub ribbon: Option<Box<super::ribbon::Ribbon>>,
 }
 
 /// Texture base after validation.
@@ -783,11 +804,7 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
     let err = |field: &str, detail: String| Error::job(src, field, detail);
     let field = |name: &str| format!("layers[{i}].{name}");
     let kind = LayerKind::parse(&l.kind).map_err(|d| err(&field("kind"), d))?;
-    for (k, s) in l.size.iter().enumerate() {
-        if !s.is_finite() || *s <= 0.0 || *s > MAX_SIZE_MODEL_UNITS {
-            return Err(err(&field("size"), format!("size[{k}] = {s} must be a positive decal width/height in model units (at most {MAX_SIZE_MODEL_UNITS})")));
-        }
-    }
+    let size = layer_size(kind, l.size, i, src)?;
     let finite3 = |v: &[f32; 3]| v.iter().all(|x| x.is_finite() && x.abs() <= 1e30);
     let fields = super::stroke::Fields {
         tool: &l.tool,
@@ -803,31 +820,31 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
         strength: l.strength,
         source: &l.source,
     };
-    let stroke = match kind {
-        LayerKind::Stroke => Some(Box::new(super::stroke::validate(
-            &fields,
-            i,
-            src,
-            (l.size[0], l.mask.is_some()),
-        )?)),
-        LayerKind::Decal => {
-            if let Some(name) = fields.given() {
-                return Err(err(
-                    &field(name),
-                    "applies to strokes only; set \"kind\": \"stroke\" or remove it".into(),
-                ));
-            }
-            None
-        }
+    let ribbon_fields = super::ribbon::Fields {
+        path: &l.path,
+        width: l.width,
+        repeat: &l.repeat,
+        align: &l.align,
+        flip: l.flip,
     };
-    let at = match (&l.at, &stroke) {
+    let (stroke, ribbon) = kind_fields(
+        kind,
+        (&fields, &ribbon_fields),
+        (i, src),
+        (size[0], l.mask.is_some()),
+    )?;
+    let path = stroke
+        .as_ref()
+        .map(|s| &s.path)
+        .or(ribbon.as_ref().map(|r| &r.path));
+    let at = match (&l.at, path) {
         (Some(_), Some(_)) => {
             return Err(err(
                 &field("at"),
-                "a stroke is placed by its `path`; remove `at`".into(),
+                "a stroke or ribbon is placed by its `path`; remove `at`".into(),
             ))
         }
-        (None, Some(s)) => s.path[0].clone(),
+        (None, Some(p)) => p[0].clone(),
         (Some(at), None) => at.clone(),
         (None, None) => {
             return Err(err(
@@ -852,12 +869,18 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
             format!("{} must be in [0, 1]", l.opacity),
         ));
     }
-    let method_name = match (&l.method, kind) {
-        (Some(m), _) => m.as_str(),
-        (None, LayerKind::Stroke) => "lscm",
-        (None, LayerKind::Decal) => "expmap",
-    };
-    let method = Method::parse(method_name).map_err(|d| err(&field("method"), d))?;
+    let method =
+        match (&l.method, kind) {
+            (Some(_), LayerKind::Ribbon) => return Err(err(
+                &field("method"),
+                "a ribbon is mapped by its curve (the extended exponential map); remove `method`"
+                    .into(),
+            )),
+            (None, LayerKind::Ribbon) => Method::Ribbon,
+            (Some(m), _) => Method::parse(m).map_err(|d| err(&field("method"), d))?,
+            (None, LayerKind::Stroke) => Method::Lscm,
+            (None, LayerKind::Decal) => Method::Expmap,
+        };
     let blend = BlendMode::parse(&l.blend).map_err(|d| err(&field("blend"), d))?;
     let curvature_stop = match l.curvature_stop {
         Some(k) if !k.is_finite() || k < 0.0 => {
@@ -877,7 +900,7 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
             ))
         }
         Some(d) => d,
-        None => 0.5 * l.size[0].max(l.size[1]),
+        None => 0.5 * size[0].max(size[1]),
     };
     let hybrid_threshold = match l.hybrid_threshold {
         Some(k) if !k.is_finite() || k < 1.0 => {
@@ -910,7 +933,7 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
         image: input_dir.join(&l.image),
         mask: l.mask.as_ref().map(|m| input_dir.join(m)),
         at,
-        size: l.size,
+        size,
         angle: l.angle,
         up: l.up,
         method,
@@ -922,5 +945,82 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
         hybrid_threshold,
         cg_max_iterations: l.cg_max_iterations,
         stroke,
+        ribbon,
     })
+}
+
+/// Layer `i`'s size: a decal's or stroke's, checked; a ribbon has none (its length is its curve's,
+/// its width `width`: a placeholder until it is placed).
+fn layer_size(kind: LayerKind, given: Option<[f32; 2]>, i: usize, src: &Path) -> Result<[f32; 2]> {
+    let err = |detail: String| Error::job(src, format!("layers[{i}].size"), detail);
+    let size = match (kind, given) {
+        (LayerKind::Ribbon, Some(_)) => {
+            return Err(err(
+                "a ribbon's length is its curve's and its width is `width`; remove `size`".into(),
+            ))
+        }
+        (LayerKind::Ribbon, None) => return Ok([1.0, 1.0]),
+        (_, Some(size)) => size,
+        (_, None) => {
+            return Err(err(
+                "missing: the decal's (or stamp's) [width, height] on the surface, in model units"
+                    .into(),
+            ))
+        }
+    };
+    for (k, s) in size.iter().enumerate() {
+        if !s.is_finite() || *s <= 0.0 || *s > MAX_SIZE_MODEL_UNITS {
+            return Err(err(format!("size[{k}] = {s} must be a positive decal width/height in model units (at most {MAX_SIZE_MODEL_UNITS})")));
+        }
+    }
+    Ok(size)
+}
+
+/// A stroke or ribbon layer's own fields, validated; a field of one kind on another is an error
+/// naming it. `stamp`: the stamp width and whether the layer has a mask (strokes).
+#[allow(clippy::type_complexity)]
+fn kind_fields(
+    kind: LayerKind,
+    (stroke, ribbon): (&super::stroke::Fields<'_>, &super::ribbon::Fields<'_>),
+    (i, src): (usize, &Path),
+    stamp: (f32, bool),
+) -> Result<(
+    Option<Box<super::stroke::Stroke>>,
+    Option<Box<super::ribbon::Ribbon>>,
+)> {
+    let misplaced = |name: &str, what: &str| {
+        Error::job(
+            src,
+            format!("layers[{i}].{name}"),
+            format!("applies to {what} only; set \"kind\" or remove it"),
+        )
+    };
+    if kind != LayerKind::Ribbon {
+        if let Some(name) = ribbon.given() {
+            return Err(misplaced(name, "ribbons"));
+        }
+    }
+    match kind {
+        LayerKind::Stroke => Ok((
+            Some(Box::new(super::stroke::validate(stroke, i, src, stamp)?)),
+            None,
+        )),
+        LayerKind::Ribbon => {
+            let others = super::stroke::Fields {
+                path: &None,
+                ..*stroke
+            };
+            if let Some(name) = others.given() {
+                return Err(misplaced(name, "strokes"));
+            }
+            Ok((
+                None,
+                Some(Box::new(super::ribbon::validate(ribbon, i, src)?)),
+            ))
+        }
+        LayerKind::Decal => match stroke.given() {
+            Some(name) => Err(misplaced(name, "strokes")),
+            None => Ok((None, None)),
+        },
+    }
 }

@@ -6,4 +6,5 @@ pub mod at;
 pub mod image;
 pub mod job;
 pub mod manifest;
+pub mod ribbon;
 pub mod stroke;

@@ -144,6 +144,7 @@ pub fn method(m: Method) -> &'static dyn MapMethod {
         Method::Expmap => &expmap::Expmap,
         Method::Lscm => &lscm::Lscm,
         Method::Hybrid => &hybrid::Hybrid,
+        Method::Ribbon => &ribbon::RibbonMethod,
     }
 }
 

@@ -7,7 +7,8 @@
 // neighbour's foot and offset across the edge (the exponential map's update, shared/expmap.wgsl)
 // and slides the foot along the curve; sweeps repeat until one changes nothing (Bellman-Ford:
 // in-place, unordered updates settle on the serial Dijkstra tree). Then each reached vertex's
-// offset is read against the arc its piece stands for: (u, v, graph distance, 1) in `coords`.
+// offset is read against the arc its piece stands for: (a u + b, c v + d, graph distance, 1) in
+// the output slot of `coords` (`job.xform` = (a, b, c, d): the layer's image coordinates).
 // Candidates (the vertices near the curve, plus one ring that is only reset) come from the CPU,
 // so the work is proportional to the strip. Rounds: `job.init` seeds; each dispatch runs at most
 // `job.sweeps` sweeps (lavapipe abandons invocations that loop more than 65535 times); the host
@@ -31,6 +32,13 @@ struct RibbonJob {
     length: f32,
     sweeps: u32,
     init: u32,
+    // First entry of the output slot in `coords`.
+    slot_base: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+    // Output (a u + b, c v + d) as (a, b, c, d).
+    xform: vec4<f32>,
 }
 
 // Keep in sync with `GpuPiece` in src/maps/ribbon/mod.rs: start (xyz) and arc length there; unit
@@ -160,7 +168,7 @@ fn main(@builtin(local_invocation_index) lid: u32) {
             let v = candidates[i];
             state[v] = vec4<f32>(0.0, 0.0, 0.0, INF);
             link[v] = vec2<u32>(NONE, 0u);
-            coords[v] = vec4<f32>(0.0);
+            coords[job.slot_base + v] = vec4<f32>(0.0);
         }
         storageBarrier();
         workgroupBarrier();
@@ -230,7 +238,10 @@ fn main(@builtin(local_invocation_index) lid: u32) {
             let v = candidates[i];
             let st = state[v];
             if (st.w < INF) {
-                coords[v] = vec4<f32>(fermi(link[v].y, st.x, st.yz), st.w, 1.0);
+                let uv = fermi(link[v].y, st.x, st.yz);
+                let x = job.xform.xy;
+                let y = job.xform.zw;
+                coords[job.slot_base + v] = vec4<f32>(x.x * uv.x + x.y, y.x * uv.y + y.y, st.w, 1.0);
                 atomicAdd(&reached, 1u);
             }
         }

@@ -42,7 +42,7 @@ struct Params {
     // Tool stamps: x = cell of the flat atlas; stamp_flatten: y = the atlas's rows of cells.
     _pad: vec2<u32>,
     // FLAG_CONE: the cone transform of the layer's chart (shared/cone.wgsl): tip (xy), k (z);
-    // alpha (xy), beta (zw).
+    // alpha (xy), beta (zw). FLAG_REPEAT: cone_a.w = copies of the image along x.
     cone_a: vec4<f32>,
     cone_b: vec4<f32>,
     // The canvas window (shared/window.wgsl): x, y, w, h in texels; w = 0: the whole texture.
@@ -55,3 +55,5 @@ const FLAG_MASK: u32 = 2u;
 const FLAG_TOOL: u32 = 8u;
 // The layer's chart is opened at a tip: coordinates go through `cone_apply` (shared/cone.wgsl).
 const FLAG_CONE: u32 = 16u;
+// A tiled ribbon: the image repeats `cone_a.w` times along x (layer_raster.wgsl).
+const FLAG_REPEAT: u32 = 64u;

@@ -9,6 +9,7 @@
 //! buffer ([`Expansion::stroke`], `bake/compose.rs`). See `ARCHITECTURE.md`, "Layer kinds".
 
 mod decal;
+pub mod ribbon;
 pub mod stroke;
 
 use super::stage::Cx;
@@ -35,6 +36,8 @@ pub struct Unit {
     pub source: bool,
     /// A clone stamp: its source unit (within the layer's units).
     pub clone_of: Option<usize>,
+    /// A ribbon: its curve and how its map becomes image coordinates.
+    pub ribbon: Option<ribbon::RibbonUnit>,
 }
 
 impl Unit {
@@ -48,6 +51,7 @@ impl Unit {
             blend: None,
             source: false,
             clone_of: None,
+            ribbon: None,
         }
     }
 }
@@ -84,6 +88,7 @@ pub(crate) fn kind(k: LayerKind) -> &'static dyn Kind {
     match k {
         LayerKind::Decal => &decal::Decal,
         LayerKind::Stroke => &stroke::StrokeKind,
+        LayerKind::Ribbon => &ribbon::RibbonKind,
     }
 }
 

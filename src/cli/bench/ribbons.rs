@@ -9,7 +9,7 @@
 //! subdivided twice, 1.1M).
 
 use super::common::median;
-use decalbake::maps::ribbon::gpu::{ribbon_gpu, run as ribbon_run, Scratch};
+use decalbake::maps::ribbon::gpu::{ribbon_gpu, run as ribbon_run, Output, Scratch};
 use decalbake::maps::ribbon::{ribbon_cpu, Curve};
 use decalbake::mesh::{Mesh, Topology};
 use decalbake::Engine;
@@ -102,7 +102,8 @@ pub fn run(
         let mut strip = 0;
         for _ in 0..reps.max(1) {
             let t = Instant::now();
-            let s = ribbon_run(ctx, pipes, surface, (&curve, reach), &coords, &scratch)?;
+            let out = (&coords, Output::PLAIN);
+            let (s, _) = ribbon_run(ctx, pipes, surface, (&curve, reach), out, &scratch)?;
             gpu_ms.push(t.elapsed().as_secs_f64() * 1e3);
             status = s;
             let t = Instant::now();

@@ -24,6 +24,29 @@ struct RibbonJob {
     length: f32,
     sweeps: u32,
     init: u32,
+    /// First entry of the output slot in `coords`.
+    slot_base: u32,
+    pad: [u32; 3],
+    /// Output (a u + b, c v + d) as (a, b, c, d).
+    xform: [f32; 4],
+}
+
+/// Where [`run`] writes: the slot of `coords` (in vertices per slot) and the affine map from
+/// (u, v) to the written coordinates ((a, b, c, d): x = a u + b, y = c v + d).
+#[derive(Debug, Clone, Copy)]
+pub struct Output {
+    /// Slot index (entries `slot × vertex_count ..`).
+    pub slot: u32,
+    /// (a, b, c, d).
+    pub xform: [f32; 4],
+}
+
+impl Output {
+    /// Slot 0, (u, v) as they are.
+    pub const PLAIN: Output = Output {
+        slot: 0,
+        xform: [1.0, 0.0, 1.0, 0.0],
+    };
 }
 
 /// Keep in sync with `SeedState` in `wgsl/maps/ribbon_relax.wgsl`.
@@ -182,22 +205,24 @@ impl Scratch {
     }
 }
 
-/// Computes the map of `curve` within `reach` into `coords` (one vec4 per welded vertex: u, v,
-/// graph distance, 1 where reached; the candidates' and their ring's entries are overwritten,
-/// others left as they are), on the GPU, with `scratch` made for this mesh.
+/// Computes the map of `curve` within `reach` into slot `out.slot` of `coords` (one vec4 per
+/// welded vertex: x, y (the map's u, v through `out.xform`), graph distance, 1 where reached; the
+/// candidates' and their ring's entries are overwritten, others left as they are), on the GPU,
+/// with `scratch` made for this mesh. Returns the status and the candidate vertices (the only
+/// ones the map can reach).
 pub fn run(
     ctx: &GpuContext,
     pipes: &Pipelines,
     mesh: SurfaceRef<'_>,
     (curve, reach): (&Curve, f32),
-    coords: &wgpu::Buffer,
+    (coords, out): (&wgpu::Buffer, Output),
     scratch: &Scratch,
-) -> Result<RibbonStatus> {
+) -> Result<(RibbonStatus, Vec<u32>)> {
     let (topo, gpu) = (mesh.topo, mesh.gpu);
     let t = std::time::Instant::now();
     let framed = Framed::new(topo, curve);
     if framed.pieces.is_empty() {
-        return Ok(RibbonStatus::default());
+        return Ok((RibbonStatus::default(), Vec::new()));
     }
     let seeds: Vec<GpuSeed> = seeds(topo, curve, &framed)
         .iter()
@@ -228,6 +253,9 @@ pub fn run(
         length: framed.length,
         sweeps,
         init,
+        slot_base: out.slot * gpu.vertex_count,
+        pad: [0; 3],
+        xform: out.xform,
     };
     let device = &ctx.device;
     let (state, link) = (&scratch.state, &scratch.link);
@@ -304,14 +332,15 @@ pub fn run(
         let s = ctx.read_buffer(&status, 16, "ribbon status read-back")?;
         let s: &[u32] = bytemuck::cast_slice(&s);
         if s[1] != 0 || s[0] >= max_sweeps {
-            return Ok(RibbonStatus {
+            let status = RibbonStatus {
                 sweeps: s[0],
                 converged: s[1] != 0,
                 reached: s[2],
                 candidates: cands.len() as u32,
                 dispatches,
                 setup_ms,
-            });
+            };
+            return Ok((status, cands));
         }
     }
 }
@@ -335,7 +364,14 @@ pub fn ribbon_gpu(
         })
     })?;
     let scratch = Scratch::new(ctx, mesh.gpu.vertex_count)?;
-    let status = run(ctx, pipes, mesh, (curve, reach), &coords, &scratch)?;
+    let (status, _) = run(
+        ctx,
+        pipes,
+        mesh,
+        (curve, reach),
+        (&coords, Output::PLAIN),
+        &scratch,
+    )?;
     let bytes = ctx.read_buffer(&coords, size, "ribbon read-back")?;
     Ok((bytemuck::cast_slice(&bytes).to_vec(), status))
 }

@@ -49,6 +49,25 @@ pub struct Curve {
 
 pub mod gpu;
 
+/// `"kind": "ribbon"` as a map method: its coordinates come from the bake's ribbon pass
+/// (`bake/maps.rs`, [`gpu::run`]), not from the exponential-map, chart or direct passes.
+pub struct RibbonMethod;
+
+impl super::MapMethod for RibbonMethod {
+    /// The CPU twin of the whole bake (`bake::cpu::bake_cpu`) takes decals and strokes; a ribbon's
+    /// map has its own twin, [`ribbon_cpu`].
+    fn cpu_coords(
+        &self,
+        _topo: &Topology,
+        _layer: &crate::io::job::Layer,
+        _frame: &super::Frame,
+        _at: (u32, bool),
+        _expmap: Option<Vec<[f32; 4]>>,
+    ) -> super::CpuCoords {
+        panic!("bake::cpu::bake_cpu takes decal and stroke layers; a ribbon's map twin is maps::ribbon::ribbon_cpu")
+    }
+}
+
 /// One piece's frame: start point, unit tangent, unit normal (its triangle's), N × T, length, arc
 /// length at its start and the curvature it stands for ([`Framed::curvature`]).
 #[derive(Debug, Clone, Copy)]

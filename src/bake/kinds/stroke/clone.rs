@@ -76,6 +76,7 @@ pub fn sources(
             blend: None,
             source: true,
             clone_of: None,
+            ribbon: None,
         });
     }
     Ok(out)

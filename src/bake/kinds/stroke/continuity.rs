@@ -186,5 +186,6 @@ fn chart_unit(topo: &Topology, layer: &Layer, v: u32, size: [f32; 2]) -> Unit {
         blend: None,
         source: false,
         clone_of: None,
+        ribbon: None,
     }
 }

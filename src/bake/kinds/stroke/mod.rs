@@ -137,7 +137,7 @@ const SEGMENT_BATCH: usize = 16;
 
 /// The stroke's path on the surface: each segment's exponential map on the GPU (in batches of
 /// [`SEGMENT_BATCH`]), walked back to the surface ([`path::build`]).
-fn join_path(
+pub(crate) fn join_path(
     cx: Cx<'_>,
     placements: &[Placement],
     edge: f32,
