@@ -467,6 +467,18 @@ fn bad_ribbons_are_refused_by_field() {
             serde_json::json!({ "path": [[0.0, 0.0, 5.0], [0.3, 0.0, 0.0]] }),
             "path[0]",
         ),
+        // A figure of eight: the first and third segments cross at the origin, a mesh vertex.
+        (
+            serde_json::json!({ "path": [[-0.4, -0.2, 0.0], [0.4, 0.2, 0.0], [0.4, -0.2, 0.0],
+                [-0.4, 0.2, 0.0]] }),
+            "crosses or touches itself",
+        ),
+        // The same crossing inside a triangle (off the grid's vertices and edges).
+        (
+            serde_json::json!({ "path": [[-0.4, -0.19, 0.0], [0.41, 0.23, 0.0], [0.41, -0.19, 0.0],
+                [-0.4, 0.23, 0.0]] }),
+            "crosses or touches itself",
+        ),
     ];
     for (extra, field) in cases {
         let mut layer = serde_json::json!({ "kind": "ribbon", "image": "grad.png" });

@@ -79,6 +79,9 @@ impl Kind for RibbonKind {
         }
         let edge = super::stroke::path::mean_edge(&mesh.topo);
         let path = super::stroke::join_path(cx, placements, edge, &err)?;
+        if let Some(why) = crossing(&path, edge) {
+            return Err(err(why));
+        }
         let length = path.length();
         if length <= 0.0 {
             return Err(err(
@@ -149,4 +152,86 @@ fn mapping(
             Repeat::Tile => length * aspect / width,
         },
     }
+}
+
+/// Why the curve is not simple, if it crosses or touches itself: the extended exponential map
+/// needs a simple curve (Sun et al. 2013, section 7). Two pieces of the joined path that come
+/// within a hundredth of a mean edge of each other in space, while more than twice that apart
+/// along the curve (cyclically, for a closed curve), are a crossing; the pieces are bucketed in a
+/// grid so the test costs what the path does. Robust where the crossing falls on a mesh vertex or
+/// edge (the pieces there lie in different triangles).
+fn crossing(path: &super::stroke::path::SurfacePath, edge: f32) -> Option<String> {
+    let n = path.triangles.len();
+    let delta = 0.01 * edge;
+    let seg = |k: usize| (path.points[k], path.points[k + 1]);
+    let longest = (0..n)
+        .map(|k| (seg(k).1 - seg(k).0).length())
+        .fold(delta, f32::max);
+    let cell = |p: Vec3| (p / longest).floor().as_ivec3();
+    let mut grid: std::collections::HashMap<glam::IVec3, Vec<usize>> = Default::default();
+    for k in 0..n {
+        let (a, b) = seg(k);
+        let (lo, hi) = (cell(a.min(b) - delta), cell(a.max(b) + delta));
+        for x in lo.x..=hi.x {
+            for y in lo.y..=hi.y {
+                for z in lo.z..=hi.z {
+                    grid.entry(glam::IVec3::new(x, y, z)).or_default().push(k);
+                }
+            }
+        }
+    }
+    let length = path.length();
+    let closed = n > 2 && (path.points[n] - path.points[0]).length() <= delta;
+    let apart = |i: usize, j: usize| {
+        let d = path.arc[j] - path.arc[i + 1];
+        let d = if closed {
+            d.min(length - (path.arc[j + 1] - path.arc[i]))
+        } else {
+            d
+        };
+        d > 2.0 * delta
+    };
+    for pieces in grid.values() {
+        for (x, &i) in pieces.iter().enumerate() {
+            for &j in &pieces[x + 1..] {
+                let (i, j) = (i.min(j), i.max(j));
+                if j <= i + 1 || !apart(i, j) {
+                    continue;
+                }
+                let (p, q) = closest(seg(i), seg(j));
+                if (p - q).length() < delta {
+                    let knot =
+                        |k: usize| path.knots.partition_point(|&s| s <= path.arc[k]).max(1) - 1;
+                    return Some(format!(
+                        "the curve crosses or touches itself near ({:.4}, {:.4}, {:.4}), between path[{}]-path[{}] and path[{}]-path[{}]; a ribbon needs a simple curve: split it into two ribbons",
+                        p.x, p.y, p.z, knot(i), knot(i) + 1, knot(j), knot(j) + 1
+                    ));
+                }
+            }
+        }
+    }
+    None
+}
+
+/// The closest points of segments `(p0, p1)` and `(q0, q1)` (the usual clamped solve).
+fn closest((p0, p1): (Vec3, Vec3), (q0, q1): (Vec3, Vec3)) -> (Vec3, Vec3) {
+    let (d1, d2, r) = (p1 - p0, q1 - q0, p0 - q0);
+    let (a, e, f) = (d1.dot(d1), d2.dot(d2), d2.dot(r));
+    let (c, b) = (d1.dot(r), d1.dot(d2));
+    let den = a * e - b * b;
+    let mut s = if den > 1e-20 * a * e && a > 0.0 {
+        ((b * f - c * e) / den).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let mut t = if e > 0.0 { (b * s + f) / e } else { 0.0 };
+    if t < 0.0 || t > 1.0 {
+        t = t.clamp(0.0, 1.0);
+        s = if a > 0.0 {
+            ((b * t - c) / a).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+    }
+    (p0 + d1 * s, q0 + d2 * t)
 }
