@@ -52,21 +52,18 @@ impl Engine {
                 ),
             )
         })?;
-        let refused = match layer.kind {
-            crate::io::job::LayerKind::Decal => None,
-            crate::io::job::LayerKind::Stroke => {
-                Some("this layer is a stroke (its stamps' charts are in the bake report)")
-            }
+        match layer.kind {
+            crate::io::job::LayerKind::Decal => {}
             crate::io::job::LayerKind::Ribbon => {
-                Some("this layer is a ribbon (not exported yet: issue 13)")
+                return Ok((self.ribbon_param(mesh, job, index)?, None))
             }
-        };
-        if let Some(why) = refused {
-            return Err(Error::job(
-                &job.source,
-                format!("layers[{index}].kind"),
-                format!("`decalbake param` exports a decal's map; {why}"),
-            ));
+            crate::io::job::LayerKind::Stroke => {
+                return Err(Error::job(
+                    &job.source,
+                    format!("layers[{index}].kind"),
+                    "`decalbake param` exports a decal's or a ribbon's map; this layer is a stroke (its stamps' charts are in the bake report)",
+                ))
+            }
         }
         let query = match &layer.at {
             crate::io::job::AtSpec::Point(p) => Query::Point(Vec3::from(*p)),
@@ -195,6 +192,41 @@ impl Engine {
             }
         }
         Ok((rows, cone))
+    }
+
+    /// A ribbon layer's map: its curve placed and joined as a bake does, then the extended
+    /// exponential map on the GPU; one row per vertex it reaches, (u, v) in model units (u along
+    /// the curve from its start, v across it, positive on its left), distance = |v|.
+    fn ribbon_param(&self, mesh: &LoadedMesh, job: &Job, index: usize) -> Result<Vec<ParamRow>> {
+        let units = self.units(mesh, job)?;
+        let unit = units
+            .origin
+            .iter()
+            .position(|o| o.0 == index)
+            .expect("every layer has a unit");
+        let r = units.ribbons[unit]
+            .as_ref()
+            .expect("a ribbon layer's unit carries its curve");
+        let (coords, _) = crate::maps::ribbon::gpu::ribbon_gpu(
+            &self.ctx,
+            &self.pipes,
+            mesh.surface_ref(),
+            &r.curve,
+            r.reach,
+        )?;
+        let topo = &mesh.topo;
+        Ok(coords
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c[3] > 0.5)
+            .map(|(v, c)| ParamRow {
+                vertex: v as u32,
+                position: topo.positions[v].to_array(),
+                distance: Some(c[1].abs()),
+                uv: [c[0], c[1]],
+                chart_uv: [c[0], c[1]],
+            })
+            .collect())
     }
 }
 

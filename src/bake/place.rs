@@ -193,6 +193,8 @@ pub struct Units {
     pub origin: Vec<(usize, usize)>,
     /// The strokes, in job order.
     pub strokes: Vec<crate::bake::cpu::StrokeCpu>,
+    /// Per unit: a ribbon's curve and image mapping.
+    pub ribbons: Vec<Option<crate::bake::kinds::ribbon::RibbonUnit>>,
 }
 
 impl crate::bake::Engine {
@@ -228,6 +230,7 @@ impl crate::bake::Engine {
                     clone_of: p.clone_of[s.units.clone()].to_vec(),
                 })
                 .collect(),
+            ribbons: p.ribbons,
             job: p.job,
             placements: p.placements,
             frames: p.frames,

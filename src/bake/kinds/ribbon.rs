@@ -225,7 +225,7 @@ fn closest((p0, p1): (Vec3, Vec3), (q0, q1): (Vec3, Vec3)) -> (Vec3, Vec3) {
         0.0
     };
     let mut t = if e > 0.0 { (b * s + f) / e } else { 0.0 };
-    if t < 0.0 || t > 1.0 {
+    if !(0.0..=1.0).contains(&t) {
         t = t.clamp(0.0, 1.0);
         s = if a > 0.0 {
             ((b * t - c) / a).clamp(0.0, 1.0)
