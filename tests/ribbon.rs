@@ -467,6 +467,13 @@ fn bad_ribbons_are_refused_by_field() {
             serde_json::json!({ "path": [[0.0, 0.0, 5.0], [0.3, 0.0, 0.0]] }),
             "path[0]",
         ),
+        // Along the grid's top border: the strip would spread 0.2 to the left (+y), the
+        // surface ends 0.1 away.
+        (
+            serde_json::json!({ "path": [[-0.5, 0.9, 0.0], [0.0, 0.9, 0.0], [0.5, 0.9, 0.0]],
+                "width": 0.4 }),
+            "layers[0].width",
+        ),
         // A figure of eight: the first and third segments cross at the origin, a mesh vertex.
         (
             serde_json::json!({ "path": [[-0.4, -0.2, 0.0], [0.4, 0.2, 0.0], [0.4, -0.2, 0.0],

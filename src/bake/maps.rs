@@ -248,6 +248,21 @@ fn ribbon_pass(
             &scratch,
         )?;
         log.commands += status.dispatches;
+        // The surface must let the strip spread as wide as asked (a curve along a border, or a
+        // strip wider than the part it lies on, would be cut off).
+        for (side, (want, got)) in ["left", "right"]
+            .iter()
+            .zip(r.sides.iter().zip(status.extent))
+        {
+            if status.converged && *want > 0.0 && got < 0.95 * want {
+                let l = placed.origin[i].0;
+                return Err(crate::error::Error::job(
+                    &cx.job.source,
+                    format!("layers[{l}].width"),
+                    format!("the strip spreads {want:.4} to the curve's {side}, but the surface reaches only {got:.4} there (a border or the end of the part the curve is on); narrow the ribbon, align it to the other side, or move the curve"),
+                ));
+            }
+        }
         if !status.converged {
             log.warnings.push(format!(
                 "layer {}: the ribbon's map did not converge in {} sweeps; the ribbon may be incomplete",

@@ -74,7 +74,8 @@ struct SeedState {
 // Per vertex: (upwind neighbour or NONE / SEED, the foot's piece).
 @group(0) @binding(9) var<storage, read_write> link: array<vec2<u32>>;
 @group(0) @binding(10) var<storage, read_write> coords: array<vec4<f32>>;
-// Sweeps so far, converged, vertices reached, 0.
+// Sweeps so far, converged, vertices reached, the largest v reached on the left and on the right
+// (f32 bits), 0, 0, 0.
 @group(0) @binding(11) var<storage, read_write> status: array<u32>;
 
 // The piece holding arc length s (partition point of the pieces' start arcs, the last at the end).
@@ -153,6 +154,9 @@ var<workgroup> changed: atomic<u32>;
 var<workgroup> any_changed: u32;
 var<workgroup> done_before: u32;
 var<workgroup> reached: atomic<u32>;
+// The largest |v| reached on each side, as f32 bits (non-negative floats order as their bits).
+var<workgroup> left_max: atomic<u32>;
+var<workgroup> right_max: atomic<u32>;
 
 @compute @workgroup_size(256)
 fn main(@builtin(local_invocation_index) lid: u32) {
@@ -160,6 +164,8 @@ fn main(@builtin(local_invocation_index) lid: u32) {
         done_before = 0u;
         if (job.init == 0u) { done_before = status[1]; }
         atomicStore(&reached, 0u);
+        atomicStore(&left_max, 0u);
+        atomicStore(&right_max, 0u);
     }
     if (workgroupUniformLoad(&done_before) != 0u) { return; }
     let all = job.cand_count + job.halo_count;
@@ -243,6 +249,11 @@ fn main(@builtin(local_invocation_index) lid: u32) {
                 let y = job.xform.zw;
                 coords[job.slot_base + v] = vec4<f32>(x.x * uv.x + x.y, y.x * uv.y + y.y, st.w, 1.0);
                 atomicAdd(&reached, 1u);
+                if (uv.y > 0.0) {
+                    atomicMax(&left_max, bitcast<u32>(uv.y));
+                } else {
+                    atomicMax(&right_max, bitcast<u32>(-uv.y));
+                }
             }
         }
     }
@@ -252,6 +263,8 @@ fn main(@builtin(local_invocation_index) lid: u32) {
         if (converged) {
             status[1] = 1u;
             status[2] = atomicLoad(&reached);
+            status[3] = atomicLoad(&left_max);
+            status[4] = atomicLoad(&right_max);
         }
     }
 }

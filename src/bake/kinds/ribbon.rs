@@ -31,6 +31,8 @@ pub struct RibbonUnit {
     pub xform: [f32; 4],
     /// Copies of the image along the curve (`"repeat": "tile"`); 0 for one stretched copy.
     pub repeats: f32,
+    /// How far the strip spreads on the curve's left and right (model units).
+    pub sides: [f32; 2],
 }
 
 impl Kind for RibbonKind {
@@ -146,6 +148,10 @@ fn mapping(
     RibbonUnit {
         curve,
         reach: 1.2 * far + 2.0 * edge,
+        sides: [
+            (middle + 0.5 * width).max(0.0),
+            (0.5 * width - middle).max(0.0),
+        ],
         xform: [1.0, -0.5 * length, sign, -sign * middle],
         repeats: match r.repeat {
             Repeat::Stretch => 0.0,

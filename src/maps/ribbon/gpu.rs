@@ -76,6 +76,9 @@ pub struct RibbonStatus {
     pub dispatches: u32,
     /// Milliseconds of CPU set-up (the curve's frames, the seeds, the strip's candidates).
     pub setup_ms: f64,
+    /// The largest v reached on the curve's left and |v| on its right (model units): how far
+    /// the surface lets the strip spread on each side.
+    pub extent: [f32; 2],
 }
 
 /// Loop iterations one invocation may run in a dispatch, well under lavapipe's cut-off (65535).
@@ -278,7 +281,7 @@ pub fn run(
                 mapped_at_creation: false,
             })
         };
-        let status = plain("ribbon.status", 16);
+        let status = plain("ribbon.status", 32);
         let uniform = |init| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("ribbon.job"),
@@ -329,7 +332,7 @@ pub fn run(
             ctx.queue.submit([enc.finish()]);
         })?;
         dispatches += 4;
-        let s = ctx.read_buffer(&status, 16, "ribbon status read-back")?;
+        let s = ctx.read_buffer(&status, 32, "ribbon status read-back")?;
         let s: &[u32] = bytemuck::cast_slice(&s);
         if s[1] != 0 || s[0] >= max_sweeps {
             let status = RibbonStatus {
@@ -339,6 +342,7 @@ pub fn run(
                 candidates: cands.len() as u32,
                 dispatches,
                 setup_ms,
+                extent: [f32::from_bits(s[3]), f32::from_bits(s[4])],
             };
             return Ok((status, cands));
         }
