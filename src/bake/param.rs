@@ -159,37 +159,7 @@ impl Engine {
             }
             // Ribbon layers are refused above (their kind).
             Method::Ribbon => {}
-            Method::Planar => {
-                let coords = crate::maps::planar::planar_coords(topo, &frame);
-                // Selection needs UVs only for the texel box, which param does not use.
-                let no_uvs = vec![glam::Vec2::ZERO; mesh.mesh.positions.len()];
-                let sel = crate::bake::cpu::select_triangles(
-                    &mesh.mesh,
-                    topo,
-                    &no_uvs,
-                    (&coords, None),
-                    &frame,
-                    true,
-                    [1, 1],
-                )
-                .triangles;
-                let mut seen = vec![false; topo.positions.len()];
-                for t in sel {
-                    for v in topo.triangles[t as usize] {
-                        if !std::mem::replace(&mut seen[v as usize], true) {
-                            let c = coords[v as usize];
-                            rows.push(ParamRow {
-                                vertex: v,
-                                position: topo.positions[v as usize].to_array(),
-                                distance: None,
-                                uv: [c[0], c[1]],
-                                chart_uv: [c[0], c[1]],
-                            });
-                        }
-                    }
-                }
-                rows.sort_by_key(|r| r.vertex);
-            }
+            Method::Planar => rows = planar_rows(mesh, &frame),
         }
         Ok((rows, cone))
     }
@@ -347,4 +317,41 @@ pub fn size_figures(topo: &Topology, map: &ParamMap, p: DVec3, size: f64) -> Siz
             .count(),
         painted_area: painted,
     }
+}
+
+/// A planar layer's rows: the vertices of the triangles its projection covers (no distance), in
+/// vertex order.
+fn planar_rows(mesh: &LoadedMesh, frame: &Frame) -> Vec<ParamRow> {
+    let topo = &mesh.topo;
+    let coords = crate::maps::planar::planar_coords(topo, frame);
+    // Selection needs UVs only for the texel box, which param does not use.
+    let no_uvs = vec![glam::Vec2::ZERO; mesh.mesh.positions.len()];
+    let sel = crate::bake::cpu::select_triangles(
+        &mesh.mesh,
+        topo,
+        &no_uvs,
+        (&coords, None),
+        frame,
+        true,
+        [1, 1],
+    )
+    .triangles;
+    let mut seen = vec![false; topo.positions.len()];
+    let mut rows = Vec::new();
+    for t in sel {
+        for v in topo.triangles[t as usize] {
+            if !std::mem::replace(&mut seen[v as usize], true) {
+                let c = coords[v as usize];
+                rows.push(ParamRow {
+                    vertex: v,
+                    position: topo.positions[v as usize].to_array(),
+                    distance: None,
+                    uv: [c[0], c[1]],
+                    chart_uv: [c[0], c[1]],
+                });
+            }
+        }
+    }
+    rows.sort_by_key(|r| r.vertex);
+    rows
 }
