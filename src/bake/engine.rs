@@ -207,7 +207,8 @@ pub(crate) fn unpack_rows(
 /// Large buffers handed back by a finished bake (the canvas planes, the encoded texture) for the
 /// next bake of the same size, or the next tile of a tiled one: a fresh 128 MiB buffer costs the
 /// device a zero-fill and, on lavapipe, the host its page faults (190 ms for a 4096² canvas's two
-/// planes, and up to 700 ms when the host is short of free pages, measured with the tiled bench).
+/// planes, and up to 700 ms when the host is short of free pages; timed with temporary prints in
+/// `bench --tiles` runs, not kept).
 /// A taken buffer holds its last user's bytes: the taker overwrites or clears it. At most
 /// [`BufferPool::BYTES`] are kept, the most recently returned first.
 #[derive(Default)]

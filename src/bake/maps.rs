@@ -32,6 +32,9 @@ pub struct Slots {
     pub lists: wgpu::Buffer,
     /// Layers per chunk.
     pub chunk: usize,
+    /// The ribbon maps' per-vertex scratch, made by the first chunk that has a ribbon and kept for
+    /// the bake's later chunks.
+    pub ribbon_scratch: std::cell::OnceCell<crate::maps::ribbon::gpu::Scratch>,
 }
 
 impl Slots {
@@ -57,6 +60,7 @@ impl Slots {
             coords,
             lists,
             chunk,
+            ribbon_scratch: std::cell::OnceCell::new(),
         }
     }
 
@@ -232,7 +236,13 @@ fn ribbon_pass(
     if units.is_empty() {
         return Ok(());
     }
-    let scratch = Scratch::new(&engine.ctx, mesh.gpu.vertex_count)?;
+    let scratch = match slots.ribbon_scratch.get() {
+        Some(s) => s,
+        None => {
+            let s = Scratch::new(&engine.ctx, mesh.gpu.vertex_count)?;
+            slots.ribbon_scratch.get_or_init(|| s)
+        }
+    };
     for i in units {
         let r = placed.ribbons[i].as_ref().expect("filtered");
         let out = Output {
@@ -245,7 +255,7 @@ fn ribbon_pass(
             mesh.surface_ref(),
             (&r.curve, r.reach),
             (&slots.coords, out),
-            &scratch,
+            scratch,
         )?;
         log.commands += status.dispatches;
         // The surface must let the strip spread as wide as asked (a curve along a border, or a

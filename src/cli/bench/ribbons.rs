@@ -121,6 +121,8 @@ pub fn run(
             "strip_vertices": strip, "gpu": status,
             "gpu_ms": g, "cpu_twin_ms": c, "gpu_vs_twin": g / c,
             "gpu_ns_per_strip_vertex": g * 1e6 / strip.max(1) as f64,
+            "gpu_ns_per_candidate_sweep":
+                g * 1e6 / (status.candidates.max(1) as f64 * status.sweeps.max(1) as f64),
             "cpu_ns_per_strip_vertex": c * 1e6 / strip.max(1) as f64,
             "adapter": engine.ctx.adapter,
         }));
