@@ -19,10 +19,11 @@ use decalbake::Job;
 const TOL: f32 = 1e-4;
 
 fn job_text(mode: &str, with_mask: bool, padding: u32) -> String {
-    job_text_method(mode, with_mask, padding, "planar")
+    job_text_method(mode, with_mask, padding, "planar", "")
 }
 
-fn job_text_method(mode: &str, with_mask: bool, padding: u32, method: &str) -> String {
+/// `extra`: more fields of the second layer (`, "name": value`).
+fn job_text_method(mode: &str, with_mask: bool, padding: u32, method: &str, extra: &str) -> String {
     let mask = if with_mask { "\"mask.png\"" } else { "null" };
     format!(
         r#"{{
@@ -30,7 +31,7 @@ fn job_text_method(mode: &str, with_mask: bool, padding: u32, method: &str) -> S
   "texture": {{ "width": 64, "height": 64, "base": "base.png", "padding": {padding}, "samples": 4 }},
   "layers": [
     {{ "image": "decal_a.png", "at": [0.3, 0.45, 0.02], "size": [0.4, 0.5], "angle": -10, "blend": "normal", "opacity": 0.8 }},
-    {{ "image": "decal_b.png", "mask": {mask}, "at": [0.52, 0.55, 0.01], "size": [0.6, 0.5], "angle": 25, "blend": "{mode}", "opacity": 1.0, "method": "{method}" }}
+    {{ "image": "decal_b.png", "mask": {mask}, "at": [0.52, 0.55, 0.01], "size": [0.6, 0.5], "angle": 25, "blend": "{mode}", "opacity": 1.0, "method": "{method}"{extra} }}
   ],
   "output": {{ "texture": "out.png", "bit_depth": 16, "report": null }}
 }}"#
@@ -88,20 +89,23 @@ fn gpu_compose_matches_cpu_twin_for_every_blend_mode() {
     let mask_raw = raw(LinearImage::load(&dir.join("mask.png")).unwrap());
 
     let mut worst_all = 0.0f32;
-    let cases: Vec<(BlendMode, &str)> = BlendMode::ALL
+    // The last case warps the second decal's image (a thin-plate spline, `FLAG_WARP`).
+    let warp = r#", "warp": [[[0.5, 0.5], [0.65, 0.35]], [[0.2, 0.8], [0.2, 0.7]]]"#;
+    let cases: Vec<(BlendMode, &str, &str)> = BlendMode::ALL
         .iter()
-        .map(|m| (*m, "planar"))
+        .map(|m| (*m, "planar", ""))
         .chain([
-            (BlendMode::Normal, "expmap"),
-            (BlendMode::Overlay, "expmap"),
-            (BlendMode::Normal, "lscm"),
-            (BlendMode::Multiply, "hybrid"),
+            (BlendMode::Normal, "expmap", ""),
+            (BlendMode::Overlay, "expmap", ""),
+            (BlendMode::Normal, "lscm", ""),
+            (BlendMode::Multiply, "hybrid", ""),
+            (BlendMode::Normal, "expmap", warp),
         ])
         .collect();
-    for (k, (mode, method)) in cases.iter().enumerate() {
+    for (k, (mode, method, extra)) in cases.iter().enumerate() {
         let with_mask = k % 2 == 1;
         let job = Job::parse(
-            &job_text_method(mode.name(), with_mask, 6, method),
+            &job_text_method(mode.name(), with_mask, 6, method, extra),
             &dir.join("job.json"),
             &dir,
             &dir,
@@ -162,7 +166,7 @@ fn gpu_compose_matches_cpu_twin_for_every_blend_mode() {
             .unwrap();
             eprintln!("wrote {}/{{gpu,cpu}}_{}.png", dir.display(), mode.name());
         }
-        eprintln!("{mode:?} {method} (mask {with_mask}): max |GPU - CPU| = {:.2e} at texel ({}, {}); {changed} texels changed", worst.0, worst.1, worst.2);
+        eprintln!("{mode:?} {method}{extra} (mask {with_mask}): max |GPU - CPU| = {:.2e} at texel ({}, {}); {changed} texels changed", worst.0, worst.1, worst.2);
         assert!(
             changed > 200,
             "{mode:?}: the layers should change many texels, changed {changed}"

@@ -41,6 +41,7 @@ fn frame_at(topo: &Topology, at: Vec3, up: [f32; 3], size: [f32; 2]) -> (Frame, 
         cg_max_iterations: None,
         stroke: None,
         ribbon: None,
+        warp: Vec::new(),
     };
     (Frame::new(&p, &job_layer), p.triangle)
 }

@@ -474,6 +474,14 @@ fn bad_ribbons_are_refused_by_field() {
                 "width": 0.4 }),
             "layers[0].width",
         ),
+        (
+            serde_json::json!({ "path": two, "warp": [[[0.5, 0.5], [1.2, 0.5]]] }),
+            "layers[0].warp[0]",
+        ),
+        (
+            serde_json::json!({ "path": two, "warp": [[[0.5, 0.5], [0.6, 0.5]], [[0.2, 0.2], [0.6, 0.5]]] }),
+            "layers[0].warp[1]",
+        ),
         // A figure of eight: the first and third segments cross at the origin, a mesh vertex.
         (
             serde_json::json!({ "path": [[-0.4, -0.2, 0.0], [0.4, 0.2, 0.0], [0.4, -0.2, 0.0],
@@ -595,4 +603,88 @@ fn param_exports_a_ribbon_map() {
     eprintln!("param: {rows} rows, {n} inside the span, max error {worst:.2e}");
     assert!(n > 100, "{n} rows checked");
     assert!(worst < 1e-4, "max error {worst:.2e}");
+}
+
+/// The thin-plate-spline warp (`"warp"`, Schmidt et al. §6.1) on the arc ribbon of
+/// [`ribbon_bakes_show_the_image_at_the_fermi_coordinates`]: an identity warp (pairs that keep
+/// their points) bakes byte for byte what no warp bakes, though the GPU takes its warp branch
+/// (explicit derivatives, the spline evaluated); a warp of two pairs shows, at every texel inside
+/// the strip, the image point T(p) of the spline's twin (`Tps::eval`) at the texel's Fermi image
+/// point p, within the unwarped bake's 6e-3; and the texel whose p is nearest a pair's `to`
+/// shows its `from` (the feature moved to the target). Without the warp the texels at the targets
+/// show their own points, 0.15 from `from`, so the check fails.
+#[test]
+fn warps_move_image_points_to_their_targets() {
+    use decalbake::maps::warp::Tps;
+    let engine = common::engine();
+    let dir = common::scratch("ribbon_warp");
+    flat_scene(&dir);
+    let bake = |extra: serde_json::Value| {
+        let job = arc_job(&dir, extra);
+        let mesh = engine.load_mesh(&job.mesh).unwrap();
+        engine.bake(&mesh, &job).unwrap()
+    };
+    let plain = bake(serde_json::json!({}));
+    let identity =
+        bake(serde_json::json!({ "warp": [[[0.3, 0.4], [0.3, 0.4]], [[0.8, 0.5], [0.8, 0.5]]] }));
+    assert!(
+        plain.texels == identity.texels,
+        "an identity warp changed {} texel values",
+        plain
+            .texels
+            .iter()
+            .zip(&identity.texels)
+            .filter(|(a, b)| a != b)
+            .count()
+    );
+    let pairs = [[[0.5f32, 0.5], [0.6, 0.35]], [[0.25, 0.6], [0.2, 0.75]]];
+    let tps = Tps::fit(&pairs).unwrap();
+    let warped = bake(serde_json::json!({ "warp": pairs }));
+    let (r, w, l) = (0.6f32, 0.2f32, 0.6 * 2.0 * PI / 3.0);
+    let texel = 2.0 / 256.0;
+    let (mut worst, mut n) = (0.0f32, 0);
+    // Per pair: the texel whose image point is nearest the target (distance, colour).
+    let mut nearest = [(f32::INFINITY, [0.0f32; 4]); 2];
+    for ty in 0..256u32 {
+        for tx in 0..256u32 {
+            let p = Vec2::new(
+                -1.0 + (tx as f32 + 0.5) * texel,
+                1.0 - (ty as f32 + 0.5) * texel,
+            );
+            let (rho, t) = (p.length(), p.y.atan2(p.x));
+            let (u, v) = (r * (t + PI / 3.0), r - rho);
+            let margin = 1.5 * texel;
+            if !(u > margin && u < l - margin && v.abs() < w / 2.0 - margin) {
+                continue;
+            }
+            let img = [u / l, 0.5 - v / w];
+            let want = tps.eval(img);
+            if !(0.0..=1.0).contains(&want[0]) || !(0.0..=1.0).contains(&want[1]) {
+                continue;
+            }
+            let c = warped.linear(tx, ty);
+            let e = (c[0] - want[0]).abs().max((c[1] - want[1]).abs());
+            worst = worst.max(e);
+            n += 1;
+            for (k, [_, to]) in pairs.iter().enumerate() {
+                let d = (img[0] - to[0]).abs().max((img[1] - to[1]).abs());
+                if d < nearest[k].0 {
+                    nearest[k] = (d, c);
+                }
+            }
+        }
+    }
+    eprintln!("warp: {n} texels, max error {worst:.2e}, nearest to the targets {nearest:?}");
+    assert!(n > 1000, "{n} texels checked");
+    assert!(worst < 6e-3, "max error {worst:.2e}");
+    for (k, [from, _]) in pairs.iter().enumerate() {
+        // The nearest texel's image point is within half a texel's footprint (about 0.02 across
+        // the strip) of the target; the spline stretches that by at most about 2 here.
+        let (d, c) = nearest[k];
+        let e = (c[0] - from[0]).abs().max((c[1] - from[1]).abs());
+        assert!(
+            e < 6e-3 + 2.0 * d,
+            "pair {k}: the texel {d:.3} from the target shows {c:?}, not {from:?}"
+        );
+    }
 }

@@ -10,7 +10,7 @@ use super::canvas::Canvas;
 use super::engine::{Engine, LoadedMesh};
 use super::images::Images;
 use super::maps::{LayerMaps, Slots};
-use super::params::{params_buffer, pbind, Params, FLAG_TOOL, PARAMS_STRIDE};
+use super::params::{params_buffer, pbind, Params, FLAG_TOOL, FLAG_WARP, PARAMS_STRIDE};
 use super::place::Placed;
 use super::plan::{meets, pack_atlas, plan_cells, Batch, TILE_TARGET};
 use super::stage::{Cx, Log};
@@ -216,10 +216,14 @@ pub(crate) fn compose(
         .flat_map(|j| {
             j.units.clone().map(move |u| {
                 let p = maps.params[u - start];
-                let (flags, pad) = match cells.get(&u) {
+                let (mut flags, pad) = match cells.get(&u) {
                     Some(&c) => (p.flags | FLAG_TOOL, [c, 0]),
                     None => (p.flags, p.pad),
                 };
+                let warp = images.warp_at[u].map_or([0; 4], |w| {
+                    flags |= FLAG_WARP;
+                    [w, 0, 0, 0]
+                });
                 Params {
                     rect_origin: j.params.rect_origin,
                     rect_size: j.params.rect_size,
@@ -228,6 +232,7 @@ pub(crate) fn compose(
                     flags,
                     pad,
                     win: canvas.global.win,
+                    warp,
                     ..p
                 }
             })
@@ -540,6 +545,7 @@ impl Recording<'_> {
                 (7, wgpu::BindingResource::TextureView(mview)),
                 (8, wgpu::BindingResource::Sampler(&engine.linear_sampler)),
                 (9, self.flats.as_entire_binding()),
+                (10, self.images.warps.as_entire_binding()),
             ],
         )
     }

@@ -421,6 +421,8 @@ struct LayerRaster<'a> {
     /// The cone that opens the layer's chart: applied per sample, as `layer_raster` does per
     /// fragment.
     cone: Option<Cone>,
+    /// The layer's image warp (`layer_raster`'s FLAG_WARP).
+    warp: Option<crate::maps::warp::Tps>,
 }
 
 impl<'a> LayerRaster<'a> {
@@ -450,6 +452,7 @@ impl<'a> LayerRaster<'a> {
             mask: mask.as_ref(),
             flat: None,
             cone: None,
+            warp: crate::maps::warp::Tps::fit(&layer.warp),
         }
     }
 
@@ -473,9 +476,14 @@ impl<'a> LayerRaster<'a> {
                 let z = cone.apply(glam::DVec2::new(lx as f64, ly as f64));
                 (lx, ly) = (z.x as f32, z.y as f32);
             }
-            let im = Vec2::new(lx / layer.size[0] + 0.5, 0.5 - ly / layer.size[1]);
+            let mut im = Vec2::new(lx / layer.size[0] + 0.5, 0.5 - ly / layer.size[1]);
+            let mut inside = im.x >= 0.0 && im.y >= 0.0 && im.x <= 1.0 && im.y <= 1.0;
+            if let Some(t) = &self.warp {
+                im = Vec2::from(t.eval(im.to_array()));
+                inside &= im.x >= 0.0 && im.y >= 0.0 && im.x <= 1.0 && im.y <= 1.0;
+            }
             let mut s = [0.0; 4];
-            if im.x >= 0.0 && im.y >= 0.0 && im.x <= 1.0 && im.y <= 1.0 {
+            if inside {
                 s = sample_bilinear(&self.premult, im);
                 if let Some(m) = self.mask {
                     let mv = sample_bilinear(m, im);

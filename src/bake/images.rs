@@ -21,6 +21,11 @@ pub struct Images {
     pub layers: Vec<(Arc<GpuImage>, Option<Arc<GpuImage>>)>,
     /// A 1×1 white image bound where a layer has no mask.
     pub dummy: GpuImage,
+    /// Every layer's thin-plate-spline warp ([`crate::maps::warp::Tps::pack`]), one after
+    /// another (16 bytes when no layer warps).
+    pub warps: Arc<wgpu::Buffer>,
+    /// Per layer: where its warp starts in `warps` (vec4s), `None` without one.
+    pub warp_at: Vec<Option<u32>>,
 }
 
 impl Images {
@@ -31,6 +36,7 @@ impl Images {
                 .iter()
                 .map(|&(l, _)| self.layers[l].clone())
                 .collect(),
+            warp_at: origin.iter().map(|&(l, _)| self.warp_at[l]).collect(),
             ..self
         }
     }
@@ -83,11 +89,35 @@ pub fn load(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Images> {
         false,
         "bake.dummy",
     );
+    let (warps, warp_at) = warps(engine, job);
     Ok(Images {
         base,
         layers,
         dummy,
+        warps,
+        warp_at,
     })
+}
+
+/// The job layers' warps fitted and packed into one buffer, and where each starts.
+fn warps(engine: &Engine, job: &Job) -> (Arc<wgpu::Buffer>, Vec<Option<u32>>) {
+    let mut packed: Vec<[f32; 4]> = Vec::new();
+    let at = job
+        .layers
+        .iter()
+        .map(|l| {
+            let t = crate::maps::warp::Tps::fit(&l.warp)?;
+            let start = packed.len() as u32;
+            packed.extend(t.pack());
+            Some(start)
+        })
+        .collect();
+    let buf = engine.ctx.storage_init(
+        "bake.warps",
+        bytemuck::cast_slice(&packed),
+        wgpu::BufferUsages::empty(),
+    );
+    (Arc::new(buf), at)
 }
 
 /// Uploads `img` as a sampled texture (with premultiplied mipmaps when `mips`), in the engine's

@@ -60,9 +60,12 @@ pub struct Params {
     /// The canvas window (`wgsl/shared/window.wgsl`): the texel rectangle x, y, w, h the canvas
     /// holds (a tile, `bake/tiles.rs`); w = 0: the whole texture.
     pub win: [u32; 4],
+    /// [`FLAG_WARP`]: x = where the layer's thin-plate spline starts in the warps buffer (vec4s,
+    /// [`crate::maps::warp::Tps::pack`]).
+    pub warp: [u32; 4],
 }
 
-const _: () = assert!(std::mem::size_of::<Params>() == 208);
+const _: () = assert!(std::mem::size_of::<Params>() == 224);
 
 impl Params {
     /// The canvas window x, y, w, h ([`Params::win`], the whole texture when unset).
@@ -91,6 +94,8 @@ pub const FLAG_NO_PAD: u32 = 32;
 /// A tiled ribbon (`"repeat": "tile"`): the image repeats `cone_a[3]` times along its x
 /// (`wgsl/bake/layer_raster.wgsl`).
 pub const FLAG_REPEAT: u32 = 64;
+/// The layer's image is warped by a thin-plate spline (`"warp"`; [`Params::warp`]).
+pub const FLAG_WARP: u32 = 128;
 
 /// Texels per side of a tool stamp's flat cell (`bake/tools.rs`). Keep in sync with `FLAT_RES` in
 /// `wgsl/bake/stamp_flatten.wgsl`, `stamp_filter.wgsl` and `layer_raster.wgsl`.

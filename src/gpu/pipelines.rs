@@ -515,7 +515,13 @@ fn layer_raster(device: &wgpu::Device, blending: bool) -> (Raster, wgpu::Texture
     use Bind::*;
     let binds: Vec<(u32, Bind)> = UNIT_BINDS
         .into_iter()
-        .chain([(6, Tex(true)), (7, Tex(true)), (8, Sampler), (9, Ro)])
+        .chain([
+            (6, Tex(true)),
+            (7, Tex(true)),
+            (8, Sampler),
+            (9, Ro),
+            (10, Ro),
+        ])
         .collect();
     let layer_layout = layout(
         device,

@@ -270,6 +270,10 @@ pub struct LayerSpec {
     /// Ribbon: mirror the image across the curve.
     #[serde(default)]
     pub flip: Option<bool>,
+    /// Decal, stroke, ribbon: `[from, to]` image-point pairs of a thin-plate-spline warp
+    /// (`super::warp`).
+    #[serde(default)]
+    pub warp: Option<Vec<[[f32; 2]; 2]>>,
 }
 
 fn default_kind() -> String {
@@ -425,6 +429,9 @@ pub struct Layer {
     pub stroke: Option<Box<super::stroke::Stroke>>,
     /// The ribbon of a `"ribbon"` layer.
     pub ribbon: Option<Box<super::ribbon::Ribbon>>,
+    /// The image's thin-plate-spline warp: `[from, to]` pairs in image coordinates (empty: none;
+    /// [`super::warp`]).
+    pub warp: Vec<[[f32; 2]; 2]>,
 }
 
 /// Texture base after validation.
@@ -946,6 +953,7 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
         cg_max_iterations: l.cg_max_iterations,
         stroke,
         ribbon,
+        warp: super::warp::validate(&l.warp, i, src)?,
     })
 }
 

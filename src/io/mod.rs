@@ -8,3 +8,4 @@ pub mod job;
 pub mod manifest;
 pub mod ribbon;
 pub mod stroke;
+pub mod warp;

@@ -30,6 +30,7 @@ pub mod lscm;
 pub mod planar;
 pub mod ribbon;
 pub mod stamp;
+pub mod warp;
 
 pub use frame::Frame;
 

@@ -10,6 +10,9 @@
 // needs, made every layer's raster about 15 % slower on lavapipe).
 // Attachment 0: premultiplied colour; attachment 1: island coverage (1 where a triangle is drawn).
 // A tiled ribbon (FLAG_REPEAT) repeats the image cone_a.w times along x.
+// A warped layer (FLAG_WARP) samples its image at T(img), T the layer's thin-plate spline
+// (`warps`, from params.warp.x; twin `Tps::eval` in src/maps/warp.rs), each copy of a tiled ribbon
+// alike; it paints only where T(img) lies in the image.
 // Non-indexed draw of 3 * (triangles in the layer's list) vertices.
 // CPU twin: `LayerRaster` in src/bake/cpu.rs.
 #import params
@@ -29,6 +32,49 @@
 // Keep FLAT_RES in sync with src/bake/params.rs.
 @group(0) @binding(9) var<storage, read> flats: array<vec4<f32>>;
 const FLAT_RES: u32 = 64u;
+// The thin-plate splines of warped layers: vec4(a0, a1), vec4(a2, centres, 0), then vec4(c, w)
+// per centre (src/maps/warp.rs, `Tps::pack`).
+@group(0) @binding(10) var<storage, read> warps: array<vec4<f32>>;
+
+// T(p) = a0 + a1 p.x + a2 p.y + sum_k w_k phi(|p - c_k|), phi(r) = r^2 ln r; in the twin's order of
+// operations, so an identity spline returns p bit for bit.
+fn warp_apply(p: vec2<f32>) -> vec2<f32> {
+    let o = params.warp.x;
+    let h0 = warps[o];
+    let h1 = warps[o + 1u];
+    var q = h0.xy + h0.zw * p.x + h1.xy * p.y;
+    let n = u32(h1.z);
+    for (var k = 0u; k < n; k++) {
+        let c = warps[o + 2u + k];
+        let d = p - c.xy;
+        let r2 = dot(d, d);
+        // Branch-free (0 at a centre): llvmpipe's implicit derivatives after a divergent branch
+        // in the loop were wrong (the image showed holes along the centres' rows and columns).
+        q += c.zw * (0.5 * r2 * log(max(r2, 1e-30)));
+    }
+    return q;
+}
+
+// The spline's Jacobian at p (columns d/dx, d/dy): grad phi = (ln r^2 + 1) (p - c).
+fn warp_jacobian(p: vec2<f32>) -> mat2x2<f32> {
+    let o = params.warp.x;
+    let h0 = warps[o];
+    let h1 = warps[o + 1u];
+    var j = mat2x2<f32>(h0.zw, h1.xy);
+    let n = u32(h1.z);
+    for (var k = 0u; k < n; k++) {
+        let c = warps[o + 2u + k];
+        let d = p - c.xy;
+        let r2 = dot(d, d);
+        let g = (log(max(r2, 1e-30)) + 1.0) * d;
+        j += mat2x2<f32>(c.zw * g.x, c.zw * g.y);
+    }
+    return j;
+}
+
+fn in_image(p: vec2<f32>) -> bool {
+    return all(p >= vec2<f32>(0.0)) && all(p <= vec2<f32>(1.0));
+}
 
 fn flat_texel(x: i32, y: i32) -> vec4<f32> {
     let r = i32(FLAT_RES);
@@ -84,15 +130,29 @@ fn fs_main(in: VsOut) -> FsOut {
         img = vec2<f32>(z.x / params.axis_u.w + 0.5, 0.5 - z.y / params.axis_v.w);
     }
     // A tiled ribbon wraps x into one copy of the image; the mip level comes from the unwrapped
-    // coordinate's derivatives (the wrapped one jumps at each copy's edge).
-    let unwrapped = img * vec2<f32>(params.cone_a.w, 1.0);
-    let gx = dpdx(unwrapped);
-    let gy = dpdy(unwrapped);
-    let inside = all(img >= vec2<f32>(0.0)) && all(img <= vec2<f32>(1.0));
+    // coordinate's derivatives (the wrapped one jumps at each copy's edge). A warped image's
+    // derivatives go through the spline's Jacobian: on lavapipe the implicit derivatives of T(img)
+    // were wrong along every triangle edge (seen as holes; helper invocations' storage reads, we
+    // believe), explicit level 0 was right.
+    let repeat = (params.flags & FLAG_REPEAT) != 0u;
+    let warped = (params.flags & FLAG_WARP) != 0u;
+    let unwrapped = img * vec2<f32>(select(1.0, params.cone_a.w, repeat), 1.0);
+    var gx = dpdx(unwrapped);
+    var gy = dpdy(unwrapped);
+    var inside = in_image(img);
     var c: vec4<f32>;
     // Uniform branches (params is uniform).
-    if ((params.flags & FLAG_REPEAT) != 0u) {
-        img.x = fract(unwrapped.x);
+    if (repeat || warped) {
+        if (repeat) {
+            img.x = fract(unwrapped.x);
+        }
+        if (warped) {
+            let j = warp_jacobian(img);
+            gx = j * gx;
+            gy = j * gy;
+            img = warp_apply(img);
+            inside = inside && in_image(img);
+        }
         c = textureSampleGrad(image, samp, img, gx, gy);
         if ((params.flags & FLAG_MASK) != 0u) {
             c = c * textureSampleGrad(mask, samp, img, gx, gy).r;

@@ -47,6 +47,8 @@ struct Params {
     cone_b: vec4<f32>,
     // The canvas window (shared/window.wgsl): x, y, w, h in texels; w = 0: the whole texture.
     win: vec4<u32>,
+    // FLAG_WARP: x = start of the layer's thin-plate spline in `warps` (layer_raster.wgsl).
+    warp: vec4<u32>,
 }
 
 const FLAG_FACING: u32 = 1u;
@@ -57,3 +59,5 @@ const FLAG_TOOL: u32 = 8u;
 const FLAG_CONE: u32 = 16u;
 // A tiled ribbon: the image repeats `cone_a.w` times along x (layer_raster.wgsl).
 const FLAG_REPEAT: u32 = 64u;
+// The image is warped by a thin-plate spline (params.warp, layer_raster.wgsl).
+const FLAG_WARP: u32 = 128u;
