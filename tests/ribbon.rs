@@ -688,3 +688,143 @@ fn warps_move_image_points_to_their_targets() {
         );
     }
 }
+
+/// The painted texels of a ribbon bake on the flat scene (blue base, the gradient has none) as
+/// points of the plane: their count and centroid.
+fn painted(path: &std::path::Path) -> (usize, Vec<Vec2>) {
+    let img = decalbake::io::image::LinearImage::load(path).unwrap();
+    let texel = 2.0 / img.width as f32;
+    let pts: Vec<Vec2> = (0..img.width * img.height)
+        .filter(|&i| img.pixels[i as usize][2] < 0.5)
+        .map(|i| {
+            let (x, y) = (i % img.width, i / img.width);
+            Vec2::new(
+                -1.0 + (x as f32 + 0.5) * texel,
+                1.0 - (y as f32 + 0.5) * texel,
+            )
+        })
+        .collect();
+    (pts.len(), pts)
+}
+
+/// An animated ribbon (`"animate"`, Sun et al. §4.3) through the CLI, one texture per frame named
+/// by `{frame:02}`. On an open straight route of length 1.6 with a piece of 0.4 over 5 frames, the
+/// painted strip's centroid advances by (1.6 − 0.4) / 4 = 0.3 a frame along the route (within
+/// 1.5 texels, 0.012: the strip's ends are cut at texel centres) and stays on it, each frame
+/// painting the same area (within 3 %). On a closed circular route of radius 0.5 with a piece of
+/// 1.0 over 4 frames, frame f's piece starts at f / 4 of the loop; the last one wraps past the
+/// route's start, and its painted texels still form the one arc (their mean direction is at the
+/// piece's middle, (s + 0.5) / R, within 0.02 rad). Starting each frame one step late, or not
+/// wrapping, fails these checks. The open route runs along the grid's edges (y = 0), which the
+/// strip-width check once refused (the right side's reach read -0.0 as the largest). Bad
+/// animations exit 2 naming the field, with no frame written: no `{frame}` in the texture's name,
+/// 0 or 1,001 frames, `path` beside `animate`, a piece longer than the route.
+#[test]
+fn animated_ribbons_move_along_their_route() {
+    let dir = common::scratch("ribbon_animate");
+    flat_scene(&dir);
+    let try_run = |name: &str, texture: &str, layer: serde_json::Value| {
+        let mut l = serde_json::json!({ "kind": "ribbon", "image": "grad.png", "width": 0.1 });
+        for (k, v) in layer.as_object().unwrap() {
+            l[k] = v.clone();
+        }
+        let job = serde_json::json!({ "mesh": "plane.glb",
+            "texture": { "width": 256, "height": 256, "padding": 0, "base": [0.0, 0.0, 1.0, 1.0] },
+            "output": { "texture": texture, "report": null },
+            "layers": [l] });
+        let path = dir.join(format!("{name}.json"));
+        std::fs::write(&path, job.to_string()).unwrap();
+        common::cli(&["bake", path.to_str().unwrap()])
+    };
+    let run = |name: &str, animate: serde_json::Value| {
+        let texture = format!("{name}_{{frame:02}}.png");
+        let (code, out, err) = try_run(name, &texture, serde_json::json!({ "animate": animate }));
+        assert_eq!(code, 0, "{err}");
+        out
+    };
+    let route: Vec<[f32; 3]> = (0..=16)
+        .map(|k| [-0.8 + 0.1 * k as f32, 0.0, 0.0])
+        .collect();
+    let anim = |frames: u32, length: f32| serde_json::json!({ "animate": { "route": route, "frames": frames, "length": length } });
+    let two = serde_json::json!([[0.0, 0.0, 0.0], [0.3, 0.0, 0.0]]);
+    let mut with_path = anim(3, 0.4);
+    with_path["path"] = two;
+    for (texture, layer, field) in [
+        ("bad.png", anim(3, 0.4), "output.texture"),
+        ("bad_{frame}.png", anim(0, 0.4), "layers[0].animate.frames"),
+        (
+            "bad_{frame}.png",
+            anim(1001, 0.4),
+            "layers[0].animate.frames",
+        ),
+        ("bad_{frame}.png", with_path, "layers[0].path"),
+        ("bad_{frame}.png", anim(3, 1.7), "layers[0].animate.length"),
+    ] {
+        let (code, _, err) = try_run("bad", texture, layer);
+        assert_eq!(code, 2, "{field}: {err}");
+        assert!(err.contains(field), "{field} not named: {err}");
+        let left: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .filter(|e| {
+                e.file_name().to_string_lossy().starts_with("bad") && e.file_name() != "bad.json"
+            })
+            .collect();
+        assert!(left.is_empty(), "{field}: outputs written: {left:?}");
+    }
+    let out = run(
+        "open",
+        serde_json::json!({ "route": route, "frames": 5, "length": 0.4 }),
+    );
+    assert_eq!(out.lines().count(), 5, "one texture a frame: {out}");
+    let mut counts = Vec::new();
+    for f in 0..5 {
+        let (n, pts) = painted(&dir.join(format!("open_{f:02}.png")));
+        let c = pts.iter().copied().sum::<Vec2>() / n as f32;
+        let want = -0.8 + 0.3 * f as f32 + 0.2;
+        eprintln!("open frame {f}: {n} texels, centroid {c:?} (want x {want})");
+        assert!(
+            (c.x - want).abs() < 0.012 && c.y.abs() < 0.012,
+            "frame {f}: centroid {c:?}, want x {want}"
+        );
+        counts.push(n as f32);
+    }
+    let mean = counts.iter().sum::<f32>() / 5.0;
+    assert!(
+        counts.iter().all(|n| (n / mean - 1.0).abs() < 0.03),
+        "areas {counts:?}"
+    );
+
+    let r = 0.5f32;
+    let circle: Vec<[f32; 3]> = (0..48)
+        .map(|k| {
+            let t = 2.0 * PI * k as f32 / 48.0;
+            [r * t.cos(), r * t.sin(), 0.0]
+        })
+        .collect();
+    let total: f32 = (0..48)
+        .map(|k| {
+            let a = Vec2::from_slice(&circle[k][..2]);
+            let b = Vec2::from_slice(&circle[(k + 1) % 48][..2]);
+            (b - a).length()
+        })
+        .sum();
+    run(
+        "loop",
+        serde_json::json!({ "route": circle, "frames": 4, "length": 1.0, "closed": true }),
+    );
+    for f in 0..4 {
+        let (n, pts) = painted(&dir.join(format!("loop_{f:02}.png")));
+        let dir_sum: Vec2 = pts.iter().map(|p| p.normalize()).sum();
+        let got = dir_sum.y.atan2(dir_sum.x).rem_euclid(2.0 * PI);
+        // The middle of the piece along the polygon, as an angle (the polygon's arc is its
+        // perimeter's share, so scale by 2π / perimeter).
+        let want = ((total * f as f32 / 4.0 + 0.5) * 2.0 * PI / total).rem_euclid(2.0 * PI);
+        let e = (got - want).abs().min(2.0 * PI - (got - want).abs());
+        eprintln!("loop frame {f}: {n} texels, mean direction {got:.4} rad (want {want:.4})");
+        assert!(
+            n > 500 && e < 0.02,
+            "frame {f}: {n} texels at {got:.4} rad, want {want:.4}"
+        );
+    }
+}

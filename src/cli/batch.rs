@@ -428,8 +428,12 @@ fn bake_entry(
     let job = Job::parse(&text, &source, &input_dir, &out_dir)?;
     let hash = input_hash(&text, &job, shared)?;
     // A several-set job (`"uv_set": [..]`) bakes once per set and shares one (blended) preview.
+    // An animated job bakes once per frame (all frames before any file is written).
     let jobs: Vec<Job> = if job.uv_list.is_empty() {
-        vec![job.clone()]
+        match job.frames() {
+            Some(n) => (0..n).map(|f| job.for_frame(f)).collect(),
+            None => vec![job.clone()],
+        }
     } else {
         job.uv_list.iter().map(|&s| job.for_uv_set(s)).collect()
     };

@@ -460,8 +460,42 @@ fn bake(engine: &Engine, job: &Job) -> Result<()> {
         return Ok(());
     }
     let (mesh, job) = engine.load_mesh_for(job)?;
+    if let Some(frames) = job.frames() {
+        return bake_frames(engine, &mesh, &job, frames);
+    }
     let baked = engine.bake(&mesh, &job)?;
     write_baked(engine, &mesh, &job, baked).map(|_| ())
+}
+
+/// An animated job: one bake and one set of outputs per frame, written as each frame is baked
+/// (holding every frame's texture would cost frames × the texture); a frame that fails removes
+/// the frames written before it, so a failed job leaves no outputs.
+fn bake_frames(
+    engine: &Engine,
+    mesh: &decalbake::LoadedMesh,
+    job: &Job,
+    frames: u32,
+) -> Result<()> {
+    let mut written: Vec<PathBuf> = Vec::new();
+    for f in 0..frames {
+        let j = job.for_frame(f);
+        let done = engine
+            .bake(mesh, &j)
+            .and_then(|mut b| decalbake::output::write_outputs(engine, mesh, &j, &mut b));
+        match done {
+            Ok(files) => written.extend(files),
+            Err(e) => {
+                for p in &written {
+                    let _ = std::fs::remove_file(p);
+                }
+                return Err(e.into());
+            }
+        }
+    }
+    for p in written {
+        println!("{}", p.display());
+    }
+    Ok(())
 }
 
 /// Writes a bake's outputs and reports it; returns the texture for a preview.

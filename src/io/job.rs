@@ -270,6 +270,9 @@ pub struct LayerSpec {
     /// Ribbon: mirror the image across the curve.
     #[serde(default)]
     pub flip: Option<bool>,
+    /// Ribbon: the image moving along a route over frames (`super::ribbon::AnimateSpec`).
+    #[serde(default)]
+    pub animate: Option<super::ribbon::AnimateSpec>,
     /// Decal, stroke, ribbon: `[from, to]` image-point pairs of a thin-plate-spline warp
     /// (`super::warp`).
     #[serde(default)]
@@ -543,6 +546,45 @@ impl Job {
         }
     }
 
+    /// Frames of an animated job (its ribbons' `animate.frames`), `None` without animation.
+    pub fn frames(&self) -> Option<u32> {
+        self.layers
+            .iter()
+            .find_map(|l| l.ribbon.as_ref()?.animate.map(|a| a.frames))
+    }
+
+    /// Frame `f` of an animated job: each animated ribbon at frame `f`, `{frame}` (or
+    /// `{frame:0N}`, zero-padded to N digits) in the output names replaced by `f`; a `.glb`,
+    /// report or preview named without a placeholder gets `-frame{f:04}` before its extension.
+    pub fn for_frame(&self, f: u32) -> Job {
+        let name = |p: &Option<PathBuf>| {
+            p.as_ref().map(|p| {
+                let text = p.to_string_lossy();
+                match super::ribbon::frame_name(&text, f) {
+                    Some(named) => PathBuf::from(named),
+                    None => {
+                        let stem = p.file_stem().unwrap_or_default().to_string_lossy();
+                        let ext = p.extension().map(|e| format!(".{}", e.to_string_lossy()));
+                        p.with_file_name(format!("{stem}-frame{f:04}{}", ext.unwrap_or_default()))
+                    }
+                }
+            })
+        };
+        let mut job = Job {
+            out_texture: name(&self.out_texture),
+            out_glb: name(&self.out_glb),
+            out_report: name(&self.out_report),
+            out_preview: name(&self.out_preview),
+            ..self.clone()
+        };
+        for l in &mut job.layers {
+            if let Some(a) = l.ribbon.as_mut().and_then(|r| r.animate.as_mut()) {
+                a.frame = f;
+            }
+        }
+        job
+    }
+
     /// Reads and validates a job file. Outputs go to `out_dir` when given, else next to the job file.
     pub fn load(path: &Path, out_dir: Option<&Path>) -> Result<Self> {
         let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
@@ -673,6 +715,7 @@ impl Job {
             .enumerate()
             .map(|(i, l)| validate_layer(l, i, src, input_dir))
             .collect::<Result<Vec<_>>>()?;
+        super::ribbon::check_frames(&layers, f.output.texture.as_deref(), src)?;
         let out = |p: &Option<PathBuf>| p.as_ref().map(|p| output_dir.join(p));
         Ok(Job {
             source: src.to_path_buf(),
@@ -833,6 +876,7 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
         repeat: &l.repeat,
         align: &l.align,
         flip: l.flip,
+        animate: &l.animate,
     };
     let (stroke, ribbon) = kind_fields(
         kind,

@@ -10,6 +10,9 @@
 //! | `repeat` | `"stretch"` (the image spans the curve); `"tile"`: repeated at its own aspect |
 //! | `align` | `"center"` (the strip straddles the curve); `"left"` or `"right"` of it, seen from outside |
 //! | `flip` | `false`; `true` mirrors the image across the curve |
+//! | `animate` | none; `{"route": [points], "frames": N, "length": L, "closed": false}`: the image
+//! occupies `length` of the route and moves along it over the frames (Sun et al. §4.3); replaces
+//! `path` |
 
 use super::at::{check_at, AtSpec};
 use crate::error::{Error, Result};
@@ -52,6 +55,57 @@ pub struct Ribbon {
     pub align: Align,
     /// Mirror across the curve.
     pub flip: bool,
+    /// An animated ribbon: its curve is the piece of the route ([`Ribbon::path`]) this frame shows.
+    pub animate: Option<Animate>,
+}
+
+/// The most frames an animation may have (one bake and one texture each).
+pub const MAX_FRAMES: u32 = 1000;
+
+/// An animated ribbon (`"animate"`, Sun et al. 2013, §4.3): the image occupies a piece of
+/// `length` model units of the route (the ribbon's `path`, closed back to its first point when
+/// `closed`), which moves along the route over `frames` frames: from the route's start to its
+/// end on an open route (frame f starts at f / (frames − 1) of the route's length less `length`),
+/// once around a closed one (at f / frames of its length, wrapping past the start).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Animate {
+    /// Frames in the animation.
+    pub frames: u32,
+    /// The piece's length along the route, model units.
+    pub length: f32,
+    /// The route is a loop.
+    pub closed: bool,
+    /// The frame this job bakes (set by [`super::job::Job::for_frame`]; 0 as parsed).
+    pub frame: u32,
+}
+
+impl Animate {
+    /// Where frame `self.frame`'s piece starts along a route of length `route`.
+    pub fn start(&self, route: f32) -> f32 {
+        let f = self.frame as f32;
+        if self.closed {
+            route * f / self.frames as f32
+        } else if self.frames > 1 {
+            (route - self.length).max(0.0) * f / (self.frames - 1) as f32
+        } else {
+            0.0
+        }
+    }
+}
+
+/// `"animate"` as written.
+#[derive(Debug, Clone, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AnimateSpec {
+    /// The route: surface points like `path`'s.
+    pub route: Vec<AtSpec>,
+    /// Frames.
+    pub frames: u32,
+    /// The image's length along the route, model units.
+    pub length: f32,
+    /// Join the route's last point back to its first.
+    #[serde(default)]
+    pub closed: bool,
 }
 
 /// The ribbon fields of a layer as written.
@@ -61,6 +115,7 @@ pub(crate) struct Fields<'a> {
     pub repeat: &'a Option<String>,
     pub align: &'a Option<String>,
     pub flip: Option<bool>,
+    pub animate: &'a Option<AnimateSpec>,
 }
 
 impl Fields<'_> {
@@ -71,6 +126,7 @@ impl Fields<'_> {
             ("repeat", self.repeat.is_some()),
             ("align", self.align.is_some()),
             ("flip", self.flip.is_some()),
+            ("animate", self.animate.is_some()),
         ]
         .into_iter()
         .find(|(_, g)| *g)
@@ -82,7 +138,24 @@ impl Fields<'_> {
 pub(crate) fn validate(l: &Fields<'_>, i: usize, src: &Path) -> Result<Ribbon> {
     let field = |name: &str| format!("layers[{i}].{name}");
     let err = |name: &str, detail: String| Error::job(src, field(name), detail);
-    let path = match l.path {
+    let animate = match (l.animate, l.path) {
+        (Some(_), Some(_)) => {
+            return Err(err(
+                "path",
+                "an animated ribbon follows `animate.route`; remove `path`".into(),
+            ))
+        }
+        (Some(a), None) => Some(animate(a, i, src)?),
+        (None, _) => None,
+    };
+    let route = l.animate.as_ref().map(|a| {
+        let mut r = a.route.clone();
+        if a.closed && r.len() >= 2 {
+            r.push(r[0].clone());
+        }
+        r
+    });
+    let path = match route.as_ref().or(l.path.as_ref()) {
         Some(p) if p.len() >= 2 => p.clone(),
         Some(p) => {
             return Err(err(
@@ -100,8 +173,13 @@ pub(crate) fn validate(l: &Fields<'_>, i: usize, src: &Path) -> Result<Ribbon> {
             ))
         }
     };
+    let points = if animate.is_some() {
+        "animate.route"
+    } else {
+        "path"
+    };
     for (k, at) in path.iter().enumerate() {
-        check_at(at, &field(&format!("path[{k}]")), src)?;
+        check_at(at, &field(&format!("{points}[{k}]")), src)?;
     }
     let width = match l.width {
         Some(w) if !w.is_finite() || w <= 0.0 || w > super::at::MAX_SIZE_MODEL_UNITS => {
@@ -139,5 +217,105 @@ pub(crate) fn validate(l: &Fields<'_>, i: usize, src: &Path) -> Result<Ribbon> {
         repeat,
         align,
         flip: l.flip.unwrap_or(false),
+        animate,
     })
+}
+
+/// Validates layer `i`'s `animate` (the route's points are checked with the path's).
+fn animate(a: &AnimateSpec, i: usize, src: &Path) -> Result<Animate> {
+    let err =
+        |name: &str, detail: String| Error::job(src, format!("layers[{i}].animate.{name}"), detail);
+    if a.route.len() < 2 {
+        return Err(err(
+            "route",
+            format!("has {} point(s); a route needs at least 2", a.route.len()),
+        ));
+    }
+    if a.frames == 0 || a.frames > MAX_FRAMES {
+        return Err(err(
+            "frames",
+            format!(
+                "{} must be 1 to {MAX_FRAMES} (one bake and one texture a frame)",
+                a.frames
+            ),
+        ));
+    }
+    if !a.length.is_finite() || a.length <= 0.0 || a.length > super::at::MAX_SIZE_MODEL_UNITS {
+        return Err(err(
+            "length",
+            format!(
+                "{} must be a positive length along the route, model units",
+                a.length
+            ),
+        ));
+    }
+    Ok(Animate {
+        frames: a.frames,
+        length: a.length,
+        closed: a.closed,
+        frame: 0,
+    })
+}
+
+/// `text` with its `{frame}` or `{frame:0N}` placeholder replaced by `f` (zero-padded to N digits);
+/// `None` without a placeholder.
+pub fn frame_name(text: &str, f: u32) -> Option<String> {
+    let start = text.find("{frame")?;
+    let end = start + text[start..].find('}')?;
+    let width = match &text[start + 6..end] {
+        "" => 0,
+        spec => spec.strip_prefix(":0")?.parse::<usize>().ok()?,
+    };
+    Some(format!("{}{f:0width$}{}", &text[..start], &text[end + 1..]))
+}
+
+/// An animated job's frames agree (every animated ribbon has the same `frames`) and its texture is
+/// named per frame (`{frame}` or `{frame:0N}` in `output.texture`); `src` names the job file.
+pub(crate) fn check_frames(
+    layers: &[super::job::Layer],
+    texture: Option<&Path>,
+    src: &Path,
+) -> Result<()> {
+    let mut frames = None;
+    for (i, l) in layers.iter().enumerate() {
+        let Some(a) = l.ribbon.as_ref().and_then(|r| r.animate) else {
+            continue;
+        };
+        match frames {
+            Some((n, first)) if n != a.frames => {
+                return Err(Error::job(
+                    src,
+                    format!("layers[{i}].animate.frames"),
+                    format!("{} differs from layers[{first}]'s {n}; a job's animated layers share one frame count", a.frames),
+                ))
+            }
+            Some(_) => {}
+            None => frames = Some((a.frames, i)),
+        }
+    }
+    let named = texture.is_some_and(|t| frame_name(&t.to_string_lossy(), 0).is_some());
+    if frames.is_some() && !named {
+        return Err(Error::job(
+            src,
+            "output.texture",
+            "an animated job writes one texture per frame: its name needs {frame} or {frame:04} (for example \"baked_{frame:04}.png\")".to_string(),
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::frame_name;
+
+    #[test]
+    fn frame_placeholders_are_replaced() {
+        assert_eq!(frame_name("a_{frame}.png", 7).as_deref(), Some("a_7.png"));
+        assert_eq!(
+            frame_name("a_{frame:04}.png", 7).as_deref(),
+            Some("a_0007.png")
+        );
+        assert_eq!(frame_name("a.png", 7), None);
+        assert_eq!(frame_name("a_{frame:x}.png", 7), None);
+    }
 }

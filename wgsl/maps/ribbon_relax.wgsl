@@ -252,7 +252,9 @@ fn main(@builtin(local_invocation_index) lid: u32) {
                 if (uv.y > 0.0) {
                     atomicMax(&left_max, bitcast<u32>(uv.y));
                 } else {
-                    atomicMax(&right_max, bitcast<u32>(-uv.y));
+                    // abs, not negation: -(+0.0) is -0.0, whose bits outrank every positive
+                    // float's as a u32 (a curve along mesh edges has vertices at v = 0 exactly).
+                    atomicMax(&right_max, bitcast<u32>(abs(uv.y)));
                 }
             }
         }

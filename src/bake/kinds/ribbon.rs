@@ -84,12 +84,21 @@ impl Kind for RibbonKind {
         if let Some(why) = crossing(&path, edge) {
             return Err(err(why));
         }
-        let length = path.length();
-        if length <= 0.0 {
+        if path.length() <= 0.0 {
             return Err(err(
                 "the path's points are all at one place; a ribbon needs a curve".into(),
             ));
         }
+        let curve = match &r.animate {
+            None => Curve {
+                points: path.points,
+                triangles: path.triangles,
+            },
+            Some(a) => frame_piece(&path, a).map_err(|e| {
+                Error::job(&job.source, format!("layers[{index}].animate.length"), e)
+            })?,
+        };
+        let length = curve_length(&curve);
         let (iw, ih) = image::image_dimensions(&layer.image).map_err(|e| {
             Error::job(
                 &job.source,
@@ -99,17 +108,7 @@ impl Kind for RibbonKind {
         })?;
         let aspect = ih as f32 / iw.max(1) as f32;
         let width = r.width.unwrap_or(aspect * length);
-        let ribbon = mapping(
-            r,
-            length,
-            width,
-            aspect,
-            edge,
-            Curve {
-                points: path.points,
-                triangles: path.triangles,
-            },
-        );
+        let ribbon = mapping(r, length, width, aspect, edge, curve);
         let mut unit_layer = layer.clone();
         unit_layer.size = [length, width];
         let frame = Frame::new(&placements[0], &unit_layer);
@@ -122,6 +121,58 @@ impl Kind for RibbonKind {
             blocks: Vec::new(),
         })
     }
+}
+
+/// The curve's length.
+fn curve_length(c: &Curve) -> f32 {
+    c.points.windows(2).map(|w| (w[1] - w[0]).length()).sum()
+}
+
+/// The piece of the route an animated ribbon shows at its frame ([`Animate::start`]): `length`
+/// along the route from the frame's start, wrapping past the route's start when it is closed
+/// (the joined route then ends at its first point). An error says why the piece does not fit.
+fn frame_piece(
+    route: &super::stroke::path::SurfacePath,
+    a: &crate::io::ribbon::Animate,
+) -> std::result::Result<Curve, String> {
+    let total = route.length();
+    if a.length > total || (a.closed && a.length >= total) {
+        return Err(format!(
+            "{} does not fit the route, which is {total:.4} long{}",
+            a.length,
+            if a.closed { " around" } else { "" }
+        ));
+    }
+    let s0 = a.start(total);
+    let s1 = s0 + a.length;
+    let mut curve = Curve {
+        points: Vec::new(),
+        triangles: Vec::new(),
+    };
+    let mut walk = |from: f32, to: f32| {
+        let (k0, p0) = route.at(from);
+        let (k1, p1) = route.at(to);
+        let mut push = |p: Vec3, t: Option<u32>| match curve.points.last() {
+            Some(&q) if (p - q).length() <= 1e-7 * total.max(1.0) => {}
+            Some(_) => {
+                curve.points.push(p);
+                curve.triangles.push(t.unwrap_or(route.triangles[k0]));
+            }
+            None => curve.points.push(p),
+        };
+        push(p0, None);
+        for k in k0..k1 {
+            push(route.points[k + 1], Some(route.triangles[k]));
+        }
+        push(p1, Some(route.triangles[k1]));
+    };
+    if s1 <= total {
+        walk(s0, s1);
+    } else {
+        walk(s0, total);
+        walk(0.0, s1 - total);
+    }
+    Ok(curve)
 }
 
 /// How the map's (u, v) become the unit's coordinates, whose image rectangle is `length` ×
