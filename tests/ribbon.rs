@@ -828,3 +828,165 @@ fn animated_ribbons_move_along_their_route() {
         );
     }
 }
+
+/// Texture extraction (`decalbake extract`, Sun et al. §4.2) along the arc ribbon of
+/// [`ribbon_bakes_show_the_image_at_the_fermi_coordinates`].
+///
+/// - **Round trip**: the gradient baked along the ribbon (16-bit, 256²) and extracted along the same
+///   ribbon at the image's own size returns the image: every pixel at least two texels inside the
+///   strip within 6e-3 (the bake's own tolerance: both resamplings are bilinear, exact on a
+///   linear gradient, so what remains is the map's error; measured 8.8e-4). Reading the strip
+///   mirrored (y flipped) is off by 0.8. A layer that does not exist exits 2 naming `--layer`,
+///   with no output.
+/// - **GPU against its twin** (`extract_cpu`): the same pixels covered but for a few on triangle
+///   edges (at most 1 %), and their colours within 1e-4 (f32 interpolation).
+/// - **Matte**: a texture of a red disc on green under the strip; `--matte` gives alpha above 0.9
+///   on the disc and below 0.1 on the green, a texture texel and two pixels from the disc's edge
+///   (with the initial alpha's scale at the 90th percentile instead of the 99th, the disc's 5 %
+///   of the strip set the scale to nothing and the green reached 0.5); the GPU solve is
+///   within 1e-3 of the f64 twin (`solve_cpu`) at every pixel.
+#[test]
+fn extract_returns_the_baked_image_and_mattes_a_feature() {
+    use decalbake::io::image::LinearImage;
+    use decalbake::output::{extract, matte};
+    let engine = common::engine();
+    let dir = common::scratch("ribbon_extract");
+    flat_scene(&dir);
+    let job = arc_job(&dir, serde_json::json!({}));
+    let mesh = engine.load_mesh(&job.mesh).unwrap();
+    let baked = engine.bake(&mesh, &job).unwrap();
+    std::fs::write(dir.join("rt.png"), baked.to_png()).unwrap();
+    // The same job with the baked texture as its base.
+    let path: Vec<[f32; 3]> = (0..=120)
+        .map(|k| {
+            let t = -PI / 3.0 + 2.0 * PI / 3.0 * k as f32 / 120.0;
+            [0.6 * t.cos(), 0.6 * t.sin(), 0.0]
+        })
+        .collect();
+    let with_base = serde_json::json!({ "mesh": "plane.glb",
+        "texture": { "width": 256, "height": 256, "padding": 0, "base": "rt.png" },
+        "layers": [{ "kind": "ribbon", "image": "grad.png", "path": path, "width": 0.2 }] });
+    let jpath = dir.join("extract.json");
+    std::fs::write(&jpath, with_base.to_string()).unwrap();
+    let out = dir.join("patch.png");
+    let (code, _, err) = common::cli(&[
+        "extract",
+        jpath.to_str().unwrap(),
+        "--layer",
+        "0",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let patch = LinearImage::load(&out).unwrap();
+    assert_eq!(
+        (patch.width, patch.height),
+        (256, 64),
+        "the image's own size by default"
+    );
+    let (mut worst, mut flipped) = (0.0f32, 0.0f32);
+    for y in 6..58u32 {
+        for x in 4..252u32 {
+            let p = patch.pixels[(y * 256 + x) as usize];
+            let want = [(x as f32 + 0.5) / 256.0, (y as f32 + 0.5) / 64.0];
+            worst = worst.max((p[0] - want[0]).abs().max((p[1] - want[1]).abs()));
+            flipped = flipped.max((p[1] - (1.0 - want[1])).abs());
+            assert!(p[3] > 0.99, "pixel ({x}, {y}) not covered");
+        }
+    }
+    eprintln!("round trip: max error {worst:.2e} (mirrored: {flipped:.2})");
+    assert!(worst < 6e-3, "round trip off by {worst:.2e}");
+    assert!(flipped > 0.5);
+    let bad = dir.join("bad.png");
+    let (code, _, err) = common::cli(&[
+        "extract",
+        jpath.to_str().unwrap(),
+        "--layer",
+        "3",
+        "--out",
+        bad.to_str().unwrap(),
+    ]);
+    assert!(code == 2 && err.contains("--layer 3"), "{code}: {err}");
+    assert!(!bad.exists());
+
+    // The GPU against its twin.
+    let ejob = decalbake::Job::load(&jpath, None).unwrap();
+    let emesh = engine.load_mesh(&ejob.mesh).unwrap();
+    let flat = extract::flat_triangles(&engine, &emesh, &ejob, 0).unwrap();
+    let tex = extract::source_texture(&emesh, &ejob).unwrap();
+    let gpu = extract::extract_gpu(&engine, &flat, &tex, [256, 64]).unwrap();
+    let cpu = extract::extract_cpu(&flat, &tex, [256, 64]);
+    let (mut differ, mut diff) = (0, 0.0f32);
+    for (g, c) in gpu.pixels.iter().zip(&cpu.pixels) {
+        if (g[3] > 0.0) != (c[3] > 0.0) {
+            differ += 1;
+        } else if g[3] > 0.0 {
+            diff = diff.max((0..4).map(|k| (g[k] - c[k]).abs()).fold(0.0, f32::max));
+        }
+    }
+    eprintln!("extract GPU vs twin: {differ} pixels covered by one only, max colour difference {diff:.1e}");
+    assert!(
+        differ <= 256 * 64 / 100 && diff < 1e-4,
+        "{differ} pixels, {diff:.1e}"
+    );
+
+    // The matte: a red disc on green, centred under the strip's middle.
+    let centre = Vec2::new(0.6, 0.0);
+    let base = LinearImage {
+        width: 256,
+        height: 256,
+        pixels: (0..256 * 256)
+            .map(|i| {
+                let p = Vec2::new(
+                    -1.0 + (i % 256) as f32 / 128.0 + 1.0 / 256.0,
+                    1.0 - (i / 256) as f32 / 128.0 - 1.0 / 256.0,
+                );
+                if (p - centre).length() < 0.06 {
+                    [0.8, 0.05, 0.05, 1.0]
+                } else {
+                    [0.1, 0.5, 0.1, 1.0]
+                }
+            })
+            .collect(),
+    };
+    let flat_tex = extract::extract_gpu(&engine, &flat, &base, [256, 64]).unwrap();
+    let sys = matte::system(&flat_tex);
+    let (ga, rep) = matte::solve_gpu(&engine, &sys).unwrap();
+    let (ca, _) = matte::solve_cpu(&sys);
+    let gap = ga
+        .iter()
+        .zip(&ca)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    let mut matted = flat_tex.clone();
+    matte::apply(&mut matted, &sys, &ga);
+    // Pixel → plane point: the strip's Fermi coordinates back to the plane.
+    let (l, w) = (0.6 * 2.0 * PI / 3.0, 0.2);
+    let (mut inside, mut outside) = (f32::INFINITY, 0.0f32);
+    for y in 0..64u32 {
+        for x in 0..256u32 {
+            let (u, v) = (
+                (x as f32 + 0.5) / 256.0 * l,
+                (0.5 - (y as f32 + 0.5) / 64.0) * w,
+            );
+            let t = u / 0.6 - PI / 3.0;
+            let p = Vec2::new(t.cos(), t.sin()) * (0.6 - v);
+            let d = (p - centre).length();
+            let a = matted.pixels[(y * 256 + x) as usize][3];
+            // The texture's bilinear filter blurs the disc's edge over a texel (2 / 256), and
+            // two pixels across the strip are 2 × 0.2 / 64.
+            let margin = 2.0 / 256.0 + 0.00625;
+            if d < 0.06 - margin {
+                inside = inside.min(a);
+            } else if d > 0.06 + margin {
+                outside = outside.max(a);
+            }
+        }
+    }
+    eprintln!("matte: {} unknowns, CG {} iterations, GPU vs twin {gap:.1e}; alpha on the disc >= {inside:.3}, off it <= {outside:.3}", sys.b.len(), rep.iterations);
+    assert!(
+        inside > 0.9 && outside < 0.1,
+        "matte: {inside} on the disc, {outside} off it"
+    );
+    assert!(gap < 1e-3, "GPU matte off the twin by {gap:.1e}");
+}

@@ -22,7 +22,7 @@ pub fn sample_bilinear(img: &LinearImage, uv: Vec2) -> [f32; 4] {
 }
 
 /// Barycentric coordinates of `p` in triangle (a, b, c), or `None` outside (edges count as inside).
-fn barycentric(p: Vec2, a: Vec2, b: Vec2, c: Vec2) -> Option<[f32; 3]> {
+pub fn barycentric(p: Vec2, a: Vec2, b: Vec2, c: Vec2) -> Option<[f32; 3]> {
     let area = (b - a).perp_dot(c - a);
     if area.abs() < 1e-20 {
         return None;

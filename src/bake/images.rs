@@ -244,7 +244,8 @@ fn checked_image(
     Ok(img)
 }
 
-fn load_raw(path: &Path) -> Result<LinearImage> {
+/// A mask image: its stored values, not sRGB-decoded.
+pub fn load_raw(path: &Path) -> Result<LinearImage> {
     let img = LinearImage::load(path)?;
     // Masks are data, not colour: undo the sRGB decode so a mid-grey mask value means 50 %.
     Ok(LinearImage {

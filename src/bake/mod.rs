@@ -48,7 +48,7 @@ pub mod tools;
 mod transfer;
 
 pub use engine::{Baked, Engine, LoadedMesh};
-pub use images::f32_to_f16;
+pub use images::{f32_to_f16, load_raw, upload_image};
 pub use param::{size_figures, ParamMap, ParamRow, SizeFigures};
 pub use place::Units;
 

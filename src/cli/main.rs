@@ -91,6 +91,25 @@ enum Cmd {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Extract the job's texture along a ribbon's or decal's map into a flat image (texture
+    /// cloning, Sun et al. 2013 section 4.2): the PNG can be another layer's `image`.
+    Extract {
+        /// The job file (JSON); its `texture.base` is the texture read.
+        job: PathBuf,
+        /// Which layer (0-based): a decal or a ribbon.
+        #[arg(long, default_value_t = 0)]
+        layer: usize,
+        /// Output PNG (16-bit RGBA, straight alpha).
+        #[arg(long)]
+        out: PathBuf,
+        /// Output size in pixels (default: the layer image's; a tiled ribbon's copies side by side).
+        #[arg(long, num_args = 2, value_names = ["W", "H"])]
+        size: Option<Vec<u32>>,
+        /// Alpha from an automatic matte (colour distance to the strip's border, smoothed by a
+        /// sparse solve on the GPU) instead of the layer's mask.
+        #[arg(long)]
+        matte: bool,
+    },
     /// Write a copy of a model with a new UV set made by pelting (cut to disks, stretched on frames
     /// by spring dynamics on the GPU, packed).
     Unwrap(unwrap::UnwrapArgs),
@@ -255,6 +274,32 @@ fn run(cli: Cli) -> Result<()> {
             batch_cmd(cli.backend.as_deref(), opts, &merge_summaries, summary)
         }
         Cmd::Param { job, layer, out } => param(cli.backend.as_deref(), &job, layer, &out),
+        Cmd::Extract {
+            job,
+            layer,
+            out,
+            size,
+            matte,
+        } => {
+            let job = Job::load(&job, None)?;
+            let engine = engine(cli.backend.as_deref())?;
+            let (mesh, job) = engine.load_mesh_for(&job)?;
+            let size = size.map(|s| [s[0], s[1]]);
+            let x =
+                decalbake::output::extract::extract(&engine, &mesh, &job, layer, (size, matte))?;
+            decalbake::io::image::write_atomic(&out, &x.image.encode_png(16))?;
+            eprintln!(
+                "{} of {} pixels covered{}",
+                x.covered,
+                x.image.pixels.len(),
+                x.matte.map_or(String::new(), |m| format!(
+                    "; matte: {} unknowns, {} border colours, CG {} iterations, residual {:.1e}",
+                    m.unknowns, m.border_colors, m.solve.iterations, m.solve.residual
+                ))
+            );
+            println!("{}", out.display());
+            Ok(())
+        }
         Cmd::Bench(args) => bench_cmd(cli.backend.as_deref(), args),
     }
 }

@@ -240,6 +240,8 @@ pub struct Pipelines {
     pub stamp_blend: Kernel,
     /// Preview.
     pub preview: Raster,
+    /// `extract_raster` (`decalbake extract`), into the layer targets' format.
+    pub extract_raster: Raster,
     /// Whether the layer target blends premultiplied source-over within a layer
     /// (needs `FLOAT32_BLENDABLE`; without it the last triangle drawn at a sample wins).
     pub layer_blending: bool,
@@ -391,6 +393,7 @@ impl Pipelines {
             expmap_relax: expmap_relax(device),
             ribbon_relax: ribbon_relax(device),
             preview: rasters.preview,
+            extract_raster: rasters.extract,
             layer_blending: rasters.layer_blending,
             layer_format: rasters.layer_format,
             image_format,
@@ -467,6 +470,7 @@ struct Rasters {
     island: Raster,
     transfer: Raster,
     preview: Raster,
+    extract: Raster,
     layer_format: wgpu::TextureFormat,
     layer_blending: bool,
 }
@@ -491,6 +495,7 @@ impl Rasters {
             island: island_raster(device),
             transfer: transfer_raster(device, layer_format),
             preview: preview_raster(device),
+            extract: extract_raster(device, layer_format),
             layer_format,
             layer_blending,
         }
@@ -633,6 +638,26 @@ fn transfer_raster(device: &wgpu::Device, format: wgpu::TextureFormat) -> Raster
         l,
         &[],
         &[Some(format.into()), Some(COVERAGE_FORMAT.into())],
+        None,
+        1,
+    )
+}
+
+/// `extract_raster`: a texture drawn along a layer's map into a flat image (`decalbake extract`).
+fn extract_raster(device: &wgpu::Device, format: wgpu::TextureFormat) -> Raster {
+    use Bind::*;
+    let l = layout(
+        device,
+        "extract_raster",
+        &[(0, Ro), (1, Tex(true)), (2, Sampler)],
+        wgpu::ShaderStages::VERTEX_FRAGMENT,
+    );
+    raster(
+        device,
+        "extract_raster",
+        l,
+        &[],
+        &[Some(format.into())],
         None,
         1,
     )

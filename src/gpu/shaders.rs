@@ -30,6 +30,10 @@ pub const KERNELS: &[(&str, &str)] = &[
         include_str!("../../wgsl/bake/select_triangles.wgsl"),
     ),
     (
+        "extract_raster",
+        include_str!("../../wgsl/output/extract_raster.wgsl"),
+    ),
+    (
         "transfer_raster",
         include_str!("../../wgsl/bake/transfer_raster.wgsl"),
     ),

@@ -4,7 +4,9 @@
 //! Every file's bytes are produced first; then each is written to a temporary file beside its target
 //! and renamed into place. A failure before the renames leaves no output behind.
 
+pub mod extract;
 pub mod glb;
+pub mod matte;
 pub mod preview;
 
 use crate::bake::{Baked, Engine, LoadedMesh};
