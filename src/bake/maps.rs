@@ -95,6 +95,8 @@ pub struct LayerMaps {
     pub expmap: Vec<Option<GeoResult>>,
     /// Per layer of the chunk: the chart report, for layers that have one.
     pub chart: Vec<Option<ChartReport>>,
+    /// Per layer of the chunk: a ribbon's harmonic repair.
+    pub ribbon: Vec<Option<crate::maps::ribbon::repair::RepairReport>>,
     /// Per layer of the chunk: the vertices its map can make valid (an exponential map's
     /// candidate disc, a chart's vertices, a blended stamp's charts' union), or `None` where the
     /// method may cover any vertex (planar projections). See [`LayerMaps::candidate_triangles`].
@@ -173,6 +175,7 @@ pub(crate) fn compute(
     let mut maps = LayerMaps {
         expmap: vec![None; range.len()],
         chart: vec![None; range.len()],
+        ribbon: vec![None; range.len()],
         reach: vec![None; range.len()],
         range,
         params,
@@ -279,9 +282,57 @@ fn ribbon_pass(
                 placed.origin[i].0, status.sweeps
             ));
         }
+        maps.ribbon[i - start] = Some(repair_pass(cx, slots, (i - start) as u32, r, log)?);
         maps.reach[i - start] = Some(cands);
     }
     Ok(())
+}
+
+/// A ribbon's harmonic repair ([`crate::maps::ribbon::repair`]): its curved parts found from the
+/// curve; where there are any, the unit's slot is read back, the parts re-solved on the GPU
+/// conjugate gradient and the slot written again.
+fn repair_pass(
+    cx: Cx<'_>,
+    slots: &Slots,
+    slot: u32,
+    r: &crate::bake::kinds::ribbon::RibbonUnit,
+    log: &mut Log,
+) -> Result<crate::maps::ribbon::repair::RepairReport> {
+    use crate::maps::ribbon::repair::{curved_parts, repair, solve_gpu};
+    let Cx { engine, mesh, .. } = cx;
+    let parts = curved_parts(&mesh.topo, &r.curve, r.sides, r.lambda);
+    if parts.is_empty() {
+        return Ok(Default::default());
+    }
+    let size = mesh.gpu.vertex_count as u64 * 16;
+    let bytes =
+        engine
+            .ctx
+            .read_buffer_range(&slots.coords, slot as u64 * size, size, "ribbon repair")?;
+    let mut coords: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&bytes);
+    let [a, b, c, d] = r.xform;
+    let mut uv: Vec<Option<[f32; 2]>> = coords
+        .iter()
+        .map(|x| (x[3] > 0.5).then(|| [(x[0] - b) / a, (x[1] - d) / c]))
+        .collect();
+    let report = repair(
+        &mesh.topo,
+        &mut uv,
+        &parts,
+        solve_gpu(&engine.ctx, &engine.pipes),
+    )?;
+    for (x, m) in coords.iter_mut().zip(&uv) {
+        if let Some([u, v]) = m {
+            (x[0], x[1]) = (a * u + b, c * v + d);
+        }
+    }
+    engine.ctx.queue.write_buffer(
+        &slots.coords,
+        slot as u64 * size,
+        bytemuck::cast_slice(&coords),
+    );
+    log.commands += 2;
+    Ok(report)
 }
 
 /// The exponential maps of every layer whose method uses one: one dispatch, one workgroup per map.

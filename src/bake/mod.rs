@@ -306,6 +306,7 @@ fn layer_report(
         distortion: Default::default(),
         expmap,
         chart: maps.chart[k],
+        ribbon: maps.ribbon[k].clone(),
         stroke: None,
     }
 }

@@ -70,6 +70,10 @@ pub struct LayerReport {
     pub expmap: Option<crate::maps::expmap::gpu::GeoResult>,
     /// LSCM / hybrid: the conformal chart's solve (triangles, rounds, CG iterations, residual, status).
     pub chart: Option<crate::maps::chart::ChartReport>,
+    /// Ribbons: the harmonic repair of the strip's highly curved parts (Sun et al. §3 steps 4-5):
+    /// `repaired` and `skipped` arc-length ranges along the curve, `vertices`, `cg_iterations`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ribbon: Option<crate::maps::ribbon::repair::RepairReport>,
     /// Strokes: the path, stamps and charts (the fields above then add up the stamps: the
     /// placement and frame are the first stamp's; `triangles_covered` counts a triangle once per
     /// stamp; `texels_covered` counts the texels the whole stroke changed).

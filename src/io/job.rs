@@ -273,6 +273,9 @@ pub struct LayerSpec {
     /// Ribbon: the image moving along a route over frames (`super::ribbon::AnimateSpec`).
     #[serde(default)]
     pub animate: Option<super::ribbon::AnimateSpec>,
+    /// Ribbon: λ of the curved parts' harmonic repair (default 0.2).
+    #[serde(default)]
+    pub curved_threshold: Option<f32>,
     /// Decal, stroke, ribbon: `[from, to]` image-point pairs of a thin-plate-spline warp
     /// (`super::warp`).
     #[serde(default)]
@@ -877,6 +880,7 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
         align: &l.align,
         flip: l.flip,
         animate: &l.animate,
+        curved_threshold: l.curved_threshold,
     };
     let (stroke, ribbon) = kind_fields(
         kind,

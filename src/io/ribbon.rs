@@ -10,6 +10,8 @@
 //! | `repeat` | `"stretch"` (the image spans the curve); `"tile"`: repeated at its own aspect |
 //! | `align` | `"center"` (the strip straddles the curve); `"left"` or `"right"` of it, seen from outside |
 //! | `flip` | `false`; `true` mirrors the image across the curve |
+//! | `curved_threshold` | 0.2: the λ of Sun et al. §3 step 4; parts where the strip's offset
+//! stretches or shrinks by more than this are re-solved harmonically ([`crate::maps::ribbon::repair`]) |
 //! | `animate` | none; `{"route": [points], "frames": N, "length": L, "closed": false}`: the image
 //! occupies `length` of the route and moves along it over the frames (Sun et al. §4.3); replaces
 //! `path` |
@@ -57,6 +59,8 @@ pub struct Ribbon {
     pub flip: bool,
     /// An animated ribbon: its curve is the piece of the route ([`Ribbon::path`]) this frame shows.
     pub animate: Option<Animate>,
+    /// λ of the curved parts' detection (Sun et al. §3 step 4).
+    pub curved_threshold: f32,
 }
 
 /// The most frames an animation may have (one bake and one texture each).
@@ -116,6 +120,7 @@ pub(crate) struct Fields<'a> {
     pub align: &'a Option<String>,
     pub flip: Option<bool>,
     pub animate: &'a Option<AnimateSpec>,
+    pub curved_threshold: Option<f32>,
 }
 
 impl Fields<'_> {
@@ -127,6 +132,7 @@ impl Fields<'_> {
             ("align", self.align.is_some()),
             ("flip", self.flip.is_some()),
             ("animate", self.animate.is_some()),
+            ("curved_threshold", self.curved_threshold.is_some()),
         ]
         .into_iter()
         .find(|(_, g)| *g)
@@ -218,6 +224,16 @@ pub(crate) fn validate(l: &Fields<'_>, i: usize, src: &Path) -> Result<Ribbon> {
         align,
         flip: l.flip.unwrap_or(false),
         animate,
+        curved_threshold: match l.curved_threshold {
+            Some(t) if !t.is_finite() || t <= 0.0 || t > 1e6 => {
+                return Err(err(
+                    "curved_threshold",
+                    format!("{t} must be a positive ratio (Sun et al.'s λ, default 0.2; a large value turns the repair off)"),
+                ))
+            }
+            Some(t) => t,
+            None => 0.2,
+        },
     })
 }
 

@@ -33,6 +33,8 @@ pub struct RibbonUnit {
     pub repeats: f32,
     /// How far the strip spreads on the curve's left and right (model units).
     pub sides: [f32; 2],
+    /// λ of the curved parts' harmonic repair ([`crate::maps::ribbon::repair`]).
+    pub lambda: f32,
 }
 
 impl Kind for RibbonKind {
@@ -204,6 +206,7 @@ fn mapping(
             (0.5 * width - middle).max(0.0),
         ],
         xform: [1.0, -0.5 * length, sign, -sign * middle],
+        lambda: r.curved_threshold,
         repeats: match r.repeat {
             Repeat::Stretch => 0.0,
             Repeat::Tile => length * aspect / width,

@@ -6,7 +6,8 @@
 //! along a straight line: the coordinates of a ribbon layer (issue 13).
 //!
 //! [`ribbon_cpu`] is the CPU twin; [`gpu`] computes the same fixed point by parallel relaxation
-//! (`wgsl/maps/ribbon_relax.wgsl`). Neither is wired into bakes yet (see the README, "Ribbons").
+//! (`wgsl/maps/ribbon_relax.wgsl`), which ribbon layers bake with (`bake/maps.rs`, the ribbon
+//! pass); [`repair`] re-solves the highly curved parts harmonically (section 3, steps 4-5).
 //! The algorithm is the exponential map's
 //! (Schmidt et al. 2006, section 4.2; [`crate::maps::expmap::cpu::dem_cpu`]) with the seed point
 //! replaced by the curve:
@@ -29,8 +30,6 @@
 //! Tested against analytic Fermi coordinates (`tests/ribbon.rs`): a circular arc on a plane (1.6e-5
 //! for chords of 0.01) and a helix on a cylinder (converging under refinement).
 //!
-//! What is left to build (issue 13): the harmonic repair of highly curved parts (section 3, steps
-//! 4-5) and the `ribbon` layer kind that bakes with these coordinates.
 
 use crate::maps::expmap::cpu::{transfer, Item, Seed};
 use crate::mesh::Topology;
@@ -48,6 +47,7 @@ pub struct Curve {
 }
 
 pub mod gpu;
+pub mod repair;
 
 /// `"kind": "ribbon"` as a map method: its coordinates come from the bake's ribbon pass
 /// (`bake/maps.rs`, [`gpu::run`]), not from the exponential-map, chart or direct passes.
