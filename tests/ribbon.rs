@@ -1062,7 +1062,7 @@ fn tight_turns_are_repaired_harmonically() {
     let parts = curved_parts(&topo, &c, [0.15, 0.15], 0.2);
     assert!(!parts.is_empty());
     let (mut a, mut b) = (uv.clone(), uv.clone());
-    repair(&topo, &mut a, &parts, |m, r| solve_cpu(m, r)).unwrap();
+    repair(&topo, &mut a, &parts, solve_cpu).unwrap();
     repair(
         &topo,
         &mut b,
