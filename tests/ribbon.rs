@@ -1010,7 +1010,8 @@ fn tight_turn() -> Vec<[f32; 3]> {
 /// 0.1). With the repair off (`curved_threshold` 1e6) the map folds there (the report's
 /// `distortion.flipped` counts the layer's flipped triangles); with the default λ = 0.2 no
 /// triangle flips, the report names the part repaired (an arc-length range containing the turn,
-/// 0.7 to 0.857), and every other vertex keeps its value. The GPU solve is within 1e-4 of the f64
+/// 0.7 to 0.857) and that re-solving u alone was not enough there (`rectangle`: the full harmonic
+/// map onto the rectangle), and every other vertex keeps its value. The GPU solve is within 1e-4 of the f64
 /// twin's (`repair::solve_cpu`) on the same map (the CG's f32 stopping point; the coordinates are
 /// in model units, 0.3 across).
 #[test]
@@ -1089,4 +1090,78 @@ fn tight_turns_are_repaired_harmonically() {
     );
     eprintln!("repair GPU vs twin: {gap:.1e} over {changed} changed vertices");
     assert!(gap < 1e-4, "GPU repair off the twin by {gap:.1e}");
+}
+
+/// Curve editing (Sun et al. §4.4) is re-baking with moved path points, and it is continuous: the
+/// arc ribbon (0.1 wide here: no part curved enough to repair, r = 1.09; a repaired part is
+/// re-solved as a whole, so an edit inside it moves the whole part, by up to 3.6e-3 in the 0.2-wide
+/// strip) baked again with its middle point (of 121) moved 0.001 towards the arc's centre
+/// changes no texel by more than 2e-3 (half an 8-bit step) farther than the strip's half-width
+/// plus three texels from that point, and none by more than 0.02 anywhere (texels the strip's
+/// edge crosses in either bake are left out: there any move takes samples in or out; the gradient image
+/// shows the image point: near the point v moves by up to 0.001, 0.01 of the image across the
+/// strip; everywhere else only the curve's length changes, by 1e-4, moving u by under 1e-4 of the
+/// image). Some texel near the point changes by more than 1e-3, so the check sees the edit.
+#[test]
+fn editing_a_path_point_changes_the_texture_only_near_it() {
+    let engine = common::engine();
+    let dir = common::scratch("ribbon_edit");
+    flat_scene(&dir);
+    let bake = |moved: f32| {
+        let path: Vec<[f32; 3]> = (0..=120)
+            .map(|k| {
+                let t = -PI / 3.0 + 2.0 * PI / 3.0 * k as f32 / 120.0;
+                let r = if k == 60 { 0.6 - moved } else { 0.6 };
+                [r * t.cos(), r * t.sin(), 0.0]
+            })
+            .collect();
+        let text = serde_json::json!({ "mesh": "plane.glb",
+            "texture": { "width": 256, "height": 256, "padding": 0, "base": [0.0, 0.0, 1.0, 1.0] },
+            "output": { "bit_depth": 16 },
+            "layers": [{ "kind": "ribbon", "image": "grad.png", "path": path, "width": 0.1 }] })
+        .to_string();
+        let job = decalbake::Job::parse(&text, &dir.join("job.json"), &dir, &dir).unwrap();
+        let mesh = engine.load_mesh(&job.mesh).unwrap();
+        engine.bake(&mesh, &job).unwrap()
+    };
+    let (a, b) = (bake(0.0), bake(0.001));
+    for x in [&a, &b] {
+        let rep = x.report.layers[0].ribbon.as_ref().unwrap();
+        assert!(
+            rep.repaired.is_empty(),
+            "the strip is not curved enough to repair: {rep:?}"
+        );
+    }
+    let point = Vec2::new(0.6, 0.0);
+    let texel = 2.0 / 256.0;
+    let (mut far, mut most, mut near) = (0.0f32, 0.0f32, 0.0f32);
+    for ty in 0..256u32 {
+        for tx in 0..256u32 {
+            let p = Vec2::new(
+                -1.0 + (tx as f32 + 0.5) * texel,
+                1.0 - (ty as f32 + 0.5) * texel,
+            );
+            let (ca, cb) = (a.linear(tx, ty), b.linear(tx, ty));
+            let d = (0..4).map(|k| (ca[k] - cb[k]).abs()).fold(0.0, f32::max);
+            // Texels the strip's edge crosses in either bake: a move of 1e-4 there can take a
+            // sample in or out (a quarter of the texel each, 4 samples); checked whole elsewhere.
+            let whole = |c: [f32; 4]| c[2] < 1e-3 || c[2] > 1.0 - 1e-3;
+            if !(whole(ca) && whole(cb)) {
+                continue;
+            }
+            most = most.max(d);
+            if (p - point).length() > 0.05 + 3.0 * texel {
+                far = far.max(d);
+            } else {
+                near = near.max(d);
+            }
+        }
+    }
+    eprintln!("edit: largest change {most:.2e}, near the point {near:.2e}, farther {far:.2e}");
+    assert!(far < 2e-3, "a far texel changed by {far:.2e}");
+    assert!(most < 0.02, "a texel changed by {most:.2e}");
+    assert!(
+        near > 1e-3,
+        "the edit changed nothing near the point ({near:.2e})"
+    );
 }

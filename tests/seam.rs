@@ -102,6 +102,71 @@ fn stroke_across_uv_seams_is_continuous_on_spot() {
     r.check("stroke");
 }
 
+/// A ribbon over Spot's UV seams where they are densest (its curve along the densest seam edge, so
+/// the strip straddles seams for its length), with the decal tests' colour ramp stretched over
+/// the strip: both sides of every seam within the middle of the strip (0.3 of its half-width from
+/// the curve, away from its ends) agree within the decal tests' tolerance, the ramp's slope on the
+/// surface being 0.8 over the strip's shorter side (the ribbon's map keeps lengths, up to the
+/// surface's curvature under a strip this narrow).
+#[test]
+fn ribbon_across_uv_seams_is_continuous_on_spot() {
+    let dir = scratch("seam-ribbon");
+    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
+    let mesh = Mesh::load(&spot).unwrap();
+    let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
+    let seams = spot_seams(&mesh, &topo);
+    let width = 0.3f32;
+    let e = densest_seam(&topo, &seams, 0.3);
+    let center = 0.5 * (topo.positions[e.0 as usize] + topo.positions[e.1 as usize]);
+    let d = (topo.positions[e.1 as usize] - topo.positions[e.0 as usize]).normalize();
+    let pts = [center - 0.2 * d, center, center + 0.2 * d];
+    let mut ramp = LinearImage::solid(64, 16, [0.0; 4]);
+    for y in 0..16 {
+        for x in 0..64 {
+            ramp.pixels[y * 64 + x] = [
+                0.1 + 0.8 * x as f32 / 63.0,
+                0.1 + 0.8 * y as f32 / 15.0,
+                0.5,
+                1.0,
+            ];
+        }
+    }
+    std::fs::write(dir.join("ramp.png"), ramp.encode_png(16)).unwrap();
+    let layer = serde_json::json!({ "kind": "ribbon", "image": "ramp.png",
+        "path": pts.map(|p| p.to_array()), "width": width });
+    let text = serde_json::json!({ "mesh": spot, "texture": { "width": 512, "height": 512, "padding": 8, "samples": 4 },
+        "layers": [layer], "output": { "texture": null, "bit_depth": 16, "report": null } });
+    // Kept beside the texture, to look at (`decalbake bake` it with a preview).
+    std::fs::write(dir.join("job.json"), text.to_string()).unwrap();
+    let job = Job::parse(&text.to_string(), &dir.join("job.json"), &dir, &dir).unwrap();
+    let engine = engine();
+    let loaded = engine.load_mesh(&spot).unwrap();
+    let baked = engine.bake(&loaded, &job).unwrap();
+    let l = &baked.report.layers[0];
+    eprintln!(
+        "ribbon: {} triangles, distortion {:?}",
+        l.triangles_covered, l.distortion
+    );
+    let texture = read_texture(&baked, &dir);
+    let base = mesh
+        .material
+        .as_ref()
+        .unwrap()
+        .base_color_texture
+        .as_ref()
+        .unwrap();
+    let near = |p: glam::Vec3| {
+        pts.windows(2).any(|w| {
+            let (a, b) = (w[0], w[1]);
+            let t = (p - a).dot(b - a) / (b - a).length_squared();
+            (0.05..=0.95).contains(&t) && (a + (b - a) * t).distance(p) < 0.3 * 0.5 * width
+        })
+    };
+    let slope = 0.8 / width;
+    let r = compare_seams(&mesh, &topo, &seams, (&texture, base), &near, &|_| slope);
+    r.check("ribbon");
+}
+
 fn seam_check(method: &str) {
     let dir = scratch(&format!("seam-{method}"));
     let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");

@@ -17,9 +17,9 @@
 //! M is the reached vertices whose u lies in the part's range, a disk whose boundary loop runs
 //! along the map's lateral ends (where M meets the rest of the strip: those vertices keep their
 //! values, so the repaired part joins the map without a seam) and its outer edges (where the map's
-//! reach ends, beyond the strip itself: v is the edge's median geodesic distance, so the side is
-//! straight, and u is spread by arc length along the edge between the lateral ends' u, the paper's
-//! arc-length boundary condition). Inside, u and v are harmonic with
+//! reach ends, beyond the strip itself: v keeps the geodesic distance, u keeps the map's value where
+//! it runs monotonically along the edge and is spread by arc length across the stretches where it
+//! does not, the paper's arc-length boundary condition; `outer_values`). Inside, u and v are harmonic with
 //! cotangent weights clamped to at least [`MIN_WEIGHT`] (positive weights make the map onto a
 //! convex domain one-to-one, Floater's form of the Radó theorem the paper cites; plain cotangent
 //! weights can be negative on obtuse triangles). The two systems are one SPD matrix solved by the
@@ -107,7 +107,12 @@ pub struct RepairSystem {
 /// The system of the part `range` of a map given as (u, v) per welded vertex (`None` where not
 /// reached); `None` when the part's region is not a disk with lateral ends (nothing to repair
 /// against).
-pub fn system(topo: &Topology, uv: &[Option<[f32; 2]>], range: [f32; 2]) -> Option<RepairSystem> {
+pub fn system(
+    topo: &Topology,
+    uv: &[Option<[f32; 2]>],
+    range: [f32; 2],
+    full: bool,
+) -> Option<RepairSystem> {
     let n = topo.positions.len();
     let inside: Vec<bool> = uv
         .iter()
@@ -167,20 +172,15 @@ pub fn system(topo: &Topology, uv: &[Option<[f32; 2]>], range: [f32; 2]) -> Opti
                 Some(*s)
             }))
             .collect();
-        let (u0, u1, total) = (
-            at(lp[run[0]])[0],
-            at(lp[*run.last().expect("a run")])[0],
-            cum[cum.len() - 1].max(1e-30),
-        );
-        // The rectangle's side: one v for the run (its vertices' distances differ by up to an
-        // edge where the map's reach stops; a jagged side would not be convex).
-        let inner = &run[1..run.len() - 1];
-        let side = inner.iter().map(|&j| at(lp[j])[1]).sum::<f64>().signum();
-        let mut far: Vec<f64> = inner.iter().map(|&j| at(lp[j])[1].abs()).collect();
-        far.sort_by(f64::total_cmp);
-        let v_side = side * far.get(far.len() / 2).copied().unwrap_or(0.0);
-        for j in 1..run.len() - 1 {
-            fixed.insert(lp[run[j]], [u0 + (u1 - u0) * cum[j] / total, v_side]);
+        let values: Vec<[f64; 2]> = run.iter().map(|&j| at(lp[j])).collect();
+        let held = match full {
+            false => outer_values(&values, &cum),
+            true => rectangle_side(&values, &cum),
+        };
+        for (j, val) in held.into_iter().enumerate().skip(1) {
+            if j + 1 < run.len() {
+                fixed.insert(lp[run[j]], val);
+            }
         }
     }
     let mut index = vec![u32::MAX; n];
@@ -221,6 +221,85 @@ pub fn system(topo: &Topology, uv: &[Option<[f32; 2]>], range: [f32; 2]) -> Opti
         unknowns,
         fixed: fixed.into_iter().collect(),
     })
+}
+
+/// The values an outer run of the region's boundary is held at (`values`: the map's, from one
+/// lateral end to the other; `cum`: arc length along the run). Where the map's u runs monotonically
+/// from one end's u to the other's it is kept (the repair then leaves a good map as it is); across
+/// each stretch where it does not (the fold: u runs backwards, or past an end's), u is spread by
+/// arc length between the good values around it, the paper's arc-length boundary condition. v
+/// keeps the map's geodesic distance.
+fn outer_values(values: &[[f64; 2]], cum: &[f64]) -> Vec<[f64; 2]> {
+    let n = values.len();
+    let dir = if values[n - 1][0] >= values[0][0] {
+        1.0
+    } else {
+        -1.0
+    };
+    let u: Vec<f64> = values.iter().map(|v| dir * v[0]).collect();
+    let mut before = vec![f64::NEG_INFINITY; n];
+    let mut after = vec![f64::INFINITY; n];
+    for j in 1..n {
+        before[j] = before[j - 1].max(u[j - 1]);
+        after[n - 1 - j] = after[n - j].min(u[n - j]);
+    }
+    let good: Vec<bool> = (0..n)
+        .map(|j| j == 0 || j == n - 1 || (u[j] > before[j] && u[j] < after[j]))
+        .collect();
+    let mut out = values.to_vec();
+    let mut last = 0;
+    for j in 1..n {
+        if !good[j] {
+            continue;
+        }
+        for k in last + 1..j {
+            let t = (cum[k] - cum[last]) / (cum[j] - cum[last]).max(1e-30);
+            out[k][0] = values[last][0] + (values[j][0] - values[last][0]) * t;
+        }
+        last = j;
+    }
+    out
+}
+
+/// The rectangle's side for the full harmonic map (the paper's boundary condition): u spread by
+/// arc length between the lateral ends' u, v one value for the run (its median distance: the
+/// vertices where the map's reach stops differ by up to an edge, and a jagged side would not be
+/// convex).
+fn rectangle_side(values: &[[f64; 2]], cum: &[f64]) -> Vec<[f64; 2]> {
+    let n = values.len();
+    let (u0, u1, total) = (values[0][0], values[n - 1][0], cum[n - 1].max(1e-30));
+    let inner = &values[1..n - 1];
+    let side = inner.iter().map(|v| v[1]).sum::<f64>().signum();
+    let mut far: Vec<f64> = inner.iter().map(|v| v[1].abs()).collect();
+    far.sort_by(f64::total_cmp);
+    let v_side = side * far.get(far.len() / 2).copied().unwrap_or(0.0);
+    (0..n)
+        .map(|j| match j == 0 || j == n - 1 {
+            true => values[j],
+            false => [u0 + (u1 - u0) * cum[j] / total, v_side],
+        })
+        .collect()
+}
+
+/// Triangles of the region around `range` whose (u, v) are flipped (negative area; the map keeps
+/// the surface's orientation).
+fn flipped_in(topo: &Topology, uv: &[Option<[f32; 2]>], range: [f32; 2]) -> usize {
+    topo.triangles
+        .iter()
+        .filter(|t| {
+            let Some(p) = t
+                .iter()
+                .map(|&v| uv[v as usize])
+                .collect::<Option<Vec<_>>>()
+            else {
+                return false;
+            };
+            let inside = p.iter().all(|c| c[0] >= range[0] && c[0] <= range[1]);
+            let area = (p[1][0] - p[0][0]) * (p[2][1] - p[0][1])
+                - (p[2][0] - p[0][0]) * (p[1][1] - p[0][1]);
+            inside && area < 0.0
+        })
+        .count()
 }
 
 /// Half the cotangents of the angles facing each edge of `tris`, summed, at least
@@ -298,6 +377,9 @@ pub struct RepairReport {
     pub repaired: Vec<[f32; 2]>,
     /// Parts found curved whose region could not be repaired (not a disk with lateral ends).
     pub skipped: Vec<[f32; 2]>,
+    /// Of `repaired`, the parts re-solved as the full harmonic map onto a rectangle (u alone still
+    /// folded).
+    pub rectangle: Vec<[f32; 2]>,
     /// Vertices re-solved.
     pub vertices: u32,
     /// Conjugate-gradient iterations (the larger of the u and v systems, summed over parts).
@@ -305,7 +387,12 @@ pub struct RepairReport {
 }
 
 /// Repairs `uv` (per welded vertex, `None` where not reached) over `parts`, solving each part's
-/// two systems with `solve` (matrix, right-hand sides → solutions and iterations).
+/// systems with `solve` (matrix, right-hand sides → solutions and iterations). Each part is first
+/// re-solved in u alone, its outer edges keeping the map's values where they run monotonically
+/// ([`system`] with `full` false): v is the geodesic distance, which does not fold, and a part
+/// that only crossed the threshold λ without folding keeps its map but for the discretisation of
+/// u. Where triangles of the part are still flipped, the part is re-solved as the full harmonic
+/// map onto the rectangle (`full`: u and v, straight sides, u by arc length along them).
 pub fn repair(
     topo: &Topology,
     uv: &mut [Option<[f32; 2]>],
@@ -314,22 +401,41 @@ pub fn repair(
 ) -> crate::error::Result<RepairReport> {
     let mut report = RepairReport::default();
     for &range in parts {
-        let Some(sys) = system(topo, uv, range) else {
+        let Some(sys) = system(topo, uv, range, false) else {
             report.skipped.push(range);
             continue;
         };
-        let ([u, v], iters) = solve(&sys.a, &sys.b)?;
-        for (k, &q) in sys.unknowns.iter().enumerate() {
-            uv[q as usize] = Some([u[k] as f32, v[k] as f32]);
-        }
-        for &(q, f) in &sys.fixed {
-            uv[q as usize] = Some([f[0] as f32, f[1] as f32]);
-        }
-        report.repaired.push(range);
-        report.vertices += (sys.unknowns.len() + sys.fixed.len()) as u32;
+        let mut trial = uv.to_vec();
+        let ([u, _], iters) = solve(&sys.a, &sys.b)?;
+        apply(&mut trial, &sys, &u, None);
         report.cg_iterations += iters;
+        let mut count = sys.unknowns.len() + sys.fixed.len();
+        if flipped_in(topo, &trial, range) > 0 {
+            if let Some(full) = system(topo, uv, range, true) {
+                let ([u, v], iters) = solve(&full.a, &full.b)?;
+                trial = uv.to_vec();
+                apply(&mut trial, &full, &u, Some(&v));
+                report.cg_iterations += iters;
+                report.rectangle.push(range);
+                count = full.unknowns.len() + full.fixed.len();
+            }
+        }
+        uv.copy_from_slice(&trial);
+        report.repaired.push(range);
+        report.vertices += count as u32;
     }
     Ok(report)
+}
+
+/// Writes a solved system into `uv`: the unknowns' u (and v when given), the boundary's held values.
+fn apply(uv: &mut [Option<[f32; 2]>], sys: &RepairSystem, u: &[f64], v: Option<&[f64]>) {
+    for (k, &q) in sys.unknowns.iter().enumerate() {
+        let old = uv[q as usize].expect("reached");
+        uv[q as usize] = Some([u[k] as f32, v.map_or(old[1], |v| v[k] as f32)]);
+    }
+    for &(q, f) in &sys.fixed {
+        uv[q as usize] = Some([f[0] as f32, f[1] as f32]);
+    }
 }
 
 /// The CPU twin's solver for [`repair`]: f64 PCG on both right-hand sides.
