@@ -2,7 +2,9 @@
 //! The built-in demo scene: Keenan Crane's "Spot" (public domain, bundled in `assets/`) with four
 //! decals generated in code, one per blend style, a conformal decal on a horn tip (a cone chart), a painted stroke over the UV seam along its back,
 //! a blur stroke across the edges of the badge and a black patch beside it, and a ribbon of
-//! stripes tiled along a wave on the other flank. `decalbake demo` writes the scene's files (mesh,
+//! stripes tiled along a wave on the other flank. The badge is warped by a thin-plate spline; the
+//! ribbon is also animated along its wave (`frames.json`), and the badge extracted back from the
+//! baked texture (`decalbake extract`). `decalbake demo` writes the scene's files (mesh,
 //! decal PNGs, job file) next to its outputs, so the job can be edited and re-run with `decalbake bake`.
 
 use decalbake::io::image::{srgb_to_linear, LinearImage};
@@ -152,7 +154,10 @@ pub fn job_json() -> String {
         "texture": { "width": 1024, "height": 1024, "base": "material", "padding": 16, "samples": 4 },
         "layers": [
             { "kind": "decal", "image": "decals/badge.png", "at": { "ray": { "origin": [1.5, 0.0, 0.45], "dir": [-1, 0, 0] } },
-              "size": [0.32, 0.32], "angle": 0.0, "up": [0, 1, 0], "method": "planar", "blend": "normal", "opacity": 1.0 },
+              "size": [0.32, 0.32], "angle": 0.0, "up": [0, 1, 0], "method": "planar", "blend": "normal", "opacity": 1.0,
+              // The star's centre pulled up and right, its lower left point down: a thin-plate
+              // spline warp of the image.
+              "warp": [[[0.5, 0.5], [0.58, 0.42]], [[0.25, 0.7], [0.2, 0.78]]] },
             { "kind": "decal", "image": "decals/stripes.png", "at": { "ray": { "origin": [0.0, 1.5, 0.55], "dir": [0, -1, 0] } },
               "size": [0.3, 0.3], "angle": 45.0, "up": [0, 0, 1], "method": "expmap", "blend": "normal", "opacity": 0.9 },
             { "kind": "decal", "image": "decals/rings.png", "at": { "ray": { "origin": [-1.5, 0.0, 0.45], "dir": [1, 0, 0] } },
@@ -174,6 +179,21 @@ pub fn job_json() -> String {
               "width": 0.09, "repeat": "tile" }
         ],
         "output": { "texture": "baked.png", "bit_depth": 8, "glb": "baked.glb", "report": "report.json", "preview": "preview.png" }
+    }))
+    .expect("static JSON serializes")
+}
+
+/// The demo's animation (`frames.json`): the stripes, a third of the route long, travelling
+/// along the demo ribbon's wave over 8 frames, one 512² texture each (`frames/ribbon_0.png` ...).
+pub fn frames_json() -> String {
+    serde_json::to_string_pretty(&serde_json::json!({
+        "mesh": "spot.glb",
+        "texture": { "width": 512, "height": 512, "base": "material", "padding": 8, "samples": 4 },
+        "layers": [
+            { "kind": "ribbon", "image": "decals/stripes.png", "width": 0.09, "repeat": "tile",
+              "animate": { "route": ribbon_path(), "frames": 8, "length": 0.25 } }
+        ],
+        "output": { "texture": "frames/ribbon_{frame}.png", "report": null }
     }))
     .expect("static JSON serializes")
 }

@@ -567,6 +567,22 @@ fn write_baked(
     Ok(decalbake::output::preview::PreviewTexture::of(&baked))
 }
 
+/// The demo's animated ribbon (`frames.json`: 8 textures) and the badge extracted from the baked
+/// texture along its map (`extracted_badge.png`, what `decalbake extract` writes).
+fn demo_ribbon_extras(engine: &Engine, out: &Path, job_path: &Path) -> Result<()> {
+    let frames = out.join("frames.json");
+    decalbake::io::image::write_atomic(&frames, demo::frames_json().as_bytes())?;
+    bake(engine, &Job::load(&frames, None)?)?;
+    let mut job = Job::load(job_path, None)?;
+    job.base = decalbake::io::job::Base::Image(out.join("baked.png"));
+    let (mesh, job) = engine.load_mesh_for(&job)?;
+    let x = decalbake::output::extract::extract(engine, &mesh, &job, 0, (None, false))?;
+    let patch = out.join("extracted_badge.png");
+    decalbake::io::image::write_atomic(&patch, &x.image.encode_png(8))?;
+    println!("{}", patch.display());
+    Ok(())
+}
+
 fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
     std::fs::create_dir_all(out.join("decals"))
         .with_context(|| format!("creating {}", out.display()))?;
@@ -584,6 +600,7 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
     exr.out_texture = Some(out.join("baked.exr"));
     (exr.out_glb, exr.out_report, exr.out_preview) = (None, None, None);
     bake(&engine, &exr)?;
+    demo_ribbon_extras(&engine, out, &job_path)?;
     // A new UV set by pelting: the crumpled sheet, whose pelt refines to its isometric flattening.
     // Stood up (it lies in the xz plane), so the preview's side views see its face.
     let sheet = out.join("crumpled.glb");

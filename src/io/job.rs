@@ -718,7 +718,7 @@ impl Job {
             .enumerate()
             .map(|(i, l)| validate_layer(l, i, src, input_dir))
             .collect::<Result<Vec<_>>>()?;
-        super::ribbon::check_frames(&layers, f.output.texture.as_deref(), src)?;
+        check_frames(&layers, f.output.texture.as_deref(), src)?;
         let out = |p: &Option<PathBuf>| p.as_ref().map(|p| output_dir.join(p));
         Ok(Job {
             source: src.to_path_buf(),
@@ -1079,4 +1079,39 @@ fn kind_fields(
             None => Ok((None, None)),
         },
     }
+}
+
+/// An animated job's frames agree (every animated ribbon has the same `frames`) and its texture is
+/// named per frame (`{frame}` or `{frame:0N}` in `output.texture`); `src` names the job file.
+fn check_frames(
+    layers: &[Layer],
+    texture: Option<&Path>,
+    src: &Path,
+) -> Result<()> {
+    let mut frames = None;
+    for (i, l) in layers.iter().enumerate() {
+        let Some(a) = l.ribbon.as_ref().and_then(|r| r.animate) else {
+            continue;
+        };
+        match frames {
+            Some((n, first)) if n != a.frames => {
+                return Err(Error::job(
+                    src,
+                    format!("layers[{i}].animate.frames"),
+                    format!("{} differs from layers[{first}]'s {n}; a job's animated layers share one frame count", a.frames),
+                ))
+            }
+            Some(_) => {}
+            None => frames = Some((a.frames, i)),
+        }
+    }
+    let named = texture.is_some_and(|t| super::ribbon::frame_name(&t.to_string_lossy(), 0).is_some());
+    if frames.is_some() && !named {
+        return Err(Error::job(
+            src,
+            "output.texture",
+            "an animated job writes one texture per frame: its name needs {frame} or {frame:04} (for example \"baked_{frame:04}.png\")".to_string(),
+        ));
+    }
+    Ok(())
 }

@@ -285,41 +285,6 @@ pub fn frame_name(text: &str, f: u32) -> Option<String> {
     Some(format!("{}{f:0width$}{}", &text[..start], &text[end + 1..]))
 }
 
-/// An animated job's frames agree (every animated ribbon has the same `frames`) and its texture is
-/// named per frame (`{frame}` or `{frame:0N}` in `output.texture`); `src` names the job file.
-pub(crate) fn check_frames(
-    layers: &[super::job::Layer],
-    texture: Option<&Path>,
-    src: &Path,
-) -> Result<()> {
-    let mut frames = None;
-    for (i, l) in layers.iter().enumerate() {
-        let Some(a) = l.ribbon.as_ref().and_then(|r| r.animate) else {
-            continue;
-        };
-        match frames {
-            Some((n, first)) if n != a.frames => {
-                return Err(Error::job(
-                    src,
-                    format!("layers[{i}].animate.frames"),
-                    format!("{} differs from layers[{first}]'s {n}; a job's animated layers share one frame count", a.frames),
-                ))
-            }
-            Some(_) => {}
-            None => frames = Some((a.frames, i)),
-        }
-    }
-    let named = texture.is_some_and(|t| frame_name(&t.to_string_lossy(), 0).is_some());
-    if frames.is_some() && !named {
-        return Err(Error::job(
-            src,
-            "output.texture",
-            "an animated job writes one texture per frame: its name needs {frame} or {frame:04} (for example \"baked_{frame:04}.png\")".to_string(),
-        ));
-    }
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::frame_name;

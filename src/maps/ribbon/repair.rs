@@ -458,6 +458,9 @@ pub fn solve_gpu<'a>(
 ) -> impl FnMut(&Csr, &[Vec<f64>; 2]) -> Solution + 'a {
     move |a, b| {
         use crate::solve::gpu::{cg_batched, SystemDesc};
+        if a.rows == 0 {
+            return Ok(([Vec::new(), Vec::new()], 0));
+        }
         let (big, starts) = Csr::block_diagonal(&[a, a]);
         let rhs: Vec<f64> = b[0].iter().chain(&b[1]).copied().collect();
         let x0 = vec![0.0; rhs.len()];
