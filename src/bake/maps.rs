@@ -298,39 +298,26 @@ fn repair_pass(
     r: &crate::bake::kinds::ribbon::RibbonUnit,
     log: &mut Log,
 ) -> Result<crate::maps::ribbon::repair::RepairReport> {
-    use crate::maps::ribbon::repair::{curved_parts, repair, solve_gpu};
+    use crate::maps::ribbon::repair::{curved_parts, repair_coords, solve_gpu};
     let Cx { engine, mesh, .. } = cx;
-    let parts = curved_parts(&mesh.topo, &r.curve, r.sides, r.lambda);
-    if parts.is_empty() {
+    if curved_parts(&mesh.topo, &r.curve, r.sides, r.lambda).is_empty() {
         return Ok(Default::default());
     }
     let size = mesh.gpu.vertex_count as u64 * 16;
-    let bytes =
-        engine
-            .ctx
-            .read_buffer_range(&slots.coords, slot as u64 * size, size, "ribbon repair")?;
+    let offset = slot as u64 * size;
+    let bytes = engine
+        .ctx
+        .read_buffer_range(&slots.coords, offset, size, "ribbon repair")?;
     let mut coords: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&bytes);
-    let [a, b, c, d] = r.xform;
-    let mut uv: Vec<Option<[f32; 2]>> = coords
-        .iter()
-        .map(|x| (x[3] > 0.5).then(|| [(x[0] - b) / a, (x[1] - d) / c]))
-        .collect();
-    let report = repair(
+    let report = repair_coords(
         &mesh.topo,
-        &mut uv,
-        &parts,
+        (&r.curve, r.sides, r.lambda),
+        &mut coords,
+        r.xform,
         solve_gpu(&engine.ctx, &engine.pipes),
     )?;
-    for (x, m) in coords.iter_mut().zip(&uv) {
-        if let Some([u, v]) = m {
-            (x[0], x[1]) = (a * u + b, c * v + d);
-        }
-    }
-    engine.ctx.queue.write_buffer(
-        &slots.coords,
-        slot as u64 * size,
-        bytemuck::cast_slice(&coords),
-    );
+    let bytes = bytemuck::cast_slice(&coords);
+    engine.ctx.queue.write_buffer(&slots.coords, offset, bytes);
     log.commands += 2;
     Ok(report)
 }

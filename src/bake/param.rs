@@ -177,12 +177,20 @@ impl Engine {
         let r = units.ribbons[unit]
             .as_ref()
             .expect("a ribbon layer's unit carries its curve");
-        let (coords, _) = crate::maps::ribbon::gpu::ribbon_gpu(
+        let (mut coords, _) = crate::maps::ribbon::gpu::ribbon_gpu(
             &self.ctx,
             &self.pipes,
             mesh.surface_ref(),
             &r.curve,
             r.reach,
+        )?;
+        // The bake's repair of the highly curved parts, on the plain (u, v).
+        crate::maps::ribbon::repair::repair_coords(
+            &mesh.topo,
+            (&r.curve, r.sides, r.lambda),
+            &mut coords,
+            [1.0, 0.0, 1.0, 0.0],
+            crate::maps::ribbon::repair::solve_gpu(&self.ctx, &self.pipes),
         )?;
         let topo = &mesh.topo;
         Ok(coords

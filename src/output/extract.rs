@@ -136,12 +136,20 @@ pub fn flat_triangles(engine: &Engine, mesh: &LoadedMesh, job: &Job, index: usiz
                 .as_ref()
                 .expect("a ribbon unit has its curve");
             let [length, width] = units.job.layers[unit].size;
-            let (coords, _) = crate::maps::ribbon::gpu::ribbon_gpu(
+            let (mut coords, _) = crate::maps::ribbon::gpu::ribbon_gpu(
                 &engine.ctx,
                 &engine.pipes,
                 mesh.surface_ref(),
                 &r.curve,
                 r.reach,
+            )?;
+            // The bake's repair of the highly curved parts, on the plain (u, v).
+            crate::maps::ribbon::repair::repair_coords(
+                &mesh.topo,
+                (&r.curve, r.sides, r.lambda),
+                &mut coords,
+                [1.0, 0.0, 1.0, 0.0],
+                crate::maps::ribbon::repair::solve_gpu(&engine.ctx, &engine.pipes),
             )?;
             let [a, b, c, d] = r.xform;
             for (v, co) in coords.iter().enumerate().filter(|(_, co)| co[3] > 0.5) {

@@ -427,6 +427,35 @@ pub fn repair(
     Ok(report)
 }
 
+/// [`repair`] on a slot of coordinates (x, y, distance, valid per welded vertex: the map's u, v
+/// through `xform` = (a, b, c, d), x = a u + b, y = c v + d), for a curve whose strip reaches `sides`
+/// with threshold `lambda`: what the bake's ribbon pass, `decalbake param` and `decalbake extract`
+/// share. Leaves `coords` as they are when no part is curved.
+pub fn repair_coords(
+    topo: &Topology,
+    (curve, sides, lambda): (&Curve, [f32; 2], f32),
+    coords: &mut [[f32; 4]],
+    xform: [f32; 4],
+    solve: impl FnMut(&Csr, &[Vec<f64>; 2]) -> Solution,
+) -> crate::error::Result<RepairReport> {
+    let parts = curved_parts(topo, curve, sides, lambda);
+    if parts.is_empty() {
+        return Ok(RepairReport::default());
+    }
+    let [a, b, c, d] = xform;
+    let mut uv: Vec<Option<[f32; 2]>> = coords
+        .iter()
+        .map(|x| (x[3] > 0.5).then(|| [(x[0] - b) / a, (x[1] - d) / c]))
+        .collect();
+    let report = repair(topo, &mut uv, &parts, solve)?;
+    for (x, m) in coords.iter_mut().zip(&uv) {
+        if let Some([u, v]) = m {
+            (x[0], x[1]) = (a * u + b, c * v + d);
+        }
+    }
+    Ok(report)
+}
+
 /// Writes a solved system into `uv`: the unknowns' u (and v when given), the boundary's held values.
 fn apply(uv: &mut [Option<[f32; 2]>], sys: &RepairSystem, u: &[f64], v: Option<&[f64]>) {
     for (k, &q) in sys.unknowns.iter().enumerate() {
