@@ -338,6 +338,7 @@ fn bench_cmd(backend: Option<&str>, args: BenchArgs) -> Result<()> {
             ribbon_meshes(mesh, subdivide)?,
             stamps,
             reps,
+            peers.as_deref(),
             |v| println!("{v}"),
         );
     }

@@ -1083,11 +1083,7 @@ fn kind_fields(
 
 /// An animated job's frames agree (every animated ribbon has the same `frames`) and its texture is
 /// named per frame (`{frame}` or `{frame:0N}` in `output.texture`); `src` names the job file.
-fn check_frames(
-    layers: &[Layer],
-    texture: Option<&Path>,
-    src: &Path,
-) -> Result<()> {
+fn check_frames(layers: &[Layer], texture: Option<&Path>, src: &Path) -> Result<()> {
     let mut frames = None;
     for (i, l) in layers.iter().enumerate() {
         let Some(a) = l.ribbon.as_ref().and_then(|r| r.animate) else {
@@ -1105,7 +1101,8 @@ fn check_frames(
             None => frames = Some((a.frames, i)),
         }
     }
-    let named = texture.is_some_and(|t| super::ribbon::frame_name(&t.to_string_lossy(), 0).is_some());
+    let named =
+        texture.is_some_and(|t| super::ribbon::frame_name(&t.to_string_lossy(), 0).is_some());
     if frames.is_some() && !named {
         return Err(Error::job(
             src,
