@@ -141,7 +141,9 @@ fn candidates(topo: &Topology, framed: &Framed, seeds: &[u32], reach: f32) -> (V
     let grid = Grid::new(framed, 1.5 * reach.max(1e-12));
     let mut inside = std::collections::HashSet::new();
     let mut out = Vec::new();
-    let mut stack: Vec<u32> = seeds.to_vec();
+    // Breadth first, so the candidates run outwards from the curve and a sweep (which visits them
+    // in this order, 256 at a time) carries the map across several rings.
+    let mut stack: std::collections::VecDeque<u32> = seeds.iter().copied().collect();
     for &v in seeds {
         inside.insert(v);
         out.push(v);
@@ -153,12 +155,12 @@ fn candidates(topo: &Topology, framed: &Framed, seeds: &[u32], reach: f32) -> (V
         );
         &topo.adjacency[a..b]
     };
-    while let Some(v) = stack.pop() {
+    while let Some(v) = stack.pop_front() {
         for &q in neighbours(v) {
             if !inside.contains(&q) && grid.near(framed, topo.positions[q as usize]) {
                 inside.insert(q);
                 out.push(q);
-                stack.push(q);
+                stack.push_back(q);
             }
         }
     }
