@@ -182,9 +182,9 @@ struct BenchArgs {
     /// atomics, small dense systems per invocation against per workgroup.
     #[arg(long)]
     device: bool,
-    /// With `--linalg`, `--geodesic` or `--unwrap`: the `../shared/peers` directory, to run
-    /// libigl's LSCM, potpourri3d's log maps, or xatlas, ARAP and harmonic maps on the same
-    /// patches / meshes and seeds.
+    /// With `--linalg`, `--geodesic`, `--unwrap` or `--ribbons`: the `../shared/peers` directory,
+    /// to run libigl's LSCM, potpourri3d's log maps, xatlas, ARAP and harmonic maps, or
+    /// potpourri3d's heat-method distance from the curve, on the same patches / meshes and seeds.
     #[arg(long)]
     peers: Option<PathBuf>,
     /// Jobs per minute of `decalbake batch` against one `decalbake bake` process per job:
