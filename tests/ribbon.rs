@@ -323,14 +323,19 @@ fn flat_scene(dir: &std::path::Path) {
     std::fs::write(dir.join("grad.png"), img.encode_png(16)).unwrap();
 }
 
-/// A ribbon job on the flat scene along the arc of radius 0.6 (θ from −π/3 to π/3, 121 points).
-fn arc_job(dir: &std::path::Path, extra: serde_json::Value) -> decalbake::Job {
-    let path: Vec<[f32; 3]> = (0..=120)
+/// The arc of radius 0.6 around the origin, θ from −π/3 to π/3, as 121 points.
+fn arc_path() -> Vec<[f32; 3]> {
+    (0..=120)
         .map(|k| {
             let t = -PI / 3.0 + 2.0 * PI / 3.0 * k as f32 / 120.0;
             [0.6 * t.cos(), 0.6 * t.sin(), 0.0]
         })
-        .collect();
+        .collect()
+}
+
+/// A ribbon job on the flat scene along the arc of radius 0.6 (θ from −π/3 to π/3, 121 points).
+fn arc_job(dir: &std::path::Path, extra: serde_json::Value) -> decalbake::Job {
+    let path = arc_path();
     let mut layer = serde_json::json!({ "kind": "ribbon", "image": "grad.png", "path": path,
         "width": 0.2 });
     for (k, v) in extra.as_object().unwrap() {
@@ -575,12 +580,7 @@ fn sphere_equator_gets_latitude_and_longitude() {
 fn param_exports_a_ribbon_map() {
     let dir = common::scratch("ribbon_param");
     flat_scene(&dir);
-    let path: Vec<[f32; 3]> = (0..=120)
-        .map(|k| {
-            let t = -PI / 3.0 + 2.0 * PI / 3.0 * k as f32 / 120.0;
-            [0.6 * t.cos(), 0.6 * t.sin(), 0.0]
-        })
-        .collect();
+    let path = arc_path();
     let job = serde_json::json!({ "mesh": "plane.glb", "layers": [
         { "kind": "ribbon", "image": "grad.png", "path": path, "width": 0.2, "curved_threshold": 1e6 }] });
     std::fs::write(dir.join("job.json"), job.to_string()).unwrap();
@@ -859,12 +859,7 @@ fn extract_returns_the_baked_image_and_mattes_a_feature() {
     let baked = engine.bake(&mesh, &job).unwrap();
     std::fs::write(dir.join("rt.png"), baked.to_png()).unwrap();
     // The same job with the baked texture as its base.
-    let path: Vec<[f32; 3]> = (0..=120)
-        .map(|k| {
-            let t = -PI / 3.0 + 2.0 * PI / 3.0 * k as f32 / 120.0;
-            [0.6 * t.cos(), 0.6 * t.sin(), 0.0]
-        })
-        .collect();
+    let path = arc_path();
     let with_base = serde_json::json!({ "mesh": "plane.glb",
         "texture": { "width": 256, "height": 256, "padding": 0, "base": "rt.png" },
         "layers": [{ "kind": "ribbon", "image": "grad.png", "path": path, "width": 0.2 }] });

@@ -42,16 +42,7 @@ impl Engine {
 
     /// [`Engine::layer_param`] with the cone that opens the layer's chart at a tip, if any.
     pub fn layer_param_map(&self, mesh: &LoadedMesh, job: &Job, index: usize) -> Result<ParamMap> {
-        let layer = job.layers.get(index).ok_or_else(|| {
-            Error::job(
-                &job.source,
-                "layers",
-                format!(
-                    "--layer {index} does not exist: the job has {} layer(s)",
-                    job.layers.len()
-                ),
-            )
-        })?;
+        let layer = job.layer_at(index)?;
         match layer.kind {
             crate::io::job::LayerKind::Decal => {}
             crate::io::job::LayerKind::Ribbon => {
@@ -164,10 +155,21 @@ impl Engine {
         Ok((rows, cone))
     }
 
-    /// A ribbon layer's map: its curve placed and joined as a bake does, then the extended
-    /// exponential map on the GPU; one row per vertex it reaches, (u, v) in model units (u along
-    /// the curve from its start, v across it, positive on its left), distance = |v|.
-    fn ribbon_param(&self, mesh: &LoadedMesh, job: &Job, index: usize) -> Result<Vec<ParamRow>> {
+    /// A ribbon layer's map as a bake computes it: its curve placed and joined, the extended
+    /// exponential map on the GPU and the repair of its highly curved parts; per welded vertex
+    /// (u, v, graph distance, 1 where reached), u along the curve from its start and v across it
+    /// in model units; with the layer's unit (its curve and image mapping) and its size
+    /// ([length, width]).
+    pub fn ribbon_map(
+        &self,
+        mesh: &LoadedMesh,
+        job: &Job,
+        index: usize,
+    ) -> Result<(
+        Vec<[f32; 4]>,
+        crate::bake::kinds::ribbon::RibbonUnit,
+        [f32; 2],
+    )> {
         let units = self.units(mesh, job)?;
         let unit = units
             .origin
@@ -175,7 +177,7 @@ impl Engine {
             .position(|o| o.0 == index)
             .expect("every layer has a unit");
         let r = units.ribbons[unit]
-            .as_ref()
+            .clone()
             .expect("a ribbon layer's unit carries its curve");
         let (mut coords, _) = crate::maps::ribbon::gpu::ribbon_gpu(
             &self.ctx,
@@ -184,7 +186,6 @@ impl Engine {
             &r.curve,
             r.reach,
         )?;
-        // The bake's repair of the highly curved parts, on the plain (u, v).
         crate::maps::ribbon::repair::repair_coords(
             &mesh.topo,
             (&r.curve, r.sides, r.lambda),
@@ -192,6 +193,13 @@ impl Engine {
             [1.0, 0.0, 1.0, 0.0],
             crate::maps::ribbon::repair::solve_gpu(&self.ctx, &self.pipes),
         )?;
+        Ok((coords, r, units.job.layers[unit].size))
+    }
+
+    /// A ribbon layer's `param` rows ([`Engine::ribbon_map`]): one per vertex it reaches,
+    /// distance = |v|.
+    fn ribbon_param(&self, mesh: &LoadedMesh, job: &Job, index: usize) -> Result<Vec<ParamRow>> {
+        let (coords, _, _) = self.ribbon_map(mesh, job, index)?;
         let topo = &mesh.topo;
         Ok(coords
             .iter()

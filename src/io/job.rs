@@ -440,6 +440,20 @@ pub struct Layer {
     pub warp: Vec<[[f32; 2]; 2]>,
 }
 
+impl Layer {
+    /// The width and height of the layer's image (read from its header), or an error naming
+    /// `layers[index].image` of job file `src`.
+    pub fn image_dimensions(&self, src: &Path, index: usize) -> Result<(u32, u32)> {
+        image::image_dimensions(&self.image).map_err(|e| {
+            Error::job(
+                src,
+                format!("layers[{index}].image"),
+                format!("{}: {e}", self.image.display()),
+            )
+        })
+    }
+}
+
 /// Texture base after validation.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Base {
@@ -547,6 +561,20 @@ impl Job {
             out_preview: None,
             ..self.clone()
         }
+    }
+
+    /// Layer `index` (a command's `--layer`), or an error naming how many there are.
+    pub fn layer_at(&self, index: usize) -> Result<&Layer> {
+        self.layers.get(index).ok_or_else(|| {
+            Error::job(
+                &self.source,
+                "layers",
+                format!(
+                    "--layer {index} does not exist: the job has {} layer(s)",
+                    self.layers.len()
+                ),
+            )
+        })
     }
 
     /// Frames of an animated job (its ribbons' `animate.frames`), `None` without animation.

@@ -104,53 +104,14 @@ pub struct Flat {
 
 /// Layer `index`'s map as flat triangles: each mesh triangle whose three vertices the map reaches.
 pub fn flat_triangles(engine: &Engine, mesh: &LoadedMesh, job: &Job, index: usize) -> Result<Flat> {
-    let layer = job.layers.get(index).ok_or_else(|| {
-        Error::job(
-            &job.source,
-            "layers",
-            format!(
-                "--layer {index} does not exist: the job has {} layer(s)",
-                job.layers.len()
-            ),
-        )
-    })?;
-    let (iw, ih) = image::image_dimensions(&layer.image).map_err(|e| {
-        Error::job(
-            &job.source,
-            format!("layers[{index}].image"),
-            format!("{}: {e}", layer.image.display()),
-        )
-    })?;
+    let layer = job.layer_at(index)?;
+    let (iw, ih) = layer.image_dimensions(&job.source, index)?;
     // Image coordinates per welded vertex.
     let mut img: Vec<Option<[f32; 2]>> = vec![None; mesh.topo.positions.len()];
     let mut copies = 1.0f32;
     match layer.kind {
         LayerKind::Ribbon => {
-            let units = engine.units(mesh, job)?;
-            let unit = units
-                .origin
-                .iter()
-                .position(|o| o.0 == index)
-                .expect("a ribbon has a unit");
-            let r = units.ribbons[unit]
-                .as_ref()
-                .expect("a ribbon unit has its curve");
-            let [length, width] = units.job.layers[unit].size;
-            let (mut coords, _) = crate::maps::ribbon::gpu::ribbon_gpu(
-                &engine.ctx,
-                &engine.pipes,
-                mesh.surface_ref(),
-                &r.curve,
-                r.reach,
-            )?;
-            // The bake's repair of the highly curved parts, on the plain (u, v).
-            crate::maps::ribbon::repair::repair_coords(
-                &mesh.topo,
-                (&r.curve, r.sides, r.lambda),
-                &mut coords,
-                [1.0, 0.0, 1.0, 0.0],
-                crate::maps::ribbon::repair::solve_gpu(&engine.ctx, &engine.pipes),
-            )?;
+            let (coords, r, [length, width]) = engine.ribbon_map(mesh, job, index)?;
             let [a, b, c, d] = r.xform;
             for (v, co) in coords.iter().enumerate().filter(|(_, co)| co[3] > 0.5) {
                 let (x, y) = (a * co[0] + b, c * co[1] + d);

@@ -101,13 +101,7 @@ impl Kind for RibbonKind {
             })?,
         };
         let length = curve_length(&curve);
-        let (iw, ih) = image::image_dimensions(&layer.image).map_err(|e| {
-            Error::job(
-                &job.source,
-                format!("layers[{index}].image"),
-                format!("{}: {e}", layer.image.display()),
-            )
-        })?;
+        let (iw, ih) = layer.image_dimensions(&job.source, index)?;
         let aspect = ih as f32 / iw.max(1) as f32;
         let width = r.width.unwrap_or(aspect * length);
         let ribbon = mapping(r, length, width, aspect, edge, curve);
