@@ -1162,3 +1162,70 @@ fn editing_a_path_point_changes_the_texture_only_near_it() {
         "the edit changed nothing near the point ({near:.2e})"
     );
 }
+
+/// The whole bake's CPU twin (`bake::cpu::bake_units_cpu` with the ribbon units of
+/// `Engine::units`: the curve map's twin, the repair's f64 twin, the raster's repeat) against the
+/// GPU bake of the arc ribbon, stretched and tiled: every texel whose four samples the strip covers
+/// in both (the GPU samples the gradient's mipmaps, the twin level 0: the same linear function
+/// away from the image's borders, so texels within two texels of the strip's edges, ends and tile
+/// seams are left out) within 1e-4, as the decal bakes in `tests/compose_vs_cpu.rs` (measured
+/// 1.7e-5 and 1.8e-5: the maps differ by up to 1e-5 model units, the 16-bit read-back by 1.5e-5).
+/// Reading the twin's tiles with one copy fewer fails the tiled case.
+#[test]
+fn ribbon_bakes_match_the_whole_bake_twin() {
+    use decalbake::bake::cpu::bake_units_cpu;
+    use decalbake::io::image::LinearImage;
+    let engine = common::engine();
+    let dir = common::scratch("ribbon_twin");
+    flat_scene(&dir);
+    let grad = LinearImage::load(&dir.join("grad.png")).unwrap();
+    let (r, w, l) = (0.6f32, 0.2f32, 0.6 * 2.0 * PI / 3.0);
+    for (name, extra) in [
+        ("stretch", serde_json::json!({})),
+        ("tile", serde_json::json!({ "repeat": "tile" })),
+    ] {
+        let job = arc_job(&dir, extra);
+        let mesh = engine.load_mesh(&job.mesh).unwrap();
+        let baked = engine.bake(&mesh, &job).unwrap();
+        let units = engine.units(&mesh, &job).unwrap();
+        let images: Vec<_> = units.origin.iter().map(|_| (grad.clone(), None)).collect();
+        let base = LinearImage::solid(1, 1, [0.0, 0.0, 1.0, 1.0]);
+        let cpu = bake_units_cpu(
+            &mesh.mesh,
+            &mesh.topo,
+            (&units.job, &units.placements, &units.frames),
+            (&units.strokes, &units.ribbons),
+            &base,
+            &images,
+        );
+        let texel = 2.0 / 256.0;
+        let (mut worst, mut n) = (0.0f32, 0);
+        for ty in 0..256u32 {
+            for tx in 0..256u32 {
+                let p = Vec2::new(
+                    -1.0 + (tx as f32 + 0.5) * texel,
+                    1.0 - (ty as f32 + 0.5) * texel,
+                );
+                let (u, v) = (r * (p.y.atan2(p.x) + PI / 3.0), r - p.length());
+                let m = 2.0 * texel;
+                if !(u > m && u < l - m && v.abs() < w / 2.0 - m) {
+                    continue;
+                }
+                if name == "tile" {
+                    let f = (u / (w * 4.0)).fract();
+                    if !(0.05..=0.95).contains(&f) {
+                        continue;
+                    }
+                }
+                let (g, c) = (
+                    baked.linear(tx, ty),
+                    cpu.composed.pixels[(ty * 256 + tx) as usize],
+                );
+                worst = worst.max((0..3).map(|k| (g[k] - c[k]).abs()).fold(0.0, f32::max));
+                n += 1;
+            }
+        }
+        eprintln!("{name}: {n} texels, max |GPU - twin| {worst:.2e}");
+        assert!(n > 1000 && worst < 1e-4, "{name}: {n} texels, {worst:.2e}");
+    }
+}

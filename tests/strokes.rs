@@ -244,7 +244,7 @@ fn opacity_case(continuity: bool) {
         &mesh,
         &topo,
         (&units.job, &units.placements, &units.frames),
-        &units.strokes,
+        (&units.strokes, &units.ribbons),
         &base,
         &images,
     );

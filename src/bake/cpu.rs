@@ -7,6 +7,7 @@
 //! mip level 0 with clamp-to-edge; the GPU picks a coarser level when a decal is minified, so
 //! comparisons against this twin use magnified decals (see `tests/compose_vs_cpu.rs`).
 
+use crate::bake::kinds::ribbon::RibbonUnit;
 use crate::io::image::LinearImage;
 use crate::io::job::{Job, Layer};
 use crate::maps::chart::cone::Cone;
@@ -60,7 +61,14 @@ pub fn bake_cpu(
         .zip(placements)
         .map(|(l, p)| Frame::new(p, l))
         .collect();
-    bake_units_cpu(mesh, topo, (job, placements, &frames), &[], base, images)
+    bake_units_cpu(
+        mesh,
+        topo,
+        (job, placements, &frames),
+        (&[], &[]),
+        base,
+        images,
+    )
 }
 
 /// A stroke as the CPU twin composes it: its units, opacity and blend mode.
@@ -92,7 +100,7 @@ pub fn bake_units_cpu(
     mesh: &Mesh,
     topo: &Topology,
     (job, placements, frames): (&Job, &[Placement], &[Frame]),
-    strokes: &[StrokeCpu],
+    (strokes, ribbons): (&[StrokeCpu], &[Option<RibbonUnit>]),
     base: &LinearImage,
     images: &[(LinearImage, Option<LinearImage>)],
 ) -> CpuBake {
@@ -121,13 +129,16 @@ pub fn bake_units_cpu(
             .clone()
             .map(|u| match blend_of(u) {
                 Some(_) => (Vec::new(), None),
-                None => {
-                    let (l, f, p) = (&job.layers[u], &frames[u], &placements[u]);
-                    let paint =
-                        stroke.is_none_or(|s| matches!(s.tool, crate::io::job::Tool::Paint));
-                    let c = layer_coords_cpu(topo, &surface, l, f, p, !hidden(u) && paint);
-                    (c.coords, c.cone)
-                }
+                None => match ribbons.get(u).and_then(|r| r.as_ref()) {
+                    Some(r) => (ribbon_coords_cpu(topo, r), None),
+                    None => {
+                        let (l, f, p) = (&job.layers[u], &frames[u], &placements[u]);
+                        let paint =
+                            stroke.is_none_or(|s| matches!(s.tool, crate::io::job::Tool::Paint));
+                        let c = layer_coords_cpu(topo, &surface, l, f, p, !hidden(u) && paint);
+                        (c.coords, c.cone)
+                    }
+                },
             })
             .unzip();
         for u in group.clone() {
@@ -166,6 +177,10 @@ pub fn bake_units_cpu(
             .map(|(u, (c, cone))| LayerRaster {
                 flat: flats[u - group.start].take(),
                 cone: *cone,
+                repeats: ribbons
+                    .get(u)
+                    .and_then(|r| r.as_ref())
+                    .map_or(0.0, |r| r.repeats),
                 ..LayerRaster::new(mesh, topo, job, &job.layers[u], c, &images[u])
             })
             .collect();
@@ -407,6 +422,32 @@ pub fn layer_coords_cpu(
     m.cpu_coords(topo, layer, frame, (placement.triangle, cone), expmap)
 }
 
+/// A ribbon unit's coordinates as the bake's ribbon pass writes them: the curve's map by the CPU
+/// twin ([`crate::maps::ribbon::ribbon_cpu`]), its highly curved parts repaired (f64 PCG), through
+/// the unit's image mapping: (x, y, graph distance, 1) per reached vertex.
+pub fn ribbon_coords_cpu(topo: &Topology, r: &RibbonUnit) -> Vec<[f32; 4]> {
+    let map = crate::maps::ribbon::ribbon_cpu(topo, &r.curve, r.reach);
+    let mut coords: Vec<[f32; 4]> = (0..topo.positions.len())
+        .map(|v| match map.reached(v) {
+            true => [map.uv[v][0], map.uv[v][1], map.dist[v], 1.0],
+            false => [0.0; 4],
+        })
+        .collect();
+    crate::maps::ribbon::repair::repair_coords(
+        topo,
+        (&r.curve, r.sides, r.lambda),
+        &mut coords,
+        [1.0, 0.0, 1.0, 0.0],
+        crate::maps::ribbon::repair::solve_cpu,
+    )
+    .expect("the CPU solver does not fail");
+    let [a, b, c, d] = r.xform;
+    for x in coords.iter_mut().filter(|x| x[3] > 0.5) {
+        (x[0], x[1]) = (a * x[0] + b, c * x[1] + d);
+    }
+    coords
+}
+
 /// Twin of `layer_raster` + `compose`'s averaging for one layer.
 struct LayerRaster<'a> {
     mesh: &'a Mesh,
@@ -423,6 +464,8 @@ struct LayerRaster<'a> {
     cone: Option<Cone>,
     /// The layer's image warp (`layer_raster`'s FLAG_WARP).
     warp: Option<crate::maps::warp::Tps>,
+    /// A tiled ribbon's copies of the image along x (`layer_raster`'s FLAG_REPEAT; 0: none).
+    repeats: f32,
 }
 
 impl<'a> LayerRaster<'a> {
@@ -453,6 +496,7 @@ impl<'a> LayerRaster<'a> {
             flat: None,
             cone: None,
             warp: crate::maps::warp::Tps::fit(&layer.warp),
+            repeats: 0.0,
         }
     }
 
@@ -478,6 +522,10 @@ impl<'a> LayerRaster<'a> {
             }
             let mut im = Vec2::new(lx / layer.size[0] + 0.5, 0.5 - ly / layer.size[1]);
             let mut inside = im.x >= 0.0 && im.y >= 0.0 && im.x <= 1.0 && im.y <= 1.0;
+            if self.repeats > 0.0 {
+                // Twin of FLAG_REPEAT (level 0: the twin has no mipmaps).
+                im.x = (im.x * self.repeats).fract();
+            }
             if let Some(t) = &self.warp {
                 im = Vec2::from(t.eval(im.to_array()));
                 inside &= im.x >= 0.0 && im.y >= 0.0 && im.x <= 1.0 && im.y <= 1.0;

@@ -172,7 +172,7 @@ pub fn run(
                 &loaded.mesh,
                 &loaded.topo,
                 (&units.job, &units.placements, &units.frames),
-                &units.strokes,
+                (&units.strokes, &units.ribbons),
                 &base,
                 &images,
             );

@@ -64,7 +64,7 @@ impl super::MapMethod for RibbonMethod {
         _at: (u32, bool),
         _expmap: Option<Vec<[f32; 4]>>,
     ) -> super::CpuCoords {
-        panic!("bake::cpu::bake_cpu takes decal and stroke layers; a ribbon's map twin is maps::ribbon::ribbon_cpu")
+        panic!("bake::cpu::bake_cpu takes decal and stroke layers; for ribbons use bake::cpu::bake_units_cpu with Engine::units' ribbon units (bake::cpu::ribbon_coords_cpu)")
     }
 }
 
