@@ -559,7 +559,7 @@ fn cpu_on_sheet(dir: &Path, side: u32, layers: serde_json::Value) -> Vec<[f32; 4
         &mesh,
         &topo,
         (&units.job, &units.placements, &units.frames),
-        &units.strokes,
+        (&units.strokes, &units.ribbons),
         base,
         &images,
     );
