@@ -522,6 +522,7 @@ impl<'a> LayerRaster<'a> {
             }
             let mut im = Vec2::new(lx / layer.size[0] + 0.5, 0.5 - ly / layer.size[1]);
             let mut inside = im.x >= 0.0 && im.y >= 0.0 && im.x <= 1.0 && im.y <= 1.0;
+            let flat_im = im;
             if self.repeats > 0.0 {
                 // Twin of FLAG_REPEAT (level 0: the twin has no mipmaps).
                 im.x = (im.x * self.repeats).fract();
@@ -540,7 +541,7 @@ impl<'a> LayerRaster<'a> {
                 }
                 if let Some(f) = &self.flat {
                     // Twin of `layer_raster`'s FLAG_TOOL: colour from the flat, shape = alpha.
-                    let c = sample_bilinear(f, im);
+                    let c = sample_bilinear(f, flat_im);
                     let shape = if c[3] > 0.0 { s[3] } else { 0.0 };
                     s = [c[0] * shape, c[1] * shape, c[2] * shape, shape];
                 }

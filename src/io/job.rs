@@ -747,6 +747,16 @@ impl Job {
             .map(|(i, l)| validate_layer(l, i, src, input_dir))
             .collect::<Result<Vec<_>>>()?;
         check_frames(&layers, f.output.texture.as_deref(), src)?;
+        if matches!(f.uv_set, UvSetField::List(_))
+            && layers
+                .iter()
+                .any(|l| l.ribbon.as_ref().is_some_and(|r| r.animate.is_some()))
+        {
+            return Err(err(
+                "uv_set",
+                "an animated job bakes one UV set (a list of sets with `animate` would need frames × sets textures); give one set".into(),
+            ));
+        }
         let out = |p: &Option<PathBuf>| p.as_ref().map(|p| output_dir.join(p));
         Ok(Job {
             source: src.to_path_buf(),

@@ -11,7 +11,8 @@
 //! | `align` | `"center"` (the strip straddles the curve); `"left"` or `"right"` of it, seen from outside |
 //! | `flip` | `false`; `true` mirrors the image across the curve |
 //! | `curved_threshold` | 0.2: the λ of Sun et al. §3 step 4; parts where the strip's offset
-//! stretches or shrinks by more than this are re-solved harmonically ([`crate::maps::ribbon::repair`]) |
+//! stretches or shrinks by more than this are re-solved harmonically, u alone first, the full map
+//! onto a rectangle where that still folds ([`crate::maps::ribbon::repair`]) |
 //! | `animate` | none; `{"route": [points], "frames": N, "length": L, "closed": false}`: the image
 //! occupies `length` of the route and moves along it over the frames (Sun et al. §4.3); replaces
 //! `path` |
@@ -273,14 +274,18 @@ fn animate(a: &AnimateSpec, i: usize, src: &Path) -> Result<Animate> {
     })
 }
 
-/// `text` with its `{frame}` or `{frame:0N}` placeholder replaced by `f` (zero-padded to N digits);
-/// `None` without a placeholder.
+/// `text` with its `{frame}` or `{frame:0N}` placeholder replaced by `f` (zero-padded to N digits,
+/// N at most 9); `None` without a valid placeholder.
 pub fn frame_name(text: &str, f: u32) -> Option<String> {
     let start = text.find("{frame")?;
     let end = start + text[start..].find('}')?;
     let width = match &text[start + 6..end] {
         "" => 0,
-        spec => spec.strip_prefix(":0")?.parse::<usize>().ok()?,
+        spec => spec
+            .strip_prefix(":0")?
+            .parse::<usize>()
+            .ok()
+            .filter(|&w| w <= 9)?,
     };
     Some(format!("{}{f:0width$}{}", &text[..start], &text[end + 1..]))
 }
@@ -298,5 +303,6 @@ mod tests {
         );
         assert_eq!(frame_name("a.png", 7), None);
         assert_eq!(frame_name("a_{frame:x}.png", 7), None);
+        assert_eq!(frame_name("a_{frame:010000000000}.png", 7), None);
     }
 }

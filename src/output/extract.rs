@@ -72,7 +72,8 @@ pub fn extract(
         })
     } else {
         if let Some(m) = &job.layers[index].mask {
-            apply_mask(&mut image, &crate::bake::load_raw(m)?);
+            let copies = flat.size[0] as f32 / layer_width(job, index)? as f32;
+            apply_mask(&mut image, &crate::bake::load_raw(m)?, copies.max(1.0));
         }
         None
     };
@@ -83,12 +84,18 @@ pub fn extract(
     })
 }
 
-/// Multiplies each pixel's alpha by the mask (red × alpha) at the same image point.
-fn apply_mask(img: &mut LinearImage, mask: &LinearImage) {
+/// The width of layer `index`'s image.
+fn layer_width(job: &Job, index: usize) -> Result<u32> {
+    Ok(job.layer_at(index)?.image_dimensions(&job.source, index)?.0)
+}
+
+/// Multiplies each pixel's alpha by the mask (red × alpha) at the same image point, the mask
+/// repeated `copies` times along x as a tiled ribbon's raster repeats it.
+fn apply_mask(img: &mut LinearImage, mask: &LinearImage, copies: f32) {
     let (w, h) = (img.width as f32, img.height as f32);
     for (i, p) in img.pixels.iter_mut().enumerate() {
         let (x, y) = ((i as u32 % img.width) as f32, (i as u32 / img.width) as f32);
-        let m = mask.bilinear((x + 0.5) / w, (y + 0.5) / h, false);
+        let m = mask.bilinear(((x + 0.5) / w * copies).fract(), (y + 0.5) / h, false);
         p[3] *= m[0] * m[3];
     }
 }
@@ -120,7 +127,16 @@ pub fn flat_triangles(engine: &Engine, mesh: &LoadedMesh, job: &Job, index: usiz
             copies = r.repeats.max(1.0);
         }
         _ => {
-            let rows = engine.layer_param(mesh, job, index)?;
+            let (rows, cone) = engine.layer_param_map(mesh, job, index)?;
+            if cone.is_some() {
+                // The bake opens such a chart per texel (the cut runs through triangles); drawn per
+                // vertex, the triangles across the cut would smear over the image.
+                return Err(Error::job(
+                    &job.source,
+                    format!("layers[{index}].method"),
+                    "this decal's chart is opened at a tip (a cone chart); extract does not follow those yet: move the decal off the tip or use \"expmap\"",
+                ));
+            }
             let [w, h] = layer.size;
             for r in rows {
                 img[r.vertex as usize] = Some([r.uv[0] / w + 0.5, 0.5 - r.uv[1] / h]);

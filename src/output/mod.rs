@@ -102,12 +102,22 @@ pub fn write_outputs(
         }
         staged.push((tmp, p.clone()));
     }
-    for (tmp, p) in &staged {
-        std::fs::rename(tmp, p).map_err(|source| Error::Io {
-            path: p.clone(),
-            action: "renaming into place",
-            source,
-        })?;
+    for (k, (tmp, p)) in staged.iter().enumerate() {
+        if let Err(source) = std::fs::rename(tmp, p) {
+            // Nothing of this bake stays: the files already renamed and the rest staged.
+            for (t, q) in &staged[..k] {
+                let _ = std::fs::remove_file(q);
+                let _ = std::fs::remove_file(t);
+            }
+            for (t, _) in &staged[k..] {
+                let _ = std::fs::remove_file(t);
+            }
+            return Err(Error::Io {
+                path: p.clone(),
+                action: "renaming into place",
+                source,
+            });
+        }
     }
     Ok(files.into_iter().map(|(p, _)| p).collect())
 }

@@ -140,6 +140,8 @@ fn fs_main(in: VsOut) -> FsOut {
     var gx = dpdx(unwrapped);
     var gy = dpdy(unwrapped);
     var inside = in_image(img);
+    // Where the stamp's flat image (FLAG_TOOL) is read: its cell is laid out unwarped.
+    let flat_img = img;
     var c: vec4<f32>;
     // Uniform branches (params is uniform).
     if (repeat || warped) {
@@ -167,7 +169,7 @@ fn fs_main(in: VsOut) -> FsOut {
     }
     if ((params.flags & FLAG_TOOL) != 0u) {
         // What is below, filtered in the stamp's flat space, with the stamp image's alpha as shape.
-        let f = flat_at(img);
+        let f = flat_at(flat_img);
         let shape = select(0.0, c.a, f.a > 0.0);
         c = vec4<f32>(f.rgb * shape, shape);
     }

@@ -162,8 +162,9 @@ fn frame_piece(
         }
         push(p1, Some(route.triangles[k1]));
     };
-    if s1 <= total {
-        walk(s0, s1);
+    // An open route's last piece can end an ulp past the route in f32: clamp, never wrap.
+    if !a.closed || s1 <= total {
+        walk(s0, s1.min(total));
     } else {
         walk(s0, total);
         walk(0.0, s1 - total);

@@ -319,51 +319,58 @@ fn cot_weights(topo: &Topology, tris: &[[u32; 3]]) -> HashMap<(u32, u32), f64> {
     w
 }
 
-/// The longest boundary loop of the triangle set (vertices in order), if it has one.
+/// The boundary loop of the triangle set (vertices in order) when the set is a disk: one
+/// connected piece with Euler characteristic 1 whose boundary edges form one closed loop through
+/// distinct vertices. `None` otherwise (a region with a hole, two pieces, or a pinch vertex would
+/// leave unknowns no boundary value reaches, or a loop the walk cannot follow).
 fn boundary_loop(tris: &[[u32; 3]]) -> Option<Vec<u32>> {
     let mut count: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut parent: HashMap<u32, u32> = HashMap::new();
+    fn root(parent: &mut HashMap<u32, u32>, v: u32) -> u32 {
+        let mut r = v;
+        while let Some(&p) = parent.get(&r).filter(|&&p| p != r) {
+            r = p;
+        }
+        parent.insert(v, r);
+        r
+    }
     for t in tris {
         for k in 0..3 {
             let (a, b) = (t[k], t[(k + 1) % 3]);
             *count.entry((a.min(b), a.max(b))).or_default() += 1;
+            parent.entry(a).or_insert(a);
+            let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
+            parent.insert(ra, rb);
         }
     }
-    // Directed boundary edges, as the triangles run them.
+    let vertices: Vec<u32> = parent.keys().copied().collect();
+    let roots: std::collections::HashSet<u32> =
+        vertices.iter().map(|&v| root(&mut parent, v)).collect();
+    let euler = vertices.len() as i64 - count.len() as i64 + tris.len() as i64;
+    if roots.len() != 1 || euler != 1 {
+        return None;
+    }
+    // Directed boundary edges, as the triangles run them; a vertex with two is a pinch.
     let mut next: HashMap<u32, u32> = HashMap::new();
     for t in tris {
         for k in 0..3 {
             let (a, b) = (t[k], t[(k + 1) % 3]);
-            if count[&(a.min(b), a.max(b))] == 1 {
-                next.insert(a, b);
+            if count[&(a.min(b), a.max(b))] == 1 && next.insert(a, b).is_some() {
+                return None;
             }
         }
     }
-    let mut seen: std::collections::HashSet<u32> = Default::default();
-    let mut best: Option<Vec<u32>> = None;
-    let mut starts: Vec<u32> = next.keys().copied().collect();
-    starts.sort_unstable();
-    for s in starts {
-        if seen.contains(&s) {
-            continue;
+    let start = *next.keys().min()?;
+    let mut lp = vec![start];
+    let mut v = next[&start];
+    while v != start {
+        if lp.len() > next.len() {
+            return None;
         }
-        let mut lp = vec![s];
-        seen.insert(s);
-        let mut v = next[&s];
-        while v != s && lp.len() <= next.len() {
-            if !seen.insert(v) {
-                break;
-            }
-            lp.push(v);
-            match next.get(&v) {
-                Some(&w) => v = w,
-                None => break,
-            }
-        }
-        if best.as_ref().is_none_or(|b| lp.len() > b.len()) {
-            best = Some(lp);
-        }
+        lp.push(v);
+        v = *next.get(&v)?;
     }
-    best
+    (lp.len() == next.len()).then_some(lp)
 }
 
 /// What a solver of the repair's two systems returns: the solutions of u and v and the CG
@@ -375,12 +382,13 @@ pub type Solution = crate::error::Result<([Vec<f64>; 2], u32)>;
 pub struct RepairReport {
     /// The parts re-solved, as arc-length ranges along γ (model units).
     pub repaired: Vec<[f32; 2]>,
-    /// Parts found curved whose region could not be repaired (not a disk with lateral ends).
+    /// Parts found curved whose region could not be repaired (not a disk with lateral ends: a
+    /// strip that meets itself, a hole, two pieces).
     pub skipped: Vec<[f32; 2]>,
     /// Of `repaired`, the parts re-solved as the full harmonic map onto a rectangle (u alone still
     /// folded).
     pub rectangle: Vec<[f32; 2]>,
-    /// Vertices re-solved.
+    /// Vertices of the repaired regions (re-solved, and held on their boundaries).
     pub vertices: u32,
     /// Conjugate-gradient iterations (the larger of the u and v systems, summed over parts).
     pub cg_iterations: u32,
