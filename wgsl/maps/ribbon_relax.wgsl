@@ -199,7 +199,14 @@ fn main(@builtin(local_invocation_index) lid: u32) {
         if (sweeps >= job.sweeps) { break; }
         if (lid == 0u) { atomicStore(&changed, 0u); }
         workgroupBarrier();
-        for (var i = lid; i < job.cand_count; i += WG) {
+        // Each invocation takes a contiguous block of the candidates (listed breadth first from
+        // the curve): llvmpipe runs a SIMD group's invocations through the whole loop before the
+        // next group's (nothing here waits at a barrier), so blocks make the sweep visit the strip
+        // outwards, ring after ring, and a sweep carries the map across all of it (strided
+        // indices visited one ring in 256 per step: bob 6 and the bunny 9 sweeps; see the README).
+        let block = (job.cand_count + WG - 1u) / WG;
+        let end = min(job.cand_count, (lid + 1u) * block);
+        for (var i = lid * block; i < end; i++) {
             let q = candidates[i];
             let old_link = link[q];
             if (old_link.x == SEED) { continue; }
