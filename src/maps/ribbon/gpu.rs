@@ -133,12 +133,13 @@ impl Grid {
 }
 
 /// The vertices the map can reach: connected to the seeds through vertices within Euclidean
-/// distance 1.5 × `reach` of the curve (a vertex within graph distance `reach` is within that
-/// Euclidean distance, and so is every vertex on its path from the seeds), and the ring around
+/// distance `reach` of the curve (the caller's reach plus the seeds' largest offset: a vertex
+/// within that graph distance is within that Euclidean distance, and so is every vertex on its
+/// path from the seeds), and the ring around
 /// those (reached from them, as the twin reaches one ring past `reach`); then the next ring,
 /// only reset. Cost proportional to the result.
 fn candidates(topo: &Topology, framed: &Framed, seeds: &[u32], reach: f32) -> (Vec<u32>, Vec<u32>) {
-    let grid = Grid::new(framed, 1.5 * reach.max(1e-12));
+    let grid = Grid::new(framed, reach.max(1e-12));
     let mut inside = std::collections::HashSet::new();
     let mut out = Vec::new();
     // Breadth first, so the candidates run outwards from the curve and a sweep (which visits them
@@ -241,7 +242,10 @@ pub fn run(
         })
         .collect();
     let seed_vertices: Vec<u32> = seeds.iter().map(|s| s.vertex).collect();
-    let (cands, halo) = candidates(topo, &framed, &seed_vertices, reach);
+    // Graph distances are never shorter than straight ones, so a vertex within `reach` of the
+    // seeds lies within `reach` of a seed, and the seeds lie within their offsets of the curve.
+    let seed_far = seeds.iter().map(|s| s.dist).fold(0.0f32, f32::max);
+    let (cands, halo) = candidates(topo, &framed, &seed_vertices, reach + seed_far);
     let pieces: Vec<GpuPiece> = framed.pieces.iter().map(GpuPiece::from).collect();
     let list: Vec<u32> = cands.iter().chain(&halo).copied().collect();
     let setup_ms = t.elapsed().as_secs_f64() * 1e3;
