@@ -32,9 +32,6 @@ pub struct Slots {
     pub lists: wgpu::Buffer,
     /// Layers per chunk.
     pub chunk: usize,
-    /// The ribbon maps' per-vertex scratch, made by the first chunk that has a ribbon and kept for
-    /// the bake's later chunks.
-    pub ribbon_scratch: std::cell::OnceCell<crate::maps::ribbon::gpu::Scratch>,
 }
 
 impl Slots {
@@ -60,7 +57,6 @@ impl Slots {
             coords,
             lists,
             chunk,
-            ribbon_scratch: std::cell::OnceCell::new(),
         }
     }
 
@@ -228,7 +224,7 @@ fn ribbon_pass(
     maps: &mut LayerMaps,
     log: &mut Log,
 ) -> Result<()> {
-    use crate::maps::ribbon::gpu::{run, Output, Scratch};
+    use crate::maps::ribbon::gpu::{run, Output};
     let Cx { engine, mesh, .. } = cx;
     let start = maps.range.start;
     let units: Vec<usize> = maps
@@ -239,13 +235,6 @@ fn ribbon_pass(
     if units.is_empty() {
         return Ok(());
     }
-    let scratch = match slots.ribbon_scratch.get() {
-        Some(s) => s,
-        None => {
-            let s = Scratch::new(&engine.ctx, mesh.gpu.vertex_count)?;
-            slots.ribbon_scratch.get_or_init(|| s)
-        }
-    };
     for i in units {
         let r = placed.ribbons[i].as_ref().expect("filtered");
         let out = Output {
@@ -258,7 +247,6 @@ fn ribbon_pass(
             mesh.surface_ref(),
             (&r.curve, r.reach),
             (&slots.coords, out),
-            scratch,
         )?;
         log.commands += status.dispatches;
         // The surface must let the strip spread as wide as asked (a curve along a border, or a

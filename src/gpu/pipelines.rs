@@ -405,7 +405,8 @@ impl Pipelines {
 fn ribbon_relax(device: &wgpu::Device) -> Kernel {
     use Bind::*;
     let mut binds = vec![(0, Uniform)];
-    binds.extend((1..=7).map(|b| (b, Ro)));
+    binds.extend([(1, Ro), (2, Rw)]);
+    binds.extend((3..=7).map(|b| (b, Ro)));
     binds.extend((8..=11).map(|b| (b, Rw)));
     Kernel::new(device, "ribbon_relax", &binds)
 }

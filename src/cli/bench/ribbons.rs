@@ -17,7 +17,7 @@
 //! same vertices referees the heat method's own error.
 
 use super::common::median;
-use decalbake::maps::ribbon::gpu::{ribbon_gpu, run as ribbon_run, Output, Scratch};
+use decalbake::maps::ribbon::gpu::{ribbon_gpu, run as ribbon_run, Output};
 use decalbake::maps::ribbon::repair::{curved_parts, repair, solve_gpu, DEFAULT_LAMBDA};
 use decalbake::maps::ribbon::{ribbon_cpu, Curve};
 use decalbake::mesh::{Mesh, Topology};
@@ -122,12 +122,11 @@ pub fn run(
             .windows(2)
             .map(|w| (w[1] - w[0]).length())
             .sum();
-        // Warm: the pipelines compiled. The coordinates and the scratch are made once per mesh,
+        // Warm: the pipelines compiled. The coordinates are made once per mesh,
         // as a bake's are; a map's time is its set-up, relaxation and status read-back. The warm
         // run's coordinates (read back) are the ones the accuracy and the repair use.
         let (ctx, pipes, surface) = (&engine.ctx, engine.pipelines(), loaded.surface_ref());
         let (map, _) = ribbon_gpu(ctx, pipes, surface, &curve, reach)?;
-        let scratch = Scratch::new(ctx, loaded.gpu.vertex_count)?;
         let coords = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("bench.ribbon_coords"),
             size: loaded.gpu.vertex_count as u64 * 16,
@@ -140,7 +139,7 @@ pub fn run(
         for _ in 0..reps.max(1) {
             let t = Instant::now();
             let out = (&coords, Output::PLAIN);
-            let (s, _) = ribbon_run(ctx, pipes, surface, (&curve, reach), out, &scratch)?;
+            let (s, _) = ribbon_run(ctx, pipes, surface, (&curve, reach), out)?;
             gpu_ms.push(t.elapsed().as_secs_f64() * 1e3);
             status = s;
             let t = Instant::now();

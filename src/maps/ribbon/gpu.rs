@@ -10,7 +10,7 @@ use crate::gpu::pipelines::Pipelines;
 use crate::gpu::{BufferInit, GpuContext};
 use crate::mesh::{SurfaceRef, Topology};
 use glam::Vec3;
-use std::collections::HashMap;
+use rustc_hash::{FxHashMap, FxHashSet};
 
 /// Keep in sync with `RibbonJob` in `wgsl/maps/ribbon_relax.wgsl`.
 #[repr(C)]
@@ -84,52 +84,71 @@ pub struct RibbonStatus {
 /// Loop iterations one invocation may run in a dispatch, well under lavapipe's cut-off (65535).
 const LOOP_BUDGET: u32 = 20_000;
 
-/// Pieces by cell of a uniform grid: the distance from a point to the curve in constant time for
-/// short pieces.
+/// Pieces by cell of a uniform grid, each piece listed in every cell within `reach` of it (the
+/// cells its box grown by `reach` overlaps): whether a point is within `reach` of the curve is
+/// one cell's look-up and that cell's pieces. Cells are at least `reach` and the longest piece
+/// wide, so a piece is in at most 4³ cells whatever the ribbon's width.
 struct Grid {
     cell: f32,
-    cells: HashMap<[i32; 3], Vec<usize>>,
+    reach: f32,
+    cells: FxHashMap<[i32; 3], Vec<u32>>,
 }
 
 impl Grid {
-    fn new(framed: &Framed, cell: f32) -> Self {
-        let mut cells: HashMap<[i32; 3], Vec<usize>> = HashMap::new();
+    fn new(framed: &Framed, reach: f32) -> Self {
+        let longest = framed.pieces.iter().map(|p| p.len).fold(0.0f32, f32::max);
+        let cell = reach.max(longest).max(1e-12);
+        let mut cells: FxHashMap<[i32; 3], Vec<u32>> = FxHashMap::default();
         let at = |p: Vec3| (p / cell).floor().as_ivec3();
         for (k, p) in framed.pieces.iter().enumerate() {
-            let (a, b) = (at(p.start), at(p.start + p.t * p.len));
-            let (lo, hi) = (a.min(b), a.max(b));
+            let (a, b) = (p.start, p.start + p.t * p.len);
+            let (lo, hi) = (at(a.min(b) - reach), at(a.max(b) + reach));
             for x in lo.x..=hi.x {
                 for y in lo.y..=hi.y {
                     for z in lo.z..=hi.z {
-                        cells.entry([x, y, z]).or_default().push(k);
+                        cells.entry([x, y, z]).or_default().push(k as u32);
                     }
                 }
             }
         }
-        Self { cell, cells }
+        Self { cell, reach, cells }
     }
 
-    /// Whether `x` is within one cell of a piece.
+    /// Whether `x` is within `reach` of a piece.
     fn near(&self, framed: &Framed, x: Vec3) -> bool {
         let c = (x / self.cell).floor().as_ivec3();
-        for dx in -1..=1 {
-            for dy in -1..=1 {
-                for dz in -1..=1 {
-                    let Some(ks) = self.cells.get(&[c.x + dx, c.y + dy, c.z + dz]) else {
-                        continue;
-                    };
-                    for &k in ks {
-                        let p = &framed.pieces[k];
-                        let along = (x - p.start).dot(p.t).clamp(0.0, p.len);
-                        if (x - (p.start + p.t * along)).length() <= self.cell {
-                            return true;
-                        }
-                    }
-                }
-            }
-        }
-        false
+        self.cells.get(&c.to_array()).is_some_and(|ks| {
+            ks.iter().any(|&k| {
+                let p = &framed.pieces[k as usize];
+                let along = (x - p.start).dot(p.t).clamp(0.0, p.len);
+                (x - (p.start + p.t * along)).length() <= self.reach
+            })
+        })
     }
+}
+
+/// The strip the relaxation works on, in its own numbering: the candidates (breadth first from the
+/// seeds), then the ring around them that is only reset; per local vertex its welded id, position
+/// and normal, and the candidates' neighbours in local ids. The kernel reads only these, so a
+/// sweep walks a few hundred kilobytes in order instead of scattering over mesh-sized buffers (the
+/// subdivided bunny's 557k vertices lie far apart in its numbering: per strip vertex the map cost
+/// 1.31× bob's before the strip was gathered).
+struct Strip {
+    global: Vec<u32>,
+    cand_count: usize,
+    vertices: Vec<StripVertex>,
+    offsets: Vec<u32>,
+    adjacency: Vec<u32>,
+    /// Welded id to local id, for the seeds.
+    local: FxHashMap<u32, u32>,
+}
+
+/// Keep in sync with `StripVertex` in `wgsl/maps/ribbon_relax.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct StripVertex {
+    p: [f32; 4],
+    n: [f32; 4],
 }
 
 /// The vertices the map can reach: connected to the seeds through vertices within Euclidean
@@ -138,16 +157,22 @@ impl Grid {
 /// path from the seeds), and the ring around
 /// those (reached from them, as the twin reaches one ring past `reach`); then the next ring,
 /// only reset. Cost proportional to the result.
-fn candidates(topo: &Topology, framed: &Framed, seeds: &[u32], reach: f32) -> (Vec<u32>, Vec<u32>) {
-    let grid = Grid::new(framed, reach.max(1e-12));
-    let mut inside = std::collections::HashSet::new();
+fn candidates(topo: &Topology, framed: &Framed, seeds: &[u32], reach: f32) -> Strip {
+    let grid = Grid::new(framed, reach);
+    // Local ids in the order vertices join: the ball breadth first, its ring, the halo.
+    let mut local: FxHashMap<u32, u32> = FxHashMap::default();
+    local.reserve(seeds.len() * 16);
     let mut out = Vec::new();
-    // Breadth first, so the candidates run outwards from the curve and a sweep (which visits them
-    // in this order, 256 at a time) carries the map across several rings.
-    let mut stack: std::collections::VecDeque<u32> = seeds.iter().copied().collect();
+    let join = |v: u32, local: &mut FxHashMap<u32, u32>, out: &mut Vec<u32>| {
+        let fresh = !local.contains_key(&v);
+        if fresh {
+            local.insert(v, out.len() as u32);
+            out.push(v);
+        }
+        fresh
+    };
     for &v in seeds {
-        inside.insert(v);
-        out.push(v);
+        join(v, &mut local, &mut out);
     }
     let neighbours = |v: u32| {
         let (a, b) = (
@@ -156,65 +181,65 @@ fn candidates(topo: &Topology, framed: &Framed, seeds: &[u32], reach: f32) -> (V
         );
         &topo.adjacency[a..b]
     };
-    while let Some(v) = stack.pop_front() {
+    // Breadth first, so the candidates run outwards from the curve and a sweep (each invocation
+    // taking a contiguous block of them) carries the map across several rings.
+    let mut far: FxHashSet<u32> = FxHashSet::default();
+    let mut next = 0;
+    while next < out.len() {
+        let v = out[next];
+        next += 1;
         for &q in neighbours(v) {
-            if !inside.contains(&q) && grid.near(framed, topo.positions[q as usize]) {
-                inside.insert(q);
-                out.push(q);
-                stack.push_back(q);
+            // A vertex found too far stays so: it is looked at once, not once per neighbour.
+            if !local.contains_key(&q) && !far.contains(&q) {
+                if grid.near(framed, topo.positions[q as usize]) {
+                    join(q, &mut local, &mut out);
+                } else {
+                    far.insert(q);
+                }
             }
         }
     }
     // The ring past the ball is reached too (from vertices within `reach`: the twin reaches one
     // ring past them); the ring past that is only reset.
-    let ring = |from: &[u32], inside: &mut std::collections::HashSet<u32>| {
-        let mut next = Vec::new();
-        for &v in from {
-            for &q in neighbours(v) {
-                if inside.insert(q) {
-                    next.push(q);
-                }
-            }
+    let ball = out.len();
+    for i in 0..ball {
+        for &q in neighbours(out[i]) {
+            join(q, &mut local, &mut out);
         }
-        next
-    };
-    let first = ring(&out, &mut inside);
-    let halo = ring(&first, &mut inside);
-    out.extend(first);
-    (out, halo)
-}
-
-/// The relaxation's per-vertex state (foot and offset, upwind link), one entry per welded vertex
-/// of a mesh. Allocate once per mesh and reuse: the kernel resets only the entries of the strip it
-/// works on, so a map costs what its strip costs, not what the mesh does.
-pub struct Scratch {
-    state: wgpu::Buffer,
-    link: wgpu::Buffer,
-}
-
-impl Scratch {
-    /// Scratch for a mesh of `vertex_count` welded vertices.
-    pub fn new(ctx: &GpuContext, vertex_count: u32) -> Result<Self> {
-        let plain = |label, size: u64| {
-            ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: size.max(16),
-                usage: wgpu::BufferUsages::STORAGE,
-                mapped_at_creation: false,
+    }
+    let cand_count = out.len();
+    for i in ball..cand_count {
+        for &q in neighbours(out[i]) {
+            join(q, &mut local, &mut out);
+        }
+    }
+    let mut offsets = Vec::with_capacity(cand_count + 1);
+    let mut adjacency = Vec::with_capacity(cand_count * 7);
+    offsets.push(0);
+    for &v in &out[..cand_count] {
+        adjacency.extend(neighbours(v).iter().map(|q| local[q]));
+        offsets.push(adjacency.len() as u32);
+    }
+    Strip {
+        vertices: out
+            .iter()
+            .map(|&v| StripVertex {
+                p: topo.positions[v as usize].extend(0.0).to_array(),
+                n: topo.normals[v as usize].extend(0.0).to_array(),
             })
-        };
-        let nv = vertex_count as u64;
-        ctx.scoped("ribbon map", || Self {
-            state: plain("ribbon.state", nv * 16),
-            link: plain("ribbon.link", nv * 8),
-        })
+            .collect(),
+        global: out,
+        cand_count,
+        offsets,
+        adjacency,
+        local,
     }
 }
 
 /// Computes the map of `curve` within `reach` into slot `out.slot` of `coords` (one vec4 per
 /// welded vertex: x, y (the map's u, v through `out.xform`), graph distance, 1 where reached; the
-/// candidates' and their ring's entries are overwritten, others left as they are), on the GPU,
-/// with `scratch` made for this mesh. Returns the status and the candidate vertices (the only
+/// candidates' and their ring's entries are overwritten, others left as they are), on the GPU, in
+/// the strip's own numbering ([`Strip`]). Returns the status and the candidate vertices (the only
 /// ones the map can reach).
 pub fn run(
     ctx: &GpuContext,
@@ -222,7 +247,6 @@ pub fn run(
     mesh: SurfaceRef<'_>,
     (curve, reach): (&Curve, f32),
     (coords, out): (&wgpu::Buffer, Output),
-    scratch: &Scratch,
 ) -> Result<(RibbonStatus, Vec<u32>)> {
     let (topo, gpu) = (mesh.topo, mesh.gpu);
     let t = std::time::Instant::now();
@@ -245,17 +269,24 @@ pub fn run(
     // Graph distances are never shorter than straight ones, so a vertex within `reach` of the
     // seeds lies within `reach` of a seed, and the seeds lie within their offsets of the curve.
     let seed_far = seeds.iter().map(|s| s.dist).fold(0.0f32, f32::max);
-    let (cands, halo) = candidates(topo, &framed, &seed_vertices, reach + seed_far);
+    let strip = candidates(topo, &framed, &seed_vertices, reach + seed_far);
+    let seeds: Vec<GpuSeed> = seeds
+        .into_iter()
+        .map(|s| GpuSeed {
+            vertex: strip.local[&s.vertex],
+            ..s
+        })
+        .collect();
     let pieces: Vec<GpuPiece> = framed.pieces.iter().map(GpuPiece::from).collect();
-    let list: Vec<u32> = cands.iter().chain(&halo).copied().collect();
+    let cand_count = strip.cand_count as u32;
     let setup_ms = t.elapsed().as_secs_f64() * 1e3;
     // Per sweep an invocation visits ceil(candidates / 256) vertices, with about 40 loop steps
     // each (neighbours, the slide's steps, the piece searches).
-    let sweeps = (LOOP_BUDGET / (cands.len() as u32).div_ceil(256).max(1) / 40).clamp(1, 1024);
-    let max_sweeps = 4 * cands.len() as u32 + 16;
+    let sweeps = (LOOP_BUDGET / cand_count.div_ceil(256).max(1) / 40).clamp(1, 1024);
+    let max_sweeps = 4 * cand_count + 16;
     let job = |init: u32| RibbonJob {
-        cand_count: cands.len() as u32,
-        halo_count: halo.len() as u32,
+        cand_count,
+        halo_count: (strip.global.len() - strip.cand_count) as u32,
         seed_count: seeds.len() as u32,
         piece_count: pieces.len() as u32,
         reach,
@@ -267,7 +298,6 @@ pub fn run(
         xform: out.xform,
     };
     let device = &ctx.device;
-    let (state, link) = (&scratch.state, &scratch.link);
     let bind = ctx.scoped("ribbon map", || {
         let ro = |label, bytes: &[u8]| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -277,8 +307,11 @@ pub fn run(
             })
         };
         let pieces_buf = ro("ribbon.pieces", bytemuck::cast_slice(&pieces));
-        let list_buf = ro("ribbon.candidates", bytemuck::cast_slice(&list));
+        let global = ro("ribbon.global", bytemuck::cast_slice(&strip.global));
         let seeds_buf = ro("ribbon.seeds", bytemuck::cast_slice(&seeds));
+        let verts = ro("ribbon.vertices", bytemuck::cast_slice(&strip.vertices));
+        let offsets = ro("ribbon.offsets", bytemuck::cast_slice(&strip.offsets));
+        let adjacency = ro("ribbon.adjacency", bytemuck::cast_slice(&strip.adjacency));
         let plain = |label, size: u64| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -288,6 +321,9 @@ pub fn run(
             })
         };
         let status = plain("ribbon.status", 32);
+        let n = strip.global.len() as u64;
+        let (state, link) = (plain("ribbon.state", n * 16), plain("ribbon.link", n * 8));
+        let stamp = plain("ribbon.stamp", n * 4);
         let uniform = |init| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("ribbon.job"),
@@ -301,12 +337,12 @@ pub fn run(
                 "ribbon.relax",
                 &[
                     (0, u.as_entire_binding()),
-                    (1, gpu.positions.as_entire_binding()),
-                    (2, gpu.normals.as_entire_binding()),
-                    (3, gpu.adjacency_offsets.as_entire_binding()),
-                    (4, gpu.adjacency.as_entire_binding()),
+                    (1, verts.as_entire_binding()),
+                    (2, stamp.as_entire_binding()),
+                    (3, offsets.as_entire_binding()),
+                    (4, adjacency.as_entire_binding()),
                     (5, pieces_buf.as_entire_binding()),
-                    (6, list_buf.as_entire_binding()),
+                    (6, global.as_entire_binding()),
                     (7, seeds_buf.as_entire_binding()),
                     (8, state.as_entire_binding()),
                     (9, link.as_entire_binding()),
@@ -345,11 +381,13 @@ pub fn run(
                 sweeps: s[0],
                 converged: s[1] != 0,
                 reached: s[2],
-                candidates: cands.len() as u32,
+                candidates: cand_count,
                 dispatches,
                 setup_ms,
                 extent: [f32::from_bits(s[3]), f32::from_bits(s[4])],
             };
+            let mut cands = strip.global;
+            cands.truncate(strip.cand_count);
             return Ok((status, cands));
         }
     }
@@ -373,15 +411,7 @@ pub fn ribbon_gpu(
             mapped_at_creation: false,
         })
     })?;
-    let scratch = Scratch::new(ctx, mesh.gpu.vertex_count)?;
-    let (status, _) = run(
-        ctx,
-        pipes,
-        mesh,
-        (curve, reach),
-        (&coords, Output::PLAIN),
-        &scratch,
-    )?;
+    let (status, _) = run(ctx, pipes, mesh, (curve, reach), (&coords, Output::PLAIN))?;
     let bytes = ctx.read_buffer(&coords, size, "ribbon read-back")?;
     Ok((bytemuck::cast_slice(&bytes).to_vec(), status))
 }
