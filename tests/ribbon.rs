@@ -852,6 +852,78 @@ fn animated_ribbons_move_along_their_route() {
     }
 }
 
+/// `decalbake batch` writes an animated job's frames as it bakes them (none is held back for the
+/// others), byte for byte what `decalbake bake` writes, and a job whose third frame fails leaves
+/// nothing: the two frames written before it and the job's output folder are taken back (the
+/// batch's promise that a failed job leaves no output directory).
+#[test]
+fn a_batch_writes_animated_frames_and_takes_them_back_when_one_fails() {
+    let dir = common::scratch("ribbon_batch_frames");
+    flat_scene(&dir);
+    let route = |pts: &[[f32; 2]]| -> Vec<[f32; 3]> {
+        pts.windows(2)
+            .flat_map(|w| {
+                let (a, b) = (w[0], w[1]);
+                (0..20).map(move |k| {
+                    let t = k as f32 / 20.0;
+                    [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t, 0.0]
+                })
+            })
+            .chain(pts.last().map(|p| [p[0], p[1], 0.0]))
+            .collect()
+    };
+    let job = |name: &str, pts: &[[f32; 2]]| {
+        let animate = serde_json::json!({ "route": route(pts), "frames": 3, "length": 0.4 });
+        let job = serde_json::json!({ "mesh": "plane.glb",
+            "texture": { "width": 128, "height": 128, "padding": 0, "base": [0.0, 0.0, 1.0, 1.0] },
+            "output": { "texture": format!("{name}_{{frame}}.png"), "report": null },
+            "layers": [{ "kind": "ribbon", "image": "grad.png", "width": 0.1, "animate": animate }] });
+        let path = dir.join(format!("{name}.json"));
+        std::fs::write(&path, job.to_string()).unwrap();
+        path
+    };
+    let good = job("good", &[[-0.8, 0.0], [0.6, 0.0]]);
+    // The last piece runs along the top border, too close for the strip: frame 2 fails.
+    let late = job(
+        "late",
+        &[[-0.8, 0.0], [0.6, 0.0], [0.6, 0.97], [-0.8, 0.97]],
+    );
+    let manifest = dir.join("frames.jsonl");
+    let line = |p: &std::path::Path| serde_json::json!(p.to_str().unwrap()).to_string();
+    let lines = format!("{}\n{}\n", line(&good), line(&late));
+    std::fs::write(&manifest, lines).unwrap();
+    let out = dir.join("out");
+    let (code, _, err) = common::cli(&[
+        "batch",
+        manifest.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 3, "the second job fails: {err}");
+    assert!(
+        !out.join("line-2-late").exists(),
+        "a failed animated job leaves no frames and no folder"
+    );
+    let serial = dir.join("serial");
+    let (code, _, err) = common::cli(&[
+        "bake",
+        good.to_str().unwrap(),
+        "--out",
+        serial.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    for f in 0..3 {
+        let name = format!("good_{f}.png");
+        let batch = std::fs::read(out.join("line-1-good").join(&name));
+        assert!(batch.is_ok(), "frame {f} written by the batch");
+        assert_eq!(
+            batch.unwrap(),
+            std::fs::read(serial.join(&name)).unwrap(),
+            "frame {f}: the batch writes what bake writes"
+        );
+    }
+}
+
 /// Texture extraction (`decalbake extract`, Sun et al. §4.2) along the arc ribbon of
 /// [`ribbon_bakes_show_the_image_at_the_fermi_coordinates`].
 ///

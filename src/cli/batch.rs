@@ -428,14 +428,12 @@ fn bake_entry(
     let job = Job::parse(&text, &source, &input_dir, &out_dir)?;
     let hash = input_hash(&text, &job, shared)?;
     // A several-set job (`"uv_set": [..]`) bakes once per set and shares one (blended) preview.
-    // An animated job bakes once per frame (all frames before any file is written).
-    let jobs: Vec<Job> = if job.uv_list.is_empty() {
-        match job.frames() {
-            Some(n) => (0..n).map(|f| job.for_frame(f)).collect(),
-            None => vec![job.clone()],
-        }
-    } else {
-        job.uv_list.iter().map(|&s| job.for_uv_set(s)).collect()
+    // An animated job bakes once per frame.
+    let animated = job.uv_list.is_empty() && job.frames().is_some();
+    let jobs: Vec<Job> = match (job.uv_list.is_empty(), job.frames()) {
+        (true, Some(n)) => (0..n).map(|f| job.for_frame(f)).collect(),
+        (true, None) => vec![job.clone()],
+        (false, _) => job.uv_list.iter().map(|&s| job.for_uv_set(s)).collect(),
     };
     let set_preview = job.out_preview.clone().filter(|_| !job.uv_list.is_empty());
     let outputs: Vec<PathBuf> = jobs
@@ -449,41 +447,121 @@ fn bake_entry(
     if opts.resume && jobs.iter().all(|j| up_to_date(j, &outputs, &hash)) {
         return Ok(("skipped", names(), hash));
     }
-    // Every set baked before anything is written: a failed job leaves no output directory.
-    let mut baked_sets = Vec::new();
-    for mut j in jobs {
-        let (mesh, uv_set) = shared
-            .meshes
-            .lock()
-            .expect("mesh cache")
-            .get(engine, generation, &j)?;
-        j.uv_set = uv_set;
-        let mut baked = engine.bake_with_progress(&mesh, &j, on_stage)?;
-        baked.report.input_hash = Some(hash.clone());
-        baked_sets.push((mesh, j, baked));
+    let cx = (engine, generation, shared, hash.as_str(), on_stage);
+    let mut undo = Undo::default();
+    let done = if animated {
+        write_frames(cx, jobs, &outputs, &mut undo)
+    } else {
+        write_sets(cx, jobs, (&outputs, set_preview.as_deref()), &mut undo)
+    };
+    if let Err(e) = done {
+        undo.undo();
+        return Err(e);
     }
-    // The old reports go first: a run killed between renames must not leave one vouching for a
-    // half-replaced set of outputs.
-    for (_, j, _) in &baked_sets {
-        if let Some(r) = &j.out_report {
+    Ok(("ok", names(), hash))
+}
+
+/// What [`write_sets`] and [`write_frames`] share: the engine, the device's generation, the run's
+/// shared state, the job's input hash and the progress callback.
+type WriteCx<'a> = (&'a Engine, u32, &'a Shared, &'a str, &'a dyn Fn(&str));
+
+/// What a job has written, taken back when it fails: its files, then the directories it created
+/// (those left empty), so a failed job leaves no output directory and no partial set of files.
+#[derive(Default)]
+struct Undo {
+    files: Vec<PathBuf>,
+    dirs: Vec<PathBuf>,
+}
+
+impl Undo {
+    /// Removes the old reports of `outputs` (a run killed between renames must not leave one
+    /// vouching for a half-replaced set of outputs) and creates the folders they need.
+    fn prepare(&mut self, jobs: &[Job], outputs: &[PathBuf]) -> Result<()> {
+        for r in jobs.iter().filter_map(|j| j.out_report.as_ref()) {
             let _ = std::fs::remove_file(r);
         }
+        for dir in outputs.iter().filter_map(|p| p.parent()) {
+            let missing: Vec<PathBuf> = dir
+                .ancestors()
+                .take_while(|d| !d.as_os_str().is_empty() && !d.exists())
+                .map(Path::to_path_buf)
+                .collect();
+            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+            self.dirs.extend(missing);
+        }
+        Ok(())
     }
-    for dir in outputs.iter().filter_map(|p| p.parent()) {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+
+    fn undo(self) {
+        for f in &self.files {
+            let _ = std::fs::remove_file(f);
+        }
+        // Deepest first (each folder is listed before its parents); only empty ones go.
+        for d in &self.dirs {
+            let _ = std::fs::remove_dir(d);
+        }
     }
+}
+
+/// Bakes one job of a set (its mesh from the run's cache), the input hash in its report.
+fn bake_one(cx: WriteCx<'_>, mut j: Job) -> Result<(Arc<LoadedMesh>, Job, decalbake::Baked)> {
+    let (engine, generation, shared, hash, on_stage) = cx;
+    let (mesh, uv_set) = shared
+        .meshes
+        .lock()
+        .expect("mesh cache")
+        .get(engine, generation, &j)?;
+    j.uv_set = uv_set;
+    let mut baked = engine.bake_with_progress(&mesh, &j, on_stage)?;
+    baked.report.input_hash = Some(hash.to_string());
+    Ok((mesh, j, baked))
+}
+
+/// A job's UV sets (or its one bake): every set baked before anything is written, then written,
+/// then the blended preview of the sets.
+fn write_sets(
+    cx: WriteCx<'_>,
+    jobs: Vec<Job>,
+    (outputs, set_preview): (&[PathBuf], Option<&Path>),
+    undo: &mut Undo,
+) -> Result<()> {
+    let baked_sets = jobs
+        .into_iter()
+        .map(|j| bake_one(cx, j))
+        .collect::<Result<Vec<_>>>()?;
+    let jobs: Vec<Job> = baked_sets.iter().map(|(_, j, _)| j.clone()).collect();
+    undo.prepare(&jobs, outputs)?;
     let mut textures = Vec::new();
     let mut last = None;
-    on_stage("writing outputs");
+    (cx.4)("writing outputs");
     for (mesh, j, mut baked) in baked_sets {
-        decalbake::output::write_outputs(engine, &mesh, &j, &mut baked)?;
+        let files = decalbake::output::write_outputs(cx.0, &mesh, &j, &mut baked)?;
+        undo.files.extend(files);
         textures.push(decalbake::output::preview::PreviewTexture::of(&baked));
         last = Some(mesh);
     }
-    if let (Some(p), Some(mesh)) = (&set_preview, &last) {
-        decalbake::output::preview::write_set_preview(engine, mesh, textures, p)?;
+    if let (Some(p), Some(mesh)) = (set_preview, &last) {
+        decalbake::output::preview::write_set_preview(cx.0, mesh, textures, p)?;
+        undo.files.push(p.to_path_buf());
     }
-    Ok(("ok", names(), hash))
+    Ok(())
+}
+
+/// An animated job's frames, each written as soon as it is baked (a thousand 4096² frames are not
+/// held in memory); a frame that fails takes back the ones written before it.
+fn write_frames(
+    cx: WriteCx<'_>,
+    jobs: Vec<Job>,
+    outputs: &[PathBuf],
+    undo: &mut Undo,
+) -> Result<()> {
+    undo.prepare(&jobs, outputs)?;
+    for j in jobs {
+        let (mesh, j, mut baked) = bake_one(cx, j)?;
+        let files = decalbake::output::write_outputs(cx.0, &mesh, &j, &mut baked)?;
+        undo.files.extend(files);
+    }
+    Ok(())
 }
 
 /// Whether every output exists and the report's `input_hash` is `hash`.
