@@ -60,6 +60,11 @@ pub struct GpuMesh {
     pub bvh_triangles: wgpu::Buffer,
     /// Nodes in the BVH (0: no triangle to place on).
     pub bvh_node_count: u32,
+    /// The exponential maps' per-slot scratch (marks, state) of the last run on this mesh, kept for
+    /// the next (`maps::expmap::gpu::run`): a fresh pair costs the device a zero-fill of 20 bytes
+    /// per slot and vertex on every chunk of maps, which their kernel never needs (it sets every
+    /// entry it reads). A run takes it out while it works, so two runs never share it.
+    pub expmap_scratch: std::sync::Mutex<Option<[wgpu::Buffer; 2]>>,
 }
 
 fn storage(
@@ -205,6 +210,7 @@ impl GpuMesh {
                 none,
             ),
             bvh_node_count: bvh.nodes.len() as u32,
+            expmap_scratch: Default::default(),
             boundary_edge_count: topo.boundary_edges.len() as u32,
             non_manifold_edge_count: topo.non_manifold_edges.len() as u32,
             curvature: storage(

@@ -187,8 +187,12 @@ pub fn run(
             };
             let fstate = plain("expmap.front_state", jobs.len() as u64 * 16);
             let fronts = plain("expmap.fronts", 2 * cands.len() as u64 * 4);
-            let marks = plain("expmap.marks", slots * mesh.vertex_count as u64 * 4);
-            let state = plain("expmap.state", slots * mesh.vertex_count as u64 * 16);
+            let kept = mesh.expmap_scratch.lock().expect("expmap scratch").take();
+            let size = slots * mesh.vertex_count as u64 * 4;
+            let [marks, state] = match kept.filter(|[m, _]| m.size() >= size) {
+                Some(pair) => pair,
+                None => [plain("expmap.marks", size), plain("expmap.state", size * 4)],
+            };
             let jobs_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("expmap.jobs"),
                 contents: bytemuck::cast_slice(jobs),
@@ -280,6 +284,8 @@ pub fn run(
             .iter()
             .any(|r| r.converged == 0 && r.sweeps < max_sweeps);
         if !pending {
+            // Every dispatch has finished (the status read-back waited for them).
+            *mesh.expmap_scratch.lock().expect("expmap scratch") = Some([marks, state]);
             return Ok((res, dispatches));
         }
     }
