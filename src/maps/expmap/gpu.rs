@@ -49,15 +49,19 @@ pub struct GeoResult {
 }
 
 /// The vertices a map can reach: connected to the seed triangle through vertices within Euclidean
-/// distance 1.5 × `radius` of the seed point, plus one ring. Geodesic distance is never shorter than
-/// Euclidean, but the map's distance estimate |u| can be (it is an approximation), so the ball keeps
-/// a margin. Cost proportional to the result. Breadth first, so the list runs outwards from the seed
+/// distance `radius` of the seed point (1.01 × `radius`, for f32 rounding), plus one ring. A vertex
+/// expands when its graph distance is at most `radius` (the twin's rule, `dem_cpu`), and graph
+/// distance is never shorter than Euclidean (the seed triangle's vertices start at their
+/// Euclidean distance, each step adds an edge's length), so every expanded vertex and every
+/// vertex on its upwind path lies in the ball, and what it reaches in the ring past it (this was
+/// 1.5 × `radius`, from a time when the map's |u| decided: 2.2 times the candidates of a disc).
+/// Cost proportional to the result. Breadth first, so the list runs outwards from the seed
 /// and a sweep (which visits it in this order, a workgroup's width at a time) carries the map
 /// across more rings: in `tests/expmap.rs` 10-13 sweeps became 5-12; in `bench --geodesic` 22 →
 /// 17 for a 1k disc and 274 → 265 for 120k, the times within noise (the relaxation already
 /// revisits only the active front).
 pub fn candidates(topo: &Topology, seed: &Seed, radius: f32) -> Vec<u32> {
-    let mut seen = std::collections::HashSet::new();
+    let mut seen = rustc_hash::FxHashSet::default();
     let mut out = Vec::new();
     let mut stack = std::collections::VecDeque::new();
     for &v in &topo.triangles[seed.triangle as usize] {
@@ -67,7 +71,7 @@ pub fn candidates(topo: &Topology, seed: &Seed, radius: f32) -> Vec<u32> {
         }
     }
     while let Some(v) = stack.pop_front() {
-        if (topo.positions[v as usize] - seed.point).length() > 1.5 * radius {
+        if (topo.positions[v as usize] - seed.point).length() > 1.01 * radius {
             continue;
         }
         let (a, b) = (
@@ -90,9 +94,9 @@ pub fn build_jobs(topo: &Topology, maps: &[(Seed, Options, u32)]) -> (Vec<GeoJob
     let mut cands = Vec::new();
     for (seed, opts, slot) in maps {
         let c = candidates(topo, seed, opts.radius);
-        let inside: std::collections::HashSet<u32> = c.iter().copied().collect();
+        let inside: rustc_hash::FxHashSet<u32> = c.iter().copied().collect();
         let mut halo: Vec<u32> = Vec::new();
-        let mut seen = std::collections::HashSet::new();
+        let mut seen = rustc_hash::FxHashSet::default();
         for &v in &c {
             let (a, b) = (
                 topo.adjacency_offsets[v as usize] as usize,
