@@ -46,10 +46,16 @@ struct GeoJob {
 // Keep in sync with `Round` in src/maps/expmap/gpu.rs.
 struct Round {
     init: u32,
+    // At most this many sweeps a dispatch.
     sweeps: u32,
-    _pad0: u32,
+    // Loop steps an invocation may spend a dispatch: a sweep over a front of n vertices costs
+    // ceil(n / 256) * STEPS_PER_VERTEX; the sweeps go on while the next one fits (at least one).
+    budget: u32,
     _pad1: u32,
 }
+
+// Loop steps one front vertex costs an invocation (its neighbours read, then queued).
+const STEPS_PER_VERTEX: u32 = 20u;
 
 // Keep in sync with `GeoResult` in src/maps/expmap/gpu.rs.
 struct GeoResult {
@@ -179,13 +185,20 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         workgroupBarrier();
     }
     var sweeps = 0u;
+    var steps = 0u;
+    var converged = false;
     loop {
         if (lid == 0u) {
             front_len = fstate[4u * wid.x];
             atomicStore(&next_len, 0u);
         }
         let len = workgroupUniformLoad(&front_len);
-        if (len == 0u || sweeps >= round.sweeps) { break; }
+        // The fronts after the first are a ring or two: a dispatch runs as many sweeps as fit its
+        // loop budget, not as many as the first front (every candidate) would allow.
+        let cost = (len + WG - 1u) / WG * STEPS_PER_VERTEX;
+        converged = len == 0u;
+        if (converged || sweeps >= round.sweeps || (sweeps > 0u && steps + cost > round.budget)) { break; }
+        steps += cost;
         let parity = fstate[4u * wid.x + 1u];
         let stamp = fstate[4u * wid.x + 2u];
         let cur = 2u * job.cand_offset + parity * job.cand_count;
@@ -251,8 +264,14 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         workgroupBarrier();
         sweeps += 1u;
     }
-    for (var i = lid; i < job.cand_count; i += WG) {
-        if (coords[base + candidates[job.cand_offset + i]].w > 0.5) { atomicAdd(&reached, 1u); }
+    // Counted once, when the map has converged (each invocation its share, then one shared add:
+    // a contended add per reached vertex cost the 120k disc about 3 ms a round).
+    if (converged) {
+        var mine = 0u;
+        for (var i = lid; i < job.cand_count; i += WG) {
+            if (coords[base + candidates[job.cand_offset + i]].w > 0.5) { mine += 1u; }
+        }
+        atomicAdd(&reached, mine);
     }
     workgroupBarrier();
     if (lid == 0u) {

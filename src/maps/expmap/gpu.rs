@@ -7,6 +7,7 @@ use crate::gpu::pipelines::Pipelines;
 use crate::gpu::BufferInit;
 use crate::maps::expmap::cpu::{Options, Seed};
 use crate::mesh::{SurfaceRef, Topology};
+use std::sync::atomic::Ordering::Relaxed;
 
 /// One decal's map request. Keep in sync with `GeoJob` in wgsl/maps/expmap_relax.wgsl.
 #[repr(C)]
@@ -139,13 +140,22 @@ pub fn build_jobs(topo: &Topology, maps: &[(Seed, Options, u32)]) -> (Vec<GeoJob
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct Round {
     init: u32,
+    /// At most this many sweeps a dispatch.
     sweeps: u32,
-    pad: [u32; 2],
+    /// Loop steps an invocation may spend a dispatch ([`LOOP_BUDGET`]).
+    budget: u32,
+    pad: u32,
 }
 
 /// Loop iterations one invocation may run in a dispatch, kept well under lavapipe's cut-off (65535
 /// loop iterations per invocation, after which it silently abandons the shader).
 const LOOP_BUDGET: u32 = 20_000;
+
+/// When not 0, the loop budget of a dispatch instead of [`LOOP_BUDGET`]. Tests lower it to make a
+/// map cross many rounds; results do not depend on it (rounds only split the same sweeps).
+#[doc(hidden)]
+pub static LOOP_BUDGET_OVERRIDE: std::sync::atomic::AtomicU32 =
+    std::sync::atomic::AtomicU32::new(0);
 /// Rounds recorded per submission before the host checks convergence.
 const ROUNDS_PER_SUBMIT: u32 = 4;
 
@@ -172,10 +182,11 @@ pub fn run(
     let (jobs, cands) = build_jobs(topo, maps);
     let (jobs, cands) = (&jobs[..], &cands[..]);
     let device = &ctx.device;
-    let max_count = jobs.iter().map(|j| j.cand_count).max().unwrap_or(1);
-    // Per sweep an invocation visits at most ceil(count / 256) front vertices, with about twenty
-    // loop steps each (neighbours read, then neighbours queued).
-    let sweeps_per_round = (LOOP_BUDGET / (max_count.div_ceil(256) * 20)).clamp(1, 1024);
+    // The kernel runs as many sweeps a dispatch as its fronts' sizes fit in `LOOP_BUDGET` (a sweep
+    // over a front of n vertices: ceil(n / 256) × 20 steps, `STEPS_PER_VERTEX` in the kernel), at least one, at most
+    // 1,024. The first front is every candidate; later ones are a ring or two, so a dispatch runs
+    // many (the 120k disc: 265 sweeps in 268 dispatches when the count was fixed from the first).
+    let sweeps_per_round = 1024;
     let max_sweeps = jobs.iter().map(|j| j.max_sweeps).max().unwrap_or(16);
     let results_size = jobs.len() as u64 * 16;
     let slots = jobs.iter().map(|j| j.tri[3] as u64 + 1).max().unwrap_or(1);
@@ -219,7 +230,11 @@ pub fn run(
                     contents: bytemuck::bytes_of(&Round {
                         init,
                         sweeps: sweeps_per_round,
-                        pad: [0; 2],
+                        budget: match LOOP_BUDGET_OVERRIDE.load(Relaxed) {
+                            0 => LOOP_BUDGET,
+                            b => b,
+                        },
+                        pad: 0,
                     }),
                     usage: wgpu::BufferUsages::UNIFORM,
                 })
