@@ -459,10 +459,19 @@ fn large_discs_converge_over_several_rounds() {
         accuracy: Accuracy::Fast,
     };
     use decalbake::maps::expmap::gpu::LOOP_BUDGET_OVERRIDE;
-    LOOP_BUDGET_OVERRIDE.store(100, std::sync::atomic::Ordering::Relaxed);
+    use std::sync::atomic::Ordering::Relaxed;
+    // The default comes back however this test ends.
+    struct Restore;
+    impl Drop for Restore {
+        fn drop(&mut self) {
+            LOOP_BUDGET_OVERRIDE.store(0, Relaxed);
+        }
+    }
+    let restore = Restore;
+    LOOP_BUDGET_OVERRIDE.store(100, Relaxed);
     let (_, dispatches) = engine.expmaps_status(&mesh, &[(seed, opts)]).unwrap();
     let (coords, res) = &engine.expmaps(&mesh, &[(seed, opts)]).unwrap()[0];
-    LOOP_BUDGET_OVERRIDE.store(0, std::sync::atomic::Ordering::Relaxed);
+    drop(restore);
     assert!(
         dispatches > 8,
         "{dispatches} dispatches: the map should cross several rounds"

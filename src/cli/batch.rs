@@ -496,8 +496,10 @@ impl Undo {
         for f in &self.files {
             let _ = std::fs::remove_file(f);
         }
-        // Deepest first (each folder is listed before its parents); only empty ones go.
-        for d in &self.dirs {
+        // Deepest first; only empty ones go.
+        let mut dirs = self.dirs;
+        dirs.sort_by_key(|d| std::cmp::Reverse(d.components().count()));
+        for d in &dirs {
             let _ = std::fs::remove_dir(d);
         }
     }

@@ -49,13 +49,13 @@ struct Round {
     // At most this many sweeps a dispatch.
     sweeps: u32,
     // Loop steps an invocation may spend a dispatch: a sweep over a front of n vertices costs
-    // ceil(n / 256) * STEPS_PER_VERTEX; the sweeps go on while the next one fits (at least one).
+    // ceil(n / 256) * `steps_per_vertex`; the sweeps go on while the next one fits (at least one).
     budget: u32,
-    _pad1: u32,
+    // Loop steps one front vertex may cost: 1 + (2 or, in smooth mode, 4) x the candidates'
+    // largest degree (the neighbour scan and the queueing; smooth mode's two edge-angle scans).
+    steps_per_vertex: u32,
 }
 
-// Loop steps one front vertex costs an invocation (its neighbours read, then queued).
-const STEPS_PER_VERTEX: u32 = 20u;
 
 // Keep in sync with `GeoResult` in src/maps/expmap/gpu.rs.
 struct GeoResult {
@@ -195,7 +195,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         let len = workgroupUniformLoad(&front_len);
         // The fronts after the first are a ring or two: a dispatch runs as many sweeps as fit its
         // loop budget, not as many as the first front (every candidate) would allow.
-        let cost = (len + WG - 1u) / WG * STEPS_PER_VERTEX;
+        let cost = (len + WG - 1u) / WG * round.steps_per_vertex;
         converged = len == 0u;
         if (converged || sweeps >= round.sweeps || (sweeps > 0u && steps + cost > round.budget)) { break; }
         steps += cost;
@@ -266,7 +266,8 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
     }
     // Counted once, when the map has converged (each invocation its share, then one shared add:
     // a contended add per reached vertex cost the 120k disc about 3 ms a round).
-    if (converged) {
+    // (Also when the map stops at its sweep cap, unconverged: the report shows how far it got.)
+    if (converged || fstate[4u * wid.x + 3u] >= job.max_sweeps) {
         var mine = 0u;
         for (var i = lid; i < job.cand_count; i += WG) {
             if (coords[base + candidates[job.cand_offset + i]].w > 0.5) { mine += 1u; }

@@ -233,7 +233,10 @@ fn main(@builtin(local_invocation_index) lid: u32) {
             if (old_link.x == SEED) { continue; }
             var dirty = false;
             for (var e = adj_offsets[q]; e < adj_offsets[q + 1u]; e++) {
-                dirty = dirty || stamp[adjacency[e]] >= base + sweeps;
+                if (stamp[adjacency[e]] >= base + sweeps) {
+                    dirty = true;
+                    break;
+                }
             }
             if (!dirty) { continue; }
             let pq = verts[q].p.xyz;
@@ -245,7 +248,7 @@ fn main(@builtin(local_invocation_index) lid: u32) {
                 if (dr > job.reach) { continue; }
                 let key = dr + length(pq - verts[r].p.xyz);
                 // Ties go to the lower welded id, as in the twin.
-                if (key < best || (key == best && global[r] < global[best_r])) {
+                if (key < best || (key == best && best_r != NONE && global[r] < global[best_r])) {
                     best = key;
                     best_r = r;
                 }

@@ -144,7 +144,8 @@ struct Round {
     sweeps: u32,
     /// Loop steps an invocation may spend a dispatch ([`LOOP_BUDGET`]).
     budget: u32,
-    pad: u32,
+    /// Loop steps one front vertex may cost (see `run`).
+    steps_per_vertex: u32,
 }
 
 /// Loop iterations one invocation may run in a dispatch, kept well under lavapipe's cut-off (65535
@@ -183,10 +184,20 @@ pub fn run(
     let (jobs, cands) = (&jobs[..], &cands[..]);
     let device = &ctx.device;
     // The kernel runs as many sweeps a dispatch as its fronts' sizes fit in `LOOP_BUDGET` (a sweep
-    // over a front of n vertices: ceil(n / 256) × 20 steps, `STEPS_PER_VERTEX` in the kernel), at least one, at most
+    // over a front of n vertices: ceil(n / 256) × `steps_per_vertex` steps), at least one, at most
     // 1,024. The first front is every candidate; later ones are a ring or two, so a dispatch runs
     // many (the 120k disc: 265 sweeps in 268 dispatches when the count was fixed from the first).
     let sweeps_per_round = 1024;
+    // A front vertex's loop steps: its neighbours scanned, then queued, and in smooth mode two
+    // edge-angle scans more; lanes run in step, so the largest degree prices every vertex (a
+    // fan-triangulated cap's valence of 16 in smooth mode: 65 steps).
+    let degree = cands
+        .iter()
+        .map(|&v| topo.adjacency_offsets[v as usize + 1] - topo.adjacency_offsets[v as usize])
+        .max()
+        .unwrap_or(0);
+    let smooth = jobs.iter().any(|j| j.smooth != 0);
+    let steps_per_vertex = 1 + if smooth { 4 } else { 2 } * degree;
     let max_sweeps = jobs.iter().map(|j| j.max_sweeps).max().unwrap_or(16);
     let results_size = jobs.len() as u64 * 16;
     let slots = jobs.iter().map(|j| j.tri[3] as u64 + 1).max().unwrap_or(1);
@@ -234,7 +245,7 @@ pub fn run(
                             0 => LOOP_BUDGET,
                             b => b,
                         },
-                        pad: 0,
+                        steps_per_vertex,
                     }),
                     usage: wgpu::BufferUsages::UNIFORM,
                 })
