@@ -1003,7 +1003,7 @@ fn extract_returns_the_baked_image_and_mattes_a_feature() {
     let ejob = decalbake::Job::load(&jpath, None).unwrap();
     let emesh = engine.load_mesh(&ejob.mesh).unwrap();
     let flat = extract::flat_triangles(&engine, &emesh, &ejob, 0).unwrap();
-    let tex = extract::source_texture(&emesh, &ejob).unwrap();
+    let tex = extract::source_texture(&engine, &emesh, &ejob).unwrap();
     let gpu = extract::extract_gpu(&engine, &flat, &tex, [256, 64]).unwrap();
     let cpu = extract::extract_cpu(&flat, &tex, [256, 64]);
     let (mut differ, mut diff) = (0, 0.0f32);

@@ -216,7 +216,8 @@ fn load_base_of(
     })
 }
 
-fn checked_image(
+/// An image file, refused (naming `field`) when it is larger than the adapter's textures.
+pub(crate) fn checked_image(
     engine: &Engine,
     path: &Path,
     job: &Job,

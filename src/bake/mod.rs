@@ -33,6 +33,7 @@ pub mod cpu_tools;
 mod engine;
 mod finish;
 mod images;
+pub(crate) use images::checked_image;
 mod islands;
 pub mod kinds;
 mod maps;

@@ -467,16 +467,17 @@ type WriteCx<'a> = (&'a Engine, u32, &'a Shared, &'a str, &'a dyn Fn(&str));
 
 /// What a job has written, taken back when it fails: its files, then the directories it created
 /// (those left empty), so a failed job leaves no output directory and no partial set of files.
+/// Also `decalbake bake`'s animated jobs (`bake_frames` in main.rs).
 #[derive(Default)]
-struct Undo {
-    files: Vec<PathBuf>,
+pub(crate) struct Undo {
+    pub(crate) files: Vec<PathBuf>,
     dirs: Vec<PathBuf>,
 }
 
 impl Undo {
     /// Removes the old reports of `outputs` (a run killed between renames must not leave one
     /// vouching for a half-replaced set of outputs) and creates the folders they need.
-    fn prepare(&mut self, jobs: &[Job], outputs: &[PathBuf]) -> Result<()> {
+    pub(crate) fn prepare(&mut self, jobs: &[Job], outputs: &[PathBuf]) -> Result<()> {
         for r in jobs.iter().filter_map(|j| j.out_report.as_ref()) {
             let _ = std::fs::remove_file(r);
         }
@@ -492,7 +493,7 @@ impl Undo {
         Ok(())
     }
 
-    fn undo(self) {
+    pub(crate) fn undo(self) {
         for f in &self.files {
             let _ = std::fs::remove_file(f);
         }

@@ -515,30 +515,35 @@ fn bake(engine: &Engine, job: &Job) -> Result<()> {
 
 /// An animated job: one bake and one set of outputs per frame, written as each frame is baked
 /// (holding every frame's texture would cost frames × the texture); a frame that fails removes
-/// the frames written before it, so a failed job leaves no outputs.
+/// the frames written before it and the folders it made (`batch::Undo`), so a failed job leaves no outputs.
 fn bake_frames(
     engine: &Engine,
     mesh: &decalbake::LoadedMesh,
     job: &Job,
     frames: u32,
 ) -> Result<()> {
-    let mut written: Vec<PathBuf> = Vec::new();
-    for f in 0..frames {
-        let j = job.for_frame(f);
-        let done = engine
-            .bake(mesh, &j)
-            .and_then(|mut b| decalbake::output::write_outputs(engine, mesh, &j, &mut b));
-        match done {
-            Ok(files) => written.extend(files),
-            Err(e) => {
-                for p in &written {
-                    let _ = std::fs::remove_file(p);
-                }
-                return Err(e.into());
-            }
+    let jobs: Vec<Job> = (0..frames).map(|f| job.for_frame(f)).collect();
+    let outputs: Vec<PathBuf> = jobs
+        .iter()
+        .flat_map(|j| [&j.out_texture, &j.out_glb, &j.out_report, &j.out_preview])
+        .flatten()
+        .cloned()
+        .collect();
+    let mut undo = batch::Undo::default();
+    let write = |undo: &mut batch::Undo| -> Result<()> {
+        undo.prepare(&jobs, &outputs)?;
+        for j in &jobs {
+            let mut baked = engine.bake(mesh, j)?;
+            let files = decalbake::output::write_outputs(engine, mesh, j, &mut baked)?;
+            undo.files.extend(files);
         }
+        Ok(())
+    };
+    if let Err(e) = write(&mut undo) {
+        undo.undo();
+        return Err(e);
     }
-    for p in written {
+    for p in &undo.files {
         println!("{}", p.display());
     }
     Ok(())

@@ -962,18 +962,7 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
             format!("{} must be in [0, 1]", l.opacity),
         ));
     }
-    let method =
-        match (&l.method, kind) {
-            (Some(_), LayerKind::Ribbon) => return Err(err(
-                &field("method"),
-                "a ribbon is mapped by its curve (the extended exponential map); remove `method`"
-                    .into(),
-            )),
-            (None, LayerKind::Ribbon) => Method::Ribbon,
-            (Some(m), _) => Method::parse(m).map_err(|d| err(&field("method"), d))?,
-            (None, LayerKind::Stroke) => Method::Lscm,
-            (None, LayerKind::Decal) => Method::Expmap,
-        };
+    let method = layer_method(l.method.as_deref(), kind, &field("method"), src)?;
     let blend = BlendMode::parse(&l.blend).map_err(|d| err(&field("blend"), d))?;
     let curvature_stop = match l.curvature_stop {
         Some(k) if !k.is_finite() || k < 0.0 => {
@@ -1040,6 +1029,24 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
         stroke,
         ribbon,
         warp: super::warp::validate(&l.warp, i, src)?,
+    })
+}
+
+/// A layer's method (`field` names it in messages): a ribbon is mapped by its curve and takes
+/// none; a stroke's stamps default to LSCM, a decal to the exponential map.
+fn layer_method(given: Option<&str>, kind: LayerKind, field: &str, src: &Path) -> Result<Method> {
+    Ok(match (given, kind) {
+        (Some(_), LayerKind::Ribbon) => {
+            return Err(Error::job(
+                src,
+                field,
+                "a ribbon is mapped by its curve (the extended exponential map); remove `method`",
+            ))
+        }
+        (None, LayerKind::Ribbon) => Method::Ribbon,
+        (Some(m), _) => Method::parse(m).map_err(|d| Error::job(src, field, d))?,
+        (None, LayerKind::Stroke) => Method::Lscm,
+        (None, LayerKind::Decal) => Method::Expmap,
     })
 }
 

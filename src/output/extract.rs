@@ -47,11 +47,22 @@ pub fn extract(
             "extract follows a decal's or a ribbon's map; this layer is a stroke (many small maps)",
         ));
     }
-    let tex = source_texture(mesh, job)?;
+    let tex = source_texture(engine, mesh, job)?;
     let flat = flat_triangles(engine, mesh, job, index)?;
     let size = size.unwrap_or(flat.size);
     crate::io::image::check_image_size(size[0], size[1])
         .map_err(|d| Error::job(&job.source, "--size", d))?;
+    let max = engine.ctx.max_texture_side();
+    if size[0] > max || size[1] > max {
+        return Err(Error::job(
+            &job.source,
+            "--size",
+            format!(
+                "{}x{} is above this adapter's texture limit of {max}",
+                size[0], size[1]
+            ),
+        ));
+    }
     let mut image = extract_gpu(engine, &flat, &tex, size)?;
     let covered = image.pixels.iter().filter(|p| p[3] > 0.0).count();
     if covered == 0 {
@@ -160,10 +171,11 @@ pub fn flat_triangles(engine: &Engine, mesh: &LoadedMesh, job: &Job, index: usiz
     })
 }
 
-/// The texture `decalbake extract` reads: the job's base on its own UV set.
-pub fn source_texture(mesh: &LoadedMesh, job: &Job) -> Result<LinearImage> {
+/// The texture `decalbake extract` reads: the job's base on its own UV set (an image within the
+/// adapter's texture limit, as a bake's base).
+pub fn source_texture(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<LinearImage> {
     Ok(match &job.base {
-        Base::Image(p) => LinearImage::load(p)?,
+        Base::Image(p) => crate::bake::checked_image(engine, p, job, "texture.base", false)?,
         Base::Color(c) => LinearImage::solid(1, 1, *c),
         Base::Material => match &mesh.mesh.material {
             Some(m) => match &m.base_color_texture {
@@ -319,7 +331,7 @@ pub fn extract_cpu(flat: &Flat, tex: &LinearImage, size: [u32; 2]) -> LinearImag
                     continue;
                 };
                 let uv = [2, 3].map(|k| bc[0] * tri[0][k] + bc[1] * tri[1][k] + bc[2] * tri[2][k]);
-                pixels[y * w + x] = sample_wrapped(tex, uv);
+                pixels[y * w + x] = tex.bilinear(uv[0], uv[1], true);
             }
         }
     }
@@ -328,20 +340,4 @@ pub fn extract_cpu(flat: &Flat, tex: &LinearImage, size: [u32; 2]) -> LinearImag
         height: size[1],
         pixels,
     }
-}
-
-/// Bilinear sample at `uv` with repeat addressing (texel centres at (i + 0.5) / size).
-fn sample_wrapped(tex: &LinearImage, uv: [f32; 2]) -> [f32; 4] {
-    let (w, h) = (tex.width as i64, tex.height as i64);
-    let (x, y) = (uv[0] * w as f32 - 0.5, uv[1] * h as f32 - 0.5);
-    let (x0, y0) = (x.floor(), y.floor());
-    let (fx, fy) = (x - x0, y - y0);
-    let at = |i: i64, j: i64| tex.pixels[(j.rem_euclid(h) * w + i.rem_euclid(w)) as usize];
-    let (i, j) = (x0 as i64, y0 as i64);
-    let (p00, p10, p01, p11) = (at(i, j), at(i + 1, j), at(i, j + 1), at(i + 1, j + 1));
-    std::array::from_fn(|k| {
-        let top = p00[k] * (1.0 - fx) + p10[k] * fx;
-        let bottom = p01[k] * (1.0 - fx) + p11[k] * fx;
-        top * (1.0 - fy) + bottom * fy
-    })
 }

@@ -188,16 +188,7 @@ pub fn run(
     // 1,024. The first front is every candidate; later ones are a ring or two, so a dispatch runs
     // many (the 120k disc: 265 sweeps in 268 dispatches when the count was fixed from the first).
     let sweeps_per_round = 1024;
-    // A front vertex's loop steps: its neighbours scanned, then queued, and in smooth mode two
-    // edge-angle scans more; lanes run in step, so the largest degree prices every vertex (a
-    // fan-triangulated cap's valence of 16 in smooth mode: 65 steps).
-    let degree = cands
-        .iter()
-        .map(|&v| topo.adjacency_offsets[v as usize + 1] - topo.adjacency_offsets[v as usize])
-        .max()
-        .unwrap_or(0);
-    let smooth = jobs.iter().any(|j| j.smooth != 0);
-    let steps_per_vertex = 1 + if smooth { 4 } else { 2 } * degree;
+    let steps_per_vertex = steps_per_vertex(topo, jobs, cands);
     let max_sweeps = jobs.iter().map(|j| j.max_sweeps).max().unwrap_or(16);
     let results_size = jobs.len() as u64 * 16;
     let slots = jobs.iter().map(|j| j.tri[3] as u64 + 1).max().unwrap_or(1);
@@ -286,13 +277,45 @@ pub fn run(
     };
     let (bg_init, bg_more) =
         ctx.scoped("exponential maps", || (bind(&rounds[0]), bind(&rounds[1])))?;
+    let status = (&results, results_size, max_sweeps);
+    let done = submit_rounds(ctx, pipes, [&bg_init, &bg_more], jobs.len() as u32, status);
+    // Every dispatch has finished (the status read-backs waited for them), or failed.
+    *mesh.expmap_scratch.lock().expect("expmap scratch") = Some([marks, state]);
+    done
+}
+
+/// Loop steps a front vertex may cost an invocation: its neighbours scanned, then queued, and in
+/// smooth mode two edge-angle scans more; lanes run in step, so the candidates' largest degree
+/// prices every vertex (a fan-triangulated cap's valence of 16 in smooth mode: 65 steps).
+fn steps_per_vertex(topo: &Topology, jobs: &[GeoJob], cands: &[u32]) -> u32 {
+    let degree = cands
+        .iter()
+        .map(|&v| topo.adjacency_offsets[v as usize + 1] - topo.adjacency_offsets[v as usize])
+        .max()
+        .unwrap_or(0);
+    let smooth = jobs.iter().any(|j| j.smooth != 0);
+    1 + if smooth { 4 } else { 2 } * degree
+}
+
+/// Dispatches rounds of the relaxation over `maps` workgroups (the first with `init`),
+/// [`ROUNDS_PER_SUBMIT`] a submission, until no map is pending: converged or at its sweep cap
+/// (`status`: the results buffer, its size, the sweep cap). Returns the results and the
+/// dispatches issued.
+fn submit_rounds(
+    ctx: &crate::gpu::GpuContext,
+    pipes: &Pipelines,
+    [init, more]: [&wgpu::BindGroup; 2],
+    maps: u32,
+    (results, results_size, max_sweeps): (&wgpu::Buffer, u64, u32),
+) -> Result<(Vec<GeoResult>, u32)> {
     let mut dispatches = 0;
-    let mut first = true;
     loop {
         ctx.scoped("exponential maps", || {
-            let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("expmap"),
-            });
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("expmap"),
+                });
             {
                 let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some("expmap.relax"),
@@ -300,22 +323,20 @@ pub fn run(
                 });
                 pass.set_pipeline(&pipes.expmap_relax.pipeline);
                 for k in 0..ROUNDS_PER_SUBMIT {
-                    pass.set_bind_group(0, if first && k == 0 { &bg_init } else { &bg_more }, &[]);
-                    pass.dispatch_workgroups(jobs.len() as u32, 1, 1);
+                    let first = dispatches == 0 && k == 0;
+                    pass.set_bind_group(0, if first { init } else { more }, &[]);
+                    pass.dispatch_workgroups(maps, 1, 1);
                 }
             }
             ctx.queue.submit([enc.finish()]);
         })?;
         dispatches += ROUNDS_PER_SUBMIT;
-        first = false;
-        let bytes = ctx.read_buffer(&results, results_size, "expmap status read-back")?;
+        let bytes = ctx.read_buffer(results, results_size, "expmap status read-back")?;
         let res: Vec<GeoResult> = bytemuck::cast_slice(&bytes).to_vec();
         let pending = res
             .iter()
             .any(|r| r.converged == 0 && r.sweeps < max_sweeps);
         if !pending {
-            // Every dispatch has finished (the status read-back waited for them).
-            *mesh.expmap_scratch.lock().expect("expmap scratch") = Some([marks, state]);
             return Ok((res, dispatches));
         }
     }

@@ -236,6 +236,33 @@ fn candidates(topo: &Topology, framed: &Framed, seeds: &[u32], reach: f32) -> St
     }
 }
 
+/// The strip of `framed` within `reach` ([`candidates`]) and its seeds, in the strip's numbering.
+fn strip_and_seeds(
+    topo: &Topology,
+    curve: &Curve,
+    framed: &Framed,
+    reach: f32,
+) -> (Strip, Vec<GpuSeed>) {
+    let feet = seeds(topo, curve, framed);
+    let seed_vertices: Vec<u32> = feet.iter().map(|f| f.vertex).collect();
+    // Graph distances are never shorter than straight ones, so a vertex within `reach` of the
+    // seeds lies within `reach` of a seed, and the seeds lie within their offsets of the curve.
+    let seed_far = feet.iter().map(|f| f.dist).fold(0.0f32, f32::max);
+    let strip = candidates(topo, framed, &seed_vertices, reach + seed_far);
+    let seeds = feet
+        .iter()
+        .map(|f| GpuSeed {
+            vertex: strip.local[&f.vertex],
+            piece: f.piece,
+            s: f.s,
+            dist: f.dist,
+            off: f.off.to_array(),
+            pad: [0.0; 2],
+        })
+        .collect();
+    (strip, seeds)
+}
+
 /// Computes the map of `curve` within `reach` into slot `out.slot` of `coords` (one vec4 per
 /// welded vertex: x, y (the map's u, v through `out.xform`), graph distance, 1 where reached; the
 /// candidates' and their ring's entries are overwritten, others left as they are), on the GPU, in
@@ -254,29 +281,7 @@ pub fn run(
     if framed.pieces.is_empty() {
         return Ok((RibbonStatus::default(), Vec::new()));
     }
-    let seeds: Vec<GpuSeed> = seeds(topo, curve, &framed)
-        .iter()
-        .map(|f| GpuSeed {
-            vertex: f.vertex,
-            piece: f.piece,
-            s: f.s,
-            dist: f.dist,
-            off: f.off.to_array(),
-            pad: [0.0; 2],
-        })
-        .collect();
-    let seed_vertices: Vec<u32> = seeds.iter().map(|s| s.vertex).collect();
-    // Graph distances are never shorter than straight ones, so a vertex within `reach` of the
-    // seeds lies within `reach` of a seed, and the seeds lie within their offsets of the curve.
-    let seed_far = seeds.iter().map(|s| s.dist).fold(0.0f32, f32::max);
-    let strip = candidates(topo, &framed, &seed_vertices, reach + seed_far);
-    let seeds: Vec<GpuSeed> = seeds
-        .into_iter()
-        .map(|s| GpuSeed {
-            vertex: strip.local[&s.vertex],
-            ..s
-        })
-        .collect();
+    let (strip, seeds) = strip_and_seeds(topo, curve, &framed, reach);
     let pieces: Vec<GpuPiece> = framed.pieces.iter().map(GpuPiece::from).collect();
     let cand_count = strip.cand_count as u32;
     let setup_ms = t.elapsed().as_secs_f64() * 1e3;
