@@ -112,6 +112,7 @@ fn mesh(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>, name: &str) -> Mesh {
         primitives: vec![],
         material: None,
         blend: Vec::new(),
+        bridge: Vec::new(),
     }
 }
 

@@ -108,6 +108,7 @@ fn cube_on_corner(n: u32) -> Mesh {
         primitives: vec![],
         material: None,
         blend: Vec::new(),
+        bridge: Vec::new(),
     }
 }
 
@@ -140,6 +141,7 @@ fn torus(big: f32, small: f32, m: u32, n: u32) -> Mesh {
         primitives: vec![],
         material: None,
         blend: Vec::new(),
+        bridge: Vec::new(),
     }
 }
 

@@ -591,6 +591,7 @@ fn cone_maps_converge_to_the_unrolling() {
             primitives: vec![],
             material: None,
             blend: Vec::new(),
+            bridge: Vec::new(),
         };
         let mesh = engine.prepare(mesh).unwrap();
         let topo = &mesh.topo;
@@ -804,6 +805,7 @@ fn maps_go_around_holes_and_stay_on_their_component() {
         primitives: vec![],
         material: None,
         blend: Vec::new(),
+        bridge: Vec::new(),
     };
     let engine = engine();
     let mesh = engine.prepare(mesh).unwrap();

@@ -105,6 +105,7 @@ fn planar_patch_is_reproduced() {
         primitives: vec![],
         material: None,
         blend: Vec::new(),
+        bridge: Vec::new(),
     };
     let engine = engine();
     let loaded = engine.prepare(mesh).unwrap();

@@ -41,6 +41,7 @@ fn hemisphere(rings: u32, segments: u32) -> Mesh {
         primitives: vec![],
         material: None,
         blend: Vec::new(),
+        bridge: Vec::new(),
     }
 }
 
@@ -832,8 +833,7 @@ fn glb_attribute(path: &Path, name: &str) -> Vec<f32> {
 /// is 0 exactly on
 /// the vertices within 2 edges of it and 1 elsewhere (so b0 and b1 = 1 − b0 are a partition of
 /// unity, each in [0, 1]); and every triangle where the patch shows (a corner with b0 < 1) has
-/// patch UVs that are not flipped and overlap no other such triangle. A model with a handle is
-/// refused: its seams have cycles.
+/// patch UVs that are not flipped and overlap no other such triangle.
 #[test]
 fn patch_and_blend_function_hide_the_cut() {
     let dir = common::scratch("patch");
@@ -854,24 +854,9 @@ fn patch_and_blend_function_hide_the_cut() {
     assert_eq!(b0.len(), m.positions.len());
     let topo = Topology::build(&m, DEFAULT_WELD_TOLERANCE);
     // The seam (C0): the ends of every edge whose two triangles give it different pelt UVs.
-    let mut sides: HashMap<(u32, u32), Vec<[u32; 4]>> = HashMap::new();
-    for t in &m.triangles {
-        for k in 0..3 {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            let (wa, wb) = (topo.welded_of[a as usize], topo.welded_of[b as usize]);
-            let (ua, ub) = (m.uv_sets[1][a as usize], m.uv_sets[1][b as usize]);
-            let (key, uv) = if wa < wb {
-                ((wa, wb), [ua.x, ua.y, ub.x, ub.y])
-            } else {
-                ((wb, wa), [ub.x, ub.y, ua.x, ua.y])
-            };
-            sides.entry(key).or_default().push(uv.map(f32::to_bits));
-        }
-    }
-    let mut seam: Vec<u32> = sides
-        .iter()
-        .filter(|(_, l)| l.iter().any(|u| *u != l[0]))
-        .flat_map(|(&(a, b), _)| [a, b])
+    let mut seam: Vec<u32> = seam_edges(&m, &topo, 1)
+        .into_iter()
+        .flat_map(|(a, b)| [a, b])
         .collect();
     seam.sort_unstable();
     seam.dedup();
@@ -1006,18 +991,207 @@ fn patch_and_blend_function_hide_the_cut() {
         err.contains("output.texture") && err.contains("{uv}"),
         "{err}"
     );
+}
 
+/// The welded edges (smaller id first) whose two triangles give them different UVs in `set`.
+fn seam_edges(m: &Mesh, topo: &Topology, set: usize) -> HashSet<(u32, u32)> {
+    let mut sides: HashMap<(u32, u32), Vec<[u32; 4]>> = HashMap::new();
+    for t in &m.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            let (wa, wb) = (topo.welded_of[a as usize], topo.welded_of[b as usize]);
+            let (ua, ub) = (m.uv_sets[set][a as usize], m.uv_sets[set][b as usize]);
+            let (key, uv) = if wa < wb {
+                ((wa, wb), [ua.x, ua.y, ub.x, ub.y])
+            } else {
+                ((wb, wa), [ub.x, ub.y, ua.x, ua.y])
+            };
+            sides.entry(key).or_default().push(uv.map(f32::to_bits));
+        }
+    }
+    sides
+        .into_iter()
+        .filter(|(_, l)| l.iter().any(|u| *u != l[0]))
+        .map(|(e, _)| e)
+        .collect()
+}
+
+/// `--patch` on bob, whose seams have cycles (a handle: the pelt's cut is two loops): the patch
+/// is cut across the band once per cycle and the bridges (TEXCOORD_3, `_PELT_BRIDGE`) hide those
+/// arcs (`pelt::bridge`). Checked from the written file alone: the three weights are a partition
+/// of unity; every chart's weight is 0 on each triangle that touches one of its seams (an edge
+/// whose two triangles give it different UVs in its set), so no seam can show; each chart is
+/// unflipped and overlaps itself nowhere it is shown. Then a decal baked into the three sets over
+/// both places where an arc crosses the pelt's seam: the blended colour has no jump across any
+/// edge, while the pelt alone, and the pelt and patch blended without the bridges (the §5
+/// rendering, b0 = 0 within 2 edges of the pelt's seam and 1 beyond), both jump there.
+#[test]
+fn patch_with_bridges_hides_the_seams_of_a_handle() {
+    let dir = common::scratch("patch-bridges");
+    let out = dir.join("bob.glb");
     let (code, _, err) = common::cli(&[
         "unwrap",
         asset("bob.glb").to_str().unwrap(),
         "--out",
-        dir.join("bob.glb").to_str().unwrap(),
+        out.to_str().unwrap(),
         "--patch",
         "--cpu",
     ]);
-    assert_eq!(code, 2, "{err}");
-    assert!(err.contains("--patch") && err.contains("tree"), "{err}");
-    assert!(!dir.join("bob.glb").exists());
+    assert_eq!(code, 0, "{err}");
+    validate(&out);
+    let m = Mesh::load(&out).unwrap();
+    assert_eq!(
+        m.uv_sets.len(),
+        4,
+        "bob's own set, the pelt, the patch, the bridges"
+    );
+    let (w1, w3) = (
+        glb_attribute(&out, "_PELT_BLEND"),
+        glb_attribute(&out, "_PELT_BRIDGE"),
+    );
+    let weights = |v: usize| [w1[v], 1.0 - w1[v] - w3[v], w3[v]];
+    for v in 0..m.positions.len() {
+        for w in weights(v) {
+            assert!(
+                (0.0..=1.0).contains(&w),
+                "vertex {v}: weights {:?}",
+                weights(v)
+            );
+        }
+    }
+    let topo = Topology::build(&m, DEFAULT_WELD_TOLERANCE);
+    for (chart, set) in [(0, 1), (1, 2), (2, 3)] {
+        let seams = seam_edges(&m, &topo, set);
+        assert!(seams.len() > 10, "set {set}: {} seam edges", seams.len());
+        let mut shown = Vec::new();
+        for t in &m.triangles {
+            let touches = (0..3).any(|k| {
+                let (a, b) = (
+                    topo.welded_of[t[k] as usize],
+                    topo.welded_of[t[(k + 1) % 3] as usize],
+                );
+                seams.contains(&(a.min(b), a.max(b)))
+            });
+            let w = t.map(|v| weights(v as usize)[chart]);
+            if touches {
+                assert_eq!(w, [0.0; 3], "set {set}: a triangle on its seam is shown");
+            }
+            if w.iter().any(|&x| x > 0.0) {
+                shown.push(t.map(|v| m.uv_sets[set][v as usize].as_dvec2()));
+            }
+        }
+        let flipped = shown
+            .iter()
+            .filter(|q| (q[1] - q[0]).perp_dot(q[2] - q[0]) >= 0.0)
+            .count();
+        assert_eq!(flipped, 0, "set {set}");
+        let overlapping = (0..shown.len())
+            .flat_map(|i| (i + 1..shown.len()).map(move |j| (i, j)))
+            .filter(|&(i, j)| {
+                let share = shown[i].iter().any(|p| shown[j].contains(p));
+                !share && overlap(&shown[i], &shown[j])
+            })
+            .count();
+        assert_eq!(overlapping, 0, "set {set}");
+    }
+
+    // The arcs cross the pelt's seam where a seam vertex has bridge weight 1: one decal on the
+    // first such vertex and one on the farthest from it (bob's two loops).
+    let on_seam: HashSet<u32> = seam_edges(&m, &topo, 1)
+        .into_iter()
+        .flat_map(|(a, b)| [a, b])
+        .collect();
+    // §5's b0 alone (0 within 2 edges of the pelt's seam, 1 beyond), for the rendering without
+    // bridges.
+    let seam_list: Vec<u32> = on_seam.iter().copied().collect();
+    let d = pelt::patch::rings(&topo, &seam_list, 10);
+    let b0 = |v: usize| {
+        if d[topo.welded_of[v] as usize] <= 2 {
+            0.0
+        } else {
+            1.0
+        }
+    };
+    let crossing: Vec<Vec3> = (0..m.positions.len())
+        .filter(|&v| w3[v] == 1.0 && on_seam.contains(&topo.welded_of[v]))
+        .map(|v| m.positions[v])
+        .collect();
+    assert!(!crossing.is_empty());
+    let far = crossing
+        .iter()
+        .copied()
+        .max_by(|a, b| a.distance(crossing[0]).total_cmp(&b.distance(crossing[0])))
+        .unwrap();
+    std::fs::write(
+        dir.join("logo.png"),
+        common::test_image(32, 32, 5, false).encode_png(8),
+    )
+    .unwrap();
+    let layer = |p: Vec3| serde_json::json!({ "image": "logo.png", "at": p.to_array(), "size": [0.25, 0.25] });
+    let job = serde_json::json!({ "mesh": "bob.glb", "uv_set": [1, 2, 3],
+        "texture": { "width": 512, "height": 512 },
+        "layers": [layer(crossing[0]), layer(far)],
+        "output": { "texture": "baked_uv{uv}.png", "preview": "blended.png" } });
+    std::fs::write(dir.join("job.json"), job.to_string()).unwrap();
+    let (code, _, err) = common::cli(&["bake", dir.join("job.json").to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(image::open(dir.join("blended.png")).unwrap().width(), 1024);
+    let tex: Vec<_> = (1..=3)
+        .map(|set| {
+            decalbake::io::image::LinearImage::load(&dir.join(format!("baked_uv{set}.png")))
+                .unwrap()
+        })
+        .collect();
+    // Per welded edge, from each of its triangles: the three-chart blend, the pelt alone, and the
+    // pelt and patch blended without the bridges.
+    let mut by_edge: HashMap<(u32, u32), Vec<[[f32; 4]; 3]>> = HashMap::new();
+    for t in &m.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
+            let (wa, wb) = (topo.welded_of[a], topo.welded_of[b]);
+            let c: Vec<[f32; 4]> = (0..3)
+                .map(|i| {
+                    let p = 0.5 * (m.uv_sets[i + 1][a] + m.uv_sets[i + 1][b]);
+                    tex[i].bilinear(p.x, p.y, false)
+                })
+                .collect();
+            let w: Vec<f32> = (0..3)
+                .map(|i| 0.5 * (weights(a)[i] + weights(b)[i]))
+                .collect();
+            let mix = |w: [f32; 3]| std::array::from_fn(|ch| (0..3).map(|i| w[i] * c[i][ch]).sum());
+            let blended = mix([w[0], w[1], w[2]]);
+            let b0 = 0.5 * (b0(a) + b0(b));
+            let no_bridges = mix([b0, 1.0 - b0, 0.0]);
+            by_edge
+                .entry((wa.min(wb), wa.max(wb)))
+                .or_default()
+                .push([blended, c[0], no_bridges]);
+        }
+    }
+    let mut jump = [0f32; 3];
+    for sides in by_edge.values().filter(|l| l.len() == 2) {
+        for (i, j) in jump.iter_mut().enumerate() {
+            let d = (0..3)
+                .map(|ch| (sides[0][i][ch] - sides[1][i][ch]).abs())
+                .fold(0f32, f32::max);
+            *j = j.max(d);
+        }
+    }
+    println!(
+        "largest jump across an edge: blended {}, pelt alone {}, without bridges {}",
+        jump[0], jump[1], jump[2]
+    );
+    assert!(jump[0] < 1e-3, "the blended rendering jumps by {}", jump[0]);
+    assert!(
+        jump[1] > 0.1,
+        "the pelt alone should show its seam: {}",
+        jump[1]
+    );
+    assert!(
+        jump[2] > 0.1,
+        "without the bridges the patch's arcs should show: {}",
+        jump[2]
+    );
 }
 
 /// A flat n × n grid of unit squares in the plane z = 0 (one disk).
@@ -1051,6 +1225,7 @@ fn grid_wh(w: u32, h: u32) -> Mesh {
         primitives: vec![],
         material: None,
         blend: Vec::new(),
+        bridge: Vec::new(),
     }
 }
 
@@ -1100,6 +1275,7 @@ fn parts(list: &[(Vec<Vec3>, Vec<[u32; 3]>)]) -> Mesh {
         primitives: vec![],
         material: None,
         blend: Vec::new(),
+        bridge: Vec::new(),
     }
 }
 

@@ -41,6 +41,7 @@ fn plane(n: u32) -> Mesh {
         primitives: vec![],
         material: None,
         blend: Vec::new(),
+        bridge: Vec::new(),
     }
 }
 

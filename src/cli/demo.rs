@@ -14,6 +14,8 @@ use std::f32::consts::PI;
 pub const SPOT_GLB: &[u8] = include_bytes!("../../assets/spot.glb");
 /// Keenan Crane's crumpled developable sheet (public domain), unwrapped by the demo.
 pub const CRUMPLED_GLB: &[u8] = include_bytes!("../../assets/crumpled_developable.glb");
+/// Keenan Crane's bob (CC0), a model with a handle: the demo's patch with bridges.
+pub const BOB_GLB: &[u8] = include_bytes!("../../assets/bob.glb");
 
 fn img(side: u32, f: impl Fn(f32, f32) -> [f32; 4]) -> LinearImage {
     let mut out = LinearImage::solid(side, side, [0.0; 4]);
@@ -138,6 +140,24 @@ fn ribbon_path() -> Vec<serde_json::Value> {
             serde_json::json!({ "ray": { "origin": [-1.5, y, z], "dir": [1, 0, 0] } })
         })
         .collect()
+}
+
+/// The job that bakes two decals into bob's pelt, patch and bridges (`decalbake unwrap --patch`
+/// made `bob-patched.glb`: its seams have cycles, so the patch is cut across twice and bridged,
+/// `pelt::bridge`), over the two places where the patch's cuts cross the pelt's seam (found once
+/// from the file's `_PELT_BRIDGE`), and previews them blended.
+pub fn bob_job_json() -> String {
+    serde_json::to_string_pretty(&serde_json::json!({
+        "mesh": "bob-patched.glb",
+        "uv_set": [1, 2, 3],
+        "texture": { "width": 1024, "height": 1024, "base": "material" },
+        "layers": [
+            { "kind": "decal", "image": "decals/rings.png", "at": [-0.369, -0.501, 0.036], "size": [0.3, 0.3] },
+            { "kind": "decal", "image": "decals/badge.png", "at": [0.387, -0.234, -0.179], "size": [0.3, 0.3] }
+        ],
+        "output": { "texture": "bob_uv{uv}.png", "preview": "bob-blended.png" }
+    }))
+    .expect("static JSON")
 }
 
 /// The demo job (paths relative to the demo directory).

@@ -643,8 +643,23 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
         ..args
     };
     unwrap::run_with(&spot, &engine)?;
+    // bob has a handle: `--patch` cuts the band round its seams across and bridges the cuts with
+    // a third set; two decals baked into the three sets over the crossings, previewed blended.
+    decalbake::io::image::write_atomic(&out.join("bob.glb"), demo::BOB_GLB)?;
+    let bob = unwrap::UnwrapArgs {
+        mesh: out.join("bob.glb"),
+        out: out.join("bob-patched.glb"),
+        patch: true,
+        report: Some(out.join("bob-patch-report.json")),
+        preview: None,
+        ..spot
+    };
+    unwrap::run_with(&bob, &engine)?;
+    let bob_job = out.join("bob-job.json");
+    decalbake::io::image::write_atomic(&bob_job, demo::bob_job_json().as_bytes())?;
+    bake(&engine, &Job::load(&bob_job, None)?)?;
     eprintln!(
-        "demo written to {} (edit job.json and run `decalbake bake {}` to re-bake; `decalbake unwrap` made unwrapped.glb and spot-unwrapped.glb)",
+        "demo written to {} (edit job.json and run `decalbake bake {}` to re-bake; `decalbake unwrap` made unwrapped.glb, spot-unwrapped.glb and bob-patched.glb)",
         out.display(),
         job_path.display()
     );

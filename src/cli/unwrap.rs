@@ -49,8 +49,10 @@ pub struct UnwrapArgs {
     pub preview: Option<PathBuf>,
     /// Also write the patch (Piponi & Borshukov §5): the band within 4 edges of the seams pelted on
     /// its own into the next UV set, and the blend function as the vertex attribute `_PELT_BLEND`
-    /// (the pelt's weight: 0 within 2 edges of the seams, 1 from 3 on). Turns the splits off; the
-    /// seams must form a tree (a genus-0 model).
+    /// (the pelt's weight: 0 within 2 edges of the seams, 1 from 3 on). Turns the splits off. On a
+    /// model with handles (seams with cycles) the band is cut across once per cycle and a third
+    /// set, the bridges, hides those cuts, weighted by `_PELT_BRIDGE` (the patch's weight is
+    /// 1 − `_PELT_BLEND` − `_PELT_BRIDGE`).
     #[arg(long)]
     pub patch: bool,
     /// Open non-manifold edges (each triangle fan round them ends there) instead of refusing them.
@@ -192,16 +194,24 @@ fn run_on(
     } else {
         None
     };
+    let bridges = patch.as_ref().and_then(|p| p.bridges.as_ref());
     let mut layouts = vec![(&un, set)];
     if let Some(p) = &patch {
         layouts.push((&p.layout, set + 1));
     }
+    if let Some(b) = bridges {
+        layouts.push((&b.layout, set + 2));
+    }
     let (mut out_mesh, split_of) = pelt::apply_all(&mesh, &layouts);
-    if let Some(p) = &patch {
-        out_mesh.blend = split_of
+    let per_split = |w: &[f32]| -> Vec<f32> {
+        split_of
             .iter()
-            .map(|&s| p.blend[topo.welded_of[s as usize] as usize])
-            .collect();
+            .map(|&s| w[topo.welded_of[s as usize] as usize])
+            .collect()
+    };
+    if let Some(p) = &patch {
+        out_mesh.blend = per_split(&p.blend);
+        out_mesh.bridge = bridges.map_or_else(Vec::new, |b| per_split(&b.weight));
     }
     let png = mesh.material.as_ref().and_then(|m| {
         m.base_color_texture
@@ -242,6 +252,19 @@ fn run_on(
                 .filter(|t| t.is_some())
                 .count());
             v["patch"] = r;
+        }
+        if let Some(b) = bridges {
+            let mut r = serde_json::to_value(&b.layout.report)?;
+            r["uv_set"] = serde_json::json!(set + 2);
+            r["arcs"] = serde_json::json!(b.arcs.len());
+            r["triangles"] = serde_json::json!(b
+                .layout
+                .cut
+                .triangle_piece
+                .iter()
+                .filter(|t| t.is_some())
+                .count());
+            v["bridges"] = r;
         }
         v["mesh"] = serde_json::json!(args.mesh);
         v["out"] = serde_json::json!(args.out);
@@ -349,6 +372,7 @@ fn preview(engine: &Engine, mesh: Mesh, set: usize, path: &Path) -> Result<()> {
         rgba8,
         uv_set: set,
         second: None,
+        third: None,
     };
     let px = decalbake::output::preview::render_texture_preview(engine, &loaded, &tex)?;
     let n = 2 * decalbake::output::preview::VIEW_SIDE;

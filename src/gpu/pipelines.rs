@@ -671,7 +671,13 @@ fn preview_raster(device: &wgpu::Device) -> Raster {
     let preview_layout = layout(
         device,
         "preview",
-        &[(0, Uniform), (1, Tex(true)), (2, Sampler), (3, Tex(true))],
+        &[
+            (0, Uniform),
+            (1, Tex(true)),
+            (2, Sampler),
+            (3, Tex(true)),
+            (4, Tex(true)),
+        ],
         vf,
     );
     let vb = |loc: u32, fmt: wgpu::VertexFormat| -> Vec<wgpu::VertexAttribute> {
@@ -685,7 +691,8 @@ fn preview_raster(device: &wgpu::Device) -> Raster {
     let a1 = vb(1, wgpu::VertexFormat::Float32x3);
     let a2 = vb(2, wgpu::VertexFormat::Float32x2);
     let a3 = vb(3, wgpu::VertexFormat::Float32x2);
-    let a4 = vb(4, wgpu::VertexFormat::Float32);
+    let a4 = vb(4, wgpu::VertexFormat::Float32x2);
+    let a5 = vb(5, wgpu::VertexFormat::Float32x2);
     let buffers = [
         Some(wgpu::VertexBufferLayout {
             array_stride: 12,
@@ -708,9 +715,14 @@ fn preview_raster(device: &wgpu::Device) -> Raster {
             attributes: &a3,
         }),
         Some(wgpu::VertexBufferLayout {
-            array_stride: 4,
+            array_stride: 8,
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &a4,
+        }),
+        Some(wgpu::VertexBufferLayout {
+            array_stride: 8,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &a5,
         }),
     ];
     raster(

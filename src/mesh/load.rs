@@ -68,18 +68,25 @@ pub struct Mesh {
     /// The custom attribute `_PELT_BLEND` per split vertex, when every primitive has it: the
     /// pelt's weight of `decalbake unwrap --patch` (`crate::pelt::patch`); empty otherwise.
     pub blend: Vec<f32>,
+    /// The custom attribute `_PELT_BRIDGE` per split vertex, when every primitive has it: the
+    /// weight of the third set that `decalbake unwrap --patch` writes on models whose seams have
+    /// cycles (`crate::pelt::bridge`; the patch's weight is then 1 − blend − bridge); empty
+    /// otherwise.
+    pub bridge: Vec<f32>,
 }
 
-/// The primitive's `_PELT_BLEND` (one float per vertex), if it has one of the right type and length.
-fn read_blend(
+/// The primitive's custom attribute `_{attribute}` (one float per vertex: `_PELT_BLEND`,
+/// `_PELT_BRIDGE`), if it has one of the right type and length.
+fn read_weight(
     prim: &gltf::Primitive,
     buffers: &[gltf::buffer::Data],
     vertices: usize,
+    attribute: &str,
     name: &Path,
 ) -> Option<Vec<f32>> {
-    let accessor = prim.get(&gltf::Semantic::Extras("PELT_BLEND".into()))?;
+    let accessor = prim.get(&gltf::Semantic::Extras(attribute.into()))?;
     let scalar = [(DataType::F32, Dimensions::Scalar)];
-    checks::accessor(&accessor, "_PELT_BLEND", &scalar, false, name)
+    checks::accessor(&accessor, &format!("_{attribute}"), &scalar, false, name)
         .ok()
         .filter(|&n| n == vertices)?;
     let it = gltf::accessor::Iter::<f32>::new(accessor, |b: gltf::Buffer| {
@@ -94,6 +101,7 @@ fn read_blend(
 struct PerPrimitive {
     uvs: Vec<Vec<Vec<Vec2>>>,
     blend: Vec<Option<Vec<f32>>>,
+    bridge: Vec<Option<Vec<f32>>>,
     material: Option<usize>,
 }
 
@@ -139,6 +147,7 @@ impl Mesh {
             primitives: Vec::new(),
             material: None,
             blend: Vec::new(),
+            bridge: Vec::new(),
         };
         let mut per = PerPrimitive::default();
         let mut stack: Vec<(gltf::Node, Mat4)> =
@@ -170,7 +179,7 @@ impl Mesh {
         if mesh.triangles.is_empty() {
             return Err(Error::mesh(name, "the scene has no triangles (no triangle primitives in any node); decalbake needs a triangle mesh"));
         }
-        mesh.join_primitive_attributes(per.uvs, per.blend);
+        mesh.join_primitive_attributes(per.uvs, per.blend, per.bridge);
         if let Some(mi) = per.material {
             mesh.material = Some(load_material(&document, mi, &buffers, name, base_dir)?);
         }
@@ -270,8 +279,11 @@ impl Mesh {
             sets.push(uv);
             set += 1;
         }
+        let n = positions.len();
         per.blend
-            .push(read_blend(prim, buffers, positions.len(), name));
+            .push(read_weight(prim, buffers, n, "PELT_BLEND", name));
+        per.bridge
+            .push(read_weight(prim, buffers, n, "PELT_BRIDGE", name));
         let m3 = Mat3::from_mat4(world);
         let nmat = m3.inverse().transpose();
         let flip = m3.determinant() < 0.0;
@@ -315,12 +327,14 @@ impl Mesh {
         Ok(())
     }
 
-    /// The per-primitive UV sets and `_PELT_BLEND` joined over the whole mesh: only UV sets every
-    /// primitive has can be baked into, and the blend only when every primitive has one.
+    /// The per-primitive UV sets, `_PELT_BLEND` and `_PELT_BRIDGE` joined over the whole mesh:
+    /// only UV sets every primitive has can be baked into, and a weight only when every primitive
+    /// has it.
     fn join_primitive_attributes(
         &mut self,
         per_prim_uvs: Vec<Vec<Vec<Vec2>>>,
         per_blend: Vec<Option<Vec<f32>>>,
+        per_bridge: Vec<Option<Vec<f32>>>,
     ) {
         let common = per_prim_uvs.iter().map(|s| s.len()).min().unwrap_or(0);
         for n in 0..common {
@@ -333,6 +347,9 @@ impl Mesh {
         }
         if per_blend.iter().all(Option::is_some) {
             self.blend = per_blend.into_iter().flatten().flatten().collect();
+        }
+        if per_bridge.iter().all(Option::is_some) {
+            self.bridge = per_bridge.into_iter().flatten().flatten().collect();
         }
     }
 
@@ -442,6 +459,9 @@ impl Mesh {
                     }
                     if !self.blend.is_empty() {
                         out.blend.push(0.5 * (self.blend[a] + self.blend[b]));
+                    }
+                    if !self.bridge.is_empty() {
+                        out.bridge.push(0.5 * (self.bridge[a] + self.bridge[b]));
                     }
                     (out.positions.len() - 1) as u32
                 });

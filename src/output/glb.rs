@@ -17,7 +17,8 @@ fn pad4(buf: &mut Vec<u8>, fill: u8) {
 }
 
 /// Builds GLB bytes for `m` textured with `png` on UV set `uv_set` (untextured without a PNG), with
-/// the custom attribute `_PELT_BLEND` when the mesh has one (`Mesh::blend`).
+/// the custom attributes `_PELT_BLEND` and `_PELT_BRIDGE` when the mesh has them (`Mesh::blend`,
+/// `Mesh::bridge`).
 pub fn build_glb(m: &Mesh, png: Option<&[u8]>, uv_set: u32) -> Vec<u8> {
     let mut bin: Vec<u8> = Vec::new();
     let mut views = Vec::new();
@@ -58,12 +59,14 @@ pub fn build_glb(m: &Mesh, png: Option<&[u8]>, uv_set: u32) -> Vec<u8> {
         );
         attributes[format!("TEXCOORD_{i}")] = json!(accessors.len() - 1);
     }
-    if m.blend.len() == m.positions.len() {
-        let v = push_view(&mut bin, bytemuck::cast_slice(&m.blend), Some(34962));
-        accessors.push(
-            json!({"bufferView": v, "componentType": 5126, "count": m.blend.len(), "type": "SCALAR"}),
-        );
-        attributes["_PELT_BLEND"] = json!(accessors.len() - 1);
+    for (name, w) in [("_PELT_BLEND", &m.blend), ("_PELT_BRIDGE", &m.bridge)] {
+        if w.len() == m.positions.len() {
+            let v = push_view(&mut bin, bytemuck::cast_slice(w), Some(34962));
+            accessors.push(
+                json!({"bufferView": v, "componentType": 5126, "count": w.len(), "type": "SCALAR"}),
+            );
+            attributes[name] = json!(accessors.len() - 1);
+        }
     }
     let idx: Vec<u32> = m.triangles.iter().flatten().copied().collect();
     let v = push_view(&mut bin, bytemuck::cast_slice(&idx), Some(34963));

@@ -29,8 +29,12 @@ pub struct PreviewTexture {
     /// The UV set it is mapped by.
     pub uv_set: usize,
     /// A second texture blended in, weighted by `1 − mesh.blend` (the patch of a pelt, Piponi &
-    /// Borshukov §5); needs the mesh's `_PELT_BLEND` (`Mesh::blend`).
+    /// Borshukov §5), or `1 − mesh.blend − mesh.bridge` with a third; needs the mesh's
+    /// `_PELT_BLEND` (`Mesh::blend`).
     pub second: Option<Box<PreviewTexture>>,
+    /// A third texture blended in, weighted by `mesh.bridge` (the bridges over the patch's seams,
+    /// `crate::pelt::bridge`); needs a second and the mesh's `_PELT_BRIDGE` (`Mesh::bridge`).
+    pub third: Option<Box<PreviewTexture>>,
 }
 
 impl PreviewTexture {
@@ -42,6 +46,7 @@ impl PreviewTexture {
             rgba8: baked.rgba8(),
             uv_set: baked.report.uv_set as usize,
             second: None,
+            third: None,
         }
     }
 }
@@ -53,7 +58,8 @@ pub fn render_preview(engine: &Engine, mesh: &LoadedMesh, baked: &Baked) -> Resu
 
 /// Writes the preview of a several-set bake (`"uv_set": [..]`) to `path`: the first set's texture,
 /// blended with the second's by the mesh's `_PELT_BLEND` when it has one (a pelt and its patch,
-/// Piponi & Borshukov §5).
+/// Piponi & Borshukov §5), and with the third's by `_PELT_BRIDGE` when it has that too (the
+/// bridges of `crate::pelt::bridge`).
 pub fn write_set_preview(
     engine: &Engine,
     mesh: &LoadedMesh,
@@ -64,8 +70,12 @@ pub fn write_set_preview(
     let Some(mut first) = it.next() else {
         return Ok(());
     };
-    if mesh.mesh.blend.len() == mesh.mesh.positions.len() {
+    let n = mesh.mesh.positions.len();
+    if mesh.mesh.blend.len() == n {
         first.second = it.next().map(Box::new);
+        if mesh.mesh.bridge.len() == n && first.second.is_some() {
+            first.third = it.next().map(Box::new);
+        }
     }
     let px = render_texture_preview(engine, mesh, &first)?;
     let n = 2 * VIEW_SIDE;
@@ -94,10 +104,15 @@ pub fn render_texture_preview(
             ..Default::default()
         });
         let second = baked.second.as_ref().map(|t| upload_texture(engine, t));
+        let third = baked.third.as_ref().map(|t| upload_texture(engine, t));
         let groups = view_groups(
             engine,
             mesh,
-            [&view, second.as_ref().unwrap_or(&view)],
+            [
+                &view,
+                second.as_ref().unwrap_or(&view),
+                third.as_ref().unwrap_or(&view),
+            ],
             &sampler,
         );
         draw(engine, mesh, baked, &groups)
@@ -176,7 +191,7 @@ fn upload_texture(engine: &Engine, baked: &PreviewTexture) -> wgpu::TextureView 
 fn view_groups(
     engine: &Engine,
     mesh: &LoadedMesh,
-    [view, second]: [&wgpu::TextureView; 2],
+    [view, second, third]: [&wgpu::TextureView; 3],
     sampler: &wgpu::Sampler,
 ) -> Vec<(wgpu::BindGroup, wgpu::Buffer)> {
     let dev = &engine.ctx.device;
@@ -213,6 +228,7 @@ fn view_groups(
                 (1, wgpu::BindingResource::TextureView(view)),
                 (2, wgpu::BindingResource::Sampler(sampler)),
                 (3, wgpu::BindingResource::TextureView(second)),
+                (4, wgpu::BindingResource::TextureView(third)),
             ],
         );
         groups.push((bg, buf));
@@ -231,12 +247,19 @@ fn draw(
     let side = 2 * VIEW_SIDE;
     let uv_buf = &mesh.gpu.uvs[baked.uv_set];
     let uv2_buf = &mesh.gpu.uvs[baked.second.as_ref().map_or(baked.uv_set, |t| t.uv_set)];
-    // The first texture's weight per split vertex: `_PELT_BLEND` when blending, else 1.
+    let uv3_buf = &mesh.gpu.uvs[baked.third.as_ref().map_or(baked.uv_set, |t| t.uv_set)];
+    // Per split vertex, the first and third textures' weights: `_PELT_BLEND` and `_PELT_BRIDGE`
+    // when blending, else 1 and 0 (the second's is 1 minus both).
     let n = mesh.mesh.positions.len();
-    let weights: Vec<f32> = match &baked.second {
+    let first: Vec<f32> = match &baked.second {
         Some(_) if mesh.mesh.blend.len() == n => mesh.mesh.blend.clone(),
         _ => vec![1.0; n],
     };
+    let third = match &baked.third {
+        Some(_) if mesh.mesh.bridge.len() == n => mesh.mesh.bridge.clone(),
+        _ => vec![0.0; n],
+    };
+    let weights: Vec<[f32; 2]> = first.into_iter().zip(third).map(|(a, c)| [a, c]).collect();
     let weight_buf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some("preview.weight"),
         contents: bytemuck::cast_slice(&weights),
@@ -321,6 +344,7 @@ fn draw(
         pass.set_vertex_buffer(2, uv_buf.slice(..));
         pass.set_vertex_buffer(3, uv2_buf.slice(..));
         pass.set_vertex_buffer(4, weight_buf.slice(..));
+        pass.set_vertex_buffer(5, uv3_buf.slice(..));
         pass.set_index_buffer(mesh.gpu.split_tris.slice(..), wgpu::IndexFormat::Uint32);
         for (k, (bg, _)) in groups.iter().enumerate() {
             let (x, y) = ((k as u32 % 2) * VIEW_SIDE, (k as u32 / 2) * VIEW_SIDE);

@@ -4,9 +4,11 @@
 //! a frame by damped spring dynamics in 3D on the GPU (`relax` holds the net and its CPU twin,
 //! `gpu` the dispatch of `wgsl/pelt/pelt_step.wgsl` and `pelt_check.wgsl`) and projected, refined
 //! by a conformal map (`refine`), split where it folds (`split`), packed into [0, 1]² (`pack`) and
-//! measured (`quality`); `patch` adds the §5 patch and blend function. `decalbake unwrap` writes
+//! measured (`quality`); `patch` adds the §5 patch and blend function, and `bridge` the third chart
+//! that a patch needs round seams with cycles. `decalbake unwrap` writes
 //! the result as new `TEXCOORD_n` sets (`apply`, `apply_all` build the mesh).
 
+pub mod bridge;
 pub mod cut;
 pub mod gpu;
 pub mod hidden;
@@ -667,6 +669,9 @@ pub fn apply_all(mesh: &Mesh, layouts: &[(&Unwrapped, usize)]) -> (Mesh, Vec<u32
         .collect();
     if mesh.blend.len() == mesh.positions.len() {
         out.blend = remap.iter().map(|&o| mesh.blend[o as usize]).collect();
+    }
+    if mesh.bridge.len() == mesh.positions.len() {
+        out.bridge = remap.iter().map(|&o| mesh.bridge[o as usize]).collect();
     }
     for ((_, set), uv) in layouts.iter().zip(new_uv) {
         if *set < out.uv_sets.len() {

@@ -11,10 +11,10 @@
 //! the cut only the patch is seen, and the patch is continuous there.
 //!
 //! The patch must itself be a disk where it is used: the band round a cut that is a tree is one,
-//! but round seams with cycles (a handle's loops, the borders between pelts after splits) it is
-//! not, and opening it would put a seam of the patch's own inside the band where b1 = 1. So
-//! `--patch` pelts the model without splits and refuses seams whose band is not made of disks,
-//! saying why.
+//! but round seams with cycles (a handle's loops) it is not. Then the band is cut across once per
+//! cycle, and a third chart, the bridges, hides those cuts where the patch is shown (`bridge`:
+//! the arcs, the bridges and the three weights). `--patch` pelts the model without splits (the
+//! borders between split pelts would be cycles everywhere).
 
 use super::cut::CutSpec;
 use super::{layout, split, Device, Options, Unwrapped};
@@ -35,8 +35,11 @@ pub struct Patch {
     pub layout: Unwrapped,
     /// Per welded vertex: edges from the cut (`u32::MAX` beyond the patch).
     pub rings: Vec<u32>,
-    /// Per welded vertex: b0, the pelt's weight (0 or 1; the patch's is 1 − b0).
+    /// Per welded vertex: the pelt's weight: b0 (0 or 1), times 1 − w where there are bridges
+    /// (the patch's is 1 − blend − w).
     pub blend: Vec<f32>,
+    /// The bridges over the patch's own seams, when the pelt's seams have cycles.
+    pub bridges: Option<super::bridge::Bridges>,
 }
 
 /// Hop distances from `sources` along the welded edges, up to `limit` (beyond: `u32::MAX`).
@@ -124,20 +127,34 @@ pub fn patch(
         .map(|t| !topo.degenerate[t] && topo.triangles[t].iter().all(|&v| d[v as usize] <= RINGS))
         .collect();
     let tris = enclosed(topo, &in_band);
-    let pieces =
-        split::cut_region_with(topo, &tris, &CutSpec::Edges(Vec::new()), opts.split_non_manifold, &[], path)
-            .map_err(|e| {
-                Error::mesh(
-                    path,
-                    format!(
-                        "--patch: the band within {RINGS} edges of the seams is not made of disks ({e}); a patch hides a seam that is a tree (Piponi & Borshukov §5): on a model with handles, or seams with cycles, the patch would need a seam of its own where it is shown. Leave --patch out, or cut the model into genus-0 parts"
-                    ),
-                )
-            })?;
     let no_splits = Options {
         max_split_levels: 0,
         ..opts.clone()
     };
+    let whole = CutSpec::Edges(Vec::new());
+    let (pieces, bridges) =
+        match split::cut_region_with(topo, &tris, &whole, opts.split_non_manifold, &[], path) {
+            Ok(pieces) => (pieces, None),
+            Err(_) => {
+                // Seams with cycles: the band is opened by arcs, and bridges hide them.
+                let arcs = super::bridge::arcs(topo, &main.cut.edges, &tris);
+                let spec = CutSpec::Edges(arcs.clone());
+                let pieces =
+                    split::cut_region_with(topo, &tris, &spec, opts.split_non_manifold, &[], path)
+                        .map_err(|e| not_disks(path, e))?;
+                let mut near: Vec<u32> = arcs
+                    .iter()
+                    .flatten()
+                    .copied()
+                    .filter(|&v| d[v as usize] <= BLEND_ZERO_TO + 1)
+                    .collect();
+                near.sort_unstable();
+                near.dedup();
+                let e = rings(topo, &near, super::bridge::RINGS + 1);
+                let b = super::bridge::bridges(device, topo, arcs, &e, &no_splits, path)?;
+                (pieces, Some(b))
+            }
+        };
     let layout = layout(
         device,
         topo,
@@ -148,11 +165,26 @@ pub fn patch(
     )?;
     let blend = d
         .iter()
-        .map(|&r| if r <= BLEND_ZERO_TO { 0.0 } else { 1.0 })
+        .enumerate()
+        .map(|(v, &r)| {
+            let b0 = if r <= BLEND_ZERO_TO { 0.0 } else { 1.0 };
+            b0 * (1.0 - bridges.as_ref().map_or(0.0, |b| b.weight[v]))
+        })
         .collect();
     Ok(Patch {
         layout,
         rings: d,
         blend,
+        bridges,
     })
+}
+
+/// The error for a band that the arcs did not open into disks.
+fn not_disks(path: &Path, e: Error) -> Error {
+    Error::mesh(
+        path,
+        format!(
+            "--patch: the band within {RINGS} edges of the seams is not made of disks, even cut across once per cycle of the seams ({e}); the model's seams run too close to each other or to its boundary for a patch: leave --patch out, or cut the model into genus-0 parts"
+        ),
+    )
 }

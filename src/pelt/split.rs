@@ -362,8 +362,8 @@ pub fn cut_region(
     )
 }
 
-/// [`cut_region`] with another cut (`pelt::patch` cuts nothing: the band round the seams must be
-/// disks as it is).
+/// [`cut_region`] with another cut (`pelt::patch` cuts nothing, or the arcs of `pelt::bridge`
+/// where the seams have cycles; `CutSpec::Edges` in the whole mesh's welded ids).
 pub fn cut_region_with(
     topo: &Topology,
     tris: &[u32],
@@ -396,6 +396,7 @@ pub fn cut_region_with(
         primitives: Vec::new(),
         material: None,
         blend: Vec::new(),
+        bridge: Vec::new(),
     };
     // A tenth of the mesh's welding distance at most (the region is no larger than the mesh): the
     // welded vertices, further apart than that, stay apart.
@@ -409,7 +410,30 @@ pub fn cut_region_with(
         .iter()
         .map(|&w| exposure.get(w as usize).copied().unwrap_or(1.0))
         .collect();
-    let c = cut::cut_exposed(&mesh, &sub, spec, split_non_manifold, Some(&seen), path)?;
+    // A cut's edges name the whole mesh's welded ids: into the region's (an edge off the region
+    // keeps an id no region vertex has, and the cut refuses it by name).
+    let local_spec = match spec {
+        CutSpec::Edges(list) => CutSpec::Edges(
+            list.iter()
+                .map(|e| {
+                    e.map(|w| {
+                        local
+                            .get(&w)
+                            .map_or(u32::MAX, |&l| sub.welded_of[l as usize])
+                    })
+                })
+                .collect(),
+        ),
+        other => other.clone(),
+    };
+    let c = cut::cut_exposed(
+        &mesh,
+        &sub,
+        &local_spec,
+        split_non_manifold,
+        Some(&seen),
+        path,
+    )?;
     Ok(c.pieces
         .into_iter()
         .map(|p| Piece {

@@ -238,5 +238,6 @@ pub fn cylinder(n: u32, m: u32) -> decalbake::mesh::Mesh {
         primitives: vec![],
         material: None,
         blend: Vec::new(),
+        bridge: Vec::new(),
     }
 }

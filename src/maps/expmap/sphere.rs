@@ -83,6 +83,7 @@ pub fn icosphere(f: u32) -> Mesh {
         primitives: vec![],
         material: None,
         blend: Vec::new(),
+        bridge: Vec::new(),
     }
 }
 

@@ -1,0 +1,328 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The patch for seams with cycles: arcs that open the band into a disk, and the bridges, a third
+//! chart that hides the patch's own seams (an extension of Piponi & Borshukov §5).
+//!
+//! §5's patch is a disk when the pelt's seams form a tree. On a model with handles the seams of
+//! one pelt have cycles (a torus's cut is two loops that meet), and the band round them is not a
+//! disk: round a torus's two loops it is a torus with one hole. It becomes one when it is cut
+//! across once per independent cycle of the seam graph, which is what `arcs` does: it takes a
+//! spanning forest of the seam graph built from the edges nearest its branch points first, so the
+//! edges left out (one per cycle) lie as far from the branches as the cycle allows, and through
+//! one end of each it cuts the band with the shortest path on either side of the seam to the
+//! band's boundary (Dijkstra on edge lengths, never touching the seams or an earlier arc). The
+//! patch is then pelted with those arcs as its cut.
+//!
+//! An arc is a seam of the patch, and the patch is shown round the pelt's seams, so the arcs would
+//! show where they cross the band. A **bridge** hides them as the patch hides the pelt's seams: S
+//! is every arc vertex within C3 of the pelt's seams (where the patch can be shown), E_n the ring
+//! of vertices n edges from S; each bridge is the region inside E4 (a thickened piece of an arc:
+//! a disk), pelted on its own into a third set, with weight w = 1 up to E1, ½ on E2 and 0 from E3
+//! on. The three weights are then w for the bridge, (1 − w) b0 for the pelt and (1 − w)(1 − b0)
+//! for the patch (b0 the pelt's §5 weight): a partition of unity, with every chart's weight 0 on
+//! the triangles that touch its seams: the pelt's (b0 = 0 within 2 edges of them), the patch's
+//! (w = 1 within an edge of an arc where b0 < 1; beyond C3 b0 = 1) and the bridge's own boundary
+//! (w = 0 from E3 on).
+
+use super::cut::CutSpec;
+use super::{layout, split, Device, Options, Unwrapped};
+use crate::error::{Error, Result};
+use crate::mesh::Topology;
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, VecDeque};
+use std::path::Path;
+
+/// The bridges reach this many rings from their arcs (their boundary, E4).
+pub const RINGS: u32 = 4;
+
+/// The bridges of a patch.
+#[derive(Debug, Clone)]
+pub struct Bridges {
+    /// The arcs the patch was cut along (welded vertex pairs).
+    pub arcs: Vec<[u32; 2]>,
+    /// The bridges' layout (their pieces cover only the bridges' triangles).
+    pub layout: Unwrapped,
+    /// Per welded vertex: w, the bridges' weight (1 up to E1, ½ on E2, 0 beyond).
+    pub weight: Vec<f32>,
+}
+
+/// A vertex set's adjacency restricted to the triangles `tris`, and which of its vertices lie on
+/// the region's boundary (an edge with one region triangle) or the mesh's.
+struct Region {
+    neighbours: Vec<Vec<u32>>,
+    boundary: Vec<bool>,
+}
+
+impl Region {
+    fn new(topo: &Topology, tris: &[u32]) -> Self {
+        let n = topo.positions.len();
+        let mut edge_count: std::collections::HashMap<(u32, u32), u32> = Default::default();
+        let mut neighbours = vec![Vec::new(); n];
+        for &t in tris {
+            let tri = topo.triangles[t as usize];
+            for k in 0..3 {
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                *edge_count.entry((a.min(b), a.max(b))).or_default() += 1;
+                neighbours[a as usize].push(b);
+                neighbours[b as usize].push(a);
+            }
+        }
+        for l in &mut neighbours {
+            l.sort_unstable();
+            l.dedup();
+        }
+        let mut boundary = vec![false; n];
+        for (&(a, b), &c) in &edge_count {
+            if c == 1 {
+                boundary[a as usize] = true;
+                boundary[b as usize] = true;
+            }
+        }
+        Self {
+            neighbours,
+            boundary,
+        }
+    }
+}
+
+/// The seam edges left out of a spanning forest of the seam graph that takes the edges nearest
+/// the graph's branch points and ends first: one per independent cycle, each as far from the
+/// branches as its cycle allows. Returns (edge, the end of it farther from a branch).
+fn cycle_edges(n: usize, seam: &[[u32; 2]]) -> Vec<([u32; 2], u32)> {
+    let mut degree = vec![0u32; n];
+    let mut adj = vec![Vec::new(); n];
+    for &[a, b] in seam {
+        degree[a as usize] += 1;
+        degree[b as usize] += 1;
+        adj[a as usize].push(b);
+        adj[b as usize].push(a);
+    }
+    // Hops along the seams from the nearest vertex whose seam degree is not 2.
+    let mut hops = vec![u32::MAX; n];
+    let mut queue: VecDeque<u32> = (0..n as u32)
+        .filter(|&v| degree[v as usize] != 0 && degree[v as usize] != 2)
+        .collect();
+    for &v in &queue {
+        hops[v as usize] = 0;
+    }
+    while let Some(v) = queue.pop_front() {
+        for &w in &adj[v as usize] {
+            if hops[w as usize] == u32::MAX {
+                hops[w as usize] = hops[v as usize] + 1;
+                queue.push_back(w);
+            }
+        }
+    }
+    let mut order: Vec<[u32; 2]> = seam.to_vec();
+    order.sort_by_key(|&[a, b]| (hops[a as usize].min(hops[b as usize]), a, b));
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    fn root(parent: &mut [u32], mut v: u32) -> u32 {
+        while parent[v as usize] != v {
+            parent[v as usize] = parent[parent[v as usize] as usize];
+            v = parent[v as usize];
+        }
+        v
+    }
+    let mut left_out = Vec::new();
+    for [a, b] in order {
+        let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
+        if ra == rb {
+            let far = if hops[a as usize] >= hops[b as usize] {
+                a
+            } else {
+                b
+            };
+            left_out.push(([a, b], far));
+        } else {
+            parent[ra as usize] = rb;
+        }
+    }
+    left_out
+}
+
+/// The two sides of the seams at `pivot`: its region triangles grouped across the edges from it
+/// that are not seams, each group's other vertices.
+fn sides(topo: &Topology, tris_of: &[Vec<u32>], on_seam: &[bool], pivot: u32) -> Vec<Vec<u32>> {
+    let fan = &tris_of[pivot as usize];
+    let mut group: Vec<usize> = (0..fan.len()).collect();
+    let others = |t: u32| {
+        topo.triangles[t as usize]
+            .into_iter()
+            .filter(move |&v| v != pivot)
+    };
+    // Two fan triangles are on one side when they share an edge from the pivot that is no seam.
+    for i in 0..fan.len() {
+        for j in i + 1..fan.len() {
+            let shared = others(fan[i]).find(|&v| others(fan[j]).any(|w| w == v));
+            if shared.is_some_and(|v| !on_seam[v as usize]) {
+                let (gi, gj) = (group[i], group[j]);
+                for g in &mut group {
+                    if *g == gj {
+                        *g = gi;
+                    }
+                }
+            }
+        }
+    }
+    let mut ids: Vec<usize> = group.clone();
+    ids.sort_unstable();
+    ids.dedup();
+    ids.iter()
+        .map(|&g| {
+            let mut vs: Vec<u32> = (0..fan.len())
+                .filter(|&i| group[i] == g)
+                .flat_map(|i| others(fan[i]))
+                .filter(|&v| !on_seam[v as usize])
+                .collect();
+            vs.sort_unstable();
+            vs.dedup();
+            vs
+        })
+        .collect()
+}
+
+/// The shortest path (edge lengths) from `pivot` through one of `starts` to the region's
+/// boundary, avoiding `blocked`; the path from the pivot's neighbour to the boundary vertex.
+fn to_boundary(
+    topo: &Topology,
+    region: &Region,
+    blocked: &[bool],
+    pivot: u32,
+    starts: &[u32],
+) -> Option<Vec<u32>> {
+    let n = topo.positions.len();
+    let len =
+        |a: u32, b: u32| (topo.positions[a as usize] - topo.positions[b as usize]).length() as f64;
+    let mut dist = vec![f64::INFINITY; n];
+    let mut prev = vec![u32::MAX; n];
+    let mut heap = BinaryHeap::new();
+    for &s in starts {
+        if !blocked[s as usize] {
+            dist[s as usize] = len(pivot, s);
+            heap.push(Reverse((dist[s as usize].to_bits(), s)));
+        }
+    }
+    while let Some(Reverse((d, v))) = heap.pop() {
+        if f64::from_bits(d) > dist[v as usize] {
+            continue;
+        }
+        if region.boundary[v as usize] {
+            let mut path = vec![v];
+            while prev[*path.last()? as usize] != u32::MAX {
+                path.push(prev[*path.last()? as usize]);
+            }
+            path.reverse();
+            return Some(path);
+        }
+        for &w in &region.neighbours[v as usize] {
+            let nd = dist[v as usize] + len(v, w);
+            if !blocked[w as usize] && nd < dist[w as usize] {
+                dist[w as usize] = nd;
+                prev[w as usize] = v;
+                heap.push(Reverse((nd.to_bits(), w)));
+            }
+        }
+    }
+    None
+}
+
+/// The arcs that open the patch region `tris` round the pelt's opened edges `seam`: one per
+/// independent cycle of the seams, each from the region's boundary on one side of the seam,
+/// through the seam, to the boundary on the other (welded vertex pairs). A cycle whose other side
+/// the band encloses (no boundary to reach) gets no arc: the region is a disk there already.
+pub fn arcs(topo: &Topology, seam: &[[u32; 2]], tris: &[u32]) -> Vec<[u32; 2]> {
+    let n = topo.positions.len();
+    let region = Region::new(topo, tris);
+    let mut tris_of = vec![Vec::new(); n];
+    for &t in tris {
+        for v in topo.triangles[t as usize] {
+            tris_of[v as usize].push(t);
+        }
+    }
+    let mut blocked = vec![false; n];
+    for &[a, b] in seam {
+        blocked[a as usize] = true;
+        blocked[b as usize] = true;
+    }
+    let on_seam = blocked.clone();
+    let mut out = Vec::new();
+    for (_, pivot) in cycle_edges(n, seam) {
+        let sides = sides(topo, &tris_of, &on_seam, pivot);
+        if sides.len() != 2 {
+            continue;
+        }
+        let Some(first) = to_boundary(topo, &region, &blocked, pivot, &sides[0]) else {
+            continue;
+        };
+        let mut with_first = blocked.clone();
+        for &v in &first {
+            with_first[v as usize] = true;
+        }
+        let Some(second) = to_boundary(topo, &region, &with_first, pivot, &sides[1]) else {
+            continue;
+        };
+        blocked = with_first;
+        for &v in &second {
+            blocked[v as usize] = true;
+        }
+        let path: Vec<u32> = first
+            .iter()
+            .rev()
+            .chain(std::iter::once(&pivot))
+            .chain(&second)
+            .copied()
+            .collect();
+        out.extend(path.windows(2).map(|w| [w[0].min(w[1]), w[0].max(w[1])]));
+    }
+    out
+}
+
+/// The bridges over `arcs` (the patch's own seams) where the patch is shown: `e` is each welded
+/// vertex's distance in edges (up to `RINGS + 1`) from the arcs' vertices within C3 of the pelt's
+/// seams (`patch::rings`; the patch shows on C0..C2).
+pub fn bridges(
+    device: Device,
+    topo: &Topology,
+    arcs: Vec<[u32; 2]>,
+    e: &[u32],
+    opts: &Options,
+    path: &Path,
+) -> Result<Bridges> {
+    let tris: Vec<u32> = (0..topo.triangles.len() as u32)
+        .filter(|&t| {
+            !topo.degenerate[t as usize]
+                && topo.triangles[t as usize]
+                    .iter()
+                    .all(|&v| e[v as usize] <= RINGS)
+        })
+        .collect();
+    let pieces = split::cut_region_with(
+        topo,
+        &tris,
+        &CutSpec::Edges(Vec::new()),
+        opts.split_non_manifold,
+        &[],
+        path,
+    )
+    .map_err(|err| {
+        Error::mesh(
+            path,
+            format!(
+                "--patch: the bridges over the patch's own seams (within {RINGS} edges of them) are not disks ({err}); the model's handles lie too close together for the patch: leave --patch out, or cut the model into genus-0 parts"
+            ),
+        )
+    })?;
+    let layout = layout(device, topo, pieces, super::Prior::default(), opts, path)?;
+    let weight = e
+        .iter()
+        .map(|&r| match r {
+            0 | 1 => 1.0,
+            2 => 0.5,
+            _ => 0.0,
+        })
+        .collect();
+    Ok(Bridges {
+        arcs,
+        layout,
+        weight,
+    })
+}
