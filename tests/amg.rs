@@ -511,3 +511,66 @@ fn a_device_without_room_for_the_multigrid_kernel_solves_by_jacobi() {
         "forward error {err:.2e} vs the twin's {twin_err:.2e}"
     );
 }
+
+/// A lone system of at least `WIDE_MIN_ROWS` block rows is spread over many workgroups
+/// (`cg_wide.wgsl`, a dispatch per pass of the iteration): on a chart of bob of about 4,500
+/// vertices it converges in the one-workgroup kernel's iterations (± 10 %, the two sum in
+/// different orders), both within `FORWARD` of the f64 twin's V-cycle solve taken to 1e-10, and
+/// within `FORWARD` of each other. A spread solve whose workgroups each used only their own part of
+/// the dot products (checked by hand) breaks down or misses the twin's iterations.
+#[test]
+fn a_lone_large_system_spread_over_workgroups_matches_one_workgroup() {
+    let e = common::engine();
+    let (a, b) = bob_chart(4_500);
+    assert!(
+        a.rows / 2 >= decalbake::solve::gpu_wide::WIDE_MIN_ROWS,
+        "{} rows",
+        a.rows
+    );
+    let h = Hierarchy::build(&a).expect("a hierarchy");
+    let mut reference = vec![0.0; a.rows];
+    let tight = pcg_with(
+        &a,
+        &b,
+        &mut reference,
+        1e-10,
+        10_000,
+        &Preconditioner::Amg(Box::new(h)),
+    );
+    assert_eq!(tight.status, CgStatus::Converged);
+    let desc = SystemDesc::new(0, a.rows, RTOL, 1000);
+    let solve = |d: SystemDesc| {
+        cg_batched(&e.ctx, e.pipelines(), &a, &b, &vec![0.0; a.rows], &[d]).unwrap()
+    };
+    let t = std::time::Instant::now();
+    let wide = solve(desc);
+    let t_wide = t.elapsed();
+    let t = std::time::Instant::now();
+    let one = solve(desc.one_workgroup());
+    let t_one = t.elapsed();
+    assert_eq!((wide.spread, one.spread), (1, 0));
+    let as_f64 = |x: &[f32]| x.iter().map(|&v| v as f64).collect::<Vec<f64>>();
+    for (who, g, took) in [("spread", &wide, t_wide), ("one workgroup", &one, t_one)] {
+        let rep = g.reports[0];
+        let err = forward_error(&as_f64(&g.x), &reference);
+        println!(
+            "{who}: {:?} {} its, forward error {err:.1e}, {} dispatches, {} submits, {:.0} ms",
+            rep.status,
+            rep.iterations,
+            g.dispatches,
+            g.submits,
+            took.as_secs_f64() * 1e3
+        );
+        assert_eq!(g.multigrid, 1, "{who}");
+        assert_eq!(rep.preconditioner, PreconditionerKind::Amg, "{who}");
+        assert_eq!(rep.status, CgStatus::Converged, "{who}");
+        assert!(err <= FORWARD, "{who}: forward error {err:.2e}");
+    }
+    let (iw, io) = (wide.reports[0].iterations, one.reports[0].iterations);
+    assert!(
+        iw.abs_diff(io) <= 2 + io / 10,
+        "spread {iw} vs one workgroup {io}"
+    );
+    let apart = forward_error(&as_f64(&wide.x), &as_f64(&one.x));
+    assert!(apart <= FORWARD, "the two solutions differ by {apart:.2e}");
+}

@@ -41,7 +41,7 @@ fn every_wgsl_file_validates() {
         decalbake::gpu::shaders::narrow_source("cg_batched"),
     ));
     // The conjugate gradients on complex blocks.
-    for name in ["cg_packed", "cg_amg"] {
+    for name in ["cg_packed", "cg_amg", "cg_wide", "cg_wide_plain"] {
         sources.push((
             format!("{name} (complex)"),
             decalbake::gpu::shaders::complex_source(name),

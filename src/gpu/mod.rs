@@ -23,6 +23,8 @@ pub struct GpuContext {
     pub adapter: String,
     /// The backend, when known (`None` for a host device created elsewhere).
     pub backend: Option<wgpu::Backend>,
+    /// The adapter's kind, when known (a software driver such as lavapipe is `Cpu`).
+    pub device_type: Option<wgpu::DeviceType>,
     lost: Arc<Mutex<Option<String>>>,
 }
 
@@ -226,6 +228,7 @@ impl GpuContext {
             log::error!("uncaptured wgpu error: {e}");
         }));
         let backend = info.as_ref().map(|i| i.backend);
+        let device_type = info.as_ref().map(|i| i.device_type);
         let adapter = match info {
             Some(i) => format!(
                 "{} ({:?}, {:?}, {} {})",
@@ -236,6 +239,7 @@ impl GpuContext {
             None => "host device".to_string(),
         };
         Self {
+            device_type,
             device,
             queue,
             adapter,

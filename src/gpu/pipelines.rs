@@ -226,6 +226,10 @@ pub struct Pipelines {
     /// as wgpu's GL backend's 16: the solver then uses Jacobi.)
     /// `cg_amg` on 2 × 2 complex blocks (`shaders::complex_source`): LSCM systems.
     pub cg_amg_complex: Option<Kernel>,
+    /// `wgsl/solve/cg_wide.wgsl` and `cg_wide_plain.wgsl` on 2 × 2 complex blocks: `cg_amg`'s
+    /// solve of one large LSCM system spread over many workgroups, a dispatch per pass (`None` on
+    /// a device with fewer than [`WIDE_STORAGE_BUFFERS`] storage buffers a stage).
+    pub cg_wide_complex: Option<[Kernel; 2]>,
     /// CSR sparse matrix-vector product.
     pub spmv: Kernel,
     /// Batched dot products and norms.
@@ -272,6 +276,7 @@ impl Pipelines {
         let (
             [cg_batched, cg_batched_narrow, cg_packed, cg_packed_complex, spmv, dot_batched, copy],
             amg,
+            cg_wide_complex,
         ) = linalg_kernels(device);
         let (cg_amg, cg_amg_complex) = match amg {
             Some([real, complex]) => (Some(real), Some(complex)),
@@ -384,6 +389,7 @@ impl Pipelines {
             cg_packed_complex,
             cg_amg,
             cg_amg_complex,
+            cg_wide_complex,
             spmv,
             dot_batched,
             copy,
@@ -787,7 +793,10 @@ fn raster(
 /// invocation, real and on complex blocks), which share one binding list, then SpMV, batched dot
 /// products and the streaming copy; and the multigrid-preconditioned one, real and on complex
 /// blocks (that list plus the hierarchy's), where the device binds that many storage buffers.
-fn linalg_kernels(device: &wgpu::Device) -> ([Kernel; 7], Option<[Kernel; 2]>) {
+#[allow(clippy::type_complexity)]
+fn linalg_kernels(
+    device: &wgpu::Device,
+) -> ([Kernel; 7], Option<[Kernel; 2]>, Option<[Kernel; 2]>) {
     use Bind::*;
     let cg = &[
         (0, Uniform),
@@ -809,18 +818,42 @@ fn linalg_kernels(device: &wgpu::Device) -> ([Kernel; 7], Option<[Kernel; 2]>) {
         &[(12, Ro), (13, Ro), (14, Ro), (15, Ro), (16, Ro), (17, Rw)],
     ]
     .concat();
-    let amg =
-        (device.limits().max_storage_buffers_per_shader_stage >= AMG_STORAGE_BUFFERS).then(|| {
-            [
-                Kernel::new(device, "cg_amg", &amg),
-                Kernel::with_source(
-                    device,
-                    "cg_amg",
-                    &amg,
-                    Some(shaders::complex_source("cg_amg")),
-                ),
-            ]
-        });
+    let wide: Vec<(u32, Bind)> = [amg.as_slice(), &[(18, Rw)]]
+        .concat()
+        .into_iter()
+        .map(|(i, b)| if i == 0 { (0, Ro) } else { (i, b) })
+        .collect();
+    let limit = device.limits().max_storage_buffers_per_shader_stage;
+    // 64 invocations a workgroup (`shaders::narrow_source`'s width): on lavapipe a workgroup's
+    // launch costs in proportion to its invocations.
+    let narrow_complex = |name: &str| {
+        shaders::complex_source(name).replace(
+            &format!("const WG: u32 = {}u;", shaders::LINALG_WG),
+            &format!("const WG: u32 = {}u;", shaders::LINALG_WG_NARROW),
+        )
+    };
+    let cg_wide = (limit >= WIDE_STORAGE_BUFFERS).then(|| {
+        [
+            Kernel::with_source(device, "cg_wide", &wide, Some(narrow_complex("cg_wide"))),
+            Kernel::with_source(
+                device,
+                "cg_wide_plain",
+                &wide,
+                Some(narrow_complex("cg_wide_plain")),
+            ),
+        ]
+    });
+    let amg = (limit >= AMG_STORAGE_BUFFERS).then(|| {
+        [
+            Kernel::new(device, "cg_amg", &amg),
+            Kernel::with_source(
+                device,
+                "cg_amg",
+                &amg,
+                Some(shaders::complex_source("cg_amg")),
+            ),
+        ]
+    });
     let kernels = [
         Kernel::new(device, "cg_batched", cg),
         variant("cg_batched", shaders::narrow_source("cg_batched")),
@@ -834,11 +867,14 @@ fn linalg_kernels(device: &wgpu::Device) -> ([Kernel; 7], Option<[Kernel; 2]>) {
         Kernel::new(device, "dot_batched", &[(0, Ro), (1, Ro), (2, Ro), (3, Rw)]),
         Kernel::new(device, "copy", &[(0, Uniform), (1, Ro), (2, Rw)]),
     ];
-    (kernels, amg)
+    (kernels, amg, cg_wide)
 }
 
 /// Storage buffers `cg_amg.wgsl` binds (the CG's 11 and the hierarchy's 6).
 pub const AMG_STORAGE_BUFFERS: u32 = 17;
+
+/// Storage buffers `cg_wide.wgsl` binds (`cg_amg`'s and the partial sums).
+pub const WIDE_STORAGE_BUFFERS: u32 = 18;
 
 /// The placement kernels (`src/place.rs`): `place_bvh`, `place_candidates`, `place_reduce`.
 fn place_kernels(device: &wgpu::Device) -> [Kernel; 3] {

@@ -96,6 +96,11 @@ pub const KERNELS: &[(&str, &str)] = &[
     ),
     ("cg_packed", include_str!("../../wgsl/solve/cg_packed.wgsl")),
     ("cg_amg", include_str!("../../wgsl/solve/cg_amg.wgsl")),
+    ("cg_wide", include_str!("../../wgsl/solve/cg_wide.wgsl")),
+    (
+        "cg_wide_plain",
+        include_str!("../../wgsl/solve/cg_wide_plain.wgsl"),
+    ),
     ("spmv", include_str!("../../wgsl/solve/spmv.wgsl")),
     (
         "dot_batched",
@@ -134,6 +139,10 @@ pub const SHARED: &[(&str, &str)] = &[
     ("dims", include_str!("../../wgsl/shared/dims.wgsl")),
     ("cg_state", include_str!("../../wgsl/shared/cg_state.wgsl")),
     ("cg_real", include_str!("../../wgsl/shared/cg_real.wgsl")),
+    (
+        "cg_wide_common",
+        include_str!("../../wgsl/shared/cg_wide_common.wgsl"),
+    ),
     (
         "cg_complex",
         include_str!("../../wgsl/shared/cg_complex.wgsl"),
@@ -190,7 +199,7 @@ pub fn narrow_source(name: &str) -> String {
     full.replace(&from, &format!("const WG: u32 = {LINALG_WG_NARROW}u;"))
 }
 
-/// A conjugate gradient on 2 × 2 complex blocks: kernel `name` (`cg_packed`, `cg_amg`) with the
+/// A conjugate gradient on 2 × 2 complex blocks: kernel `name` (`cg_packed`, `cg_amg`, `cg_wide`) with the
 /// `cg_complex` import in place of `cg_real` (see the kernels' headers).
 pub fn complex_source(name: &str) -> String {
     let text = KERNELS

@@ -33,6 +33,7 @@ use crate::gpu::pipelines::{Kernel, Pipelines};
 use crate::gpu::GpuContext;
 use crate::solve::amg::Hierarchy;
 use crate::solve::gpu_amg::{self, all_fit, AmgBatch};
+use crate::solve::gpu_wide;
 use crate::solve::sparse::{CgReport, CgStatus, ComplexCsr, Csr, PreconditionerKind};
 
 /// Loop steps one invocation may run per dispatch (lavapipe abandons invocations past about 65535).
@@ -52,6 +53,9 @@ const PACKED: u32 = 2;
 const MULTIGRID: u32 = 3;
 /// Asked for by [`SystemDesc::jacobi_only`]; replaced by a Jacobi class before any kernel runs.
 const JACOBI_ONLY: u32 = 4;
+/// Class of a system kept in one workgroup even where it would be spread over many
+/// ([`SystemDesc::one_workgroup`]).
+const ONE_WORKGROUP: u32 = 5;
 /// Workgroup size of the packed kernel (`PACK_WG` there).
 const PACK_WG: u32 = 64;
 /// Batches with at least this many systems pack the small ones one per invocation: enough to fill
@@ -95,6 +99,16 @@ impl SystemDesc {
     pub fn jacobi_only(self) -> Self {
         Self {
             wide: JACOBI_ONLY,
+            ..self
+        }
+    }
+
+    /// The same system solved in one workgroup (`cg_amg`) even where a lone system would be
+    /// spread over many (`cg_wide`, [`crate::solve::gpu_wide`]): the tests' and benchmarks'
+    /// baseline.
+    pub fn one_workgroup(self) -> Self {
+        Self {
+            wide: ONE_WORKGROUP,
             ..self
         }
     }
@@ -390,6 +404,8 @@ pub struct Solved {
     pub complex: bool,
     /// Systems preconditioned by a multigrid V-cycle (`cg_amg.wgsl`); the rest by Jacobi.
     pub multigrid: u32,
+    /// Systems spread over many workgroups (`cg_wide.wgsl`, [`gpu_wide`]).
+    pub spread: u32,
 }
 
 /// Solves every system of the block-diagonal SPD matrix `a` (`systems` give each block's rows,
@@ -492,6 +508,7 @@ fn solve_apart(
         packed: 0,
         complex: false,
         multigrid: 0,
+        spread: 0,
     };
     for group in [true, false] {
         let idx: Vec<usize> = (0..systems.len()).filter(|&k| fits[k] == group).collect();
@@ -532,6 +549,7 @@ fn solve_apart(
         total.submits += out.submits;
         total.packed += out.packed;
         total.multigrid += out.multigrid;
+        total.spread += out.spread;
         total.complex |= out.complex;
     }
     Ok(Solved {
@@ -561,6 +579,7 @@ fn multigrid(
         .map(|s| (s.row0 as usize, s.n as usize))
         .collect();
     let on_blocks = blocks && all_fit(&hs, WG, HARD_LOOP_LIMIT, 2);
+    let lone_class = systems.first().map_or(0, |s| s.wide);
     let unit = if on_blocks { 2 } else { 1 };
     let limits = (WG, HARD_LOOP_LIMIT, unit);
     let Some(mg) = AmgBatch::build(a, &ranges, hs, limits, dinv.clone()) else {
@@ -594,6 +613,25 @@ fn multigrid(
                 8,
             )
         })?;
+        let spread = match (pipes.cg_wide_complex.as_ref(), &systems[..]) {
+            (Some([k, plain]), [one]) => (one.n as usize >= gpu_wide::WIDE_MIN_ROWS
+                && lone_class != ONE_WORKGROUP)
+                .then_some((k, plain)),
+            _ => None,
+        };
+        if let Some(kernels) = spread {
+            let levels = &c.levels;
+            return run_wide(
+                ctx,
+                kernels,
+                &gpu,
+                &c.weights,
+                (b, x0),
+                systems[0],
+                levels,
+                &bufs,
+            );
+        }
         let classes = [(
             MULTIGRID,
             amg_kernel(pipes.cg_amg_complex.as_ref()),
@@ -670,6 +708,69 @@ fn multigrid(
         &classes,
         Some(&bufs),
     )
+}
+
+/// Solves the one system `sys` (on complex blocks, with its hierarchy in `bufs`) spread over
+/// many workgroups (`cg_wide`, [`gpu_wide`]).
+#[allow(clippy::too_many_arguments)]
+fn run_wide(
+    ctx: &GpuContext,
+    kernels: (&Kernel, &Kernel),
+    gpu: &GpuCsr,
+    weights: &[f32],
+    (b, x0): (&[f64], &[f64]),
+    sys: SystemDesc,
+    levels: &[[u32; 2]],
+    bufs: &MultigridBuffers,
+) -> Result<Solved> {
+    let rows = b.len();
+    let (bb, db, xb) = ctx.scoped("conjugate gradient", || {
+        let init = |label: &str, d: &[f32]| {
+            ctx.storage_init(label, bytemuck::cast_slice(d), wgpu::BufferUsages::COPY_SRC)
+        };
+        (
+            init("cg.b", &f32s(b)),
+            init("cg.dinv", weights),
+            init("cg.x", &f32s(x0)),
+        )
+    })?;
+    let [lvl0, nlev, _] = sys.amg;
+    let inputs = gpu_wide::WideInputs {
+        system: bytemuck::bytes_of(&sys),
+        rows: (sys.row0, sys.n),
+        max_iter: sys.max_iter,
+        matrix: [&gpu.row_ptr, &gpu.cols, &gpu.vals],
+        b: &bb,
+        dinv: &db,
+        x: &xb,
+        vector_bytes: rows as u64 * 4,
+        hierarchy: [
+            &bufs.pr_ptr,
+            &bufs.pr_cols,
+            &bufs.pr_vals,
+            &bufs.levels,
+            &bufs.cinv,
+            &bufs.vectors,
+        ],
+        total: bufs.total,
+        levels: levels[lvl0 as usize..(lvl0 + nlev) as usize].to_vec(),
+    };
+    let solved = gpu_wide::solve(ctx, kernels, &inputs)?;
+    let xbytes = ctx.read_buffer(
+        &xb,
+        rows as u64 * 4,
+        "conjugate-gradient solution read-back",
+    )?;
+    Ok(Solved {
+        x: bytemuck::cast_slice(&xbytes[..rows * 4]).to_vec(),
+        reports: vec![solved.report],
+        dispatches: solved.dispatches,
+        submits: solved.submits,
+        packed: 0,
+        complex: true,
+        multigrid: 1,
+        spread: 1,
+    })
 }
 
 /// A multigrid kernel: present whenever a hierarchy was built (none are without it, see `wants`
@@ -792,6 +893,7 @@ fn run(
             packed: 0,
             complex: false,
             multigrid: 0,
+            spread: 0,
         });
     }
     let max_iter = systems.iter().map(|s| s.max_iter).max().unwrap_or(1);
@@ -915,6 +1017,7 @@ fn run(
         packed: systems.iter().filter(|s| s.wide == PACKED).count() as u32,
         complex: false,
         multigrid: systems.iter().filter(|s| s.wide == MULTIGRID).count() as u32,
+        spread: 0,
     })
 }
 

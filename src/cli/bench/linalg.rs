@@ -258,6 +258,22 @@ fn bench_charts(
                 Some((o.reports[0], ms(t)))
             }
         };
+        // The same solve in one workgroup where the chart is spread over many (`cg_wide`).
+        let one_workgroup = match out.spread {
+            0 => None,
+            _ => {
+                let t = Instant::now();
+                let o = cg_batched(
+                    ctx,
+                    pipes,
+                    &sys.matrix,
+                    &sys.rhs,
+                    &zero,
+                    &[desc[0].one_workgroup()],
+                )?;
+                Some((o.reports[0], ms(t)))
+            }
+        };
         let mut xj = zero.clone();
         let t = Instant::now();
         let cpu_jacobi = decalbake::solve::cg::pcg_with(
@@ -289,7 +305,8 @@ fn bench_charts(
             "gpu_iterations": its, "gpu_residual": out.reports[0].residual,
             "gpu_jacobi_iterations": jacobi.map(|j| j.0.iterations), "gpu_jacobi_ms": jacobi.map(|j| j.1),
             "gpu_ms": gpu_ms, "gpu_ms_per_iteration": gpu_ms / its.max(1) as f64,
-            "dispatches": out.dispatches, "submits": out.submits,
+            "dispatches": out.dispatches, "submits": out.submits, "gpu_spread": out.spread,
+            "gpu_one_workgroup_iterations": one_workgroup.map(|j| j.0.iterations), "gpu_one_workgroup_ms": one_workgroup.map(|j| j.1),
             "cpu_twin_preconditioner": cpu.preconditioner, "cpu_twin_iterations": cpu.iterations,
             "cpu_twin_ms": cpu_ms, "cpu_over_gpu": cpu_ms / gpu_ms,
             "cpu_twin_jacobi_iterations": cpu_jacobi.iterations, "cpu_twin_jacobi_ms": cpu_jacobi_ms,

@@ -1,0 +1,295 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! One large system's multigrid-preconditioned CG spread over many workgroups
+//! (`wgsl/solve/cg_wide.wgsl`): the same iteration as `cg_amg.wgsl`, whose single workgroup runs
+//! on one CPU thread of lavapipe (and one SM of a GPU), cut into its passes, each a dispatch over
+//! as many workgroups as the rows need. What it costs and why (`decalbake bench --device`,
+//! README): a dispatch costs about 9 µs on this machine's lavapipe and a workgroup barrier about
+//! 65 ns, so an iteration of about 20 dispatches costs some 0.2 ms of fixed price against the
+//! 20 ms one iteration of a 10k-vertex chart takes in one workgroup; spreading it lets both cores
+//! work and takes the barriers between passes out of the loop (the dispatch boundary is the
+//! barrier). `solve::gpu::cg_batched` sends a batch of one system of at least [`WIDE_MIN_ROWS`]
+//! block rows here.
+
+use crate::error::Result;
+use crate::gpu::pipelines::Kernel;
+use crate::gpu::GpuContext;
+use crate::solve::sparse::{CgReport, CgStatus, PreconditionerKind};
+
+/// Block rows (vertices of an LSCM chart) from which a lone system is spread over workgroups.
+/// Below it the fixed price of a dispatch per pass outweighs the second core (README, "Linear
+/// algebra": measured on 1k and 10k charts).
+pub const WIDE_MIN_ROWS: usize = 4_096;
+/// Partial-sum slots per quantity (`PARTS` in cg_wide.wgsl): the most workgroups of a fine pass.
+const PARTS: u32 = 256;
+/// Quantities with partial sums: <p, Ap>, <r, r>, the true residual's, <r, z> twice.
+const SLOTS: u64 = 5;
+/// Invocations per workgroup (`WG` of the `linalg` import).
+const WG: u32 = 64;
+/// Iterations a submission records. Few: an iteration is about 20 dispatches here (one in
+/// `cg_amg`), and those recorded after convergence still cost their launches, where a submission
+/// and its status read-back cost some 40 µs (`bench --device`).
+const ITERS_PER_SUBMIT: u32 = 8;
+
+/// The passes of cg_wide.wgsl and cg_wide_plain.wgsl (keep in sync with
+/// wgsl/shared/cg_wide_common.wgsl).
+mod pass {
+    pub const INIT_RESIDUAL: u32 = 0;
+    pub const INIT_CHECK: u32 = 1;
+    pub const SPMV: u32 = 2;
+    pub const UPDATE: u32 = 3;
+    pub const TRUE_RESIDUAL: u32 = 5;
+    pub const TRUE_CHECK: u32 = 6;
+    pub const DOWN: u32 = 7;
+    pub const RESTRICT: u32 = 8;
+    pub const COARSE: u32 = 9;
+    pub const PROLONG: u32 = 10;
+    pub const SMOOTH_RESIDUAL: u32 = 11;
+    pub const SMOOTH_UPDATE: u32 = 12;
+    pub const UPDATE_P: u32 = 13;
+}
+
+/// Keep in sync with `Wide` in cg_wide.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct WideRound {
+    phase: u32,
+    level: u32,
+    total: u32,
+    sys: u32,
+    parts: u32,
+    pad: [u32; 3],
+}
+
+/// Keep in sync with `State` in wgsl/shared/cg_state.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct State {
+    status: u32,
+    iters: u32,
+    pad: [u32; 2],
+    rz: f32,
+    bnorm: f32,
+    rel_residual: f32,
+    scale: f32,
+}
+
+/// What the kernel binds, uploaded by `solve::gpu` (bindings 1-6 and 12-17 of cg_amg.wgsl), and
+/// the one system's hierarchy.
+pub struct WideInputs<'a> {
+    /// The `System` row of the one system (`SystemDesc`'s bytes), its rows in block units.
+    pub system: &'a [u8],
+    /// Its first row and rows.
+    pub rows: (u32, u32),
+    /// Its iteration budget.
+    pub max_iter: u32,
+    /// The matrix: row offsets, columns, values.
+    pub matrix: [&'a wgpu::Buffer; 3],
+    /// Right-hand side, weights (`dinv`), start.
+    pub b: &'a wgpu::Buffer,
+    pub dinv: &'a wgpu::Buffer,
+    pub x: &'a wgpu::Buffer,
+    /// Bytes of one vector (r, p, Ap).
+    pub vector_bytes: u64,
+    /// Prolongators, levels, coarsest inverse, the V-cycle's three vectors.
+    pub hierarchy: [&'a wgpu::Buffer; 6],
+    /// Rows of the index space (every level).
+    pub total: u32,
+    /// (first row, rows) of each of the system's levels, fine first.
+    pub levels: Vec<[u32; 2]>,
+}
+
+/// The solve's outcome: the report, dispatches and submissions.
+pub struct WideSolved {
+    pub report: CgReport,
+    pub dispatches: u32,
+    pub submits: u32,
+}
+
+/// One dispatch: (pass, level, workgroups).
+type Step = (u32, u32, u32);
+
+/// Whether `phase` runs in cg_wide_plain.wgsl (no sums, no barriers) rather than cg_wide.wgsl.
+fn plain(phase: u32) -> bool {
+    (pass::DOWN..=pass::SMOOTH_RESIDUAL).contains(&phase)
+}
+
+/// The dispatches of one V-cycle and the `p` update over `levels`, a pass over `n` rows on
+/// `groups(n)` workgroups.
+fn vcycle(levels: &[[u32; 2]], groups: impl Fn(u32) -> u32) -> Vec<Step> {
+    let nl = levels.len() as u32;
+    let g = |k: u32| groups(levels[k as usize][1]);
+    let mut seq = Vec::new();
+    for k in 0..nl - 1 {
+        seq.push((pass::DOWN, k, g(k)));
+        seq.push((pass::RESTRICT, k, g(k + 1)));
+    }
+    seq.push((pass::COARSE, nl - 1, g(nl - 1)));
+    // A coarse level's post-smoothing update is applied by the prolongation that reads it
+    // (cg_wide_plain.wgsl); the fine level's gives z and <r, z>.
+    for k in (0..nl - 1).rev() {
+        seq.push((pass::PROLONG, k, g(k)));
+        seq.push((pass::SMOOTH_RESIDUAL, k, g(k)));
+    }
+    seq.push((pass::SMOOTH_UPDATE, 0, g(0)));
+    seq.push((pass::UPDATE_P, 0, g(0)));
+    seq
+}
+
+/// The most workgroups a pass gets: on a software driver (lavapipe: a workgroup runs on one
+/// thread, and every workgroup of a dispatch costs its launch) two per core, which keeps every
+/// core busy; on a GPU [`PARTS`].
+fn max_groups(ctx: &GpuContext) -> u32 {
+    match ctx.device_type {
+        Some(wgpu::DeviceType::Cpu) => std::thread::available_parallelism()
+            .map_or(2, |n| 2 * n.get() as u32)
+            .min(PARTS),
+        _ => PARTS,
+    }
+}
+
+/// Solves the one system of `inputs` into `inputs.x` (left on the GPU for the caller to read), with
+/// `kernels` = (cg_wide, cg_wide_plain).
+pub fn solve(
+    ctx: &GpuContext,
+    kernels: (&Kernel, &Kernel),
+    inputs: &WideInputs,
+) -> Result<WideSolved> {
+    let dev = &ctx.device;
+    let cap = max_groups(ctx);
+    let groups = |n: u32| n.div_ceil(WG).clamp(1, cap);
+    let fine = groups(inputs.rows.1);
+    let init: Vec<Step> = [(pass::INIT_RESIDUAL, 0, fine), (pass::INIT_CHECK, 0, 1)]
+        .into_iter()
+        .chain(vcycle(&inputs.levels, groups))
+        .collect();
+    let iteration: Vec<Step> = [
+        (pass::SPMV, 0, fine),
+        (pass::UPDATE, 0, fine),
+        (pass::TRUE_RESIDUAL, 0, fine),
+        (pass::TRUE_CHECK, 0, 1),
+    ]
+    .into_iter()
+    .chain(vcycle(&inputs.levels, groups))
+    .collect();
+    let (bind_groups, state, keep) = ctx.scoped("conjugate gradient", || {
+        let sys = ctx.storage_init("cg.systems", inputs.system, wgpu::BufferUsages::empty());
+        let vector = |label: &str| {
+            dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: inputs.vector_bytes.max(16),
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        };
+        let (r, p, ap) = (vector("cg.r"), vector("cg.p"), vector("cg.ap"));
+        let state = ctx.storage_init(
+            "cg.state",
+            bytemuck::bytes_of(&State::default()),
+            wgpu::BufferUsages::COPY_SRC,
+        );
+        let partials = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("cg.partials"),
+            size: SLOTS * PARTS as u64 * 16,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        // One bind group per (pass, level) the sequences use, for its kernel.
+        let mut keys: Vec<(u32, u32)> = init.iter().chain(&iteration).map(|s| (s.0, s.1)).collect();
+        keys.sort_unstable();
+        keys.dedup();
+        let mut uniforms = Vec::new();
+        let mut bind_groups = std::collections::HashMap::new();
+        for (phase, level) in keys {
+            let u = ctx.storage_init(
+                "cg.wide",
+                bytemuck::bytes_of(&WideRound {
+                    phase,
+                    level,
+                    total: inputs.total,
+                    sys: 0,
+                    parts: fine,
+                    pad: [0; 3],
+                }),
+                wgpu::BufferUsages::empty(),
+            );
+            let [rp, cols, vals] = inputs.matrix;
+            let h = inputs.hierarchy;
+            let entries = [
+                (0, u.as_entire_binding()),
+                (1, sys.as_entire_binding()),
+                (2, rp.as_entire_binding()),
+                (3, cols.as_entire_binding()),
+                (4, vals.as_entire_binding()),
+                (5, inputs.b.as_entire_binding()),
+                (6, inputs.dinv.as_entire_binding()),
+                (7, inputs.x.as_entire_binding()),
+                (8, r.as_entire_binding()),
+                (9, p.as_entire_binding()),
+                (10, ap.as_entire_binding()),
+                (11, state.as_entire_binding()),
+                (12, h[0].as_entire_binding()),
+                (13, h[1].as_entire_binding()),
+                (14, h[2].as_entire_binding()),
+                (15, h[3].as_entire_binding()),
+                (16, h[4].as_entire_binding()),
+                (17, h[5].as_entire_binding()),
+                (18, partials.as_entire_binding()),
+            ];
+            let kernel = if plain(phase) { kernels.1 } else { kernels.0 };
+            bind_groups.insert((phase, level), kernel.bind(dev, "cg.wide", &entries));
+            uniforms.push(u);
+        }
+        (bind_groups, state, (sys, r, p, ap, partials, uniforms))
+    })?;
+    let (mut dispatches, mut submits, mut recorded) = (0u32, 0u32, 0u32);
+    let st = loop {
+        let iters = ITERS_PER_SUBMIT.min(inputs.max_iter.saturating_add(1));
+        ctx.scoped("conjugate gradient", || {
+            let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("cg.wide"),
+            });
+            {
+                let mut cp = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("cg.wide"),
+                    timestamp_writes: None,
+                });
+                let first = if submits == 0 { Some(&init) } else { None };
+                for seq in first
+                    .into_iter()
+                    .chain(std::iter::repeat_n(&iteration, iters as usize))
+                {
+                    for &(phase, level, n) in seq {
+                        let kernel = if plain(phase) { kernels.1 } else { kernels.0 };
+                        cp.set_pipeline(&kernel.pipeline);
+                        cp.set_bind_group(0, &bind_groups[&(phase, level)], &[]);
+                        cp.dispatch_workgroups(n, 1, 1);
+                        dispatches += 1;
+                    }
+                }
+            }
+            ctx.queue.submit([enc.finish()]);
+        })?;
+        submits += 1;
+        recorded += iters;
+        let bytes = ctx.read_buffer(&state, 32, "conjugate-gradient status read-back")?;
+        let st: State = bytemuck::pod_read_unaligned(&bytes[..32]);
+        if st.status >= 2 || recorded > inputs.max_iter {
+            break st;
+        }
+    };
+    drop(keep);
+    Ok(WideSolved {
+        report: CgReport {
+            preconditioner: PreconditionerKind::Amg,
+            status: match st.status {
+                2 => CgStatus::Converged,
+                3 | 1 => CgStatus::NotConverged,
+                _ => CgStatus::Breakdown,
+            },
+            iterations: st.iters,
+            residual: st.rel_residual as f64,
+        },
+        dispatches,
+        submits,
+    })
+}
