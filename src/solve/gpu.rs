@@ -27,6 +27,10 @@
 //! smoothed-aggregation V-cycle instead of Jacobi (`wgsl/solve/cg_amg.wgsl`, the hierarchy laid
 //! out by `src/solve/gpu_amg.rs`): 17-39× fewer iterations on LSCM charts of 10k-100k
 //! vertices, each costing about 1.7 Jacobi ones on complex blocks (README, "Linear algebra").
+//!
+//! A batch of one such system of at least [`gpu_wide::WIDE_MIN_ROWS`] block rows is spread over
+//! many workgroups instead, a dispatch per pass of the iteration ([`gpu_wide`]), so that every core
+//! works on it.
 
 use crate::error::{Error, Result};
 use crate::gpu::pipelines::{Kernel, Pipelines};
