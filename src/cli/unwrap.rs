@@ -242,29 +242,11 @@ fn run_on(
         let mut v = serde_json::to_value(&un.report)?;
         v["uv_set"] = serde_json::json!(set);
         if let Some(p) = &patch {
-            let mut r = serde_json::to_value(&p.layout.report)?;
-            r["uv_set"] = serde_json::json!(set + 1);
-            r["triangles"] = serde_json::json!(p
-                .layout
-                .cut
-                .triangle_piece
-                .iter()
-                .filter(|t| t.is_some())
-                .count());
-            v["patch"] = r;
+            v["patch"] = layout_report(&p.layout, set + 1)?;
         }
         if let Some(b) = bridges {
-            let mut r = serde_json::to_value(&b.layout.report)?;
-            r["uv_set"] = serde_json::json!(set + 2);
-            r["arcs"] = serde_json::json!(b.arcs.len());
-            r["triangles"] = serde_json::json!(b
-                .layout
-                .cut
-                .triangle_piece
-                .iter()
-                .filter(|t| t.is_some())
-                .count());
-            v["bridges"] = r;
+            v["bridges"] = layout_report(&b.layout, set + 2)?;
+            v["bridges"]["arcs"] = serde_json::json!(b.arcs.len());
         }
         v["mesh"] = serde_json::json!(args.mesh);
         v["out"] = serde_json::json!(args.out);
@@ -274,6 +256,15 @@ fn run_on(
         preview(engine, out_mesh, set, p)?;
     }
     Ok(())
+}
+
+/// A second or third layout's report (the patch's, the bridges'): its set and triangles too.
+fn layout_report(layout: &pelt::Unwrapped, set: usize) -> Result<serde_json::Value> {
+    let mut r = serde_json::to_value(&layout.report)?;
+    r["uv_set"] = serde_json::json!(set);
+    let tris = layout.cut.triangle_piece.iter().flatten().count();
+    r["triangles"] = serde_json::json!(tris);
+    Ok(r)
 }
 
 /// Parses `--cut`.

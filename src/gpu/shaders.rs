@@ -139,6 +139,7 @@ pub const SHARED: &[(&str, &str)] = &[
     ("dims", include_str!("../../wgsl/shared/dims.wgsl")),
     ("cg_state", include_str!("../../wgsl/shared/cg_state.wgsl")),
     ("cg_real", include_str!("../../wgsl/shared/cg_real.wgsl")),
+    ("cg_rows", include_str!("../../wgsl/shared/cg_rows.wgsl")),
     (
         "cg_wide_common",
         include_str!("../../wgsl/shared/cg_wide_common.wgsl"),

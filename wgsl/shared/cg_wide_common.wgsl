@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // What the two kernels of a spread CG (cg_wide.wgsl: the passes with sums and the status;
 // cg_wide_plain.wgsl: the V-cycle's passes without, which need no barrier) share: the pass
-// selector, the bindings (cg_amg.wgsl's and the partial sums) and the row products. Import after
-// `linalg`, `cg_state` and `cg_real` (or `cg_complex`).
+// selector, the bindings (cg_amg.wgsl's and the partial sums) and the smoothed row products. Import after
+// `linalg`, `cg_state`, `cg_real` (or `cg_complex`) and `cg_rows`.
 
 // Passes. Keep in sync with `pass` in src/solve/gpu_wide.rs.
 const INIT_RESIDUAL: u32 = 0u;
@@ -55,24 +55,6 @@ struct Wide {
 @group(0) @binding(17) var<storage, read_write> mg: array<V>;
 @group(0) @binding(18) var<storage, read_write> partials: array<vec4<f32>>;
 
-
-fn a_row(i: u32, v0: u32) -> V {
-    var s = V(0.0);
-    let end = row_ptr[i + 1u];
-    for (var k = row_ptr[i]; k < end; k++) {
-        s += mat_mul(vals[k], mg[v0 + cols[k]]);
-    }
-    return s;
-}
-
-fn pr_row(i: u32, v0: u32) -> V {
-    var s = V(0.0);
-    let end = pr_ptr[i + 1u];
-    for (var k = pr_ptr[i]; k < end; k++) {
-        s += mat_mul(pr_vals[k], mg[v0 + pr_cols[k]]);
-    }
-    return s;
-}
 
 // Σ_k A[i, k] W_k B_k: row i of A times the pre-smoothed X = W B, without X being written first.
 fn a_row_smoothed(i: u32) -> V {

@@ -20,6 +20,7 @@
 #import linalg
 #import cg_state
 #import cg_real
+#import cg_rows
 
 // Keep in sync with `amg::NU` in src/solve/amg.rs.
 const NU: u32 = 1u;
@@ -48,26 +49,6 @@ const MULTIGRID: u32 = 3u;
 var<workgroup> wg_status: u32;
 var<workgroup> wg_iters: u32;
 
-// Σ_k A[i, k] mg[v0 + k]: row i of the level matrices times the vector at offset v0 of mg.
-fn a_row(i: u32, v0: u32) -> V {
-    var s = V(0.0);
-    let end = row_ptr[i + 1u];
-    for (var k = row_ptr[i]; k < end; k++) {
-        s += mat_mul(vals[k], mg[v0 + cols[k]]);
-    }
-    return s;
-}
-
-// Row i of the prolongators (i < total) or restrictions (i >= total) times the vector at v0.
-fn pr_row(i: u32, v0: u32) -> V {
-    var s = V(0.0);
-    let end = pr_ptr[i + 1u];
-    for (var k = pr_ptr[i]; k < end; k++) {
-        s += mat_mul(pr_vals[k], mg[v0 + pr_cols[k]]);
-    }
-    return s;
-}
-
 fn a_times_p(i: u32) -> V {
     var s = V(0.0);
     let end = row_ptr[i + 1u];
@@ -80,24 +61,7 @@ fn a_times_p(i: u32) -> V {
 // r = b - A x (and the fine level's B = r) for this invocation's rows; returns (0, <r, r>, <b, b>,
 // |(|A| |x|)|²) partials.
 fn true_residual(row0: u32, n: u32, lid: u32) -> vec4<f32> {
-    var part = vec4<f32>(0.0);
-    for (var i = row0 + lid; i < row0 + n; i += WG) {
-        var ax = V(0.0);
-        var ax_abs = V(0.0);
-        let end = row_ptr[i + 1u];
-        for (var k = row_ptr[i]; k < end; k++) {
-            let m = vals[k];
-            let xk = x[cols[k]];
-            ax += mat_mul(m, xk);
-            ax_abs += mat_abs_mul(m, xk);
-        }
-        let bi = b[i];
-        let ri = bi - ax;
-        r[i] = ri;
-        mg[i] = ri;
-        part += vec4<f32>(0.0, vdot(ri, ri), vdot(bi, bi), vdot(ax_abs, ax_abs));
-    }
-    return part;
+    return true_residual_rows(row0, n, lid, WG);
 }
 
 // One damped-Jacobi sweep on level rows [lo, lo + n): x += W (b - A x).

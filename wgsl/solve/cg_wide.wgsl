@@ -22,6 +22,7 @@
 #import linalg
 #import cg_state
 #import cg_real
+#import cg_rows
 #import cg_wide_common
 
 // Keep in sync with `amg::NU` in src/solve/amg.rs (this kernel's cycle is written for NU = 1: one
@@ -63,27 +64,9 @@ fn put(slot: u32, part: vec4<f32>, wid: u32, lid: u32) {
     }
 }
 
-// r = b - A x (and the fine level's B = r) over the rows this invocation strides; returns
-// (0, <r, r>, <b, b>, |(|A| |x|)|²) partials.
+// r = b - A x (and the fine level's B = r) over the rows this invocation strides.
 fn true_residual(sys: System, first: u32, stride: u32) -> vec4<f32> {
-    var part = vec4<f32>(0.0);
-    for (var i = sys.row0 + first; i < sys.row0 + sys.n; i += stride) {
-        var ax = V(0.0);
-        var ax_abs = V(0.0);
-        let end = row_ptr[i + 1u];
-        for (var k = row_ptr[i]; k < end; k++) {
-            let m = vals[k];
-            let xk = x[cols[k]];
-            ax += mat_mul(m, xk);
-            ax_abs += mat_abs_mul(m, xk);
-        }
-        let bi = b[i];
-        let ri = bi - ax;
-        r[i] = ri;
-        mg[i] = ri;
-        part += vec4<f32>(0.0, vdot(ri, ri), vdot(bi, bi), vdot(ax_abs, ax_abs));
-    }
-    return part;
+    return true_residual_rows(sys.row0, sys.n, first, stride);
 }
 
 // INIT_CHECK: the first residual's verdict (one workgroup).

@@ -9,6 +9,7 @@
 #import linalg
 #import cg_state
 #import cg_real
+#import cg_rows
 #import cg_wide_common
 
 @compute @workgroup_size(WG)

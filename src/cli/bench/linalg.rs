@@ -241,39 +241,21 @@ fn bench_charts(
         let gpu_ms = median(times);
         let out = last.expect("one repetition");
         let its = out.reports[0].iterations;
-        // The same solve preconditioned by Jacobi (the baseline of the multigrid row), below 50k
-        // unknowns (the 100k chart's took 106 s: README).
-        let jacobi = match large {
-            true => None,
-            false => {
-                let t = Instant::now();
-                let o = cg_batched(
-                    ctx,
-                    pipes,
-                    &sys.matrix,
-                    &sys.rhs,
-                    &zero,
-                    &[desc[0].jacobi_only()],
-                )?;
-                Some((o.reports[0], ms(t)))
-            }
+        // A baseline: the same solve with the system described by `d`, timed once.
+        let baseline = |d: SystemDesc| -> Result<_> {
+            let t = Instant::now();
+            let o = cg_batched(ctx, pipes, &sys.matrix, &sys.rhs, &zero, &[d])?;
+            Ok((o.reports[0], ms(t)))
         };
-        // The same solve in one workgroup where the chart is spread over many (`cg_wide`).
-        let one_workgroup = match out.spread {
-            0 => None,
-            _ => {
-                let t = Instant::now();
-                let o = cg_batched(
-                    ctx,
-                    pipes,
-                    &sys.matrix,
-                    &sys.rhs,
-                    &zero,
-                    &[desc[0].one_workgroup()],
-                )?;
-                Some((o.reports[0], ms(t)))
-            }
-        };
+        // Preconditioned by Jacobi (the baseline of the multigrid row), below 50k unknowns (the
+        // 100k chart's took 106 s: README).
+        let jacobi = (!large)
+            .then(|| baseline(desc[0].jacobi_only()))
+            .transpose()?;
+        // In one workgroup where the chart is spread over many (`cg_wide`).
+        let one_workgroup = (out.spread > 0)
+            .then(|| baseline(desc[0].one_workgroup()))
+            .transpose()?;
         let mut xj = zero.clone();
         let t = Instant::now();
         let cpu_jacobi = decalbake::solve::cg::pcg_with(
