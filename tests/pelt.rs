@@ -877,19 +877,7 @@ fn patch_and_blend_function_hide_the_cut() {
         .map(|t| t.map(|v| m.uv_sets[2][v as usize].as_dvec2()))
         .collect();
     assert!(shown.len() > 100);
-    let flipped = shown
-        .iter()
-        .filter(|q| (q[1] - q[0]).perp_dot(q[2] - q[0]) >= 0.0)
-        .count();
-    assert_eq!(flipped, 0);
-    let overlapping = (0..shown.len())
-        .flat_map(|i| (i + 1..shown.len()).map(move |j| (i, j)))
-        .filter(|&(i, j)| {
-            let share = shown[i].iter().any(|p| shown[j].contains(p));
-            !share && overlap(&shown[i], &shown[j])
-        })
-        .count();
-    assert_eq!(overlapping, 0);
+    assert_eq!(flipped_and_overlapping(&shown), (0, 0));
 
     // Both sets baked by one job: a texture and a report per set. At 256² texels: the patch keeps
     // the seams' tips uncut, so its layout shrinks round them (area distortion up to about 2,000 on
@@ -993,6 +981,23 @@ fn patch_and_blend_function_hide_the_cut() {
     );
 }
 
+/// UV triangles (v down) that are flipped or degenerate, and pairs that overlap without sharing a
+/// corner.
+fn flipped_and_overlapping(shown: &[[DVec2; 3]]) -> (usize, usize) {
+    let flipped = shown
+        .iter()
+        .filter(|q| (q[1] - q[0]).perp_dot(q[2] - q[0]) >= 0.0)
+        .count();
+    let overlapping = (0..shown.len())
+        .flat_map(|i| (i + 1..shown.len()).map(move |j| (i, j)))
+        .filter(|&(i, j)| {
+            let share = shown[i].iter().any(|p| shown[j].contains(p));
+            !share && overlap(&shown[i], &shown[j])
+        })
+        .count();
+    (flipped, overlapping)
+}
+
 /// The welded edges (smaller id first) whose two triangles give them different UVs in `set`.
 fn seam_edges(m: &Mesh, topo: &Topology, set: usize) -> HashSet<(u32, u32)> {
     let mut sides: HashMap<(u32, u32), Vec<[u32; 4]>> = HashMap::new();
@@ -1080,19 +1085,7 @@ fn patch_with_bridges_hides_the_seams_of_a_handle() {
                 shown.push(t.map(|v| m.uv_sets[set][v as usize].as_dvec2()));
             }
         }
-        let flipped = shown
-            .iter()
-            .filter(|q| (q[1] - q[0]).perp_dot(q[2] - q[0]) >= 0.0)
-            .count();
-        assert_eq!(flipped, 0, "set {set}");
-        let overlapping = (0..shown.len())
-            .flat_map(|i| (i + 1..shown.len()).map(move |j| (i, j)))
-            .filter(|&(i, j)| {
-                let share = shown[i].iter().any(|p| shown[j].contains(p));
-                !share && overlap(&shown[i], &shown[j])
-            })
-            .count();
-        assert_eq!(overlapping, 0, "set {set}");
+        assert_eq!(flipped_and_overlapping(&shown), (0, 0), "set {set}");
     }
 
     // The arcs cross the pelt's seam where a seam vertex has bridge weight 1: one decal on the
