@@ -1508,3 +1508,67 @@ fn a_transfer_after_another_bake_starts_from_a_clear_canvas() {
         "the second bake kept the first's texels"
     );
 }
+
+/// A thin open tube (8 edges round) pelted without splits: the band within 4 edges of its
+/// rim-to-rim seam wraps the whole tube, an annulus between the two rims, so the patch is opened
+/// by one arc from rim to rim away from the seam (one, not one from each rim: `patch::open_band`
+/// stops as soon as the band is disks) and that arc is bridged. Every weight lies in [0, 1] and
+/// they add to 1; the pelt's is 0 on the triangles touching its seam, the patch's on those
+/// touching the arc, and each chart's outside its own layout.
+#[test]
+fn patch_of_a_thin_tube_is_opened_rim_to_rim() {
+    let mesh = common::cylinder(8, 12);
+    let topo = Topology::build(&mesh, DEFAULT_WELD_TOLERANCE);
+    let opts = Options {
+        max_split_levels: 0,
+        ..Options::default()
+    };
+    let path = Path::new("tube");
+    let un = pelt::unwrap(Device::Cpu, &mesh, &topo, &opts, path).unwrap();
+    let p = pelt::patch::patch(Device::Cpu, &topo, &un, &opts, path).unwrap();
+    let b = p
+        .bridges
+        .as_ref()
+        .expect("an annulus needs an arc and bridges");
+    let z = |v: u32| topo.positions[v as usize].z;
+    let seam: HashSet<u32> = un.cut.edges.iter().flatten().copied().collect();
+    let arc: HashSet<u32> = b.arcs.iter().flatten().copied().collect();
+    assert_eq!(b.arcs.len(), arc.len() - 1, "one simple path: {:?}", b.arcs);
+    let (lo, hi) = arc.iter().fold((f32::MAX, f32::MIN), |(l, h), &v| {
+        (l.min(z(v)), h.max(z(v)))
+    });
+    assert!(lo < -0.99 && hi > 0.99, "the arc spans z {lo} .. {hi}");
+    assert!(arc.is_disjoint(&seam), "the arc runs on the seam");
+    let pelt_w = |v: u32| p.blend[v as usize];
+    let bridge_w = |v: u32| b.weight[v as usize];
+    let patch_w = |v: u32| 1.0 - pelt_w(v) - bridge_w(v);
+    for v in 0..topo.positions.len() as u32 {
+        for w in [pelt_w(v), patch_w(v), bridge_w(v)] {
+            assert!((0.0..=1.0).contains(&w), "vertex {v}");
+        }
+    }
+    let touches = |t: [u32; 3], edges: &[[u32; 2]]| {
+        (0..3).any(|k| {
+            let (a, c) = (t[k], t[(k + 1) % 3]);
+            edges.contains(&[a.min(c), a.max(c)])
+        })
+    };
+    for (i, &t) in topo.triangles.iter().enumerate() {
+        let all_zero = |f: &dyn Fn(u32) -> f32| t.iter().all(|&v| f(v) == 0.0);
+        if touches(t, &un.cut.edges) {
+            assert!(all_zero(&pelt_w), "triangle {i} shows the pelt at its seam");
+        }
+        if touches(t, &b.arcs) || p.layout.cut.triangle_piece[i].is_none() {
+            assert!(
+                all_zero(&patch_w),
+                "triangle {i} shows the patch at its edge"
+            );
+        }
+        if b.layout.cut.triangle_piece[i].is_none() {
+            assert!(
+                all_zero(&bridge_w),
+                "triangle {i} shows the bridges outside them"
+            );
+        }
+    }
+}

@@ -9,8 +9,11 @@
 //! spanning forest of the seam graph built from the edges nearest its branch points first, so the
 //! edges left out (one per cycle) lie as far from the branches as the cycle allows, and through
 //! one end of each it cuts the band with the shortest path on either side of the seam to the
-//! band's boundary (Dijkstra on edge lengths, never touching the seams or an earlier arc). The
-//! patch is then pelted with those arcs as its cut.
+//! band's boundary (Dijkstra on edge lengths, never touching the seams or an earlier arc). A hole
+//! of the model that the band closes round (a boundary loop wholly inside it: the rim of a thin
+//! tube, a teapot spout's tip) makes the band an annulus the same way; the loop counts as a cycle,
+//! and its arc runs from the loop's vertex farthest from the seams out to the band's edge or another
+//! hole. The patch is then pelted with as many of those arcs as it takes to make it disks.
 //!
 //! An arc is a seam of the patch, and the patch is shown round the pelt's seams, so the arcs would
 //! show where they cross the band. A **bridge** hides them as the patch hides the pelt's seams: S
@@ -226,10 +229,15 @@ fn to_boundary(
 }
 
 /// The arcs that open the patch region `tris` round the pelt's opened edges `seam`: one per
-/// independent cycle of the seams, each from the region's boundary on one side of the seam,
-/// through the seam, to the boundary on the other (welded vertex pairs). A cycle whose other side
-/// the band encloses (no boundary to reach) gets no arc: the region is a disk there already.
-pub fn arcs(topo: &Topology, seam: &[[u32; 2]], tris: &[u32]) -> Vec<[u32; 2]> {
+/// independent cycle of the seams, together with the model's boundary loops that lie wholly in the
+/// region (a hole the band closes round, as at the tip of a teapot's spout: the band is then an
+/// annulus). A cycle through the seams is cut from the region's boundary on one side of the seam,
+/// through it, to the boundary on the other; a hole's loop from the loop's vertex farthest from
+/// where the seams meet it out to the region's boundary. A cycle whose other side the band encloses
+/// (no boundary to reach) gets no arc: the region is a disk there already. Each arc as welded
+/// vertex pairs, in the order found; `patch` takes as many as the region needs to become disks
+/// (a tube the band wraps whole needs one arc between its two rims, not one from each).
+pub fn arcs(topo: &Topology, seam: &[[u32; 2]], tris: &[u32]) -> Vec<Vec<[u32; 2]>> {
     let n = topo.positions.len();
     let region = Region::new(topo, tris);
     let mut tris_of = vec![Vec::new(); n];
@@ -238,42 +246,93 @@ pub fn arcs(topo: &Topology, seam: &[[u32; 2]], tris: &[u32]) -> Vec<[u32; 2]> {
             tris_of[v as usize].push(t);
         }
     }
+    let in_region: Vec<bool> = tris_of.iter().map(|l| !l.is_empty()).collect();
+    let mut on_hole = vec![false; n];
+    let mut graph = seam.to_vec();
+    for &[a, b] in &topo.boundary_edges {
+        if in_region[a as usize] && in_region[b as usize] {
+            graph.push([a, b]);
+            on_hole[a as usize] = true;
+            on_hole[b as usize] = true;
+        }
+    }
     let mut blocked = vec![false; n];
-    for &[a, b] in seam {
+    for &[a, b] in &graph {
         blocked[a as usize] = true;
         blocked[b as usize] = true;
     }
-    let on_seam = blocked.clone();
+    let on_graph = blocked.clone();
     let mut out = Vec::new();
-    for (_, pivot) in cycle_edges(n, seam) {
-        let sides = sides(topo, &tris_of, &on_seam, pivot);
-        if sides.len() != 2 {
-            continue;
-        }
-        let Some(first) = to_boundary(topo, &region, &blocked, pivot, &sides[0]) else {
-            continue;
+    for (_, pivot) in cycle_edges(n, &graph) {
+        let path = if on_hole[pivot as usize] {
+            // Out from the hole, to the band's edge or another hole: one side.
+            let mut from_hole = blocked.clone();
+            for (v, h) in on_hole.iter().enumerate() {
+                from_hole[v] &= !h;
+            }
+            for v in hole_loop(&graph, &on_hole, pivot) {
+                from_hole[v as usize] = true;
+            }
+            let starts: Vec<u32> = region.neighbours[pivot as usize].clone();
+            let Some(out) = to_boundary(topo, &region, &from_hole, pivot, &starts) else {
+                continue;
+            };
+            std::iter::once(pivot).chain(out).collect::<Vec<u32>>()
+        } else {
+            let sides = sides(topo, &tris_of, &on_graph, pivot);
+            if sides.len() != 2 {
+                continue;
+            }
+            let Some(first) = to_boundary(topo, &region, &blocked, pivot, &sides[0]) else {
+                continue;
+            };
+            let mut with_first = blocked.clone();
+            for &v in &first {
+                with_first[v as usize] = true;
+            }
+            let Some(second) = to_boundary(topo, &region, &with_first, pivot, &sides[1]) else {
+                continue;
+            };
+            first
+                .iter()
+                .rev()
+                .chain(std::iter::once(&pivot))
+                .chain(&second)
+                .copied()
+                .collect()
         };
-        let mut with_first = blocked.clone();
-        for &v in &first {
-            with_first[v as usize] = true;
-        }
-        let Some(second) = to_boundary(topo, &region, &with_first, pivot, &sides[1]) else {
-            continue;
-        };
-        blocked = with_first;
-        for &v in &second {
+        for &v in &path {
             blocked[v as usize] = true;
         }
-        let path: Vec<u32> = first
-            .iter()
-            .rev()
-            .chain(std::iter::once(&pivot))
-            .chain(&second)
-            .copied()
-            .collect();
-        out.extend(path.windows(2).map(|w| [w[0].min(w[1]), w[0].max(w[1])]));
+        out.push(
+            path.windows(2)
+                .map(|w| [w[0].min(w[1]), w[0].max(w[1])])
+                .collect(),
+        );
     }
     out
+}
+
+/// The vertices of the model's boundary loop through `v` (its edges among `graph`'s).
+fn hole_loop(graph: &[[u32; 2]], on_hole: &[bool], v: u32) -> Vec<u32> {
+    let mut seen = vec![v];
+    let mut queue = VecDeque::from([v]);
+    while let Some(u) = queue.pop_front() {
+        for &[a, b] in graph {
+            let w = if a == u {
+                b
+            } else if b == u {
+                a
+            } else {
+                continue;
+            };
+            if on_hole[w as usize] && on_hole[u as usize] && !seen.contains(&w) {
+                seen.push(w);
+                queue.push_back(w);
+            }
+        }
+    }
+    seen
 }
 
 /// The bridges over `arcs` (the patch's own seams) where the patch is shown: `e` is each welded

@@ -137,11 +137,7 @@ pub fn patch(
             Ok(pieces) => (pieces, None),
             Err(_) => {
                 // Seams with cycles: the band is opened by arcs, and bridges hide them.
-                let arcs = super::bridge::arcs(topo, &main.cut.edges, &tris);
-                let spec = CutSpec::Edges(arcs.clone());
-                let pieces =
-                    split::cut_region_with(topo, &tris, &spec, opts.split_non_manifold, &[], path)
-                        .map_err(|e| not_disks(path, e))?;
+                let (arcs, pieces) = open_band(topo, &tris, &main.cut.edges, opts, path)?;
                 let mut near: Vec<u32> = arcs
                     .iter()
                     .flatten()
@@ -177,6 +173,29 @@ pub fn patch(
         blend,
         bridges,
     })
+}
+
+/// The band `tris` cut by as many of `bridge::arcs` as it takes to make it disks (in their order):
+/// the arcs used and the pieces.
+fn open_band(
+    topo: &Topology,
+    tris: &[u32],
+    seam: &[[u32; 2]],
+    opts: &Options,
+    path: &Path,
+) -> Result<(Vec<[u32; 2]>, Vec<super::cut::Piece>)> {
+    let mut used = Vec::new();
+    let mut last = None;
+    for arc in super::bridge::arcs(topo, seam, tris) {
+        used.extend(arc);
+        let spec = CutSpec::Edges(used.clone());
+        match split::cut_region_with(topo, tris, &spec, opts.split_non_manifold, &[], path) {
+            Ok(pieces) => return Ok((used, pieces)),
+            Err(e) => last = Some(e),
+        }
+    }
+    let e = last.unwrap_or_else(|| Error::mesh(path, "no arc across the band was found"));
+    Err(not_disks(path, e))
 }
 
 /// The error for a band that the arcs did not open into disks.
