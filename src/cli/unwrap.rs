@@ -246,7 +246,8 @@ fn run_on(
         }
         if let Some(b) = bridges {
             v["bridges"] = layout_report(&b.layout, set + 2)?;
-            v["bridges"]["arcs"] = serde_json::json!(b.arcs.len());
+            v["bridges"]["arcs"] = serde_json::json!(b.arc_count);
+            v["bridges"]["arc_edges"] = serde_json::json!(b.arcs.len());
         }
         v["mesh"] = serde_json::json!(args.mesh);
         v["out"] = serde_json::json!(args.out);

@@ -827,10 +827,13 @@ fn linalg_kernels(
     // 64 invocations a workgroup (`shaders::narrow_source`'s width): on lavapipe a workgroup's
     // launch costs in proportion to its invocations.
     let narrow_complex = |name: &str| {
-        shaders::complex_source(name).replace(
-            &format!("const WG: u32 = {}u;", shaders::LINALG_WG),
-            &format!("const WG: u32 = {}u;", shaders::LINALG_WG_NARROW),
-        )
+        let (from, to) = (
+            format!("const WG: u32 = {}u;", shaders::LINALG_WG),
+            format!("const WG: u32 = {}u;", shaders::LINALG_WG_NARROW),
+        );
+        let text = shaders::complex_source(name);
+        assert!(text.contains(&from), "{name} has no `{from}`");
+        text.replace(&from, &to)
     };
     let cg_wide = (limit >= WIDE_STORAGE_BUFFERS).then(|| {
         [
@@ -873,8 +876,9 @@ fn linalg_kernels(
 /// Storage buffers `cg_amg.wgsl` binds (the CG's 11 and the hierarchy's 6).
 pub const AMG_STORAGE_BUFFERS: u32 = 17;
 
-/// Storage buffers `cg_wide.wgsl` binds (`cg_amg`'s and the partial sums).
-pub const WIDE_STORAGE_BUFFERS: u32 = 18;
+/// Storage buffers `cg_wide.wgsl` binds (`cg_amg`'s, its pass selector in binding 0 instead of a
+/// uniform, and the partial sums).
+pub const WIDE_STORAGE_BUFFERS: u32 = 19;
 
 /// The placement kernels (`src/place.rs`): `place_bvh`, `place_candidates`, `place_reduce`.
 fn place_kernels(device: &wgpu::Device) -> [Kernel; 3] {

@@ -75,6 +75,12 @@ pub fn write_set_preview(
         first.second = it.next().map(Box::new);
         if mesh.mesh.bridge.len() == n && first.second.is_some() {
             first.third = it.next().map(Box::new);
+            if first.third.is_none() {
+                log::warn!(
+                    "{}: the model has bridges (_PELT_BRIDGE) but the job bakes two sets: the preview shows the patch where the bridges should be; bake the third set too",
+                    path.display()
+                );
+            }
         }
     }
     let px = render_texture_preview(engine, mesh, &first)?;
@@ -251,12 +257,13 @@ fn draw(
     // Per split vertex, the first and third textures' weights: `_PELT_BLEND` and `_PELT_BRIDGE`
     // when blending, else 1 and 0 (the second's is 1 minus both).
     let n = mesh.mesh.positions.len();
-    let first: Vec<f32> = match &baked.second {
-        Some(_) if mesh.mesh.blend.len() == n => mesh.mesh.blend.clone(),
-        _ => vec![1.0; n],
+    let blending = baked.second.is_some() && mesh.mesh.blend.len() == n;
+    let first: Vec<f32> = match blending {
+        true => mesh.mesh.blend.clone(),
+        false => vec![1.0; n],
     };
     let third = match &baked.third {
-        Some(_) if mesh.mesh.bridge.len() == n => mesh.mesh.bridge.clone(),
+        Some(_) if blending && mesh.mesh.bridge.len() == n => mesh.mesh.bridge.clone(),
         _ => vec![0.0; n],
     };
     let weights: Vec<[f32; 2]> = first.into_iter().zip(third).map(|(a, c)| [a, c]).collect();

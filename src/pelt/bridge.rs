@@ -31,7 +31,7 @@ use super::{layout, split, Device, Options, Unwrapped};
 use crate::error::{Error, Result};
 use crate::mesh::Topology;
 use std::cmp::Reverse;
-use std::collections::{BinaryHeap, VecDeque};
+use std::collections::{BinaryHeap, HashSet, VecDeque};
 use std::path::Path;
 
 /// The bridges reach this many rings from their arcs (their boundary, E4).
@@ -40,8 +40,10 @@ pub const RINGS: u32 = 4;
 /// The bridges of a patch.
 #[derive(Debug, Clone)]
 pub struct Bridges {
-    /// The arcs the patch was cut along (welded vertex pairs).
+    /// The edges of the arcs the patch was cut along (welded vertex pairs).
     pub arcs: Vec<[u32; 2]>,
+    /// How many arcs they make.
+    pub arc_count: usize,
     /// The bridges' layout (their pieces cover only the bridges' triangles).
     pub layout: Unwrapped,
     /// Per welded vertex: w, the bridges' weight (1 up to E1, ½ on E2, 0 beyond).
@@ -142,9 +144,15 @@ fn cycle_edges(n: usize, seam: &[[u32; 2]]) -> Vec<([u32; 2], u32)> {
     left_out
 }
 
-/// The two sides of the seams at `pivot`: its region triangles grouped across the edges from it
-/// that are not seams, each group's other vertices.
-fn sides(topo: &Topology, tris_of: &[Vec<u32>], on_seam: &[bool], pivot: u32) -> Vec<Vec<u32>> {
+/// The sides of the seams at `pivot`: its region triangles grouped across the edges from it that
+/// are not seam edges (`cut`), each group's other vertices that are not on the seams.
+fn sides(
+    topo: &Topology,
+    tris_of: &[Vec<u32>],
+    cut: &HashSet<(u32, u32)>,
+    on_seam: &[bool],
+    pivot: u32,
+) -> Vec<Vec<u32>> {
     let fan = &tris_of[pivot as usize];
     let mut group: Vec<usize> = (0..fan.len()).collect();
     let others = |t: u32| {
@@ -156,7 +164,7 @@ fn sides(topo: &Topology, tris_of: &[Vec<u32>], on_seam: &[bool], pivot: u32) ->
     for i in 0..fan.len() {
         for j in i + 1..fan.len() {
             let shared = others(fan[i]).find(|&v| others(fan[j]).any(|w| w == v));
-            if shared.is_some_and(|v| !on_seam[v as usize]) {
+            if shared.is_some_and(|v| !cut.contains(&(pivot.min(v), pivot.max(v)))) {
                 let (gi, gj) = (group[i], group[j]);
                 for g in &mut group {
                     if *g == gj {
@@ -239,7 +247,6 @@ fn to_boundary(
 /// (a tube the band wraps whole needs one arc between its two rims, not one from each).
 pub fn arcs(topo: &Topology, seam: &[[u32; 2]], tris: &[u32]) -> Vec<Vec<[u32; 2]>> {
     let n = topo.positions.len();
-    let region = Region::new(topo, tris);
     let mut tris_of = vec![Vec::new(); n];
     for &t in tris {
         for v in topo.triangles[t as usize] {
@@ -261,45 +268,25 @@ pub fn arcs(topo: &Topology, seam: &[[u32; 2]], tris: &[u32]) -> Vec<Vec<[u32; 2
         blocked[a as usize] = true;
         blocked[b as usize] = true;
     }
-    let on_graph = blocked.clone();
+    let band = Band {
+        topo,
+        region: Region::new(topo, tris),
+        cut: graph.iter().map(|&[a, b]| (a.min(b), a.max(b))).collect(),
+        on_graph: blocked.clone(),
+        on_hole,
+        tris_of,
+        graph,
+    };
     let mut out = Vec::new();
-    for (_, pivot) in cycle_edges(n, &graph) {
-        let path = if on_hole[pivot as usize] {
-            // Out from the hole, to the band's edge or another hole: one side.
-            let mut from_hole = blocked.clone();
-            for (v, h) in on_hole.iter().enumerate() {
-                from_hole[v] &= !h;
-            }
-            for v in hole_loop(&graph, &on_hole, pivot) {
-                from_hole[v as usize] = true;
-            }
-            let starts: Vec<u32> = region.neighbours[pivot as usize].clone();
-            let Some(out) = to_boundary(topo, &region, &from_hole, pivot, &starts) else {
-                continue;
-            };
-            std::iter::once(pivot).chain(out).collect::<Vec<u32>>()
-        } else {
-            let sides = sides(topo, &tris_of, &on_graph, pivot);
-            if sides.len() != 2 {
-                continue;
-            }
-            let Some(first) = to_boundary(topo, &region, &blocked, pivot, &sides[0]) else {
-                continue;
-            };
-            let mut with_first = blocked.clone();
-            for &v in &first {
-                with_first[v as usize] = true;
-            }
-            let Some(second) = to_boundary(topo, &region, &with_first, pivot, &sides[1]) else {
-                continue;
-            };
-            first
-                .iter()
-                .rev()
-                .chain(std::iter::once(&pivot))
-                .chain(&second)
-                .copied()
-                .collect()
+    for ([a, b], far) in cycle_edges(n, &band.graph) {
+        // Through the end farther from a branch, else through the other.
+        let other = if far == a { b } else { a };
+        let Some(path) = [far, other]
+            .into_iter()
+            .find_map(|pivot| band.arc_through(pivot, &blocked))
+        else {
+            log::warn!("no arc across the patch's band through seam edge ({a}, {b})");
+            continue;
         };
         for &v in &path {
             blocked[v as usize] = true;
@@ -311,6 +298,57 @@ pub fn arcs(topo: &Topology, seam: &[[u32; 2]], tris: &[u32]) -> Vec<Vec<[u32; 2
         );
     }
     out
+}
+
+/// The band round the seams as `arcs` sees it.
+struct Band<'a> {
+    topo: &'a Topology,
+    region: Region,
+    /// The seam edges and the boundary edges of holes inside the band (`graph`), as a set.
+    cut: HashSet<(u32, u32)>,
+    graph: Vec<[u32; 2]>,
+    on_graph: Vec<bool>,
+    on_hole: Vec<bool>,
+    tris_of: Vec<Vec<u32>>,
+}
+
+impl Band<'_> {
+    /// The arc through `pivot` (a vertex of the seams or of a hole's loop), avoiding `blocked`.
+    fn arc_through(&self, pivot: u32, blocked: &[bool]) -> Option<Vec<u32>> {
+        let (topo, region) = (self.topo, &self.region);
+        if self.on_hole[pivot as usize] {
+            // Out from the hole, to the band's edge or another hole: one side.
+            let mut from_hole = blocked.to_vec();
+            for (v, h) in self.on_hole.iter().enumerate() {
+                from_hole[v] &= !h;
+            }
+            for v in hole_loop(&self.graph, &self.on_hole, pivot) {
+                from_hole[v as usize] = true;
+            }
+            let starts = &region.neighbours[pivot as usize];
+            let out = to_boundary(topo, region, &from_hole, pivot, starts)?;
+            return Some(std::iter::once(pivot).chain(out).collect());
+        }
+        let sides = sides(topo, &self.tris_of, &self.cut, &self.on_graph, pivot);
+        let [one, two] = &sides[..] else {
+            return None;
+        };
+        let first = to_boundary(topo, region, blocked, pivot, one)?;
+        let mut with_first = blocked.to_vec();
+        for &v in &first {
+            with_first[v as usize] = true;
+        }
+        let second = to_boundary(topo, region, &with_first, pivot, two)?;
+        Some(
+            first
+                .iter()
+                .rev()
+                .chain(std::iter::once(&pivot))
+                .chain(&second)
+                .copied()
+                .collect(),
+        )
+    }
 }
 
 /// The vertices of the model's boundary loop through `v` (its edges among `graph`'s).
@@ -341,7 +379,7 @@ fn hole_loop(graph: &[[u32; 2]], on_hole: &[bool], v: u32) -> Vec<u32> {
 pub fn bridges(
     device: Device,
     topo: &Topology,
-    arcs: Vec<[u32; 2]>,
+    (arcs, arc_count): (Vec<[u32; 2]>, usize),
     e: &[u32],
     opts: &Options,
     path: &Path,
@@ -381,6 +419,7 @@ pub fn bridges(
         .collect();
     Ok(Bridges {
         arcs,
+        arc_count,
         layout,
         weight,
     })

@@ -135,9 +135,10 @@ pub fn patch(
     let (pieces, bridges) =
         match split::cut_region_with(topo, &tris, &whole, opts.split_non_manifold, &[], path) {
             Ok(pieces) => (pieces, None),
-            Err(_) => {
+            Err(first) => {
                 // Seams with cycles: the band is opened by arcs, and bridges hide them.
-                let (arcs, pieces) = open_band(topo, &tris, &main.cut.edges, opts, path)?;
+                let (arcs, count, pieces) =
+                    open_band(topo, &tris, &main.cut.edges, opts, path, first)?;
                 let mut near: Vec<u32> = arcs
                     .iter()
                     .flatten()
@@ -147,7 +148,7 @@ pub fn patch(
                 near.sort_unstable();
                 near.dedup();
                 let e = rings(topo, &near, super::bridge::RINGS + 1);
-                let b = super::bridge::bridges(device, topo, arcs, &e, &no_splits, path)?;
+                let b = super::bridge::bridges(device, topo, (arcs, count), &e, &no_splits, path)?;
                 (pieces, Some(b))
             }
         };
@@ -176,26 +177,32 @@ pub fn patch(
 }
 
 /// The band `tris` cut by as many of `bridge::arcs` as it takes to make it disks (in their order):
-/// the arcs used and the pieces.
+/// the arcs' edges, how many arcs, and the pieces. `first` is why the band uncut is not disks: the
+/// error when no arc is found (then the seams have no cycles, and something else is wrong: a
+/// non-manifold edge, say).
 fn open_band(
     topo: &Topology,
     tris: &[u32],
     seam: &[[u32; 2]],
     opts: &Options,
     path: &Path,
-) -> Result<(Vec<[u32; 2]>, Vec<super::cut::Piece>)> {
+    first: Error,
+) -> Result<(Vec<[u32; 2]>, usize, Vec<super::cut::Piece>)> {
+    let arcs = super::bridge::arcs(topo, seam, tris);
+    if arcs.is_empty() {
+        return Err(first);
+    }
     let mut used = Vec::new();
-    let mut last = None;
-    for arc in super::bridge::arcs(topo, seam, tris) {
+    let mut last = first;
+    for (k, arc) in arcs.into_iter().enumerate() {
         used.extend(arc);
         let spec = CutSpec::Edges(used.clone());
         match split::cut_region_with(topo, tris, &spec, opts.split_non_manifold, &[], path) {
-            Ok(pieces) => return Ok((used, pieces)),
-            Err(e) => last = Some(e),
+            Ok(pieces) => return Ok((used, k + 1, pieces)),
+            Err(e) => last = e,
         }
     }
-    let e = last.unwrap_or_else(|| Error::mesh(path, "no arc across the band was found"));
-    Err(not_disks(path, e))
+    Err(not_disks(path, last))
 }
 
 /// The error for a band that the arcs did not open into disks.

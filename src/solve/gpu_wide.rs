@@ -7,8 +7,9 @@
 //! 65 ns, so an iteration of about 20 dispatches costs some 0.2 ms of fixed price against the
 //! 20 ms one iteration of a 10k-vertex chart takes in one workgroup; spreading it lets both cores
 //! work and takes the barriers between passes out of the loop (the dispatch boundary is the
-//! barrier). `solve::gpu::cg_batched` sends a batch of one system of at least [`WIDE_MIN_ROWS`]
-//! block rows here.
+//! barrier). `solve::gpu::cg_batched` sends a batch of one LSCM system (complex 2 × 2 blocks,
+//! with a multigrid hierarchy) of at least [`WIDE_MIN_ROWS`] block rows here; a lone system on the
+//! real form stays in one workgroup.
 
 use crate::error::Result;
 use crate::gpu::pipelines::Kernel;

@@ -88,6 +88,8 @@ fn init_check(sys: System, lid: u32) {
             st.rel_residual = sqrt(t.y) / st.scale;
             if (st.rel_residual <= sys.rtol) {
                 st.status = ST_DONE;
+            } else if (sys.max_iter == 0u) {
+                st.status = ST_BUDGET;
             }
         }
         state[wide.sys] = st;
@@ -107,11 +109,13 @@ fn due(sys: System, st: State, pap: f32, rr: f32, iters: u32) -> u32 {
     if (!(pap > 0.0) || !finite(pap) || !finite(rr)) {
         return TRUE_NONE;
     }
-    if (sqrt(rr) <= sys.rtol * st.scale) {
-        return TRUE_CONFIRM;
-    }
+    // The budget first: a solve whose recursive residual converged but whose true one did not
+    // must still stop at its budget (as cg_amg does).
     if (iters >= sys.max_iter) {
         return TRUE_BUDGET;
+    }
+    if (sqrt(rr) <= sys.rtol * st.scale) {
+        return TRUE_CONFIRM;
     }
     if (iters % REPLACE == 0u) {
         return TRUE_REPLACE;
@@ -132,7 +136,7 @@ fn true_check(sys: System, lid: u32) {
         st.rel_residual = sqrt(rr) / st.scale;
         if (!(pap > 0.0) || !finite(pap) || !finite(rr)) {
             st.status = ST_BREAK;
-        } else if (why != TRUE_NONE) {
+        } else if (why != TRUE_NONE && t.x > 0.0) {
             st.scale = max(st.bnorm, sqrt(t.w));
             st.rel_residual = sqrt(t.y) / st.scale;
             if (!finite(t.y)) {
@@ -192,7 +196,12 @@ fn main(
         }
         put(SLOT_PAP, part, wid, lid);
     } else if (phase == UPDATE) {
-        let alpha = total(SLOT_RZ + iters % 2u, lid).x / total(SLOT_PAP, lid).x;
+        var alpha = total(SLOT_RZ + iters % 2u, lid).x / total(SLOT_PAP, lid).x;
+        // A non-finite step (<r, z> or <p, Ap> broke down) leaves x as it was; TRUE_CHECK then
+        // reports the breakdown from <p, Ap>.
+        if (!finite(alpha)) {
+            alpha = 0.0;
+        }
         var part = vec4<f32>(0.0);
         for (var i = sys.row0 + first; i < sys.row0 + sys.n; i += stride) {
             x[i] += alpha * p[i];
@@ -210,6 +219,8 @@ fn main(
         var part = vec4<f32>(0.0);
         if (due(sys, state[wide.sys], pap, rr, iters + 1u) != TRUE_NONE) {
             part = true_residual(sys, first, stride);
+            // Marks the sums as taken: TRUE_CHECK acts on them only then.
+            part.x = 1.0;
         }
         put(SLOT_TRUE, part, wid, lid);
     } else if (phase == TRUE_CHECK) {

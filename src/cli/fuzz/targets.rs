@@ -152,6 +152,10 @@ fn mesh(bytes: &[u8], name: &str) -> String {
         "one blend weight per vertex"
     );
     assert!(
+        m.bridge.is_empty() || m.bridge.len() == n,
+        "one bridge weight per vertex"
+    );
+    assert!(
         m.triangles.iter().flatten().all(|&i| (i as usize) < n),
         "triangle indices in range"
     );
