@@ -517,7 +517,8 @@ fn a_device_without_room_for_the_multigrid_kernel_solves_by_jacobi() {
 /// vertices it converges in the one-workgroup kernel's iterations (± 10 %, the two sum in
 /// different orders), both within `FORWARD` of the f64 twin's V-cycle solve taken to 1e-10, and
 /// within `FORWARD` of each other. A spread solve whose workgroups each used only their own part of
-/// the dot products (checked by hand) breaks down or misses the twin's iterations.
+/// the dot products (checked by hand) breaks down or misses the twin's iterations. In a batch with a
+/// small chart the large one is spread all the same, alone.
 #[test]
 fn a_lone_large_system_spread_over_workgroups_matches_one_workgroup() {
     let e = common::engine();
@@ -573,4 +574,12 @@ fn a_lone_large_system_spread_over_workgroups_matches_one_workgroup() {
     );
     let apart = forward_error(&as_f64(&wide.x), &as_f64(&one.x));
     assert!(apart <= FORWARD, "the two solutions differ by {apart:.2e}");
+    // Batched with a small chart, the large one is still spread, alone: the same solution bit for
+    // bit; the small one is solved as it is alone.
+    let (sa, sb) = bob_chart(400);
+    let both = solve_batch(&e, &[(&a, &b), (&sa, &sb)]);
+    let small = solve_batch(&e, &[(&sa, &sb)]);
+    assert_eq!((both.spread, both.multigrid), (1, 1));
+    assert_eq!(both.x[..a.rows], wide.x[..]);
+    assert_eq!(both.x[a.rows..], small.x[..]);
 }

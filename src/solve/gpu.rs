@@ -487,20 +487,24 @@ pub fn cg_batched(
         .map(|h| blocks && all_fit(std::slice::from_ref(h), WG, HARD_LOOP_LIMIT, 2))
         .collect();
     if fits.iter().any(|&f| f) && !fits.iter().all(|&f| f) {
-        return solve_apart(ctx, pipes, (a, b, x0), systems, hs, &fits);
+        let split = |group: bool| (0..systems.len()).filter(|&k| fits[k] == group).collect();
+        let groups = [(split(true), true), (split(false), false)];
+        return solve_apart(ctx, pipes, (a, b, x0), systems, hs, &groups);
     }
     multigrid(ctx, pipes, (a, b, x0), systems, hs, blocks)
 }
 
-/// Solves the systems whose V-cycle fits on complex blocks (`fits`) as one batch (with their
-/// hierarchies `hs`) and the rest as another (Jacobi), and puts the results back in order.
+/// Solves each group of systems as a batch of its own: `(systems, true)` with their hierarchies
+/// `hs` on complex blocks, `(systems, false)` by Jacobi; puts the results back in order. Used for
+/// the systems whose V-cycle fits on complex blocks against the rest, and for the large LSCM
+/// systems of a batch, each alone so that it is spread over workgroups ([`gpu_wide`]).
 fn solve_apart(
     ctx: &GpuContext,
     pipes: &Pipelines,
     (a, b, x0): (&Csr, &[f64], &[f64]),
     systems: &[SystemDesc],
     mut hs: Vec<Option<Hierarchy>>,
-    fits: &[bool],
+    groups: &[(Vec<usize>, bool)],
 ) -> Result<Solved> {
     let mut x = f32s(x0);
     let mut reports = vec![None; systems.len()];
@@ -514,8 +518,8 @@ fn solve_apart(
         multigrid: 0,
         spread: 0,
     };
-    for group in [true, false] {
-        let idx: Vec<usize> = (0..systems.len()).filter(|&k| fits[k] == group).collect();
+    for (idx, group) in groups.iter().filter(|g| !g.0.is_empty()) {
+        let group = *group;
         let mats: Vec<Csr> = idx
             .iter()
             .map(|&k| a.sub_block(systems[k].row0 as usize, systems[k].n as usize))
@@ -584,6 +588,21 @@ fn multigrid(
         .collect();
     let on_blocks = blocks && all_fit(&hs, WG, HARD_LOOP_LIMIT, 2);
     let lone_class = systems.first().map_or(0, |s| s.wide);
+    // Large LSCM systems among others: each alone, spread over workgroups (a lone one is spread
+    // below); the rest as one batch.
+    let large: Vec<usize> = (0..systems.len())
+        .filter(|&k| {
+            hs[k].is_some()
+                && systems[k].n as usize >= 2 * gpu_wide::WIDE_MIN_ROWS
+                && systems[k].wide != ONE_WORKGROUP
+        })
+        .collect();
+    if systems.len() > 1 && on_blocks && pipes.cg_wide_complex.is_some() && !large.is_empty() {
+        let rest = (0..systems.len()).filter(|k| !large.contains(k)).collect();
+        let mut groups: Vec<(Vec<usize>, bool)> = large.iter().map(|&k| (vec![k], true)).collect();
+        groups.push((rest, true));
+        return solve_apart(ctx, pipes, (a, b, x0), systems, hs, &groups);
+    }
     let unit = if on_blocks { 2 } else { 1 };
     let limits = (WG, HARD_LOOP_LIMIT, unit);
     let Some(mg) = AmgBatch::build(a, &ranges, hs, limits, dinv.clone()) else {
