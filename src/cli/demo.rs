@@ -155,7 +155,7 @@ pub fn bob_job_json() -> String {
             { "kind": "decal", "image": "decals/rings.png", "at": [-0.369, -0.501, 0.036], "size": [0.3, 0.3] },
             { "kind": "decal", "image": "decals/badge.png", "at": [0.387, -0.234, -0.179], "size": [0.3, 0.3] }
         ],
-        "output": { "texture": "bob_uv{uv}.png", "preview": "bob-blended.png" }
+        "output": { "texture": "bob_uv{uv}.png", "report": "bob-report-uv{uv}.json", "preview": "bob-blended.png" }
     }))
     .expect("static JSON")
 }
