@@ -1,8 +1,26 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-// The row products of the multigrid CG kernels (cg_amg.wgsl: one workgroup a system; cg_wide.wgsl
-// and cg_wide_plain.wgsl: one system over many): they read the bindings those kernels declare by
-// the same names (row_ptr, cols, vals, b, x, r, pr_ptr, pr_cols, pr_vals, mg). Import after
-// `cg_real` (or `cg_complex`).
+// What the multigrid CG kernels (cg_amg.wgsl: one workgroup a system; cg_wide.wgsl and
+// cg_wide_plain.wgsl: one system over many) share: bindings 1-17 (each kernel declares its own
+// binding 0, and the spread ones binding 18) and the row products. Import after `linalg`,
+// `cg_state` and `cg_real` (or `cg_complex`).
+
+@group(0) @binding(1) var<storage, read> systems: array<System>;
+@group(0) @binding(2) var<storage, read> row_ptr: array<u32>;
+@group(0) @binding(3) var<storage, read> cols: array<u32>;
+@group(0) @binding(4) var<storage, read> vals: array<M>;
+@group(0) @binding(5) var<storage, read> b: array<V>;
+@group(0) @binding(6) var<storage, read> dinv: array<f32>;
+@group(0) @binding(7) var<storage, read_write> x: array<V>;
+@group(0) @binding(8) var<storage, read_write> r: array<V>;
+@group(0) @binding(9) var<storage, read_write> p: array<V>;
+@group(0) @binding(10) var<storage, read_write> ap: array<V>;
+@group(0) @binding(11) var<storage, read_write> state: array<State>;
+@group(0) @binding(12) var<storage, read> pr_ptr: array<u32>;
+@group(0) @binding(13) var<storage, read> pr_cols: array<u32>;
+@group(0) @binding(14) var<storage, read> pr_vals: array<M>;
+@group(0) @binding(15) var<storage, read> levels: array<vec2<u32>>;
+@group(0) @binding(16) var<storage, read> cinv: array<M>;
+@group(0) @binding(17) var<storage, read_write> mg: array<V>;
 
 // Σ_k A[i, k] mg[v0 + k]: row i of the level matrices times the vector at offset v0 of mg.
 fn a_row(i: u32, v0: u32) -> V {

@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // What the two kernels of a spread CG (cg_wide.wgsl: the passes with sums and the status;
 // cg_wide_plain.wgsl: the V-cycle's passes without, which need no barrier) share: the pass
-// selector, the bindings (cg_amg.wgsl's and the partial sums) and the smoothed row products. Import after
-// `linalg`, `cg_state`, `cg_real` (or `cg_complex`) and `cg_rows`.
+// selector (binding 0), the partial sums (binding 18) and the smoothed row products. Import after
+// `linalg`, `cg_state`, `cg_real` (or `cg_complex`) and `cg_rows` (bindings 1-17).
 
 // Passes. Keep in sync with `pass` in src/solve/gpu_wide.rs.
 const INIT_RESIDUAL: u32 = 0u;
@@ -36,23 +36,6 @@ struct Wide {
 }
 
 @group(0) @binding(0) var<storage, read> wide: Wide;
-@group(0) @binding(1) var<storage, read> systems: array<System>;
-@group(0) @binding(2) var<storage, read> row_ptr: array<u32>;
-@group(0) @binding(3) var<storage, read> cols: array<u32>;
-@group(0) @binding(4) var<storage, read> vals: array<M>;
-@group(0) @binding(5) var<storage, read> b: array<V>;
-@group(0) @binding(6) var<storage, read> dinv: array<f32>;
-@group(0) @binding(7) var<storage, read_write> x: array<V>;
-@group(0) @binding(8) var<storage, read_write> r: array<V>;
-@group(0) @binding(9) var<storage, read_write> p: array<V>;
-@group(0) @binding(10) var<storage, read_write> ap: array<V>;
-@group(0) @binding(11) var<storage, read_write> state: array<State>;
-@group(0) @binding(12) var<storage, read> pr_ptr: array<u32>;
-@group(0) @binding(13) var<storage, read> pr_cols: array<u32>;
-@group(0) @binding(14) var<storage, read> pr_vals: array<M>;
-@group(0) @binding(15) var<storage, read> levels: array<vec2<u32>>;
-@group(0) @binding(16) var<storage, read> cinv: array<M>;
-@group(0) @binding(17) var<storage, read_write> mg: array<V>;
 @group(0) @binding(18) var<storage, read_write> partials: array<vec4<f32>>;
 
 

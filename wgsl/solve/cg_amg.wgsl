@@ -28,23 +28,7 @@ const NU: u32 = 1u;
 const MULTIGRID: u32 = 3u;
 
 @group(0) @binding(0) var<uniform> round: Round;
-@group(0) @binding(1) var<storage, read> systems: array<System>;
-@group(0) @binding(2) var<storage, read> row_ptr: array<u32>;
-@group(0) @binding(3) var<storage, read> cols: array<u32>;
-@group(0) @binding(4) var<storage, read> vals: array<M>;
-@group(0) @binding(5) var<storage, read> b: array<V>;
-@group(0) @binding(6) var<storage, read> dinv: array<f32>;
-@group(0) @binding(7) var<storage, read_write> x: array<V>;
-@group(0) @binding(8) var<storage, read_write> r: array<V>;
-@group(0) @binding(9) var<storage, read_write> p: array<V>;
-@group(0) @binding(10) var<storage, read_write> ap: array<V>;
-@group(0) @binding(11) var<storage, read_write> state: array<State>;
-@group(0) @binding(12) var<storage, read> pr_ptr: array<u32>;
-@group(0) @binding(13) var<storage, read> pr_cols: array<u32>;
-@group(0) @binding(14) var<storage, read> pr_vals: array<M>;
-@group(0) @binding(15) var<storage, read> levels: array<vec2<u32>>;
-@group(0) @binding(16) var<storage, read> cinv: array<M>;
-@group(0) @binding(17) var<storage, read_write> mg: array<V>;
+// Bindings 1-17 (the batch, the matrices, the CG's vectors, the hierarchy): wgsl/shared/cg_rows.wgsl.
 
 var<workgroup> wg_status: u32;
 var<workgroup> wg_iters: u32;
