@@ -242,42 +242,13 @@ pub fn solve(
         }
         (bind_groups, state, (sys, r, p, ap, partials, uniforms))
     })?;
-    let (mut dispatches, mut submits, mut recorded) = (0u32, 0u32, 0u32);
-    let st = loop {
-        let iters = ITERS_PER_SUBMIT.min(inputs.max_iter.saturating_add(1));
-        ctx.scoped("conjugate gradient", || {
-            let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("cg.wide"),
-            });
-            {
-                let mut cp = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("cg.wide"),
-                    timestamp_writes: None,
-                });
-                let first = if submits == 0 { Some(&init) } else { None };
-                for seq in first
-                    .into_iter()
-                    .chain(std::iter::repeat_n(&iteration, iters as usize))
-                {
-                    for &(phase, level, n) in seq {
-                        let kernel = if plain(phase) { kernels.1 } else { kernels.0 };
-                        cp.set_pipeline(&kernel.pipeline);
-                        cp.set_bind_group(0, &bind_groups[&(phase, level)], &[]);
-                        cp.dispatch_workgroups(n, 1, 1);
-                        dispatches += 1;
-                    }
-                }
-            }
-            ctx.queue.submit([enc.finish()]);
-        })?;
-        submits += 1;
-        recorded += iters;
-        let bytes = ctx.read_buffer(&state, 32, "conjugate-gradient status read-back")?;
-        let st: State = bytemuck::pod_read_unaligned(&bytes[..32]);
-        if st.status >= 2 || recorded > inputs.max_iter {
-            break st;
-        }
+    let sequences = Sequences {
+        init: &init,
+        iteration: &iteration,
+        kernels,
+        bind_groups: &bind_groups,
     };
+    let (st, dispatches, submits) = sequences.run(ctx, &state, inputs.max_iter)?;
     drop(keep);
     Ok(WideSolved {
         report: CgReport {
@@ -293,4 +264,64 @@ pub fn solve(
         dispatches,
         submits,
     })
+}
+
+/// The recorded passes of a solve and what they bind.
+struct Sequences<'a> {
+    init: &'a [Step],
+    iteration: &'a [Step],
+    /// (cg_wide, cg_wide_plain).
+    kernels: (&'a Kernel, &'a Kernel),
+    bind_groups: &'a std::collections::HashMap<(u32, u32), wgpu::BindGroup>,
+}
+
+impl Sequences<'_> {
+    /// Submits the initialisation and then [`ITERS_PER_SUBMIT`] iterations at a time until the
+    /// status in `state` is final or `max_iter` iterations were recorded; returns the last
+    /// status, the dispatches and the submissions.
+    fn run(
+        &self,
+        ctx: &GpuContext,
+        state: &wgpu::Buffer,
+        max_iter: u32,
+    ) -> Result<(State, u32, u32)> {
+        let (mut dispatches, mut submits, mut recorded) = (0u32, 0u32, 0u32);
+        loop {
+            let iters = ITERS_PER_SUBMIT.min(max_iter.saturating_add(1));
+            ctx.scoped("conjugate gradient", || {
+                let mut enc = ctx
+                    .device
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some("cg.wide"),
+                    });
+                {
+                    let mut cp = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some("cg.wide"),
+                        timestamp_writes: None,
+                    });
+                    let first = (submits == 0).then_some(self.init);
+                    let repeated = std::iter::repeat_n(self.iteration, iters as usize);
+                    for &(phase, level, n) in first.into_iter().chain(repeated).flatten() {
+                        let kernel = if plain(phase) {
+                            self.kernels.1
+                        } else {
+                            self.kernels.0
+                        };
+                        cp.set_pipeline(&kernel.pipeline);
+                        cp.set_bind_group(0, &self.bind_groups[&(phase, level)], &[]);
+                        cp.dispatch_workgroups(n, 1, 1);
+                        dispatches += 1;
+                    }
+                }
+                ctx.queue.submit([enc.finish()]);
+            })?;
+            submits += 1;
+            recorded += iters;
+            let bytes = ctx.read_buffer(state, 32, "conjugate-gradient status read-back")?;
+            let st: State = bytemuck::pod_read_unaligned(&bytes[..32]);
+            if st.status >= 2 || recorded > max_iter {
+                return Ok((st, dispatches, submits));
+            }
+        }
+    }
 }
