@@ -22,7 +22,10 @@ fn main(
         return;
     }
     var s = 0.0;
-    for (var k = row_ptr[i]; k < row_ptr[i + 1u]; k++) {
+    // The row's end read once, not per entry (lavapipe does not hoist the load: 7.3 → 5.2 ms on
+    // the 342k-row Laplacian of `bench --linalg`).
+    let end = row_ptr[i + 1u];
+    for (var k = row_ptr[i]; k < end; k++) {
         s += vals[k] * x[cols[k]];
     }
     y[i] = s;
