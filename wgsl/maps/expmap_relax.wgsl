@@ -90,7 +90,8 @@ struct GeoResult {
 // The intrinsic angle of edge v -> q at v (0 when q is not a neighbour). Twin of `edge_angle` in
 // src/maps/expmap/cpu.rs.
 fn edge_angle(v: u32, q: u32) -> f32 {
-    for (var k = adj_offsets[v]; k < adj_offsets[v + 1u]; k++) {
+    let k_end = adj_offsets[v + 1u];
+    for (var k = adj_offsets[v]; k < k_end; k++) {
         if (adjacency[k] == q) { return edge_angles[k]; }
     }
     return 0.0;
@@ -210,7 +211,8 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
             let pv = positions[v].xyz;
             var best = INF;
             var best_r = NONE;
-            for (var k = adj_offsets[v]; k < adj_offsets[v + 1u]; k++) {
+            let k_end = adj_offsets[v + 1u];
+            for (var k = adj_offsets[v]; k < k_end; k++) {
                 let r = adjacency[k];
                 let cr = coords[base + r];
                 if (cr.w > 0.5 && cr.z <= job.radius && abs(curvature[r]) <= job.curvature_stop) {
@@ -240,7 +242,8 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
                     state[base + v] = sv;
                     // Queue the neighbours that are candidates (cleared non-candidates have z = 0,
                     // candidates start at INF) and not seed vertices.
-                    for (var k = adj_offsets[v]; k < adj_offsets[v + 1u]; k++) {
+                    let k_end = adj_offsets[v + 1u];
+                    for (var k = adj_offsets[v]; k < k_end; k++) {
                         let q = adjacency[k];
                         let cq = coords[base + q];
                         if ((cq.w > 0.5 || cq.z > 1.0e30) && cq.w < 1.5) {

@@ -232,7 +232,8 @@ fn main(@builtin(local_invocation_index) lid: u32) {
             let old_link = link[q];
             if (old_link.x == SEED) { continue; }
             var dirty = false;
-            for (var e = adj_offsets[q]; e < adj_offsets[q + 1u]; e++) {
+            let e_end = adj_offsets[q + 1u];
+            for (var e = adj_offsets[q]; e < e_end; e++) {
                 if (stamp[adjacency[e]] >= base + sweeps) {
                     dirty = true;
                     break;
@@ -242,7 +243,7 @@ fn main(@builtin(local_invocation_index) lid: u32) {
             let pq = verts[q].p.xyz;
             var best = INF;
             var best_r = NONE;
-            for (var e = adj_offsets[q]; e < adj_offsets[q + 1u]; e++) {
+            for (var e = adj_offsets[q]; e < e_end; e++) {
                 let r = adjacency[e];
                 let dr = state[r].w;
                 if (dr > job.reach) { continue; }

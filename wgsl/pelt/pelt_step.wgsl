@@ -48,7 +48,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let a = anchor[g];
     var f = (vec3<f32>(a.xy, 0.0) - xi.xyz) * a.w - vec3<f32>(0.0, 0.0, xi.z * a.z);
-    for (var k = offsets[g]; k < offsets[g + 1u]; k = k + 1u) {
+    let k_end = offsets[g + 1u];
+    for (var k = offsets[g]; k < k_end; k = k + 1u) {
         let d = x[cur + other[k]].xyz - xi.xyz;
         let l = length(d);
         if (l > 1e-12) {
