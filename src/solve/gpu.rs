@@ -612,69 +612,7 @@ fn multigrid(
     };
     let steps = mg.systems.iter().flatten().map(|h| h.steps).max();
     if let Some(c) = on_blocks.then(|| mg.complex()).flatten() {
-        let systems: Vec<SystemDesc> = systems
-            .iter()
-            .zip(&c.systems)
-            .map(|(s, &amg)| SystemDesc {
-                row0: s.row0 / 2,
-                n: s.n / 2,
-                wide: MULTIGRID,
-                amg,
-                ..*s
-            })
-            .collect();
-        let gpu = GpuCsr::upload_complex(ctx, &c.a)?;
-        let vals: Vec<f32> = c.pr.vals.iter().flatten().map(|&v| v as f32).collect();
-        let cinv: Vec<f32> = c.cinv.iter().flatten().copied().collect();
-        let bufs = ctx.scoped("conjugate gradient", || {
-            MultigridBuffers::upload(
-                ctx,
-                (&c.pr.row_ptr, &c.pr.cols, &vals),
-                &c.levels,
-                &cinv,
-                c.pr.rows / 2,
-                8,
-            )
-        })?;
-        let spread = match (pipes.cg_wide_complex.as_ref(), &systems[..]) {
-            (Some([k, plain]), [one]) => (one.n as usize >= gpu_wide::WIDE_MIN_ROWS
-                && lone_class != ONE_WORKGROUP)
-                .then_some((k, plain)),
-            _ => None,
-        };
-        if let Some(kernels) = spread {
-            let levels = &c.levels;
-            return run_wide(
-                ctx,
-                kernels,
-                &gpu,
-                &c.weights,
-                (b, x0),
-                systems[0],
-                levels,
-                &bufs,
-            );
-        }
-        let classes = [(
-            MULTIGRID,
-            amg_kernel(pipes.cg_amg_complex.as_ref()),
-            iters_per_dispatch(steps.unwrap_or(0)),
-        )];
-        let solved = run(
-            ctx,
-            &gpu,
-            &c.weights,
-            a.rows,
-            b,
-            x0,
-            &systems,
-            &classes,
-            Some(&bufs),
-        )?;
-        return Ok(Solved {
-            complex: true,
-            ..solved
-        });
+        return multigrid_complex(ctx, pipes, &c, (a.rows, b, x0), systems, steps, lone_class);
     }
     // On the real form (also when a complex layout did not hold after all: then a system whose
     // real iteration passes the loop limit keeps Jacobi).
@@ -731,6 +669,83 @@ fn multigrid(
         &classes,
         Some(&bufs),
     )
+}
+
+/// [`multigrid`] on complex 2 × 2 blocks (`c`, the hierarchies' layout; `steps`, the loop steps of
+/// the largest V-cycle iteration): a batch of one large system spread over workgroups
+/// ([`gpu_wide`]) unless its class (`lone_class`) keeps it in one, else `cg_amg`.
+fn multigrid_complex(
+    ctx: &GpuContext,
+    pipes: &Pipelines,
+    c: &gpu_amg::ComplexLayout,
+    (rows, b, x0): (usize, &[f64], &[f64]),
+    systems: &[SystemDesc],
+    steps: Option<usize>,
+    lone_class: u32,
+) -> Result<Solved> {
+    let systems: Vec<SystemDesc> = systems
+        .iter()
+        .zip(&c.systems)
+        .map(|(s, &amg)| SystemDesc {
+            row0: s.row0 / 2,
+            n: s.n / 2,
+            wide: MULTIGRID,
+            amg,
+            ..*s
+        })
+        .collect();
+    let gpu = GpuCsr::upload_complex(ctx, &c.a)?;
+    let vals: Vec<f32> = c.pr.vals.iter().flatten().map(|&v| v as f32).collect();
+    let cinv: Vec<f32> = c.cinv.iter().flatten().copied().collect();
+    let bufs = ctx.scoped("conjugate gradient", || {
+        MultigridBuffers::upload(
+            ctx,
+            (&c.pr.row_ptr, &c.pr.cols, &vals),
+            &c.levels,
+            &cinv,
+            c.pr.rows / 2,
+            8,
+        )
+    })?;
+    let spread = match (pipes.cg_wide_complex.as_ref(), &systems[..]) {
+        (Some([k, plain]), [one]) => (one.n as usize >= gpu_wide::WIDE_MIN_ROWS
+            && lone_class != ONE_WORKGROUP)
+            .then_some((k, plain)),
+        _ => None,
+    };
+    if let Some(kernels) = spread {
+        let levels = &c.levels;
+        return run_wide(
+            ctx,
+            kernels,
+            &gpu,
+            &c.weights,
+            (b, x0),
+            systems[0],
+            levels,
+            &bufs,
+        );
+    }
+    let classes = [(
+        MULTIGRID,
+        amg_kernel(pipes.cg_amg_complex.as_ref()),
+        iters_per_dispatch(steps.unwrap_or(0)),
+    )];
+    let solved = run(
+        ctx,
+        &gpu,
+        &c.weights,
+        rows,
+        b,
+        x0,
+        &systems,
+        &classes,
+        Some(&bufs),
+    )?;
+    Ok(Solved {
+        complex: true,
+        ..solved
+    })
 }
 
 /// Solves the one system `sys` (on complex blocks, with its hierarchy in `bufs`) spread over
