@@ -174,7 +174,10 @@ fn bvh_placement_matches_testing_every_triangle() {
 /// The BVH's own invariants on Bob: every non-degenerate triangle sits in exactly one leaf, every
 /// box contains its triangles, the tree is balanced (depth ⌈log₂(n / 4)⌉ + 1 for median splits),
 /// and a box query returns every triangle whose box meets the query box (checked against all
-/// triangles for 50 random boxes).
+/// triangles for 50 random boxes); `any_hit` (the automatic cut's occlusion rays) answers as
+/// testing every triangle does, for rays from the surface outwards and inwards, rays from outside
+/// that hit and miss, rays along the axes (zero direction components) and rays cut short by
+/// `tmax`. Reversing the test of a box (skipping the boxes a ray enters) fails it (checked).
 #[test]
 fn bvh_holds_every_triangle_once_and_box_queries_miss_none() {
     use decalbake::mesh::bvh::{Bvh, LEAF};
@@ -215,4 +218,46 @@ fn bvh_holds_every_triangle_once_and_box_queries_miss_none() {
             }
         }
     }
+    let brute = |o: Vec3, d: Vec3, tmin: f32, tmax: f32| {
+        live.iter().any(|&t| {
+            let [a, b, c] = corners(t);
+            let h = decalbake::mesh::bvh::ray_triangle(o, d, a, b, c).0;
+            h > tmin && h < tmax
+        })
+    };
+    let (mut hits, mut misses) = (0, 0);
+    for k in 0..400 {
+        let v = (k * 7919) % topo.positions.len();
+        let dir = Vec3::new(rnd(), rnd(), rnd());
+        let (o, d, tmax) = match k % 4 {
+            0 => (
+                topo.positions[v] + topo.normals[v] * 1e-4,
+                dir,
+                f32::INFINITY,
+            ),
+            1 => (
+                topo.positions[v] - topo.normals[v] * 1e-4,
+                dir,
+                f32::INFINITY,
+            ),
+            2 => (
+                dir.normalize() * 3.0,
+                topo.positions[v] - dir.normalize() * 3.0,
+                0.99,
+            ),
+            _ => (
+                Vec3::new(rnd(), rnd(), rnd()),
+                [Vec3::X, Vec3::Y, Vec3::Z][k % 3],
+                0.3,
+            ),
+        };
+        let got = bvh.any_hit(&topo, o, d, 1e-5, tmax);
+        assert_eq!(got, brute(o, d, 1e-5, tmax), "ray {k} from {o} along {d}");
+        if got {
+            hits += 1;
+        } else {
+            misses += 1;
+        }
+    }
+    assert!(hits > 50 && misses > 50, "{hits} hits, {misses} misses");
 }

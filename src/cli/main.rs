@@ -359,6 +359,7 @@ fn bench_cmd(backend: Option<&str>, args: BenchArgs) -> Result<()> {
             mesh,
             peers,
             gpu_max_triangles,
+            subdivide,
         };
         return bench::unwrap::run(&engine, &opts, |v| println!("{v}"));
     }

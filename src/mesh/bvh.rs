@@ -135,26 +135,54 @@ impl Bvh {
 
     /// Whether the ray `o + t d` hits any triangle of `topo` (both sides) for `t` in
     /// (`tmin`, `tmax`): the walk stops at the first hit (ambient occlusion, `pelt::hidden`).
+    /// Children are visited nearer box first (an occluded ray, the common case, meets its blocker
+    /// sooner) from a stack on the call's own frame (at most one entry per level and one more:
+    /// [`MAX_DEPTH`] + 1); the answer does not depend on the order. Both took the exposure of bob
+    /// subdivided twice (1.4M rays) from 1.27 s to 0.50 s (`pelt::hidden`).
     pub fn any_hit(&self, topo: &Topology, o: Vec3, d: Vec3, tmin: f32, tmax: f32) -> bool {
         if self.nodes.is_empty() {
             return false;
         }
         let inv = d.recip();
-        let mut stack = vec![0usize];
-        while let Some(i) = stack.pop() {
+        // Slab test (infinite reciprocals of zero components give the right answer unless the
+        // origin lies exactly on a slab, where NaN compares false and the node is visited):
+        // where the ray enters node i's box, if it does within (tmin, tmax).
+        let enter = |i: usize| -> Option<f32> {
             let n = &self.nodes[i];
-            // Slab test (infinite reciprocals of zero components give the right answer unless the
-            // origin lies exactly on a slab, where NaN compares false and the node is visited).
             let t1 = (Vec3::from(n.lo) - o) * inv;
             let t2 = (Vec3::from(n.hi) - o) * inv;
             let near = t1.min(t2).max_element().max(tmin);
             let far = t1.max(t2).min_element().min(tmax);
-            if near > far {
-                continue;
-            }
+            (near <= far || near.is_nan() || far.is_nan()).then_some(near)
+        };
+        if enter(0).is_none() {
+            return false;
+        }
+        let mut stack = [0u32; MAX_DEPTH + 1];
+        let mut sp = 1;
+        while sp > 0 {
+            sp -= 1;
+            let n = &self.nodes[stack[sp] as usize];
             let first = n.first as usize;
             if n.count == 0 {
-                stack.extend([first, first + 1]);
+                let (a, b) = (first as u32, first as u32 + 1);
+                match (enter(first), enter(first + 1)) {
+                    (Some(ta), Some(tb)) => {
+                        let (near, far) = if ta <= tb { (a, b) } else { (b, a) };
+                        stack[sp] = far;
+                        stack[sp + 1] = near;
+                        sp += 2;
+                    }
+                    (Some(_), None) => {
+                        stack[sp] = a;
+                        sp += 1;
+                    }
+                    (None, Some(_)) => {
+                        stack[sp] = b;
+                        sp += 1;
+                    }
+                    (None, None) => {}
+                }
                 continue;
             }
             for &t in &self.triangles[first..first + n.count as usize] {

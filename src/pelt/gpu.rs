@@ -235,6 +235,7 @@ fn results(nets: &[Net], states: &[PieceState], xs: &[[f32; 4]]) -> Vec<Relaxed>
                 energy: [energy(net, &start), energy(net, &x)],
                 x,
                 steps: s.steps,
+                iterations: 0,
                 steady: s.steady != 0,
                 rest_scale: 1.0,
             }

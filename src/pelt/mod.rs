@@ -2,7 +2,8 @@
 //! Pelting (Piponi & Borshukov 2000, §3-5): new UV sets for meshes that have none or whose seams
 //! show. The surface is cut into disks (`cut`, through its tips: `tips`), each disk is stretched on
 //! a frame by damped spring dynamics in 3D on the GPU (`relax` holds the net and its CPU twin,
-//! `gpu` the dispatch of `wgsl/pelt/pelt_step.wgsl` and `pelt_check.wgsl`) and projected, refined
+//! `gpu` the dispatch of `wgsl/pelt/pelt_step.wgsl` and `pelt_check.wgsl`; `tutte` solves the net
+//! without rest lengths directly, the refinement's start) and projected, refined
 //! by a conformal map (`refine`), split where it folds (`split`), packed into [0, 1]² (`pack`) and
 //! measured (`quality`); `patch` adds the §5 patch and blend function, and `bridge` the third chart
 //! that a patch needs round seams with cycles. `decalbake unwrap` writes
@@ -19,12 +20,14 @@ pub mod refine;
 pub mod relax;
 pub mod split;
 pub mod tips;
+pub mod tutte;
 
 use crate::error::Result;
 use crate::gpu::pipelines::Pipelines;
 use crate::gpu::GpuContext;
 use crate::mesh::{Mesh, Topology};
 use glam::{DVec2, Vec2};
+use rayon::prelude::*;
 use std::path::Path;
 use std::time::Instant;
 
@@ -225,14 +228,15 @@ pub fn layout(
         if !parts.is_empty() && exposure.is_empty() {
             exposure = hidden::exposure(topo);
         }
-        let mut next = Vec::new();
-        for part in parts {
-            splits += 1;
-            for half in part {
-                let nm = opts.split_non_manifold;
-                next.extend(split::cut_region(topo, &half, nm, &exposure, path)?);
-            }
-        }
+        splits += parts.len();
+        let halves: Vec<Vec<u32>> = parts.into_iter().flatten().collect();
+        let nm = opts.split_non_manifold;
+        // Each half is cut on its own (on every core; the order is kept).
+        let cuts: Vec<Vec<cut::Piece>> = halves
+            .par_iter()
+            .map(|half| split::cut_region(topo, half, nm, &exposure, path))
+            .collect::<Result<_>>()?;
+        let next: Vec<cut::Piece> = cuts.into_iter().flatten().collect();
         timings.cut += ms(t);
         todo = next;
         if todo.is_empty() {
@@ -296,23 +300,15 @@ pub fn layout(
     Ok(Unwrapped { cut, uv, report })
 }
 
-/// The steadiness tolerance (`SystemCfg::tol2`, squared edge lengths per step) of a pelt that is
-/// only the refinement's starting point: speeds below a thousandth of an edge per step. Measured
-/// once on bob subdivided twice with the CPU twin, while this was chosen (a version that kept only
-/// eq. 1's rung before refining, so no command here repeats it): the dynamics took half the time of
-/// the default 1e-10, the conformal refinement as many iterations (within 5 %) and the layout the
-/// same angle distortion (mean 1.009 against 1.010). `decalbake bench --unwrap` reports the
-/// dynamics' share as it is now (`stages_ms.relax`).
-pub const START_TOL2: f64 = 1e-6;
-
 /// A laid-out piece: the piece, its dynamics, its layout, its refinement.
 type Done = (cut::Piece, relax::Relaxed, Vec<DVec2>, refine::Refinement);
 
 /// One split level of [`layout`]: pelts and refines `todo`; returns the pieces kept and, for each
 /// piece split (only when `split_here`), its two halves (mesh triangle ids).
 ///
-/// With `--refine conformal` the pelt is the refinement's starting point, so a pelt at eq. 1's
-/// rest lengths that folds goes straight to the ladder's last rung ([`START_SCALES`]).
+/// With `--refine conformal` each piece is refined from the ladder's last rung ([`START_SCALES`]);
+/// a piece whose refinement is not kept and that is not split is pelted again on the whole
+/// ladder ([`REST_SCALES`], eq. 1's rest lengths first), and that pelt is its layout.
 #[allow(clippy::type_complexity, reason = "kept pieces and split halves")]
 fn one_level(
     device: Device,
@@ -325,7 +321,7 @@ fn one_level(
     let conformal = opts.refine == Refine::Conformal;
     let t = Instant::now();
     let nets: Vec<relax::Net> = todo
-        .iter()
+        .par_iter()
         .map(|p| relax::net(topo, p, opts.frame))
         .collect();
     timings.net += ms(t);
@@ -335,35 +331,44 @@ fn one_level(
         &REST_SCALES[..]
     };
     let all: Vec<_> = todo.iter().zip(&nets).collect();
-    let cfg = if conformal {
-        SystemCfg {
-            tol2: opts.relax.tol2.max(START_TOL2),
-            ..opts.relax
-        }
-    } else {
-        opts.relax
-    };
-    let pelts = pelt_without_folds(device, topo, &all, first, &cfg, timings)?;
-    let (relaxed, mut flats): (Vec<relax::Relaxed>, Vec<Vec<DVec2>>) = pelts.into_iter().unzip();
+    let pelts = pelt_without_folds(device, topo, &all, first, &opts.relax, timings)?;
+    let (mut relaxed, mut flats): (Vec<relax::Relaxed>, Vec<Vec<DVec2>>) =
+        pelts.into_iter().unzip();
     let t = Instant::now();
-    let (refinements, apart) = if conformal {
+    let (refinements, apart, measured) = if conformal {
         refine_pelts(device, topo, &todo, &mut flats)?
     } else {
         let n = todo.len();
-        (vec![refine::Refinement::default(); n], vec![None; n])
+        (
+            vec![refine::Refinement::default(); n],
+            vec![None; n],
+            vec![None; n],
+        )
     };
     timings.refine += ms(t);
     let t = Instant::now();
     let halves: Vec<Option<[Vec<u32>; 2]>> = (0..todo.len())
+        .into_par_iter()
         .map(|k| {
             let rf = &refinements[k];
             let refine_failed = conformal && !rf.kept;
-            (split_here && stretched(topo, &todo[k], &flats[k], refine_failed))
+            let known = measured[k].as_ref();
+            (split_here && stretched(topo, &todo[k], &flats[k], refine_failed, known))
                 .then(|| split::halves(topo, &todo[k], apart[k].filter(|_| !rf.kept)))
                 .flatten()
         })
         .collect();
     timings.cut += ms(t);
+    let unrefined: Vec<usize> = (0..todo.len())
+        .filter(|&k| conformal && !refinements[k].kept && halves[k].is_none())
+        .collect();
+    if !unrefined.is_empty() {
+        let sel: Vec<_> = unrefined.iter().map(|&k| all[k]).collect();
+        let again = pelt_without_folds(device, topo, &sel, &REST_SCALES, &opts.relax, timings)?;
+        for (&k, (r, f)) in unrefined.iter().zip(again) {
+            (relaxed[k], flats[k]) = (r, f);
+        }
+    }
     let mut kept = Vec::new();
     let mut parts = Vec::new();
     for ((((p, r), f), rf), h) in todo
@@ -393,54 +398,69 @@ fn run(device: Device, nets: &[relax::Net], cfg: &SystemCfg) -> Result<Vec<relax
 
 /// Refines every pelt (`refine`), replacing `flats[k]` where the refinement does not fold; also
 /// returns, per piece, a pair of overlapping triangles of its refinement (a split there lets the
-/// halves refine).
-#[allow(clippy::type_complexity, reason = "two per-piece lists")]
+/// halves refine) and the quality of the refinement where it was kept.
+#[allow(clippy::type_complexity, reason = "three per-piece lists")]
 fn refine_pelts(
     device: Device,
     topo: &Topology,
     pieces: &[cut::Piece],
     flats: &mut [Vec<DVec2>],
-) -> Result<(Vec<refine::Refinement>, Vec<Option<(u32, u32)>>)> {
+) -> Result<(
+    Vec<refine::Refinement>,
+    Vec<Option<(u32, u32)>>,
+    Vec<Option<quality::Quality>>,
+)> {
+    let refined = refine::refine(device, topo, pieces, flats)?;
+    // One measure per piece (on every core) gives both the fold test and, only where it overlaps,
+    // the pair to split at.
+    let measures: Vec<Option<(quality::Quality, Option<(u32, u32)>)>> = refined
+        .par_iter()
+        .zip(pieces)
+        .map(|((x, _), p)| {
+            x.as_ref().map(|x| {
+                let q = piece_quality(topo, p, x);
+                let pair = (q.overlaps > 0)
+                    .then(|| quality::overlapping_pairs(x, &p.triangles).first().copied())
+                    .flatten();
+                (q, pair)
+            })
+        })
+        .collect();
     let mut refinements = vec![refine::Refinement::default(); pieces.len()];
     let mut apart = vec![None; pieces.len()];
-    for (k, (x, mut rf)) in refine::refine(device, topo, pieces, flats)?
-        .into_iter()
-        .enumerate()
-    {
-        let Some(x) = x else {
-            refinements[k] = rf;
-            continue;
-        };
-        // One measure gives both the fold test and, only where it overlaps, the pair to split at.
-        let q = piece_quality(topo, &pieces[k], &x);
-        if q.overlaps > 0 {
-            apart[k] = quality::overlapping_pairs(&x, &pieces[k].triangles)
-                .first()
-                .copied();
-        }
-        if q.flipped == 0 && q.overlaps == 0 {
-            flats[k] = x;
-            rf.kept = true;
+    let mut measured = vec![None; pieces.len()];
+    for (k, ((x, mut rf), m)) in refined.into_iter().zip(measures).enumerate() {
+        if let (Some(x), Some((q, pair))) = (x, m) {
+            apart[k] = pair;
+            if q.flipped == 0 && q.overlaps == 0 {
+                flats[k] = x;
+                rf.kept = true;
+                measured[k] = Some(q);
+            }
         }
         refinements[k] = rf;
     }
-    Ok((refinements, apart))
+    Ok((refinements, apart, measured))
 }
 
 /// The rest-length scales tried in turn until a pelt does not fold; the last (no rest length)
 /// cannot fold (`relax::Net::with_rest_scale`).
 pub const REST_SCALES: [f32; 3] = [1.0, 0.5, 0.0];
 
-/// The ladder when a conformal refinement follows: eq. 1's rest lengths, then none (the Tutte
-/// embedding, which cannot fold). The refinement's result does not depend on its start in exact
-/// arithmetic (LSCM with two pins has one minimiser), but the f32 conjugate gradient stops at a
-/// backward error, and from a folded start the error left over is large: on the crumpled sheet the
-/// layout refined from its folded eq. 1 pelt had 2.5 % area distortion (measured with `[1.0]` as
-/// this ladder; the test `developable_sheet_unwraps_to_its_flattening` allows 0.5 % and fails
-/// with it), against 0.1 % now (`decalbake unwrap assets/crumpled_developable.glb --out s.glb
-/// --report r.json`: `quality.area_distortion.max`). The middle rung (½) is skipped: on bob
-/// subdivided twice 10 of 11 pieces folded at 1, and each rung is a whole relaxation.
-pub const START_SCALES: [f32; 2] = [1.0, 0.0];
+/// The refinement's start: the ladder's last rung (the Tutte embedding on the frame, which cannot
+/// fold), solved directly (`tutte`). The refinement's result does not depend on its start in
+/// exact arithmetic (LSCM with two pins has one minimiser), but the f32 conjugate gradient stops
+/// at a backward error, and from a folded start the error left over is large: on the crumpled
+/// sheet the layout refined from its folded eq. 1 pelt had 2.5 % area distortion (the test
+/// `developable_sheet_unwraps_to_its_flattening` allows 0.5 % and fails with it), against 0.1 %
+/// from Tutte's. Until session 16 the start was eq. 1's pelt where it did not fold, Tutte's where
+/// it did; eq. 1's pelt folded on every piece of bob subdivided twice, so its 7.4 s of dynamics
+/// (of 12.2 s) were thrown away, and the layouts from the two starts were the same to the last
+/// printed digit (`decalbake bench --unwrap --mesh assets/bob.glb --subdivide 2`: quality, pelts
+/// and splits; 20.7 s → 12.7 s with Tutte by the dynamics, before it was solved directly). The
+/// pelt of eq. 1 (the paper's) is still the layout wherever the refinement is not kept
+/// ([`one_level`]) and with `--refine none`.
+pub const START_SCALES: [f32; 1] = [0.0];
 
 /// Pelts the pieces of `sel` (each with its net): all at the first of `scales` at once, then the
 /// ones that folded again at the next, and so on; the last scale's pelt is kept whatever it does.
@@ -465,7 +485,11 @@ fn pelt_without_folds(
             .iter()
             .map(|&k| sel[k].1.with_rest_scale(scale))
             .collect();
-        let relaxed = run(device, &scaled, cfg)?;
+        let relaxed = if scale == 0.0 {
+            tutte::settle(device, &scaled)?
+        } else {
+            run(device, &scaled, cfg)?
+        };
         timings.relax += ms(t);
         let mut again = Vec::new();
         for (&k, mut r) in todo.iter().zip(relaxed) {
@@ -506,9 +530,21 @@ pub fn folds(topo: &Topology, p: &cut::Piece, flat: &[DVec2]) -> bool {
 }
 
 /// Whether a piece's layout stretches too far ([`MAX_AREA_P95`]), or its conformal refinement
-/// folded (`refine_failed`; halves refine more readily than the whole).
-pub fn stretched(topo: &Topology, p: &cut::Piece, flat: &[DVec2], refine_failed: bool) -> bool {
-    refine_failed || piece_quality(topo, p, flat).area_distortion.p95 > MAX_AREA_P95
+/// folded (`refine_failed`; halves refine more readily than the whole). `known`: the layout's
+/// quality, if measured already.
+pub fn stretched(
+    topo: &Topology,
+    p: &cut::Piece,
+    flat: &[DVec2],
+    refine_failed: bool,
+    known: Option<&quality::Quality>,
+) -> bool {
+    refine_failed
+        || known
+            .map_or_else(|| piece_quality(topo, p, flat), Clone::clone)
+            .area_distortion
+            .p95
+            > MAX_AREA_P95
 }
 
 /// The projection (x, y) of a relaxed piece, mirrored if most of its area came out wound against

@@ -11,6 +11,7 @@
 //! horizontal or vertical shelves, in one to three columns: whichever fits the largest scale.
 
 use glam::DVec2;
+use rayon::prelude::*;
 
 /// Where each pelt goes: `uv = offset + (p − lo) · scale`, in [0, 1]².
 #[derive(Debug, Clone)]
@@ -266,20 +267,22 @@ fn footprint(s: &Shape, lo: DVec2, cells_per_unit: f64, grow: i32) -> Footprint 
 /// The x extent of triangle `q`'s part between y = `y0` and `y1` (its corners there and its edges'
 /// crossings of the two lines), or `None` if it does not reach that band.
 fn row_extent(q: [DVec2; 3], y0: f64, y1: f64) -> Option<(f64, f64)> {
-    let mut xs = Vec::with_capacity(7);
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut take = |x: f64| {
+        lo = lo.min(x);
+        hi = hi.max(x);
+    };
     for k in 0..3 {
         let (a, b) = (q[k], q[(k + 1) % 3]);
         if a.y >= y0 && a.y <= y1 {
-            xs.push(a.x);
+            take(a.x);
         }
         for y in [y0, y1] {
             if (a.y - y) * (b.y - y) < 0.0 {
-                xs.push(a.x + (b.x - a.x) * (y - a.y) / (b.y - a.y));
+                take(a.x + (b.x - a.x) * (y - a.y) / (b.y - a.y));
             }
         }
     }
-    let lo = xs.iter().copied().fold(f64::INFINITY, f64::min);
-    let hi = xs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     (lo <= hi).then_some((lo, hi))
 }
 
@@ -294,12 +297,16 @@ fn fill(
     grow: i32,
 ) -> Option<Vec<(i32, i32, u8)>> {
     let g = g as i32;
-    let prints: [Vec<Footprint>; 4] = shapes.map(|list| {
-        list.iter()
-            .zip(density)
-            .map(|(sh, d)| footprint(sh, bounds(sh.points).0, s * d * g as f64, grow))
-            .collect()
-    });
+    // The four turns' footprints on every core (each a pass over every triangle of every pelt).
+    let prints: Vec<Vec<Footprint>> = shapes
+        .par_iter()
+        .map(|list| {
+            list.iter()
+                .zip(density)
+                .map(|(sh, d)| footprint(sh, bounds(sh.points).0, s * d * g as f64, grow))
+                .collect()
+        })
+        .collect();
     let n = density.len();
     let mut order: Vec<usize> = (0..n).collect();
     let cover = |f: &Footprint| f.rows.iter().map(|r| (r.1 - r.0).max(0)).sum::<i32>();

@@ -19,6 +19,7 @@ use crate::solve::cg::pcg;
 use crate::solve::gpu::{cg_batched, SystemDesc};
 use crate::solve::sparse::{CgReport, Csr, PreconditionerKind};
 use glam::DVec2;
+use rayon::prelude::*;
 
 /// Relative residual the solves aim for.
 pub const RTOL: f32 = 1e-6;
@@ -37,7 +38,7 @@ pub struct Refinement {
 }
 
 /// A system: matrix, right-hand side, warm start.
-type System = (Csr, Vec<f64>, Vec<f64>);
+pub type System = (Csr, Vec<f64>, Vec<f64>);
 
 /// A piece's LSCM system warm-started at its pelt `flat`.
 fn system(topo: &Topology, piece: &Piece, flat: &[DVec2]) -> System {
@@ -86,9 +87,38 @@ pub fn refine(
         .zip(flats)
         .map(|(p, f)| (p.boundary.len() >= 2).then(|| system(topo, p, f)))
         .collect();
-    let solved: Vec<Option<(Vec<f64>, CgReport)>> = match device {
+    let solved = solve_systems(device, &systems)?;
+    Ok(solved
+        .into_iter()
+        .map(|s| match s {
+            None => (None, Refinement::default()),
+            Some((x, rep)) => (
+                Some(x.chunks(2).map(|c| DVec2::new(c[0], c[1])).collect()),
+                Refinement {
+                    kept: false,
+                    iterations: rep.iterations,
+                    residual: rep.residual,
+                    preconditioner: rep.preconditioner,
+                },
+            ),
+        })
+        .collect())
+}
+
+/// Solves each present system (matrix, right-hand side, start) to [`RTOL`]: on the GPU all in one
+/// batch (`cg_batched`), on the CPU by the f64 twin (`pcg`), a system per core at a time (each
+/// solve is the same sequential twin, so the results do not depend on the cores).
+#[allow(
+    clippy::type_complexity,
+    reason = "a solution and its report per system, if present"
+)]
+pub fn solve_systems(
+    device: Device,
+    systems: &[Option<System>],
+) -> Result<Vec<Option<(Vec<f64>, CgReport)>>> {
+    Ok(match device {
         Device::Cpu => systems
-            .iter()
+            .par_iter()
             .map(|s| {
                 s.as_ref().map(|(a, b, x0)| {
                     let mut x = x0.clone();
@@ -124,22 +154,7 @@ pub fn refine(
                 })
                 .collect()
         }
-    };
-    Ok(solved
-        .into_iter()
-        .map(|s| match s {
-            None => (None, Refinement::default()),
-            Some((x, rep)) => (
-                Some(x.chunks(2).map(|c| DVec2::new(c[0], c[1])).collect()),
-                Refinement {
-                    kept: false,
-                    iterations: rep.iterations,
-                    residual: rep.residual,
-                    preconditioner: rep.preconditioner,
-                },
-            ),
-        })
-        .collect())
+    })
 }
 
 /// Iteration budget of a system of `rows` unknowns (the chart solves' rule of thumb: enough for a

@@ -387,9 +387,11 @@ pub struct Relaxed {
     /// Final positions (net units, 3D).
     #[serde(skip)]
     pub x: Vec<[f64; 3]>,
-    /// Steps taken.
+    /// Steps taken (0 when the state was solved directly: `pelt::tutte`).
     pub steps: u32,
-    /// Whether it became steady before `max_steps`.
+    /// Conjugate-gradient iterations of a direct solve (`pelt::tutte`; 0 for the dynamics).
+    pub iterations: u32,
+    /// Whether it became steady (a direct solve: converged) before `max_steps`.
     pub steady: bool,
     /// Energy at the start and the end.
     pub energy: [f64; 2],
@@ -433,6 +435,7 @@ pub fn relax_cpu(net: &Net, cfg: &SystemCfg, mut trace: Option<&mut Vec<f64>>) -
         energy: [e0, energy(net, &x)],
         x,
         steps,
+        iterations: 0,
         steady,
         rest_scale: 1.0,
     }

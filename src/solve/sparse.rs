@@ -23,24 +23,39 @@ pub struct Csr {
 
 impl Csr {
     /// Builds a `rows × rows` matrix from `(row, col, value)` triplets; repeated positions are summed.
-    pub fn from_triplets(rows: usize, mut t: Vec<(u32, u32, f64)>) -> Self {
-        t.sort_unstable_by_key(|&(r, c, _)| (r, c));
-        let mut row_ptr = vec![0u32; rows + 1];
-        let mut cols = Vec::with_capacity(t.len());
-        let mut vals: Vec<f64> = Vec::with_capacity(t.len());
-        let mut last: Option<(u32, u32)> = None;
-        for (r, c, v) in t {
-            if last == Some((r, c)) {
-                *vals.last_mut().expect("a previous entry") += v;
-                continue;
-            }
-            last = Some((r, c));
-            cols.push(c);
-            vals.push(v);
-            row_ptr[r as usize + 1] += 1;
+    ///
+    /// The triplets are bucketed by row (a counting sort) and each row's few sorted by column:
+    /// sorting all of them at once took 9 % of an unwrap of bob subdivided twice.
+    pub fn from_triplets(rows: usize, t: Vec<(u32, u32, f64)>) -> Self {
+        let mut start = vec![0usize; rows + 1];
+        for &(r, _, _) in &t {
+            start[r as usize + 1] += 1;
         }
         for i in 0..rows {
-            row_ptr[i + 1] += row_ptr[i];
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut bucketed = vec![(0u32, 0.0f64); t.len()];
+        for (r, c, v) in t {
+            bucketed[fill[r as usize]] = (c, v);
+            fill[r as usize] += 1;
+        }
+        let mut row_ptr = vec![0u32; rows + 1];
+        let mut cols = Vec::with_capacity(bucketed.len());
+        let mut vals: Vec<f64> = Vec::with_capacity(bucketed.len());
+        for r in 0..rows {
+            let row = &mut bucketed[start[r]..start[r + 1]];
+            row.sort_by_key(|&(c, _)| c);
+            let first = cols.len();
+            for &(c, v) in row.iter() {
+                if cols.len() > first && cols.last() == Some(&c) {
+                    *vals.last_mut().expect("a previous entry") += v;
+                } else {
+                    cols.push(c);
+                    vals.push(v);
+                }
+            }
+            row_ptr[r + 1] = cols.len() as u32;
         }
         Self {
             rows,

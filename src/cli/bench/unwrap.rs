@@ -25,11 +25,21 @@ pub struct UnwrapBenchOptions {
     /// Leave out the GPU runs of meshes above this many triangles (the GPU's LSCM refinement of a
     /// 171k-triangle mesh takes many minutes on lavapipe).
     pub gpu_max_triangles: usize,
+    /// Midpoint subdivisions of `mesh` (with `--mesh` only).
+    pub subdivide: u32,
 }
 
 fn meshes(opts: &UnwrapBenchOptions) -> Result<Vec<(String, Mesh)>> {
     if let Some(p) = &opts.mesh {
-        return Ok(vec![(p.display().to_string(), Mesh::load(p)?)]);
+        let mut m = Mesh::load(p)?;
+        for _ in 0..opts.subdivide {
+            m = m.subdivide();
+        }
+        let name = match opts.subdivide {
+            0 => p.display().to_string(),
+            n => format!("{} x{n}", p.display()),
+        };
+        return Ok(vec![(name, m)]);
     }
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let bob = Mesh::load(&root.join("assets/bob.glb"))?;
