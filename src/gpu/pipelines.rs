@@ -865,7 +865,7 @@ fn linalg_kernels(
         Kernel::new(
             device,
             "spmv",
-            &[(0, Uniform), (1, Ro), (2, Ro), (3, Ro), (4, Ro), (5, Rw)],
+            &[(0, Uniform), (1, Ro), (2, Ro), (4, Ro), (5, Rw)],
         ),
         Kernel::new(device, "dot_batched", &[(0, Ro), (1, Ro), (2, Ro), (3, Rw)]),
         Kernel::new(device, "copy", &[(0, Uniform), (1, Ro), (2, Rw)]),

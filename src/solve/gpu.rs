@@ -157,6 +157,32 @@ pub struct GpuCsr {
     pub nnz: u32,
     /// Longest row.
     pub max_row_len: u32,
+    /// The standalone product's layout of a real matrix ([`spmv`]): per row (first pair, pairs),
+    /// and the entries two to a 16-byte pair (column, value bits, column, value bits; a row of odd
+    /// length ends in a zero entry on its own last column).
+    pub pairs: Option<(wgpu::Buffer, wgpu::Buffer)>,
+}
+
+/// The paired layout of `a` ([`GpuCsr::pairs`]): per row (first pair, pairs), and the pairs.
+pub fn paired(a: &Csr) -> (Vec<[u32; 2]>, Vec<[u32; 4]>) {
+    let mut spans = Vec::with_capacity(a.rows);
+    let mut pairs = Vec::with_capacity(a.nnz() / 2 + a.rows);
+    for i in 0..a.rows {
+        let first = pairs.len() as u32;
+        let row: Vec<(usize, f64)> = a.row(i).collect();
+        for two in row.chunks(2) {
+            let (c0, v0) = two[0];
+            let (c1, v1) = two.get(1).copied().unwrap_or((c0, 0.0));
+            pairs.push([
+                c0 as u32,
+                (v0 as f32).to_bits(),
+                c1 as u32,
+                (v1 as f32).to_bits(),
+            ]);
+        }
+        spans.push([first, pairs.len() as u32 - first]);
+    }
+    (spans, pairs)
 }
 
 fn f32s(v: &[f64]) -> Vec<f32> {
@@ -167,6 +193,21 @@ impl GpuCsr {
     /// Uploads `a` (values rounded to f32).
     pub fn upload(ctx: &GpuContext, a: &Csr) -> Result<Self> {
         Self::upload_parts(ctx, (&a.row_ptr, &a.cols, &a.vals), a.max_row_len())
+    }
+
+    /// [`GpuCsr::upload`] with the paired layout that the standalone product ([`spmv`]) reads.
+    pub fn upload_paired(ctx: &GpuContext, a: &Csr) -> Result<Self> {
+        let mut g = Self::upload(ctx, a)?;
+        let (spans, pairs) = paired(a);
+        let buf =
+            |label: &str, bytes: &[u8]| ctx.storage_init(label, bytes, wgpu::BufferUsages::empty());
+        g.pairs = Some(ctx.scoped("sparse matrix upload", || {
+            (
+                buf("csr.spans", bytemuck::cast_slice(&spans)),
+                buf("csr.pairs", bytemuck::cast_slice(&pairs)),
+            )
+        })?);
+        Ok(g)
     }
 
     /// Uploads the blocks of `c` (each (a, b) as two f32; `rows`, `nnz` and `max_row_len` count
@@ -192,6 +233,7 @@ impl GpuCsr {
             rows: row_ptr.len() as u32 - 1,
             nnz: vals.len() as u32,
             max_row_len: max_row_len as u32,
+            pairs: None,
         })
     }
 
@@ -217,6 +259,12 @@ pub fn spmv(
     reps: u32,
 ) -> Result<(Vec<f32>, f64)> {
     let dev = &ctx.device;
+    let Some((spans, pairs)) = &a.pairs else {
+        return Err(crate::error::Error::Gpu {
+            stage: "spmv".into(),
+            detail: "the matrix has no paired layout: upload it with GpuCsr::upload_paired".into(),
+        });
+    };
     let (xb, yb, dims, bg) = ctx.scoped("spmv", || {
         let xb = ctx.storage_init(
             "spmv.x",
@@ -235,9 +283,8 @@ pub fn spmv(
             "spmv",
             &[
                 (0, dims.as_entire_binding()),
-                (1, a.row_ptr.as_entire_binding()),
-                (2, a.cols.as_entire_binding()),
-                (3, a.vals.as_entire_binding()),
+                (1, spans.as_entire_binding()),
+                (2, pairs.as_entire_binding()),
                 (4, xb.as_entire_binding()),
                 (5, yb.as_entire_binding()),
             ],

@@ -1,13 +1,17 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-// Sparse matrix-vector product y = A x for a CSR matrix, one invocation per row (rows in index order
-// within the row, so the result is reproducible). Dispatch: (min(groups, 65535), ceil(groups / 65535), 1)
-// with groups = ceil(rows / 64). CPU twin: `Csr::mul` in src/solve/sparse.rs.
+// Sparse matrix-vector product y = A x, one invocation per row, the row's entries two to a 16-byte
+// load (`GpuCsr::pairs`: column, value bits, column, value bits; an odd row ends in a zero entry),
+// in index order within the row, so the result is reproducible. Why pairs: llvmpipe runs every
+// storage-buffer load as a loop over the SIMD lanes, one scalar load each, whatever the address
+// pattern, and a vector load fetches all its components in the same loop; a 16-byte load of two
+// entries replaces four 4-byte loads (README, "Linear algebra"). Dispatch: (min(groups, 65535),
+// ceil(groups / 65535), 1) with groups = ceil(rows / 64). CPU twin: `Csr::mul` in
+// src/solve/sparse.rs.
 #import dims
 
 @group(0) @binding(0) var<uniform> dims: Dims;
-@group(0) @binding(1) var<storage, read> row_ptr: array<u32>;
-@group(0) @binding(2) var<storage, read> cols: array<u32>;
-@group(0) @binding(3) var<storage, read> vals: array<f32>;
+@group(0) @binding(1) var<storage, read> spans: array<vec2<u32>>;
+@group(0) @binding(2) var<storage, read> pairs: array<vec4<u32>>;
 @group(0) @binding(4) var<storage, read> x: array<f32>;
 @group(0) @binding(5) var<storage, read_write> y: array<f32>;
 
@@ -22,11 +26,12 @@ fn main(
         return;
     }
     var s = 0.0;
-    // The row's end read once, not per entry (lavapipe does not hoist the load: 7.3 → 5.2 ms on
-    // the 342k-row Laplacian of `bench --linalg`).
-    let end = row_ptr[i + 1u];
-    for (var k = row_ptr[i]; k < end; k++) {
-        s += vals[k] * x[cols[k]];
+    let span = spans[i];
+    let end = span.x + span.y;
+    for (var k = span.x; k < end; k++) {
+        let p = pairs[k];
+        s += bitcast<f32>(p.y) * x[p.x];
+        s += bitcast<f32>(p.w) * x[p.z];
     }
     y[i] = s;
 }

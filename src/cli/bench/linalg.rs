@@ -168,7 +168,7 @@ fn bench_spmv(
     let reps = opts.reps.max(1);
     // SpMV on the mesh Laplacian.
     let lap = decalbake::maps::chart::lscm::shifted_laplacian(topo, 1.0);
-    let g = GpuCsr::upload(ctx, &lap)?;
+    let g = GpuCsr::upload_paired(ctx, &lap)?;
     let x: Vec<f32> = (0..lap.rows)
         .map(|i| ((i * 37) % 101) as f32 / 101.0)
         .collect();
