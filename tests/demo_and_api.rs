@@ -42,6 +42,23 @@ fn demo_writes_decodable_outputs_and_a_glb_that_loads_back() {
     assert_eq!(r["quality"]["flipped"], 0);
     assert_eq!(r["quality"]["overlaps"], 0);
     assert!(out.join("spot-unwrap-preview.png").exists());
+    // bob unwrapped plain: its body split for the packing, more than half the texture used.
+    let r: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("bob-unwrap-report.json")).unwrap())
+            .unwrap();
+    assert_eq!(
+        (
+            r["quality"]["flipped"].as_u64(),
+            r["quality"]["overlaps"].as_u64()
+        ),
+        (Some(0), Some(0))
+    );
+    assert!(
+        r["quality"]["texel_utilisation"].as_f64().unwrap() > 0.5,
+        "{}",
+        r["quality"]
+    );
+    assert!(out.join("bob-unwrap-preview.png").exists());
     let preview = LinearImage::load(&out.join("preview.png")).unwrap();
     assert_eq!((preview.width, preview.height), (1024, 1024));
     // Each quadrant of the preview shows the model: its centre is not the background colour.

@@ -633,6 +633,7 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
         report: Some(out.join("unwrap-report.json")),
         preview: Some(out.join("unwrap-preview.png")),
         cpu: false,
+        no_pack_splits: false,
     };
     unwrap::run_with(&args, &engine)?;
     // Spot itself, cut automatically (through its tips, along hidden and creased edges), pelted,
@@ -648,20 +649,29 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
     // bob has a handle: `--patch` cuts the band round its seams across and bridges the cuts with
     // a third set; two decals baked into the three sets over the crossings, previewed blended.
     decalbake::io::image::write_atomic(&out.join("bob.glb"), demo::BOB_GLB)?;
-    let bob = unwrap::UnwrapArgs {
+    // bob without the patch first: its long body is split in two so the packing fills the
+    // texture (`pelt::repack`).
+    let bob_plain = unwrap::UnwrapArgs {
         mesh: out.join("bob.glb"),
+        out: out.join("bob-unwrapped.glb"),
+        report: Some(out.join("bob-unwrap-report.json")),
+        preview: Some(out.join("bob-unwrap-preview.png")),
+        ..spot
+    };
+    unwrap::run_with(&bob_plain, &engine)?;
+    let bob = unwrap::UnwrapArgs {
         out: out.join("bob-patched.glb"),
         patch: true,
         report: Some(out.join("bob-patch-report.json")),
         preview: None,
-        ..spot
+        ..bob_plain
     };
     unwrap::run_with(&bob, &engine)?;
     let bob_job = out.join("bob-job.json");
     decalbake::io::image::write_atomic(&bob_job, demo::bob_job_json().as_bytes())?;
     bake(&engine, &Job::load(&bob_job, None)?)?;
     eprintln!(
-        "demo written to {} (edit job.json and run `decalbake bake {}` to re-bake; `decalbake unwrap` made unwrapped.glb, spot-unwrapped.glb and bob-patched.glb)",
+        "demo written to {} (edit job.json and run `decalbake bake {}` to re-bake; `decalbake unwrap` made unwrapped.glb, spot-unwrapped.glb, bob-unwrapped.glb and bob-patched.glb)",
         out.display(),
         job_path.display()
     );

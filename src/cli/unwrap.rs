@@ -61,6 +61,10 @@ pub struct UnwrapArgs {
     /// Run the dynamics on the CPU twin instead of the GPU.
     #[arg(long)]
     pub cpu: bool,
+    /// Keep elongated pelts whole even where the packing would use less than 45 % of the texture
+    /// (by default the largest such pelt is split in two across its length: `pelt::repack`).
+    #[arg(long)]
+    pub no_pack_splits: bool,
 }
 
 /// `--refine`.
@@ -160,6 +164,7 @@ fn prepare(
         size: args.size,
         margin: args.margin,
         split_non_manifold: args.split_non_manifold,
+        pack_splits: !args.no_pack_splits,
         max_split_levels: if args.patch {
             0
         } else {
@@ -226,11 +231,14 @@ fn run_on(
     decalbake::io::image::write_atomic(&args.out, &glb)?;
     let q = &un.report.quality;
     eprintln!(
-        "{}: TEXCOORD_{set} from {} pelts ({} splits), {} steps, angle distortion mean {:.3} p95 {:.3}, {} flipped, {} overlaps, {:.0} % of the texture used, {:.0} ms",
+        "{}: TEXCOORD_{set} from {} pelts ({} splits), {}, angle distortion mean {:.3} p95 {:.3}, {} flipped, {} overlaps, {:.0} % of the texture used, {:.0} ms",
         args.out.display(),
         un.report.pieces.len(),
         un.report.splits,
-        un.report.steps,
+        match un.report.steps {
+            0 => "refined from the Tutte start".to_string(),
+            n => format!("{n} steps"),
+        },
         q.angle_distortion.mean,
         q.angle_distortion.p95,
         q.flipped,

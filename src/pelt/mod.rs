@@ -18,6 +18,7 @@ pub mod patch;
 pub mod quality;
 pub mod refine;
 pub mod relax;
+pub mod repack;
 pub mod split;
 pub mod tips;
 pub mod tutte;
@@ -53,6 +54,9 @@ pub struct Options {
     pub split_non_manifold: bool,
     /// How many times a piece may be split (one split after another); 0 keeps the cut's pieces.
     pub max_split_levels: usize,
+    /// Split an elongated pelt where the packing would use too little of the texture (`repack`;
+    /// only with `max_split_levels` above 0).
+    pub pack_splits: bool,
 }
 
 /// What follows the pelting (`decalbake unwrap --refine`).
@@ -76,6 +80,7 @@ impl Default for Options {
             refine: Refine::Conformal,
             split_non_manifold: false,
             max_split_levels: MAX_SPLIT_LEVELS,
+            pack_splits: true,
         }
     }
 }
@@ -243,6 +248,9 @@ pub fn layout(
             break;
         }
     }
+    let (done, repacked) =
+        repack::split_for_packing(device, topo, done, opts, &mut exposure, path, &mut timings)?;
+    splits += repacked;
     let mut pieces = Vec::new();
     let (mut relaxed, mut flat, mut refined) = (Vec::new(), Vec::new(), Vec::new());
     for (p, r, f, rf) in done {
@@ -253,8 +261,8 @@ pub fn layout(
     }
     let cut = cut::Cut::assemble(topo, pieces, terminals);
     let t = Instant::now();
-    let uv = place(topo, &cut, &flat, opts);
-    timings.pack = ms(t);
+    let uv = place(topo, &cut.pieces, &flat, opts);
+    timings.pack += ms(t);
     let t = Instant::now();
     let quality = measure(topo, &cut, &uv);
     timings.measure = ms(t);
@@ -595,11 +603,15 @@ fn upright(q: &[DVec2]) -> Vec<DVec2> {
 
 /// Packs the flat pieces (every piece at the texel density of its 3D area, turned upright) and
 /// flips v to glTF's.
-fn place(topo: &Topology, cut: &cut::Cut, flat: &[Vec<DVec2>], opts: &Options) -> Vec<Vec<Vec2>> {
+fn place(
+    topo: &Topology,
+    pieces: &[cut::Piece],
+    flat: &[Vec<DVec2>],
+    opts: &Options,
+) -> Vec<Vec<Vec2>> {
     let flat: Vec<Vec<DVec2>> = flat.iter().map(|q| upright(q)).collect();
     let flat = &flat[..];
-    let density: Vec<f64> = cut
-        .pieces
+    let density: Vec<f64> = pieces
         .iter()
         .zip(flat)
         .map(|(p, q)| {
@@ -615,7 +627,7 @@ fn place(topo: &Topology, cut: &cut::Cut, flat: &[Vec<DVec2>], opts: &Options) -
         .collect();
     let shapes: Vec<pack::Shape> = flat
         .iter()
-        .zip(&cut.pieces)
+        .zip(pieces)
         .map(|(q, p)| pack::Shape {
             points: q,
             triangles: &p.triangles,
