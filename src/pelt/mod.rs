@@ -248,7 +248,7 @@ pub fn layout(
             break;
         }
     }
-    let (done, repacked) =
+    let (done, repacked, packed) =
         repack::split_for_packing(device, topo, done, opts, &mut exposure, path, &mut timings)?;
     splits += repacked;
     let mut pieces = Vec::new();
@@ -261,7 +261,7 @@ pub fn layout(
     }
     let cut = cut::Cut::assemble(topo, pieces, terminals);
     let t = Instant::now();
-    let uv = place(topo, &cut.pieces, &flat, opts);
+    let uv = packed.unwrap_or_else(|| place(topo, &cut.pieces, &flat, opts));
     timings.pack += ms(t);
     let t = Instant::now();
     let quality = measure(topo, &cut, &uv);

@@ -49,11 +49,13 @@ fn covered(pieces: &[cut::Piece], uv: &[Vec<Vec2>]) -> f64 {
         .sum()
 }
 
-/// Packs `done` as `layout` will, and returns the share of the texture it covers.
-fn utilisation(topo: &Topology, done: &[Done], opts: &Options) -> f64 {
+/// Packs `done` as `layout` does; returns the layout and the share of the texture it covers.
+fn packed(topo: &Topology, done: &[Done], opts: &Options) -> (Vec<Vec<Vec2>>, f64) {
     let pieces: Vec<cut::Piece> = done.iter().map(|d| d.0.clone()).collect();
     let flat: Vec<Vec<DVec2>> = done.iter().map(|d| d.2.clone()).collect();
-    covered(&pieces, &place(topo, &pieces, &flat, opts))
+    let uv = place(topo, &pieces, &flat, opts);
+    let share = covered(&pieces, &uv);
+    (uv, share)
 }
 
 /// Long side over short side of the flat piece turned to its smallest box.
@@ -67,8 +69,13 @@ fn aspect(flat: &[DVec2]) -> f64 {
     d.max_element() / d.min_element().max(f64::MIN_POSITIVE)
 }
 
-/// The module's splits, applied to the laid-out pieces `done`; returns the pieces and how many
-/// were split. `exposure` is measured here if the cut did not.
+/// The module's splits, applied to the laid-out pieces `done`; returns the pieces, how many were
+/// split and, when it packed them (splits on), their packed layout, in their order. `exposure` is
+/// measured here if the cut did not.
+#[allow(
+    clippy::type_complexity,
+    reason = "the pieces, a count and their layout"
+)]
 pub(super) fn split_for_packing(
     device: Device,
     topo: &Topology,
@@ -77,13 +84,13 @@ pub(super) fn split_for_packing(
     exposure: &mut Vec<f32>,
     path: &Path,
     timings: &mut Timings,
-) -> Result<(Vec<Done>, usize)> {
+) -> Result<(Vec<Done>, usize, Option<Vec<Vec<Vec2>>>)> {
     let mut splits = 0;
     if opts.max_split_levels == 0 || !opts.pack_splits {
-        return Ok((done, 0));
+        return Ok((done, 0, None));
     }
     let t = Instant::now();
-    let mut now = utilisation(topo, &done, opts);
+    let (mut uv, mut now) = packed(topo, &done, opts);
     timings.pack += super::ms(t);
     while splits < MAX_PACK_SPLITS && now < PACK_SPLIT_BELOW {
         let area = |d: &Done| -> f64 {
@@ -120,13 +127,13 @@ pub(super) fn split_for_packing(
         candidate.remove(k);
         candidate.extend(kept);
         let t = Instant::now();
-        let then = utilisation(topo, &candidate, opts);
+        let (layout, then) = packed(topo, &candidate, opts);
         timings.pack += super::ms(t);
         if then < now * PACK_SPLIT_GAIN {
             break;
         }
-        (done, now) = (candidate, then);
+        (done, uv, now) = (candidate, layout, then);
         splits += 1;
     }
-    Ok((done, splits))
+    Ok((done, splits, Some(uv)))
 }
