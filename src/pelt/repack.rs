@@ -116,10 +116,15 @@ pub(super) fn split_for_packing(
             *exposure = hidden::exposure(topo);
         }
         let nm = opts.split_non_manifold;
-        let cuts: Vec<Vec<cut::Piece>> = halves
+        // A half that cannot be cut into disks leaves the layout as it is: this split is for the
+        // packing only, and the unsplit layout is valid.
+        let Ok(cuts) = halves
             .par_iter()
             .map(|half| split::cut_region(topo, half, nm, exposure, path))
-            .collect::<Result<_>>()?;
+            .collect::<Result<Vec<Vec<cut::Piece>>>>()
+        else {
+            break;
+        };
         timings.cut += super::ms(t);
         let pieces: Vec<cut::Piece> = cuts.into_iter().flatten().collect();
         let (kept, _) = one_level(device, topo, pieces, opts, false, timings)?;
