@@ -10,7 +10,7 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use decalbake::maps::chart::{self, FINAL_RTOL};
 use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
-use decalbake::solve::gpu::{cg_batched, spmv, GpuCsr, SystemDesc};
+use decalbake::solve::gpu::{cg_batched, spmv, GpuPairs, SystemDesc};
 use decalbake::solve::sparse::Csr;
 use decalbake::Engine;
 
@@ -34,7 +34,7 @@ fn linalg(c: &mut Criterion) {
     group.sample_size(10);
 
     let lap = decalbake::maps::chart::lscm::shifted_laplacian(&topo, 1.0);
-    let g = GpuCsr::upload_paired(ctx, &lap).unwrap();
+    let g = GpuPairs::upload(ctx, &lap).unwrap();
     let x: Vec<f32> = (0..lap.rows).map(|i| (i % 7) as f32).collect();
     group.bench_function("spmv_x20_spot_laplacian", |b| {
         b.iter(|| spmv(ctx, pipes, &g, &x, 20).unwrap())

@@ -7,7 +7,7 @@
 mod common;
 use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
 use decalbake::solve::cg::pcg;
-use decalbake::solve::gpu::{cg_batched, dots, spmv, GpuCsr, SystemDesc};
+use decalbake::solve::gpu::{cg_batched, dots, spmv, GpuPairs, SystemDesc};
 use decalbake::solve::sparse::{relative_residual, CgStatus, ComplexCsr, Csr};
 
 const EPS: f64 = 5.96e-8;
@@ -80,7 +80,7 @@ fn spmv_matches_cpu_twin() {
     let a = round_matrix(&Csr::from_triplets(n, t));
     let x = round32(&random_vec(n, &mut rng));
     let xf: Vec<f32> = x.iter().map(|&v| v as f32).collect();
-    let g = GpuCsr::upload_paired(&e.ctx, &a).unwrap();
+    let g = GpuPairs::upload(&e.ctx, &a).unwrap();
     let (y, _) = spmv(&e.ctx, e.pipelines(), &g, &xf, 1).unwrap();
     let want = a.mul(&x);
     for i in 0..n {

@@ -157,13 +157,44 @@ pub struct GpuCsr {
     pub nnz: u32,
     /// Longest row.
     pub max_row_len: u32,
-    /// The standalone product's layout of a real matrix ([`spmv`]): per row (first pair, pairs),
-    /// and the entries two to a 16-byte pair (column, value bits, column, value bits; a row of odd
-    /// length ends in a zero entry on its own last column).
-    pub pairs: Option<(wgpu::Buffer, wgpu::Buffer)>,
 }
 
-/// The paired layout of `a` ([`GpuCsr::pairs`]): per row (first pair, pairs), and the pairs.
+/// A real matrix in the standalone product's layout ([`spmv`]): per row (first pair, pairs),
+/// and the entries two to a 16-byte pair (column, value bits, column, value bits; a row of odd
+/// length ends in a zero entry on its own last column).
+pub struct GpuPairs {
+    /// (first pair, pairs) of each row.
+    pub spans: wgpu::Buffer,
+    /// The pairs.
+    pub pairs: wgpu::Buffer,
+    /// Rows.
+    pub rows: u32,
+    /// Stored entries (without the padding).
+    pub nnz: u32,
+}
+
+impl GpuPairs {
+    /// Uploads `a` (values rounded to f32) in the paired layout.
+    pub fn upload(ctx: &GpuContext, a: &Csr) -> Result<Self> {
+        let (spans, pairs) = paired(a);
+        let buf =
+            |label: &str, bytes: &[u8]| ctx.storage_init(label, bytes, wgpu::BufferUsages::empty());
+        ctx.scoped("sparse matrix upload", || Self {
+            spans: buf("pairs.spans", bytemuck::cast_slice(&spans)),
+            pairs: buf("pairs.pairs", bytemuck::cast_slice(&pairs)),
+            rows: a.rows as u32,
+            nnz: a.nnz() as u32,
+        })
+    }
+
+    /// Bytes one product streams at least once, counted as for CSR (8 per entry, 12 per row for
+    /// the row offsets, x and y), so the figure compares with the earlier layout's.
+    pub fn bytes_per_product(&self) -> u64 {
+        self.nnz as u64 * 8 + self.rows as u64 * 4 * 3
+    }
+}
+
+/// The paired layout of `a` ([`GpuPairs`]): per row (first pair, pairs), and the pairs.
 pub fn paired(a: &Csr) -> (Vec<[u32; 2]>, Vec<[u32; 4]>) {
     let mut spans = Vec::with_capacity(a.rows);
     let mut pairs = Vec::with_capacity(a.nnz() / 2 + a.rows);
@@ -195,21 +226,6 @@ impl GpuCsr {
         Self::upload_parts(ctx, (&a.row_ptr, &a.cols, &a.vals), a.max_row_len())
     }
 
-    /// [`GpuCsr::upload`] with the paired layout that the standalone product ([`spmv`]) reads.
-    pub fn upload_paired(ctx: &GpuContext, a: &Csr) -> Result<Self> {
-        let mut g = Self::upload(ctx, a)?;
-        let (spans, pairs) = paired(a);
-        let buf =
-            |label: &str, bytes: &[u8]| ctx.storage_init(label, bytes, wgpu::BufferUsages::empty());
-        g.pairs = Some(ctx.scoped("sparse matrix upload", || {
-            (
-                buf("csr.spans", bytemuck::cast_slice(&spans)),
-                buf("csr.pairs", bytemuck::cast_slice(&pairs)),
-            )
-        })?);
-        Ok(g)
-    }
-
     /// Uploads the blocks of `c` (each (a, b) as two f32; `rows`, `nnz` and `max_row_len` count
     /// blocks).
     pub fn upload_complex(ctx: &GpuContext, c: &ComplexCsr) -> Result<Self> {
@@ -233,7 +249,6 @@ impl GpuCsr {
             rows: row_ptr.len() as u32 - 1,
             nnz: vals.len() as u32,
             max_row_len: max_row_len as u32,
-            pairs: None,
         })
     }
 
@@ -254,17 +269,11 @@ fn grid(groups: u32) -> (u32, u32) {
 pub fn spmv(
     ctx: &GpuContext,
     pipes: &Pipelines,
-    a: &GpuCsr,
+    a: &GpuPairs,
     x: &[f32],
     reps: u32,
 ) -> Result<(Vec<f32>, f64)> {
     let dev = &ctx.device;
-    let Some((spans, pairs)) = &a.pairs else {
-        return Err(crate::error::Error::Gpu {
-            stage: "spmv".into(),
-            detail: "the matrix has no paired layout: upload it with GpuCsr::upload_paired".into(),
-        });
-    };
     let (xb, yb, dims, bg) = ctx.scoped("spmv", || {
         let xb = ctx.storage_init(
             "spmv.x",
@@ -283,8 +292,8 @@ pub fn spmv(
             "spmv",
             &[
                 (0, dims.as_entire_binding()),
-                (1, spans.as_entire_binding()),
-                (2, pairs.as_entire_binding()),
+                (1, a.spans.as_entire_binding()),
+                (2, a.pairs.as_entire_binding()),
                 (4, xb.as_entire_binding()),
                 (5, yb.as_entire_binding()),
             ],

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // Sparse matrix-vector product y = A x, one invocation per row, the row's entries two to a 16-byte
-// load (`GpuCsr::pairs`: column, value bits, column, value bits; an odd row ends in a zero entry),
+// load (`GpuPairs`: column, value bits, column, value bits; an odd row ends in a zero entry),
 // in index order within the row, so the result is reproducible. Why pairs: llvmpipe runs every
 // storage-buffer load as a loop over the SIMD lanes, one scalar load each, whatever the address
 // pattern, and a vector load fetches all its components in the same loop; a 16-byte load of two

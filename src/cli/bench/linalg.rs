@@ -15,7 +15,7 @@ use decalbake::error::Result;
 use decalbake::maps::chart::{self, FINAL_RTOL};
 use decalbake::maps::Frame;
 use decalbake::mesh::{Mesh, Topology};
-use decalbake::solve::gpu::{cg_batched, copy_bandwidth, spmv, GpuCsr, SystemDesc};
+use decalbake::solve::gpu::{cg_batched, copy_bandwidth, spmv, GpuPairs, SystemDesc};
 use decalbake::solve::sparse::Csr;
 use decalbake::Engine;
 use glam::Vec3;
@@ -168,7 +168,7 @@ fn bench_spmv(
     let reps = opts.reps.max(1);
     // SpMV on the mesh Laplacian.
     let lap = decalbake::maps::chart::lscm::shifted_laplacian(topo, 1.0);
-    let g = GpuCsr::upload_paired(ctx, &lap)?;
+    let g = GpuPairs::upload(ctx, &lap)?;
     let x: Vec<f32> = (0..lap.rows)
         .map(|i| ((i * 37) % 101) as f32 / 101.0)
         .collect();
