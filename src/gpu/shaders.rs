@@ -141,6 +141,10 @@ pub const SHARED: &[(&str, &str)] = &[
     ("cg_real", include_str!("../../wgsl/shared/cg_real.wgsl")),
     ("cg_rows", include_str!("../../wgsl/shared/cg_rows.wgsl")),
     (
+        "cg_row_ax",
+        include_str!("../../wgsl/shared/cg_row_ax.wgsl"),
+    ),
+    (
         "cg_wide_common",
         include_str!("../../wgsl/shared/cg_wide_common.wgsl"),
     ),

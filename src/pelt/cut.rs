@@ -67,6 +67,8 @@ pub struct Cut {
     /// Each welded vertex's exposure (`hidden::exposure`), where the automatic cut measured it
     /// (empty for other cuts); the splits' cuts reuse it.
     pub exposure: Vec<f32>,
+    /// Milliseconds the exposure took here (0 where it was given or not needed).
+    pub exposure_ms: f64,
 }
 
 impl Cut {
@@ -100,6 +102,7 @@ impl Cut {
             edges,
             terminals,
             exposure: Vec::new(),
+            exposure_ms: 0.0,
         }
     }
 
@@ -183,12 +186,15 @@ pub fn cut_exposed(
     }
     let faces = edge_faces(topo);
     let mut measured = Vec::new();
+    let mut exposure_ms = 0.0;
     let (opened, terminals) = match spec {
         CutSpec::Auto => {
             let exposure = match exposure {
                 Some(e) => e,
                 None => {
+                    let t = std::time::Instant::now();
                     measured = super::hidden::exposure(topo);
+                    exposure_ms = t.elapsed().as_secs_f64() * 1e3;
                     &measured
                 }
             };
@@ -233,6 +239,7 @@ pub fn cut_exposed(
         edges,
         terminals,
         exposure: measured,
+        exposure_ms,
     })
 }
 

@@ -20,10 +20,10 @@
 //! Tips (the angle defect, `tips`) stay the cut's terminals; these costs decide the way between.
 //!
 //! The rays run on the CPU, on every core (`std::thread::scope`), as the rest of the cut does; on
-//! bob subdivided twice (86k vertices, 1.4M rays) they took 1.27 s of the cut stage that
-//! `decalbake bench --unwrap` reports (`stages_ms.cut`, 1.8-2.9 s with the splits' cuts), and
-//! 0.50 s since `Bvh::any_hit` visits the nearer child first from a stack on its frame (timed
-//! once each on this machine's 2 cores, session 16).
+//! bob subdivided twice (86k vertices, 1.4M rays) they take 0.50-0.54 s of the cut stage
+//! (`stages_ms.exposure` and `cut` of `decalbake bench --unwrap --mesh assets/bob.glb
+//! --subdivide 2`), since `Bvh::any_hit` visits the nearer child first from a stack on its frame;
+//! 1.27 s before (a one-off timing at commit 10edf91's parent).
 
 use crate::mesh::bvh::Bvh;
 use crate::mesh::Topology;

@@ -153,6 +153,9 @@ pub struct Timings {
     pub pack: f64,
     /// Measuring.
     pub measure: f64,
+    /// The occlusion rays of the automatic cut (`hidden::exposure`): part of `cut`, not added
+    /// again by [`Timings::total`].
+    pub exposure: f64,
 }
 
 impl Timings {
@@ -191,8 +194,17 @@ pub fn unwrap(
         terminals: first.terminals,
         cut_ms: ms(t),
         exposure: first.exposure,
+        exposure_ms: first.exposure_ms,
     };
     layout(device, topo, first.pieces, prior, opts, path)
+}
+
+/// `hidden::exposure`, its time added to `timings.exposure`.
+fn measure_exposure(topo: &Topology, timings: &mut Timings) -> Vec<f32> {
+    let t = Instant::now();
+    let e = hidden::exposure(topo);
+    timings.exposure += ms(t);
+    e
 }
 
 /// What the first cut leaves to [`layout`].
@@ -205,6 +217,8 @@ pub struct Prior {
     /// Each welded vertex's exposure, if the cut measured it (`hidden::exposure`; measured on the
     /// first split otherwise).
     pub exposure: Vec<f32>,
+    /// Milliseconds the exposure took (part of `cut_ms`).
+    pub exposure_ms: f64,
 }
 
 /// Pelts, refines, splits and packs `pieces` (disks, in `topo`'s welded ids) as
@@ -219,6 +233,7 @@ pub fn layout(
 ) -> Result<Unwrapped> {
     let mut timings = Timings {
         cut: prior.cut_ms,
+        exposure: prior.exposure_ms,
         ..Timings::default()
     };
     let (terminals, mut exposure) = (prior.terminals, prior.exposure);
@@ -231,7 +246,7 @@ pub fn layout(
         done.extend(kept);
         let t = Instant::now();
         if !parts.is_empty() && exposure.is_empty() {
-            exposure = hidden::exposure(topo);
+            exposure = measure_exposure(topo, &mut timings);
         }
         splits += parts.len();
         let halves: Vec<Vec<u32>> = parts.into_iter().flatten().collect();
@@ -261,7 +276,11 @@ pub fn layout(
     }
     let cut = cut::Cut::assemble(topo, pieces, terminals);
     let t = Instant::now();
-    let uv = packed.unwrap_or_else(|| place(topo, &cut.pieces, &flat, opts));
+    let uv = packed.unwrap_or_else(|| {
+        let pieces: Vec<&cut::Piece> = cut.pieces.iter().collect();
+        let flat: Vec<&[DVec2]> = flat.iter().map(|f| &f[..]).collect();
+        place(topo, &pieces, &flat, opts)
+    });
     timings.pack += ms(t);
     let t = Instant::now();
     let quality = measure(topo, &cut, &uv);
@@ -462,10 +481,11 @@ pub const REST_SCALES: [f32; 3] = [1.0, 0.5, 0.0];
 /// sheet the layout refined from its folded eq. 1 pelt had 2.5 % area distortion (the test
 /// `developable_sheet_unwraps_to_its_flattening` allows 0.5 % and fails with it), against 0.1 %
 /// from Tutte's. Until session 16 the start was eq. 1's pelt where it did not fold, Tutte's where
-/// it did; eq. 1's pelt folded on every piece of bob subdivided twice, so its 7.4 s of dynamics
-/// (of 12.2 s) were thrown away, and the layouts from the two starts were the same to the last
-/// printed digit (`decalbake bench --unwrap --mesh assets/bob.glb --subdivide 2`: quality, pelts
-/// and splits; 20.7 s → 12.7 s with Tutte by the dynamics, before it was solved directly). The
+/// it did; eq. 1's pelt folded on every piece of bob subdivided twice, so most of the 12.2 s of
+/// dynamics (of 20.7 s in all: `stages_ms.relax` of `decalbake bench --unwrap --mesh
+/// assets/bob.glb --subdivide 2` at commit 97235a5; 7.4 s for eq. 1's rung in a one-off timing)
+/// was thrown away, and the layouts from the two starts are the same to the last printed digit
+/// of that command's quality, pelts and splits. The
 /// pelt of eq. 1 (the paper's) is still the layout wherever the refinement is not kept
 /// ([`one_level`]) and with `--refine none`.
 pub const START_SCALES: [f32; 1] = [0.0];
@@ -605,8 +625,8 @@ fn upright(q: &[DVec2]) -> Vec<DVec2> {
 /// flips v to glTF's.
 fn place(
     topo: &Topology,
-    pieces: &[cut::Piece],
-    flat: &[Vec<DVec2>],
+    pieces: &[&cut::Piece],
+    flat: &[&[DVec2]],
     opts: &Options,
 ) -> Vec<Vec<Vec2>> {
     let flat: Vec<Vec<DVec2>> = flat.iter().map(|q| upright(q)).collect();
@@ -628,7 +648,7 @@ fn place(
     let shapes: Vec<pack::Shape> = flat
         .iter()
         .zip(pieces)
-        .map(|(q, p)| pack::Shape {
+        .map(|(q, &p)| pack::Shape {
             points: q,
             triangles: &p.triangles,
         })

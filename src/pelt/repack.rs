@@ -15,7 +15,7 @@
 //! `--no-pack-splits` (`Options::pack_splits`) and `--patch`, which turns every split off
 //! (`Options::max_split_levels` 0), keep the pelts whole.
 
-use super::{cut, hidden, one_level, place, split, upright, Device, Done, Options, Timings};
+use super::{cut, one_level, place, split, upright, Device, Done, Options, Timings};
 use crate::error::Result;
 use crate::mesh::Topology;
 use glam::{DVec2, Vec2};
@@ -33,7 +33,7 @@ pub const PACK_SPLIT_GAIN: f64 = 1.1;
 pub const MAX_PACK_SPLITS: usize = 2;
 
 /// The share of the square that `uv` (per piece, per vertex) covers.
-fn covered(pieces: &[cut::Piece], uv: &[Vec<Vec2>]) -> f64 {
+fn covered(pieces: &[&cut::Piece], uv: &[Vec<Vec2>]) -> f64 {
     pieces
         .iter()
         .zip(uv)
@@ -50,9 +50,9 @@ fn covered(pieces: &[cut::Piece], uv: &[Vec<Vec2>]) -> f64 {
 }
 
 /// Packs `done` as `layout` does; returns the layout and the share of the texture it covers.
-fn packed(topo: &Topology, done: &[Done], opts: &Options) -> (Vec<Vec<Vec2>>, f64) {
-    let pieces: Vec<cut::Piece> = done.iter().map(|d| d.0.clone()).collect();
-    let flat: Vec<Vec<DVec2>> = done.iter().map(|d| d.2.clone()).collect();
+fn packed(topo: &Topology, done: &[&Done], opts: &Options) -> (Vec<Vec<Vec2>>, f64) {
+    let pieces: Vec<&cut::Piece> = done.iter().map(|d| &d.0).collect();
+    let flat: Vec<&[DVec2]> = done.iter().map(|d| &d.2[..]).collect();
     let uv = place(topo, &pieces, &flat, opts);
     let share = covered(&pieces, &uv);
     (uv, share)
@@ -90,7 +90,7 @@ pub(super) fn split_for_packing(
         return Ok((done, 0, None));
     }
     let t = Instant::now();
-    let (mut uv, mut now) = packed(topo, &done, opts);
+    let (mut uv, mut now) = packed(topo, &done.iter().collect::<Vec<_>>(), opts);
     timings.pack += super::ms(t);
     while splits < MAX_PACK_SPLITS && now < PACK_SPLIT_BELOW {
         let area = |d: &Done| -> f64 {
@@ -113,7 +113,7 @@ pub(super) fn split_for_packing(
             break;
         };
         if exposure.is_empty() {
-            *exposure = hidden::exposure(topo);
+            *exposure = super::measure_exposure(topo, timings);
         }
         let nm = opts.split_non_manifold;
         // A half that cannot be cut into disks leaves the layout as it is: this split is for the
@@ -128,16 +128,21 @@ pub(super) fn split_for_packing(
         timings.cut += super::ms(t);
         let pieces: Vec<cut::Piece> = cuts.into_iter().flatten().collect();
         let (kept, _) = one_level(device, topo, pieces, opts, false, timings)?;
-        let mut candidate = done.clone();
-        candidate.remove(k);
-        candidate.extend(kept);
+        // The layout without piece k and with its halves at the end, in that order.
+        let trial: Vec<&Done> = (done.iter().enumerate())
+            .filter(|&(i, _)| i != k)
+            .map(|(_, d)| d)
+            .chain(&kept)
+            .collect();
         let t = Instant::now();
-        let (layout, then) = packed(topo, &candidate, opts);
+        let (layout, then) = packed(topo, &trial, opts);
         timings.pack += super::ms(t);
         if then < now * PACK_SPLIT_GAIN {
             break;
         }
-        (done, uv, now) = (candidate, layout, then);
+        done.remove(k);
+        done.extend(kept);
+        (uv, now) = (layout, then);
         splits += 1;
     }
     Ok((done, splits, Some(uv)))

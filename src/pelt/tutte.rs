@@ -11,9 +11,10 @@
 //! systems are, so the GPU solves it on complex blocks ((k + 0i) entries).
 //!
 //! Why: on bob subdivided twice (86,628 vertices in its first piece) the dynamics took 1,408 steps
-//! and 2.7 s of the CPU twin to settle this net; the solve takes a fraction of that (README,
-//! "New UV sets by pelting"), and it is the refinement's starting point on every piece
-//! (`pelt::one_level`).
+//! and 2.7 s of the CPU twin to settle this net (a one-off timing at commit 97235a5; its report's
+//! `relax.steps` gives the steps); the solves of all three split levels now take about 0.5 s
+//! (`stages_ms.relax` of `decalbake bench --unwrap --mesh assets/bob.glb --subdivide 2`), and it
+//! is the refinement's starting point on every piece (`pelt::one_level`).
 
 use super::refine::{solve_systems, System};
 use super::relax::{energy, Net, Relaxed};

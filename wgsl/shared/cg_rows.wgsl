@@ -2,7 +2,7 @@
 // What the multigrid CG kernels (cg_amg.wgsl: one workgroup a system; cg_wide.wgsl and
 // cg_wide_plain.wgsl: one system over many) share: bindings 1-17 (each kernel declares its own
 // binding 0, and the spread ones binding 18) and the row products. Import after `linalg`,
-// `cg_state` and `cg_real` (or `cg_complex`).
+// `cg_state`, `cg_real` (or `cg_complex`) and `cg_row_ax`.
 
 @group(0) @binding(1) var<storage, read> systems: array<System>;
 @group(0) @binding(2) var<storage, read> row_ptr: array<u32>;
@@ -47,20 +47,12 @@ fn pr_row(i: u32, v0: u32) -> V {
 fn true_residual_rows(row0: u32, n: u32, first: u32, stride: u32) -> vec4<f32> {
     var part = vec4<f32>(0.0);
     for (var i = row0 + first; i < row0 + n; i += stride) {
-        var ax = V(0.0);
-        var ax_abs = V(0.0);
-        let end = row_ptr[i + 1u];
-        for (var k = row_ptr[i]; k < end; k++) {
-            let m = vals[k];
-            let xk = x[cols[k]];
-            ax += mat_mul(m, xk);
-            ax_abs += mat_abs_mul(m, xk);
-        }
+        let a = row_ax(i);
         let bi = b[i];
-        let ri = bi - ax;
+        let ri = bi - a.ax;
         r[i] = ri;
         mg[i] = ri;
-        part += vec4<f32>(0.0, vdot(ri, ri), vdot(bi, bi), vdot(ax_abs, ax_abs));
+        part += vec4<f32>(0.0, vdot(ri, ri), vdot(bi, bi), vdot(a.ax_abs, a.ax_abs));
     }
     return part;
 }

@@ -20,6 +20,7 @@
 #import linalg
 #import cg_state
 #import cg_real
+#import cg_row_ax
 #import cg_rows
 
 // Keep in sync with `amg::NU` in src/solve/amg.rs.

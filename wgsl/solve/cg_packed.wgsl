@@ -23,6 +23,7 @@
 #import linalg
 #import cg_state
 #import cg_real
+#import cg_row_ax
 
 const PACK_WG: u32 = 64u;
 const PACKED: u32 = 2u;
@@ -45,23 +46,15 @@ const PACKED: u32 = 2u;
 fn true_residual(row0: u32, n: u32, set_p: bool) -> vec4<f32> {
     var part = vec4<f32>(0.0);
     for (var i = row0; i < row0 + n; i++) {
-        var ax = V(0.0);
-        var ax_abs = V(0.0);
-        let end = row_ptr[i + 1u];
-        for (var k = row_ptr[i]; k < end; k++) {
-            let m = vals[k];
-            let xk = x[cols[k]];
-            ax += mat_mul(m, xk);
-            ax_abs += mat_abs_mul(m, xk);
-        }
+        let a = row_ax(i);
         let bi = b[i];
-        let ri = bi - ax;
+        let ri = bi - a.ax;
         r[i] = ri;
         let zi = dinv[i] * ri;
         if (set_p) {
             p[i] = zi;
         }
-        part += vec4<f32>(vdot(ri, zi), vdot(ri, ri), vdot(bi, bi), vdot(ax_abs, ax_abs));
+        part += vec4<f32>(vdot(ri, zi), vdot(ri, ri), vdot(bi, bi), vdot(a.ax_abs, a.ax_abs));
     }
     return part;
 }

@@ -22,6 +22,7 @@
 #import linalg
 #import cg_state
 #import cg_real
+#import cg_row_ax
 #import cg_rows
 #import cg_wide_common
 
