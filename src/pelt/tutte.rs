@@ -59,7 +59,15 @@ pub fn settle(device: Device, nets: &[Net]) -> Result<Vec<Relaxed>> {
         .zip(solved)
         .map(|(net, s)| {
             let (x, rep) = s.expect("every system is present");
-            let zero = net.with_rest_scale(0.0);
+            // The energy without rest lengths: the net itself when it has none (the ladder's
+            // last rung passes it so), else a copy without them.
+            let copy;
+            let zero = if net.spring.iter().all(|s| s[0] == 0.0) {
+                net
+            } else {
+                copy = net.with_rest_scale(0.0);
+                &copy
+            };
             let start: Vec<[f64; 3]> = net
                 .start
                 .iter()
@@ -67,7 +75,7 @@ pub fn settle(device: Device, nets: &[Net]) -> Result<Vec<Relaxed>> {
                 .collect();
             let x: Vec<[f64; 3]> = x.chunks(2).map(|c| [c[0], c[1], 0.0]).collect();
             Relaxed {
-                energy: [energy(&zero, &start[..]), energy(&zero, &x)],
+                energy: [energy(zero, &start[..]), energy(zero, &x)],
                 x,
                 steps: 0,
                 iterations: rep.iterations,
