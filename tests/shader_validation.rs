@@ -47,6 +47,11 @@ fn every_wgsl_file_validates() {
             decalbake::gpu::shaders::complex_source(name),
         ));
     }
+    // The layer raster with clip distances (devices with `Features::CLIP_DISTANCES`).
+    sources.push((
+        "layer_raster (clipped)".into(),
+        decalbake::gpu::shaders::clipped_source("layer_raster"),
+    ));
     for (name, src) in &sources {
         let src = src.clone();
         let module = match naga::front::wgsl::parse_str(&src) {
@@ -58,7 +63,7 @@ fn every_wgsl_file_validates() {
         };
         let mut validator = naga::valid::Validator::new(
             naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::default(),
+            naga::valid::Capabilities::default() | naga::valid::Capabilities::CLIP_DISTANCES,
         );
         if let Err(e) = validator.validate(&module) {
             failures.push(e.emit_to_string_with_path(&src, &format!("wgsl/{name}.wgsl")));

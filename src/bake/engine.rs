@@ -160,6 +160,12 @@ pub struct Engine {
     /// reference the tests and `decalbake bench --strokes` compare the candidate lists with.
     /// Default `false`.
     pub whole_mesh_selection: bool,
+    /// Draw every layer's triangles whole instead of clipped to the layer's image and a two-texel
+    /// margin (`clip_planes` in `wgsl/bake/layer_raster.wgsl`, on devices with clip distances).
+    /// The texels are the same within the tests' tolerance; this is the reference
+    /// `tests/compose_vs_cpu.rs` and `decalbake bench` compare the clipped raster with. Default
+    /// `false`.
+    pub unclipped_raster: bool,
     /// Layer images and masks decoded and uploaded by earlier bakes (`bake/images.rs`).
     pub(crate) images: Mutex<ImageCache>,
     /// Canvas-sized buffers of finished bakes, for the next bake or tile ([`BufferPool`]).
@@ -286,6 +292,7 @@ impl Engine {
             buffers: Mutex::new(BufferPool::default()),
             linear_sampler,
             whole_mesh_selection: false,
+            unclipped_raster: false,
             images: Mutex::new(Default::default()),
         })
     }

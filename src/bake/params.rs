@@ -96,6 +96,9 @@ pub const FLAG_NO_PAD: u32 = 32;
 pub const FLAG_REPEAT: u32 = 64;
 /// The layer's image is warped by a thin-plate spline (`"warp"`; [`Params::warp`]).
 pub const FLAG_WARP: u32 = 128;
+/// `layer_raster`: draw the triangles whole, not clipped to the image and its margin
+/// ([`crate::Engine::unclipped_raster`]).
+pub const FLAG_NO_CLIP: u32 = 256;
 
 /// Texels per side of a tool stamp's flat cell (`bake/tools.rs`). Keep in sync with `FLAT_RES` in
 /// `wgsl/bake/stamp_flatten.wgsl`, `stamp_filter.wgsl` and `layer_raster.wgsl`.

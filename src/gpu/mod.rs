@@ -184,7 +184,9 @@ impl GpuContext {
                 pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
                     label: Some("decalbake"),
                     required_features: adapter.features()
-                        & (wgpu::Features::FLOAT32_FILTERABLE | wgpu::Features::FLOAT32_BLENDABLE),
+                        & (wgpu::Features::FLOAT32_FILTERABLE
+                            | wgpu::Features::FLOAT32_BLENDABLE
+                            | wgpu::Features::CLIP_DISTANCES),
                     required_limits: adapter.limits(),
                     experimental_features: wgpu::ExperimentalFeatures::disabled(),
                     memory_hints: wgpu::MemoryHints::Performance,

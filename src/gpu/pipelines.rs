@@ -550,10 +550,14 @@ fn layer_raster(device: &wgpu::Device, blending: bool) -> (Raster, wgpu::Texture
         color: premult,
         alpha: premult,
     };
+    // Triangles clipped to their layer's image and a margin where the device clips
+    // (`clip_planes` in the shader); GL without the extension draws them whole.
+    let clipped = device.features().contains(wgpu::Features::CLIP_DISTANCES);
     let make_layer = |format: wgpu::TextureFormat, blend: bool| {
-        raster(
+        raster_from(
             device,
             "layer_raster",
+            clipped.then(|| shaders::clipped_source("layer_raster")),
             layer_layout.clone(),
             &[],
             &[
@@ -757,7 +761,22 @@ fn raster(
     depth: Option<wgpu::DepthStencilState>,
     samples: u32,
 ) -> Raster {
-    let (pl, module) = layout_and_module(device, name, &layout, None);
+    raster_from(device, name, None, layout, buffers, targets, depth, samples)
+}
+
+/// [`raster`] from `text`, a variant of the pipeline's source (`None`: its own).
+#[allow(clippy::too_many_arguments)]
+fn raster_from(
+    device: &wgpu::Device,
+    name: &str,
+    text: Option<String>,
+    layout: wgpu::BindGroupLayout,
+    buffers: &[Option<wgpu::VertexBufferLayout<'_>>],
+    targets: &[Option<wgpu::ColorTargetState>],
+    depth: Option<wgpu::DepthStencilState>,
+    samples: u32,
+) -> Raster {
+    let (pl, module) = layout_and_module(device, name, &layout, text);
     let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(name),
         layout: Some(&pl),

@@ -219,6 +219,17 @@ pub fn complex_source(name: &str) -> String {
     resolve(&text.replace("#import cg_real", "#import cg_complex"))
 }
 
+/// Raster pipeline `name` with clip distances (`layer_raster`: the device has
+/// `Features::CLIP_DISTANCES`): `enable clip_distances;` first, and its `// CLIP: ` lines live.
+pub fn clipped_source(name: &str) -> String {
+    let text = source(name);
+    assert!(
+        text.contains("// CLIP: "),
+        "{name} has no `// CLIP: ` lines"
+    );
+    format!("enable clip_distances;\n{}", text.replace("// CLIP: ", ""))
+}
+
 /// Creates a shader module for kernel `name`.
 pub fn module(device: &wgpu::Device, name: &str) -> wgpu::ShaderModule {
     module_from(device, name, source(name))

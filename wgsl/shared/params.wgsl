@@ -61,3 +61,5 @@ const FLAG_CONE: u32 = 16u;
 const FLAG_REPEAT: u32 = 64u;
 // The image is warped by a thin-plate spline (params.warp, layer_raster.wgsl).
 const FLAG_WARP: u32 = 128u;
+// layer_raster.wgsl: triangles drawn whole (the reference of the clipped raster).
+const FLAG_NO_CLIP: u32 = 256u;

@@ -112,6 +112,11 @@ pub fn run(
             let whole = engine.bake(&loaded, &job);
             engine.whole_mesh_selection = false;
             let whole_compose_ms = whole?.report.timings.compose_ms;
+            // The same bake drawing whole triangles (no clip to each layer's image and margin).
+            engine.unclipped_raster = true;
+            let unclipped = engine.bake(&loaded, &job);
+            engine.unclipped_raster = false;
+            let unclipped_compose_ms = unclipped?.report.timings.compose_ms;
             let mut cpu_ms = None;
             if (n as u64) * (side as u64).pow(2) <= opts.cpu_budget {
                 let topo = &loaded.topo;
@@ -159,6 +164,7 @@ pub fn run(
                 "bvh_build_ms": bvh_ms,
                 "bvh_depth": loaded.bvh.depth,
                 "compose_whole_mesh_selection_ms": whole_compose_ms,
+                "compose_unclipped_ms": unclipped_compose_ms,
                 "texels_composed": texels,
                 "composed_texels_per_s": texels as f64 / (compose / 1000.0),
                 "gpu_commands": baked.report.gpu_commands,
