@@ -10,9 +10,7 @@ use super::canvas::Canvas;
 use super::engine::{Engine, LoadedMesh};
 use super::images::Images;
 use super::maps::{LayerMaps, Slots};
-use super::params::{
-    params_buffer, pbind, Params, FLAG_NO_CLIP, FLAG_TOOL, FLAG_WARP, PARAMS_STRIDE,
-};
+use super::params::{params_buffer, pbind, Params, FLAG_TOOL, FLAG_WARP, PARAMS_STRIDE};
 use super::place::Placed;
 use super::plan::{meets, pack_atlas, plan_cells, Batch, TILE_TARGET};
 use super::stage::{Cx, Log};
@@ -222,9 +220,6 @@ pub(crate) fn compose(
                     Some(&c) => (p.flags | FLAG_TOOL, [c, 0]),
                     None => (p.flags, p.pad),
                 };
-                if engine.unclipped_raster {
-                    flags |= FLAG_NO_CLIP;
-                }
                 let warp = images.warp_at[u].map_or([0; 4], |w| {
                     flags |= FLAG_WARP;
                     [w, 0, 0, 0]

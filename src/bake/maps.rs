@@ -10,7 +10,8 @@
 
 use super::engine::{Engine, LoadedMesh};
 use super::params::{
-    params_buffer, pbind, Params, FLAG_CONE, FLAG_FACING, FLAG_MASK, FLAG_REPEAT, PARAMS_STRIDE,
+    params_buffer, pbind, Params, FLAG_CONE, FLAG_FACING, FLAG_MASK, FLAG_NO_CLIP, FLAG_REPEAT,
+    PARAMS_STRIDE,
 };
 use super::place::Placed;
 use super::stage::{ms, Cx, Log};
@@ -162,9 +163,19 @@ pub(crate) fn compute(
         })?;
         log.commands += 1;
     }
+    // Triangles clipped to the layer's image where the raster clips (`clip_planes` in
+    // `layer_raster.wgsl`; the selection marks the clipped part's cells): not with
+    // `Engine::unclipped_raster`, on a device without clip distances, or for a warped image.
+    let clips = engine.pipes.layer_clipped && !engine.unclipped_raster;
     let params: Vec<Params> = range
         .clone()
-        .map(|i| layer_params(job, placed, i, range.start, global))
+        .map(|i| {
+            let mut p = layer_params(job, placed, i, range.start, global);
+            if !clips || !job.layers[i].warp.is_empty() {
+                p.flags |= FLAG_NO_CLIP;
+            }
+            p
+        })
         .collect();
     // Uploaded once the chart pass has set the cones' fields (the passes before do not read it).
     let buffer = params_buffer(&engine.ctx.device, "bake.layer_params", &[]);

@@ -249,6 +249,9 @@ pub struct Pipelines {
     /// Whether the layer target blends premultiplied source-over within a layer
     /// (needs `FLOAT32_BLENDABLE`; without it the last triangle drawn at a sample wins).
     pub layer_blending: bool,
+    /// Whether `layer_raster` clips triangles to their layer's image and margin (the device has
+    /// clip distances; `clip_planes` in `wgsl/bake/layer_raster.wgsl`).
+    pub layer_clipped: bool,
     /// Format of the layer colour targets.
     pub layer_format: wgpu::TextureFormat,
     /// Format of decal/mask/base textures: `Rgba32Float` with `FLOAT32_FILTERABLE`, else `Rgba16Float`.
@@ -401,6 +404,7 @@ impl Pipelines {
             preview: rasters.preview,
             extract_raster: rasters.extract,
             layer_blending: rasters.layer_blending,
+            layer_clipped: device.features().contains(wgpu::Features::CLIP_DISTANCES),
             layer_format: rasters.layer_format,
             image_format,
         }
