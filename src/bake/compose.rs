@@ -397,29 +397,19 @@ impl Recording<'_> {
         {
             let views = [&tg.color_view, &tg.cov_view];
             let win = self.canvas.global.window();
-            // A tile clears its parts of its rectangles (it keeps few of a batch's), a whole
-            // bake the target (measured with the clears switched off by a temporary change: a tiled
-            // 8192² bake's compose 1.80 s → 1.62 s without its 42 whole-target clears, the 4096²
-            // bake's 6 within noise).
-            let whole = win[2] == self.job.width && win[3] == self.job.height;
-            let mut pass = match whole {
-                true => crate::gpu::cleared_pass(enc, "bake.layer_raster", &views),
-                false => {
-                    let mut pass = crate::gpu::render_pass(
-                        enc,
-                        "bake.layer_raster",
-                        &views,
-                        wgpu::LoadOp::Load,
-                    );
-                    pass.set_pipeline(&pipes.atlas_clear.pipeline);
-                    for &(k, origin) in batch {
-                        let [sx, sy, sw, sh] = scissor(&self.jobs[k].params, win, ss);
-                        pass.set_scissor_rect(origin[0] + sx, origin[1] + sy, sw, sh);
-                        pass.draw(0..3, 0..1);
-                    }
-                    pass
-                }
-            };
+            // Each job's part of the target is cleared (a quad per scissor) instead of the whole
+            // target: llvmpipe then loads and stores only the bins the jobs touch. Measured on bob
+            // with 256 decals at 4096² (46 targets of 2048², about 60 % packed): compose 3.09 →
+            // 2.76 s; 16 decals 394 → 372 ms; one decal the same (a tiled 8192² bake: 1.80 →
+            // 1.62 s, session 13).
+            let mut pass =
+                crate::gpu::render_pass(enc, "bake.layer_raster", &views, wgpu::LoadOp::Load);
+            pass.set_pipeline(&pipes.atlas_clear.pipeline);
+            for &(k, origin) in batch {
+                let [sx, sy, sw, sh] = scissor(&self.jobs[k].params, win, ss);
+                pass.set_scissor_rect(origin[0] + sx, origin[1] + sy, sw, sh);
+                pass.draw(0..3, 0..1);
+            }
             pass.set_pipeline(&pipes.layer_raster.pipeline);
             for &(k, origin) in batch {
                 let rj = &self.jobs[k];
