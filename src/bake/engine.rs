@@ -166,6 +166,15 @@ pub struct Engine {
     /// `tests/compose_vs_cpu.rs` and `decalbake bench` compare the clipped raster with. Default
     /// `false`.
     pub unclipped_raster: bool,
+    /// The raster clips a layer's triangles only where the mesh's triangles cover at least this
+    /// many texels on average at the bake's size (its UV area over its triangles): clipping
+    /// costs each triangle three corners' reads and pays back through the fringe it drops, which
+    /// shrinks with the triangles. Measured, 256 decals (compose, clipped against whole
+    /// triangles, same run): bob at 4096² (about 940 texels a triangle) 2.79 against 3.61 s, at
+    /// 2048² (235) 1.10 against 1.27 s; bob subdivided twice at 4096² (59) 4.05 against 3.96 s,
+    /// at 2048² (15) 2.12 against 2.03 s. The selection marks the clipped parts' cells either
+    /// way (the whole triangles' fragments outside them hold nothing to compose). Default 128.
+    pub clip_min_texels: f32,
     /// Layer images and masks decoded and uploaded by earlier bakes (`bake/images.rs`).
     pub(crate) images: Mutex<ImageCache>,
     /// Canvas-sized buffers of finished bakes, for the next bake or tile ([`BufferPool`]).
@@ -293,6 +302,7 @@ impl Engine {
             linear_sampler,
             whole_mesh_selection: false,
             unclipped_raster: false,
+            clip_min_texels: 128.0,
             images: Mutex::new(Default::default()),
         })
     }

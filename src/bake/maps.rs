@@ -145,11 +145,7 @@ pub(crate) fn compute(
     global: &Params,
     log: &mut Log,
 ) -> Result<LayerMaps> {
-    let Cx {
-        engine,
-        mesh: _,
-        job,
-    } = cx;
+    let Cx { engine, mesh, job } = cx;
     if range.start > 0 {
         // The exponential maps only write the vertices of their disc (and mark its halo); a slot's
         // other vertices must not keep the previous chunk's layer as valid.
@@ -165,8 +161,11 @@ pub(crate) fn compute(
     }
     // Triangles clipped to the layer's image where the raster clips (`clip_planes` in
     // `layer_raster.wgsl`; the selection marks the clipped part's cells): not with
-    // `Engine::unclipped_raster`, on a device without clip distances, or for a warped image.
-    let clips = engine.pipes.layer_clipped && !engine.unclipped_raster;
+    // `Engine::unclipped_raster`, on a device without clip distances, where the mesh's triangles
+    // are small at this size (`Engine::clip_min_texels`), or for a warped image.
+    let clips = engine.pipes.layer_clipped
+        && !engine.unclipped_raster
+        && mean_triangle_texels(mesh, job) >= engine.clip_min_texels;
     let params: Vec<Params> = range
         .clone()
         .map(|i| {
@@ -197,6 +196,25 @@ pub(crate) fn compute(
     blend_reach(placed, &mut maps);
     blend_pass(cx, placed, slots, &maps, log)?;
     Ok(maps)
+}
+
+/// The mesh's mean triangle area in texels of the bake's UV set at its size
+/// ([`Engine::clip_min_texels`]).
+fn mean_triangle_texels(mesh: &super::engine::LoadedMesh, job: &Job) -> f32 {
+    let m = &mesh.mesh;
+    let Some(uv) = m.uv_sets.get(job.uv_set as usize) else {
+        return 0.0;
+    };
+    let area: f64 = m
+        .triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| uv[i as usize]);
+            ((b - a).perp_dot(c - a) as f64).abs() / 2.0
+        })
+        .sum();
+    let texels = area * job.width as f64 * job.height as f64;
+    (texels / m.triangles.len().max(1) as f64) as f32
 }
 
 /// Layer `i`'s `Params`: the shared fields, its frame, slot, blend and flags.

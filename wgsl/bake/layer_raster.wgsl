@@ -125,7 +125,9 @@ const CLIP_MARGIN: f32 = 2.0;
 // triangles (`LayerRaster` in src/bake/cpu.rs): the reference; `tests/demo_and_api.rs` bakes the
 // demo both ways (`Engine::unclipped_raster` sets FLAG_NO_CLIP) and bounds the difference. Not
 // clipped: cone charts (their coordinates are opened per fragment), warped images (T(img) is not
-// affine), a degenerate triangle; a tiled ribbon only across its width.
+// affine), a degenerate triangle, and every triangle where the mesh's triangles are small at the
+// bake's size (`Engine::clip_min_texels`: the fringe is then thin and the clip costs more than it
+// saves); a tiled ribbon only across its width.
 fn clip_planes(vi: u32, img: vec2<f32>) -> array<f32, 4> {
     var d = array<f32, 4>(1.0, 1.0, 1.0, 1.0);
     if ((params.flags & (FLAG_CONE | FLAG_WARP | FLAG_NO_CLIP)) != 0u) { return d; }
