@@ -398,10 +398,11 @@ impl Recording<'_> {
             let views = [&tg.color_view, &tg.cov_view];
             let win = self.canvas.global.window();
             // Each job's part of the target is cleared (a quad per scissor) instead of the whole
-            // target: llvmpipe then loads and stores only the bins the jobs touch. Measured on bob
-            // with 256 decals at 4096² (46 targets of 2048², about 60 % packed): compose 3.09 →
-            // 2.76 s; 16 decals 394 → 372 ms; one decal the same (a tiled 8192² bake: 1.80 →
-            // 1.62 s, session 13).
+            // target: llvmpipe then loads and stores only the bins the jobs touch. Measured with a
+            // temporary switch between the two, one pair of runs of `decalbake bench` on bob: 256
+            // decals at 4096² (46 targets of 2048², about 60 % packed) compose 3.09 → 2.76 s; 16
+            // decals 394 → 372 ms; one decal the same (a tiled 8192² bake: 1.80 → 1.62 s,
+            // session 13).
             let mut pass =
                 crate::gpu::render_pass(enc, "bake.layer_raster", &views, wgpu::LoadOp::Load);
             pass.set_pipeline(&pipes.atlas_clear.pipeline);

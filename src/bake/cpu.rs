@@ -512,10 +512,10 @@ impl<'a> LayerRaster<'a> {
             let Some(bc) = barycentric(p, a, bb, c) else {
                 continue;
             };
+            covered = true;
             let lc = self.topo.triangles[t as usize].map(|v| self.coords[v as usize]);
             let mut lx = bc[0] * lc[0][0] + bc[1] * lc[1][0] + bc[2] * lc[2][0];
             let mut ly = bc[0] * lc[0][1] + bc[1] * lc[1][1] + bc[2] * lc[2][1];
-            covered = true;
             if let Some(cone) = &self.cone {
                 let z = cone.apply(glam::DVec2::new(lx as f64, ly as f64));
                 (lx, ly) = (z.x as f32, z.y as f32);

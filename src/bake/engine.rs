@@ -160,20 +160,20 @@ pub struct Engine {
     /// reference the tests and `decalbake bench --strokes` compare the candidate lists with.
     /// Default `false`.
     pub whole_mesh_selection: bool,
-    /// Draw every layer's triangles whole instead of clipped to the layer's image and a two-texel
-    /// margin (`clip_planes` in `wgsl/bake/layer_raster.wgsl`, on devices with clip distances).
-    /// The texels are the same within the tests' tolerance; this is the reference
-    /// `tests/compose_vs_cpu.rs` and `decalbake bench` compare the clipped raster with. Default
-    /// `false`.
+    /// Draw every layer's triangles whole, and select the cells of whole triangles, instead of
+    /// clipping them to the layer's image and a two-texel margin (`clip_planes` in
+    /// `wgsl/bake/layer_raster.wgsl`, on devices with clip distances). The texels are the same
+    /// within 32 of 65535; this is the reference `tests/demo_and_api.rs` and `decalbake bench`
+    /// (`compose_unclipped_ms`) compare the clipped raster with. Default `false`.
     pub unclipped_raster: bool,
     /// The raster clips a layer's triangles only where the mesh's triangles cover at least this
     /// many texels on average at the bake's size (its UV area over its triangles): clipping
     /// costs each triangle three corners' reads and pays back through the fringe it drops, which
     /// shrinks with the triangles. Measured, 256 decals (compose, clipped against whole
-    /// triangles, same run): bob at 4096² (about 940 texels a triangle) 2.79 against 3.61 s, at
-    /// 2048² (235) 1.10 against 1.27 s; bob subdivided twice at 4096² (59) 4.05 against 3.96 s,
-    /// at 2048² (15) 2.12 against 2.03 s. The selection marks the clipped parts' cells either
-    /// way (the whole triangles' fragments outside them hold nothing to compose). Default 128.
+    /// triangles, same run of `decalbake bench`): bob at 4096² (about 940 texels a triangle) 2.79
+    /// against 3.51 s, at 2048² (235) 1.13 against 1.32 s; with the threshold at 0 (a scratch
+    /// build), bob subdivided twice at 4096² (59) 4.05 against 3.96 s, at 2048² (15) 2.12
+    /// against 2.03 s. Below it, neither the raster nor the selection clips. Default 128.
     pub clip_min_texels: f32,
     /// Layer images and masks decoded and uploaded by earlier bakes (`bake/images.rs`).
     pub(crate) images: Mutex<ImageCache>,

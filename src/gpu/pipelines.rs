@@ -493,6 +493,7 @@ impl Rasters {
         let clear = raster(
             device,
             "atlas_clear",
+            None,
             layout(device, "atlas_clear", &[], wgpu::ShaderStages::VERTEX),
             &[],
             &[Some(layer_format.into()), Some(COVERAGE_FORMAT.into())],
@@ -558,7 +559,7 @@ fn layer_raster(device: &wgpu::Device, blending: bool) -> (Raster, wgpu::Texture
     // (`clip_planes` in the shader); GL without the extension draws them whole.
     let clipped = device.features().contains(wgpu::Features::CLIP_DISTANCES);
     let make_layer = |format: wgpu::TextureFormat, blend: bool| {
-        raster_from(
+        raster(
             device,
             "layer_raster",
             clipped.then(|| shaders::clipped_source("layer_raster")),
@@ -599,6 +600,7 @@ fn flatten_raster(device: &wgpu::Device, format: wgpu::TextureFormat) -> Raster 
     raster(
         device,
         "stamp_flatten",
+        None,
         flatten_layout,
         &[],
         &[Some(format.into())],
@@ -620,6 +622,7 @@ fn island_raster(device: &wgpu::Device) -> Raster {
     raster(
         device,
         "island_raster",
+        None,
         island_layout,
         &[],
         &[Some(COVERAGE_FORMAT.into())],
@@ -650,6 +653,7 @@ fn transfer_raster(device: &wgpu::Device, format: wgpu::TextureFormat) -> Raster
     raster(
         device,
         "transfer_raster",
+        None,
         l,
         &[],
         &[Some(format.into()), Some(COVERAGE_FORMAT.into())],
@@ -670,6 +674,7 @@ fn extract_raster(device: &wgpu::Device, format: wgpu::TextureFormat) -> Raster 
     raster(
         device,
         "extract_raster",
+        None,
         l,
         &[],
         &[Some(format.into())],
@@ -742,6 +747,7 @@ fn preview_raster(device: &wgpu::Device) -> Raster {
     raster(
         device,
         "preview",
+        None,
         preview_layout,
         &buffers,
         &[Some(PREVIEW_FORMAT.into())],
@@ -756,21 +762,10 @@ fn preview_raster(device: &wgpu::Device) -> Raster {
     )
 }
 
-fn raster(
-    device: &wgpu::Device,
-    name: &str,
-    layout: wgpu::BindGroupLayout,
-    buffers: &[Option<wgpu::VertexBufferLayout<'_>>],
-    targets: &[Option<wgpu::ColorTargetState>],
-    depth: Option<wgpu::DepthStencilState>,
-    samples: u32,
-) -> Raster {
-    raster_from(device, name, None, layout, buffers, targets, depth, samples)
-}
-
-/// [`raster`] from `text`, a variant of the pipeline's source (`None`: its own).
+/// A render pipeline `name` (from `text`, a variant of its source, or its own: `None`) and its
+/// layout.
 #[allow(clippy::too_many_arguments)]
-fn raster_from(
+fn raster(
     device: &wgpu::Device,
     name: &str,
     text: Option<String>,

@@ -133,6 +133,7 @@ pub const SHARED: &[(&str, &str)] = &[
     ("geometry", include_str!("../../wgsl/shared/geometry.wgsl")),
     ("blend", include_str!("../../wgsl/shared/blend.wgsl")),
     ("acc", include_str!("../../wgsl/shared/acc.wgsl")),
+    ("clip", include_str!("../../wgsl/shared/clip.wgsl")),
     ("window", include_str!("../../wgsl/shared/window.wgsl")),
     ("expmap", include_str!("../../wgsl/shared/expmap.wgsl")),
     ("linalg", include_str!("../../wgsl/shared/linalg.wgsl")),

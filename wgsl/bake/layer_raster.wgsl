@@ -17,6 +17,7 @@
 // CPU twin: `LayerRaster` in src/bake/cpu.rs.
 #import params
 #import cone
+#import clip
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> lists: array<u32>;
@@ -101,50 +102,41 @@ struct VsOut {
     // CLIP: @builtin(clip_distances) clip: array<f32, 4>,
 }
 
-// Texel position (in the raster rectangle) and image coordinates of corner `vi` of its triangle.
+// Texel position (in the raster rectangle) and local coordinates (xy of the layer's slot) of
+// corner `vi` of its triangle.
 fn corner(vi: u32) -> array<vec2<f32>, 2> {
     let t = lists[params.slot * params.triangle_count + vi / 3u];
     let s = split_tris[3u * t + vi % 3u];
     let uv = uvs[s] - vec2<f32>(params.tile);
     let c = coords[params.slot * params.vertex_count + welded_of[s]];
     let texel = uv * vec2<f32>(params.tex_size) - vec2<f32>(params.rect_origin);
-    return array<vec2<f32>, 2>(texel, vec2<f32>(c.x / params.axis_u.w + 0.5, 0.5 - c.y / params.axis_v.w));
+    return array<vec2<f32>, 2>(texel, c.xy);
 }
 
-// Texels of margin around the image square that a triangle keeps (see `clip_planes`).
-const CLIP_MARGIN: f32 = 2.0;
-
 // The clip distances of vertex `vi` at image coordinates `img`: the image square [0, 1]², widened
-// by CLIP_MARGIN texels in the triangle's own map (img is affine over a triangle, so is each
-// distance, and the clipped triangle is exactly its part within the margin). A texel with a sample
-// in the image has all its samples of the same triangle within one texel; the second texel of
-// margin keeps the samples of a neighbouring triangle whose map is up to twice as slow. So every
-// texel the layer paints keeps its covered samples and its average: what is dropped is the
-// fringe (covered, transparent samples) beyond the margin, which composed nothing, about a
-// quarter of the raster's time on bob at 4096² with 256 decals. The CPU twin draws whole
+// by CLIP_MARGIN texels in the triangle's own map (shared/clip.wgsl; img is affine over a
+// triangle, so is each distance, and the clipped triangle is exactly its part within the margin).
+// A texel with a sample in the image has all its samples of the same triangle within one texel;
+// the second texel of margin keeps the samples of a neighbouring triangle whose map is up to twice
+// as slow. So every texel the layer paints keeps its covered samples and its average: what is
+// dropped is the fringe (covered, transparent samples) beyond the margin, which composed nothing,
+// about a quarter of the raster's time on bob at 4096² with 256 decals. The CPU twin draws whole
 // triangles (`LayerRaster` in src/bake/cpu.rs): the reference; `tests/demo_and_api.rs` bakes the
-// demo both ways (`Engine::unclipped_raster` sets FLAG_NO_CLIP) and bounds the difference. Not
-// clipped: cone charts (their coordinates are opened per fragment), warped images (T(img) is not
-// affine), a degenerate triangle, and every triangle where the mesh's triangles are small at the
-// bake's size (`Engine::clip_min_texels`: the fringe is then thin and the clip costs more than it
-// saves); a tiled ribbon only across its width.
+// demo both ways (`Engine::unclipped_raster`) and bounds the difference. Not clipped: cone charts
+// (their coordinates are opened per fragment), a degenerate triangle, and every unit with
+// FLAG_NO_CLIP (src/bake/maps.rs: warped images, whose T(img) is not affine; meshes whose
+// triangles are small at the bake's size, `Engine::clip_min_texels`, where the fringe is thin and
+// the clip costs more than it saves); a tiled ribbon only across its width.
 fn clip_planes(vi: u32, img: vec2<f32>) -> array<f32, 4> {
     var d = array<f32, 4>(1.0, 1.0, 1.0, 1.0);
-    if ((params.flags & (FLAG_CONE | FLAG_WARP | FLAG_NO_CLIP)) != 0u) { return d; }
+    if ((params.flags & (FLAG_CONE | FLAG_NO_CLIP)) != 0u) { return d; }
     let b = vi - vi % 3u;
     let c0 = corner(b);
     let c1 = corner(b + 1u);
     let c2 = corner(b + 2u);
-    let e1 = c1[0] - c0[0];
-    let e2 = c2[0] - c0[0];
-    let d1 = c1[1] - c0[1];
-    let d2 = c2[1] - c0[1];
-    let det = e1.x * e2.y - e1.y * e2.x;
-    if (abs(det) < 1e-12) { return d; }
-    // The image coordinates' derivatives along texel x and y.
-    let gx = (d1 * e2.y - d2 * e1.y) / det;
-    let gy = (d2 * e1.x - d1 * e2.x) / det;
-    let m = CLIP_MARGIN * (abs(gx) + abs(gy));
+    let m = clip_margin(c0[0], c1[0], c2[0],
+                        image_point(c0[1]), image_point(c1[1]), image_point(c2[1]));
+    if (m.x < 0.0) { return d; }
     if ((params.flags & FLAG_REPEAT) == 0u) {
         d[0] = img.x + m.x;
         d[1] = 1.0 + m.x - img.x;
@@ -160,11 +152,10 @@ fn vs_main(@builtin(vertex_index) vi: u32) -> VsOut {
     let ndc = c[0] / vec2<f32>(params.rect_size) * 2.0 - 1.0;
     var o: VsOut;
     o.pos = vec4<f32>(ndc.x, -ndc.y, 0.0, 1.0);
-    o.img = c[1];
-    // CLIP: o.clip = clip_planes(vi, c[1]);
+    o.img = image_point(c[1]);
+    // CLIP: o.clip = clip_planes(vi, o.img);
     if ((params.flags & FLAG_CONE) != 0u) {
-        let t = lists[params.slot * params.triangle_count + vi / 3u];
-        o.img = coords[params.slot * params.vertex_count + welded_of[split_tris[3u * t + vi % 3u]]].xy;
+        o.img = c[1];
     }
     return o;
 }

@@ -12,6 +12,7 @@
 // whole mesh, so the tests also check the candidates miss nothing).
 #import params
 #import cone
+#import clip
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
@@ -29,14 +30,6 @@
 @group(0) @binding(9) var<storage, read> cands: array<u32>;
 
 const NO_CANDIDATES: u32 = 0xffffffffu;
-
-// Texels of margin the layer raster keeps around the image square (CLIP_MARGIN in
-// layer_raster.wgsl; keep in sync).
-const CLIP_MARGIN: f32 = 2.0;
-
-fn image_point(c: vec2<f32>) -> vec2<f32> {
-    return vec2<f32>(c.x / params.axis_u.w + 0.5, 0.5 - c.y / params.axis_v.w);
-}
 
 // Polygon `inp` (n corners: texel xy, image zw) clipped to sgn * image[axis] + off >= 0, into
 // `out`; returns its corners.
@@ -62,17 +55,11 @@ fn clip_side(inp: array<vec4<f32>, 8>, n: u32, axis: u32, sgn: f32, off: f32,
 
 // The texel box (lo xy, hi zw; lo > hi: empty) of the part of the triangle with texel corners
 // t0..t2 and image corners i0..i2 that `clip_planes` in layer_raster.wgsl keeps: the image
-// square widened by CLIP_MARGIN texels of the triangle's own map (across the width only for a
-// tiled ribbon); the whole triangle's box for a warped layer (FLAG_NO_CLIP) or a degenerate one.
+// square widened by CLIP_MARGIN texels of the triangle's own map (shared/clip.wgsl; across the
+// width only for a tiled ribbon); the whole triangle's box for a degenerate one.
 fn drawn_box(t0: vec2<f32>, t1: vec2<f32>, t2: vec2<f32>, i0: vec2<f32>, i1: vec2<f32>, i2: vec2<f32>) -> vec4<f32> {
-    let whole = vec4<f32>(min(min(t0, t1), t2), max(max(t0, t1), t2));
-    let e1 = t1 - t0;
-    let e2 = t2 - t0;
-    let d1 = i1 - i0;
-    let d2 = i2 - i0;
-    let det = e1.x * e2.y - e1.y * e2.x;
-    if (abs(det) < 1e-12) { return whole; }
-    let m = CLIP_MARGIN * (abs((d1 * e2.y - d2 * e1.y) / det) + abs((d2 * e1.x - d1 * e2.x) / det));
+    let m = clip_margin(t0, t1, t2, i0, i1, i2);
+    if (m.x < 0.0) { return vec4<f32>(min(min(t0, t1), t2), max(max(t0, t1), t2)); }
     var a = array<vec4<f32>, 8>();
     var b = array<vec4<f32>, 8>();
     a[0] = vec4<f32>(t0, i0);
