@@ -821,7 +821,6 @@ fn linalg_kernels(
         (1, Ro),
         (2, Ro),
         (3, Ro),
-        (4, Ro),
         (5, Ro),
         (6, Ro),
         (7, Rw),
@@ -833,7 +832,7 @@ fn linalg_kernels(
     let variant = |name: &str, text: String| Kernel::with_source(device, name, cg, Some(text));
     let amg = [
         cg.as_slice(),
-        &[(12, Ro), (13, Ro), (14, Ro), (15, Ro), (16, Ro), (17, Rw)],
+        &[(12, Ro), (13, Ro), (15, Ro), (16, Ro), (17, Rw)],
     ]
     .concat();
     let wide: Vec<(u32, Bind)> = [amg.as_slice(), &[(18, Rw)]]
@@ -891,12 +890,12 @@ fn linalg_kernels(
     (kernels, amg, cg_wide)
 }
 
-/// Storage buffers `cg_amg.wgsl` binds (the CG's 11 and the hierarchy's 6).
-pub const AMG_STORAGE_BUFFERS: u32 = 17;
+/// Storage buffers `cg_amg.wgsl` binds (the CG's 10 and the hierarchy's 5).
+pub const AMG_STORAGE_BUFFERS: u32 = 15;
 
 /// Storage buffers `cg_wide.wgsl` binds (`cg_amg`'s, its pass selector in binding 0 instead of a
 /// uniform, and the partial sums).
-pub const WIDE_STORAGE_BUFFERS: u32 = 19;
+pub const WIDE_STORAGE_BUFFERS: u32 = 17;
 
 /// The placement kernels (`src/place.rs`): `place_bvh`, `place_candidates`, `place_reduce`.
 fn place_kernels(device: &wgpu::Device) -> [Kernel; 3] {

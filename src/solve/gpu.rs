@@ -143,14 +143,16 @@ struct CgState {
     scale: f32,
 }
 
-/// A CSR matrix in storage buffers (values f32).
+/// A CSR matrix in storage buffers (values f32), each row's (first, end) entry in one load and each
+/// stored entry's column and value side by side ([`entries`]): on lavapipe every storage load is a
+/// loop over the SIMD lanes, so one load of both instead of two takes a third of the loads out of
+/// a row product (README, "Linear algebra").
 pub struct GpuCsr {
-    /// Row offsets.
-    pub row_ptr: wgpu::Buffer,
-    /// Columns.
-    pub cols: wgpu::Buffer,
-    /// Values.
-    pub vals: wgpu::Buffer,
+    /// Per row, (first entry, end) ([`spans`]).
+    pub spans: wgpu::Buffer,
+    /// The entries: (column, value bits) on the real form, (column, a bits, b bits, w bits) on
+    /// complex blocks (w: the smoother's weight of the column's row, or 0; [`entries`]).
+    pub ents: wgpu::Buffer,
     /// Rows.
     pub rows: u32,
     /// Stored entries.
@@ -216,6 +218,34 @@ pub fn paired(a: &Csr) -> (Vec<[u32; 2]>, Vec<[u32; 4]>) {
     (spans, pairs)
 }
 
+/// The entries of a CSR matrix (`cols`, and `vals` with one or two values an entry) as the CG
+/// kernels read them (`E` in `wgsl/shared/cg_real.wgsl` and `cg_complex.wgsl`): one value an entry
+/// gives (column, value bits), two give (column, a bits, b bits, w bits), a 16-byte load, w the
+/// smoother's weight of the column's row (`col_weights`; 0 without): the spread CG's smoothed
+/// row products (`wgsl/shared/cg_wide_common.wgsl`) read it there instead of gathering it.
+pub fn entries(cols: &[u32], vals: &[f32], col_weights: Option<&[f32]>) -> Vec<u32> {
+    let per = if cols.is_empty() {
+        1
+    } else {
+        vals.len() / cols.len()
+    };
+    assert!(per == 1 || per == 2, "entries: {per} values an entry");
+    let mut out = Vec::with_capacity(cols.len() * 2 * per);
+    for (&c, v) in cols.iter().zip(vals.chunks(per)) {
+        out.push(c);
+        out.extend(v.iter().map(|x| x.to_bits()));
+        if per == 2 {
+            out.push(col_weights.map_or(0, |w| w[c as usize].to_bits()));
+        }
+    }
+    out
+}
+
+/// Row offsets as each row's (first entry, end): one 8-byte load a row instead of two.
+pub fn spans(row_ptr: &[u32]) -> Vec<[u32; 2]> {
+    row_ptr.windows(2).map(|w| [w[0], w[1]]).collect()
+}
+
 fn f32s(v: &[f64]) -> Vec<f32> {
     v.iter().map(|&x| x as f32).collect()
 }
@@ -223,31 +253,34 @@ fn f32s(v: &[f64]) -> Vec<f32> {
 impl GpuCsr {
     /// Uploads `a` (values rounded to f32).
     pub fn upload(ctx: &GpuContext, a: &Csr) -> Result<Self> {
-        Self::upload_parts(ctx, (&a.row_ptr, &a.cols, &a.vals), a.max_row_len())
+        let ents = entries(&a.cols, &f32s(&a.vals), None);
+        Self::upload_parts(ctx, (&a.row_ptr, &ents, a.nnz()), a.max_row_len())
     }
 
     /// Uploads the blocks of `c` (each (a, b) as two f32; `rows`, `nnz` and `max_row_len` count
-    /// blocks).
-    pub fn upload_complex(ctx: &GpuContext, c: &ComplexCsr) -> Result<Self> {
-        let vals: Vec<f64> = c.vals.iter().flatten().copied().collect();
-        let mut gpu = Self::upload_parts(ctx, (&c.row_ptr, &c.cols, &vals), c.max_row_len())?;
-        gpu.nnz = c.cols.len() as u32;
-        Ok(gpu)
+    /// blocks), each with the weight of its column's row in `col_weights` where given.
+    pub fn upload_complex(
+        ctx: &GpuContext,
+        c: &ComplexCsr,
+        col_weights: Option<&[f32]>,
+    ) -> Result<Self> {
+        let vals: Vec<f32> = c.vals.iter().flatten().map(|&v| v as f32).collect();
+        let ents = entries(&c.cols, &vals, col_weights);
+        Self::upload_parts(ctx, (&c.row_ptr, &ents, c.cols.len()), c.max_row_len())
     }
 
     fn upload_parts(
         ctx: &GpuContext,
-        (row_ptr, cols, vals): (&[u32], &[u32], &[f64]),
+        (row_ptr, ents, nnz): (&[u32], &[u32], usize),
         max_row_len: usize,
     ) -> Result<Self> {
         let buf =
             |label: &str, bytes: &[u8]| ctx.storage_init(label, bytes, wgpu::BufferUsages::empty());
         ctx.scoped("sparse matrix upload", || Self {
-            row_ptr: buf("csr.row_ptr", bytemuck::cast_slice(row_ptr)),
-            cols: buf("csr.cols", bytemuck::cast_slice(cols)),
-            vals: buf("csr.vals", bytemuck::cast_slice(&f32s(vals))),
+            spans: buf("csr.spans", bytemuck::cast_slice(&spans(row_ptr))),
+            ents: buf("csr.entries", bytemuck::cast_slice(ents)),
             rows: row_ptr.len() as u32 - 1,
-            nnz: vals.len() as u32,
+            nnz: nnz as u32,
             max_row_len: max_row_len as u32,
         })
     }
@@ -487,7 +520,7 @@ pub fn cg_batched(
 ) -> Result<Solved> {
     if let Some(c) = complex_batch(a, systems) {
         check_sizes(a, b, x0)?;
-        let gpu = GpuCsr::upload_complex(ctx, &c)?;
+        let gpu = GpuCsr::upload_complex(ctx, &c, None)?;
         // One Jacobi weight per block row: the diagonal block's a (both real rows' diagonal).
         let dinv = jacobi((0..c.rows).map(|i| {
             let (s, e) = (c.row_ptr[i] as usize, c.row_ptr[i + 1] as usize);
@@ -707,7 +740,7 @@ fn multigrid(
     let bufs = ctx.scoped("conjugate gradient", || {
         MultigridBuffers::upload(
             ctx,
-            (&mg.pr.row_ptr, &mg.pr.cols, &vals),
+            (&mg.pr.row_ptr, &entries(&mg.pr.cols, &vals, None)),
             &mg.levels,
             &mg.cinv,
             mg.total,
@@ -750,13 +783,13 @@ fn multigrid_complex(
             ..*s
         })
         .collect();
-    let gpu = GpuCsr::upload_complex(ctx, &c.a)?;
+    let gpu = GpuCsr::upload_complex(ctx, &c.a, Some(&c.weights))?;
     let vals: Vec<f32> = c.pr.vals.iter().flatten().map(|&v| v as f32).collect();
     let cinv: Vec<f32> = c.cinv.iter().flatten().copied().collect();
     let bufs = ctx.scoped("conjugate gradient", || {
         MultigridBuffers::upload(
             ctx,
-            (&c.pr.row_ptr, &c.pr.cols, &vals),
+            (&c.pr.row_ptr, &entries(&c.pr.cols, &vals, Some(&c.weights))),
             &c.levels,
             &cinv,
             c.pr.rows / 2,
@@ -833,15 +866,14 @@ fn run_wide(
         system: bytemuck::bytes_of(&sys),
         rows: (sys.row0, sys.n),
         max_iter: sys.max_iter,
-        matrix: [&gpu.row_ptr, &gpu.cols, &gpu.vals],
+        matrix: [&gpu.spans, &gpu.ents],
         b: &bb,
         dinv: &db,
         x: &xb,
         vector_bytes: rows as u64 * 4,
         hierarchy: [
-            &bufs.pr_ptr,
-            &bufs.pr_cols,
-            &bufs.pr_vals,
+            &bufs.pr_spans,
+            &bufs.pr_ents,
             &bufs.levels,
             &bufs.cinv,
             &bufs.vectors,
@@ -873,11 +905,10 @@ fn amg_kernel(k: Option<&Kernel>) -> &Kernel {
     k.expect("hierarchies are built only where the device has the multigrid kernel")
 }
 
-/// The hierarchy's buffers (bindings 12-17 of `cg_amg.wgsl`).
+/// The hierarchy's buffers (bindings 12-17 of `cg_amg.wgsl`, less 14).
 struct MultigridBuffers {
-    pr_ptr: wgpu::Buffer,
-    pr_cols: wgpu::Buffer,
-    pr_vals: wgpu::Buffer,
+    pr_spans: wgpu::Buffer,
+    pr_ents: wgpu::Buffer,
     levels: wgpu::Buffer,
     cinv: wgpu::Buffer,
     vectors: wgpu::Buffer,
@@ -885,12 +916,12 @@ struct MultigridBuffers {
 }
 
 impl MultigridBuffers {
-    /// Uploads the prolongators and restrictions (`pr`: row offsets, columns, f32 values), the
+    /// Uploads the prolongators and restrictions (`pr`: row offsets and [`entries`]), the
     /// levels, the coarsest inverses and room for three vectors of `total` kernel rows of
     /// `row_bytes` each.
     fn upload(
         ctx: &GpuContext,
-        pr: (&[u32], &[u32], &[f32]),
+        pr: (&[u32], &[u32]),
         levels: &[[u32; 2]],
         cinv: &[f32],
         total: usize,
@@ -899,9 +930,8 @@ impl MultigridBuffers {
         let init =
             |label: &str, bytes: &[u8]| ctx.storage_init(label, bytes, wgpu::BufferUsages::empty());
         Self {
-            pr_ptr: init("cg.pr_ptr", bytemuck::cast_slice(pr.0)),
-            pr_cols: init("cg.pr_cols", bytemuck::cast_slice(pr.1)),
-            pr_vals: init("cg.pr_vals", bytemuck::cast_slice(pr.2)),
+            pr_spans: init("cg.pr_spans", bytemuck::cast_slice(&spans(pr.0))),
+            pr_ents: init("cg.pr_entries", bytemuck::cast_slice(pr.1)),
             levels: init("cg.levels", bytemuck::cast_slice(levels)),
             cinv: init("cg.cinv", bytemuck::cast_slice(cinv)),
             vectors: ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -1043,9 +1073,8 @@ fn run(
                 let mut entries = vec![
                     (0, round.as_entire_binding()),
                     (1, sys.as_entire_binding()),
-                    (2, gpu.row_ptr.as_entire_binding()),
-                    (3, gpu.cols.as_entire_binding()),
-                    (4, gpu.vals.as_entire_binding()),
+                    (2, gpu.spans.as_entire_binding()),
+                    (3, gpu.ents.as_entire_binding()),
                     (5, bb.as_entire_binding()),
                     (6, db.as_entire_binding()),
                     (7, xb.as_entire_binding()),
@@ -1056,9 +1085,8 @@ fn run(
                 ];
                 if let (MULTIGRID, Some(m)) = (wide, mg) {
                     entries.extend([
-                        (12, m.pr_ptr.as_entire_binding()),
-                        (13, m.pr_cols.as_entire_binding()),
-                        (14, m.pr_vals.as_entire_binding()),
+                        (12, m.pr_spans.as_entire_binding()),
+                        (13, m.pr_ents.as_entire_binding()),
                         (15, m.levels.as_entire_binding()),
                         (16, m.cinv.as_entire_binding()),
                         (17, m.vectors.as_entire_binding()),

@@ -74,7 +74,7 @@ struct State {
     scale: f32,
 }
 
-/// What the kernel binds, uploaded by `solve::gpu` (bindings 1-6 and 12-17 of cg_amg.wgsl), and
+/// What the kernel binds, uploaded by `solve::gpu` (bindings 1-6 and 12-17 of cg_amg.wgsl, less 4 and 14), and
 /// the one system's hierarchy.
 pub struct WideInputs<'a> {
     /// The `System` row of the one system (`SystemDesc`'s bytes), its rows in block units.
@@ -83,16 +83,16 @@ pub struct WideInputs<'a> {
     pub rows: (u32, u32),
     /// Its iteration budget.
     pub max_iter: u32,
-    /// The matrix: row offsets, columns, values.
-    pub matrix: [&'a wgpu::Buffer; 3],
+    /// The matrix: row spans, entries ([`crate::solve::gpu::GpuCsr`]).
+    pub matrix: [&'a wgpu::Buffer; 2],
     /// Right-hand side, weights (`dinv`), start.
     pub b: &'a wgpu::Buffer,
     pub dinv: &'a wgpu::Buffer,
     pub x: &'a wgpu::Buffer,
     /// Bytes of one vector (r, p, Ap).
     pub vector_bytes: u64,
-    /// Prolongators, levels, coarsest inverse, the V-cycle's three vectors.
-    pub hierarchy: [&'a wgpu::Buffer; 6],
+    /// Prolongators (row spans, entries), levels, coarsest inverse, the V-cycle's three vectors.
+    pub hierarchy: [&'a wgpu::Buffer; 5],
     /// Rows of the index space (every level).
     pub total: u32,
     /// (first row, rows) of each of the system's levels, fine first.
@@ -213,14 +213,13 @@ pub fn solve(
                 }),
                 wgpu::BufferUsages::empty(),
             );
-            let [rp, cols, vals] = inputs.matrix;
+            let [rp, ents] = inputs.matrix;
             let h = inputs.hierarchy;
             let entries = [
                 (0, u.as_entire_binding()),
                 (1, sys.as_entire_binding()),
                 (2, rp.as_entire_binding()),
-                (3, cols.as_entire_binding()),
-                (4, vals.as_entire_binding()),
+                (3, ents.as_entire_binding()),
                 (5, inputs.b.as_entire_binding()),
                 (6, inputs.dinv.as_entire_binding()),
                 (7, inputs.x.as_entire_binding()),
@@ -230,10 +229,9 @@ pub fn solve(
                 (11, state.as_entire_binding()),
                 (12, h[0].as_entire_binding()),
                 (13, h[1].as_entire_binding()),
-                (14, h[2].as_entire_binding()),
-                (15, h[3].as_entire_binding()),
-                (16, h[4].as_entire_binding()),
-                (17, h[5].as_entire_binding()),
+                (15, h[2].as_entire_binding()),
+                (16, h[3].as_entire_binding()),
+                (17, h[4].as_entire_binding()),
                 (18, partials.as_entire_binding()),
             ];
             let kernel = if plain(phase) { kernels.1 } else { kernels.0 };

@@ -5,6 +5,22 @@
 
 alias V = vec2<f32>;
 alias M = vec2<f32>;
+// A stored block: its column, a's and b's bits and the smoother's weight of the column's row (0
+// outside the multigrid kernels), one 16-byte load (`GpuCsr` and `entries` in src/solve/gpu.rs).
+alias E = vec4<u32>;
+
+// The weight of the entry's column: `dinv[ent_col(e)]` without the gather (cg_wide_common.wgsl).
+fn ent_w(e: E) -> f32 {
+    return bitcast<f32>(e.w);
+}
+
+fn ent_col(e: E) -> u32 {
+    return e.x;
+}
+
+fn ent_val(e: E) -> M {
+    return bitcast<vec2<f32>>(e.yz);
+}
 
 // [[a, -b], [b, a]] (u, v): the complex product (a + i b)(u + i v).
 fn mat_mul(m: M, v: V) -> V {

@@ -3,6 +3,16 @@
 
 alias V = f32;
 alias M = f32;
+// A stored entry: its column and its value's bits, one 8-byte load (`GpuCsr` in src/solve/gpu.rs).
+alias E = vec2<u32>;
+
+fn ent_col(e: E) -> u32 {
+    return e.x;
+}
+
+fn ent_val(e: E) -> M {
+    return bitcast<f32>(e.y);
+}
 
 // The entry times the unknown.
 fn mat_mul(m: M, v: V) -> V {

@@ -1,13 +1,13 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // What the multigrid CG kernels (cg_amg.wgsl: one workgroup a system; cg_wide.wgsl and
-// cg_wide_plain.wgsl: one system over many) share: bindings 1-17 (each kernel declares its own
-// binding 0, and the spread ones binding 18) and the row products. Import after `linalg`,
+// cg_wide_plain.wgsl: one system over many) share: bindings 1-17, less 4 and 14 (each entry's
+// column and value are one load, `ents` and `pr_ents`; each kernel declares its own binding 0, and
+// the spread ones binding 18) and the row products. Import after `linalg`,
 // `cg_state`, `cg_real` (or `cg_complex`) and `cg_row_ax`.
 
 @group(0) @binding(1) var<storage, read> systems: array<System>;
-@group(0) @binding(2) var<storage, read> row_ptr: array<u32>;
-@group(0) @binding(3) var<storage, read> cols: array<u32>;
-@group(0) @binding(4) var<storage, read> vals: array<M>;
+@group(0) @binding(2) var<storage, read> spans: array<vec2<u32>>;
+@group(0) @binding(3) var<storage, read> ents: array<E>;
 @group(0) @binding(5) var<storage, read> b: array<V>;
 @group(0) @binding(6) var<storage, read> dinv: array<f32>;
 @group(0) @binding(7) var<storage, read_write> x: array<V>;
@@ -15,9 +15,8 @@
 @group(0) @binding(9) var<storage, read_write> p: array<V>;
 @group(0) @binding(10) var<storage, read_write> ap: array<V>;
 @group(0) @binding(11) var<storage, read_write> state: array<State>;
-@group(0) @binding(12) var<storage, read> pr_ptr: array<u32>;
-@group(0) @binding(13) var<storage, read> pr_cols: array<u32>;
-@group(0) @binding(14) var<storage, read> pr_vals: array<M>;
+@group(0) @binding(12) var<storage, read> pr_spans: array<vec2<u32>>;
+@group(0) @binding(13) var<storage, read> pr_ents: array<E>;
 @group(0) @binding(15) var<storage, read> levels: array<vec2<u32>>;
 @group(0) @binding(16) var<storage, read> cinv: array<M>;
 @group(0) @binding(17) var<storage, read_write> mg: array<V>;
@@ -25,9 +24,10 @@
 // Σ_k A[i, k] mg[v0 + k]: row i of the level matrices times the vector at offset v0 of mg.
 fn a_row(i: u32, v0: u32) -> V {
     var s = V(0.0);
-    let end = row_ptr[i + 1u];
-    for (var k = row_ptr[i]; k < end; k++) {
-        s += mat_mul(vals[k], mg[v0 + cols[k]]);
+    let sp = spans[i];
+    for (var k = sp.x; k < sp.y; k++) {
+        let e = ents[k];
+        s += mat_mul(ent_val(e), mg[v0 + ent_col(e)]);
     }
     return s;
 }
@@ -35,9 +35,10 @@ fn a_row(i: u32, v0: u32) -> V {
 // Row i of the prolongators (i < total) or restrictions (i >= total) times the vector at v0.
 fn pr_row(i: u32, v0: u32) -> V {
     var s = V(0.0);
-    let end = pr_ptr[i + 1u];
-    for (var k = pr_ptr[i]; k < end; k++) {
-        s += mat_mul(pr_vals[k], mg[v0 + pr_cols[k]]);
+    let sp = pr_spans[i];
+    for (var k = sp.x; k < sp.y; k++) {
+        let e = pr_ents[k];
+        s += mat_mul(ent_val(e), mg[v0 + ent_col(e)]);
     }
     return s;
 }

@@ -2,7 +2,7 @@
 // What the two kernels of a spread CG (cg_wide.wgsl: the passes with sums and the status;
 // cg_wide_plain.wgsl: the V-cycle's passes without, which need no barrier) share: the pass
 // selector (binding 0), the partial sums (binding 18) and the smoothed row products. Import after
-// `linalg`, `cg_state`, `cg_real` (or `cg_complex`) and `cg_rows` (bindings 1-17).
+// `linalg`, `cg_state`, `cg_real` (or `cg_complex`) and `cg_rows` (bindings 1-17, less 4 and 14).
 
 // Passes. Keep in sync with `pass` in src/solve/gpu_wide.rs.
 const INIT_RESIDUAL: u32 = 0u;
@@ -39,13 +39,15 @@ struct Wide {
 @group(0) @binding(18) var<storage, read_write> partials: array<vec4<f32>>;
 
 
-// Σ_k A[i, k] W_k B_k: row i of A times the pre-smoothed X = W B, without X being written first.
+// Σ_k A[i, k] W_k B_k: row i of A times the pre-smoothed X = W B, without X being written first
+// (W_k is in the entry, `ent_w`: one gather an entry fewer).
 fn a_row_smoothed(i: u32) -> V {
     var s = V(0.0);
-    let end = row_ptr[i + 1u];
-    for (var k = row_ptr[i]; k < end; k++) {
-        let c = cols[k];
-        s += mat_mul(vals[k], dinv[c] * mg[c]);
+    let sp = spans[i];
+    for (var k = sp.x; k < sp.y; k++) {
+        let e = ents[k];
+        let c = ent_col(e);
+        s += mat_mul(ent_val(e), ent_w(e) * mg[c]);
     }
     return s;
 }
@@ -55,10 +57,11 @@ fn a_row_smoothed(i: u32) -> V {
 fn pr_row_smoothed(i: u32) -> V {
     let tot = wide.total;
     var s = V(0.0);
-    let end = pr_ptr[i + 1u];
-    for (var k = pr_ptr[i]; k < end; k++) {
-        let c = pr_cols[k];
-        s += mat_mul(pr_vals[k], mg[tot + c] + dinv[c] * mg[2u * tot + c]);
+    let sp = pr_spans[i];
+    for (var k = sp.x; k < sp.y; k++) {
+        let e = pr_ents[k];
+        let c = ent_col(e);
+        s += mat_mul(ent_val(e), mg[tot + c] + ent_w(e) * mg[2u * tot + c]);
     }
     return s;
 }

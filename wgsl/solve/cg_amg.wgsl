@@ -4,7 +4,7 @@
 // dispatches; the same statuses, stopping rule and residual replacement as cg_batched.wgsl (read
 // its header). Only systems whose `nlev` is set run here; the host builds their hierarchies
 // (src/solve/amg.rs) and lays them out in one index space of `round.total` rows: the batch's own
-// rows first, then every coarse level's. `row_ptr/cols/vals` hold every level's matrix in that
+// rows first, then every coarse level's. `spans` and `ents` hold every level's matrix in that
 // space, `pr_*` the prolongators (rows 0 .. total) and their transposes (rows total .. 2 total),
 // `dinv` the smoother's weights ω / dᵢ, `levels` each level's (first row, rows), `cinv` each
 // coarsest level's dense inverse, and `mg` three vectors of `total` rows: the levels'
@@ -36,9 +36,10 @@ var<workgroup> wg_iters: u32;
 
 fn a_times_p(i: u32) -> V {
     var s = V(0.0);
-    let end = row_ptr[i + 1u];
-    for (var k = row_ptr[i]; k < end; k++) {
-        s += mat_mul(vals[k], p[cols[k]]);
+    let sp = spans[i];
+    for (var k = sp.x; k < sp.y; k++) {
+        let e = ents[k];
+        s += mat_mul(ent_val(e), p[ent_col(e)]);
     }
     return s;
 }

@@ -18,9 +18,9 @@ const ST_OTHER: u32 = 99u;
 
 @group(0) @binding(0) var<uniform> round: Round;
 @group(0) @binding(1) var<storage, read> systems: array<System>;
-@group(0) @binding(2) var<storage, read> row_ptr: array<u32>;
-@group(0) @binding(3) var<storage, read> cols: array<u32>;
-@group(0) @binding(4) var<storage, read> vals: array<f32>;
+@group(0) @binding(2) var<storage, read> spans: array<vec2<u32>>;
+// Per stored entry: its column and its value's bits (`GpuCsr` in src/solve/gpu.rs).
+@group(0) @binding(3) var<storage, read> ents: array<vec2<u32>>;
 @group(0) @binding(5) var<storage, read> b: array<f32>;
 @group(0) @binding(6) var<storage, read> dinv: array<f32>;
 @group(0) @binding(7) var<storage, read_write> x: array<f32>;
@@ -34,9 +34,10 @@ var<workgroup> wg_iters: u32;
 
 fn a_times_p(i: u32) -> f32 {
     var s = 0.0;
-    let end = row_ptr[i + 1u];
-    for (var k = row_ptr[i]; k < end; k++) {
-        s += vals[k] * p[cols[k]];
+    let sp = spans[i];
+    for (var k = sp.x; k < sp.y; k++) {
+        let e = ents[k];
+        s += bitcast<f32>(e.y) * p[e.x];
     }
     return s;
 }
@@ -44,9 +45,10 @@ fn a_times_p(i: u32) -> f32 {
 // (A x)_i and (|A| |x|)_i.
 fn a_times_x(i: u32) -> vec2<f32> {
     var s = vec2<f32>(0.0);
-    let end = row_ptr[i + 1u];
-    for (var k = row_ptr[i]; k < end; k++) {
-        let t = vals[k] * x[cols[k]];
+    let sp = spans[i];
+    for (var k = sp.x; k < sp.y; k++) {
+        let e = ents[k];
+        let t = bitcast<f32>(e.y) * x[e.x];
         s += vec2<f32>(t, abs(t));
     }
     return s;

@@ -17,8 +17,8 @@
 // instead (src/gpu/shaders.rs, `complex_source`): V = vec2 (u, v) per vertex and M = vec2 (a, b) per
 // 2 × 2 block [[a, -b], [b, a]], for the LSCM systems, which have that structure (a Hermitian form
 // in z = u + i v). The iteration is the same CG on the same real system; each product reads one
-// column and one (a, b) for four real entries, and on lavapipe every load that differs between SIMD
-// lanes costs a loop over the lanes, so that halves the loads of an iteration.
+// 16-byte entry (column, a, b) for four real entries, and on lavapipe every load that differs
+// between SIMD lanes costs a loop over the lanes, so that halves the loads of an iteration.
 // CPU twin: `cg::pcg` in src/solve/cg.rs (f64, on the real form).
 #import linalg
 #import cg_state
@@ -30,9 +30,8 @@ const PACKED: u32 = 2u;
 
 @group(0) @binding(0) var<uniform> round: Round;
 @group(0) @binding(1) var<storage, read> systems: array<System>;
-@group(0) @binding(2) var<storage, read> row_ptr: array<u32>;
-@group(0) @binding(3) var<storage, read> cols: array<u32>;
-@group(0) @binding(4) var<storage, read> vals: array<M>;
+@group(0) @binding(2) var<storage, read> spans: array<vec2<u32>>;
+@group(0) @binding(3) var<storage, read> ents: array<E>;
 @group(0) @binding(5) var<storage, read> b: array<V>;
 @group(0) @binding(6) var<storage, read> dinv: array<f32>;
 @group(0) @binding(7) var<storage, read_write> x: array<V>;
@@ -91,9 +90,10 @@ fn iterate(row0: u32, n: u32, rtol: f32, st: ptr<function, State>) -> u32 {
     var pap = 0.0;
     for (var i = row0; i < row0 + n; i++) {
         var q = V(0.0);
-        let end = row_ptr[i + 1u];
-        for (var k = row_ptr[i]; k < end; k++) {
-            q += mat_mul(vals[k], p[cols[k]]);
+        let sp = spans[i];
+        for (var k = sp.x; k < sp.y; k++) {
+            let e = ents[k];
+            q += mat_mul(ent_val(e), p[ent_col(e)]);
         }
         ap[i] = q;
         pap += vdot(p[i], q);

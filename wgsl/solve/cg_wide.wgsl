@@ -188,9 +188,10 @@ fn main(
         var part = vec4<f32>(0.0);
         for (var i = sys.row0 + first; i < sys.row0 + sys.n; i += stride) {
             var q = V(0.0);
-            let end = row_ptr[i + 1u];
-            for (var k = row_ptr[i]; k < end; k++) {
-                q += mat_mul(vals[k], p[cols[k]]);
+            let sp = spans[i];
+            for (var k = sp.x; k < sp.y; k++) {
+                let e = ents[k];
+                q += mat_mul(ent_val(e), p[ent_col(e)]);
             }
             ap[i] = q;
             part.x += vdot(p[i], q);
