@@ -161,11 +161,14 @@ pub struct GpuCsr {
     pub max_row_len: u32,
 }
 
-/// A real matrix in the standalone product's layout ([`spmv`]): per row (first pair, pairs),
-/// and the entries two to a 16-byte pair (column, value bits, column, value bits; a row of odd
-/// length ends in a zero entry on its own last column).
+/// A real matrix in the standalone product's layout ([`spmv`]): per row (first pair, pairs, and
+/// the last entry of a row of odd length: column, value bits), and the other entries two to a
+/// 16-byte pair (column, value bits, column, value bits). A row's loads are then one span, its
+/// pairs and one gather an entry (with the odd entry in a pair of its own, a mesh Laplacian's
+/// rows of 7 entries took a gather of a zero too).
 pub struct GpuPairs {
-    /// (first pair, pairs) of each row.
+    /// (first pair, pairs, odd entry's column, its value bits) of each row; (.., 0, 0) for a row
+    /// of even length.
     pub spans: wgpu::Buffer,
     /// The pairs.
     pub pairs: wgpu::Buffer,
@@ -196,24 +199,27 @@ impl GpuPairs {
     }
 }
 
-/// The paired layout of `a` ([`GpuPairs`]): per row (first pair, pairs), and the pairs.
-pub fn paired(a: &Csr) -> (Vec<[u32; 2]>, Vec<[u32; 4]>) {
+/// The paired layout of `a` ([`GpuPairs`]): per row (first pair, pairs, odd entry), and the pairs.
+pub fn paired(a: &Csr) -> (Vec<[u32; 4]>, Vec<[u32; 4]>) {
     let mut spans = Vec::with_capacity(a.rows);
     let mut pairs = Vec::with_capacity(a.nnz() / 2 + a.rows);
     for i in 0..a.rows {
         let first = pairs.len() as u32;
         let row: Vec<(usize, f64)> = a.row(i).collect();
+        let mut odd = [0, 0];
         for two in row.chunks(2) {
             let (c0, v0) = two[0];
-            let (c1, v1) = two.get(1).copied().unwrap_or((c0, 0.0));
-            pairs.push([
-                c0 as u32,
-                (v0 as f32).to_bits(),
-                c1 as u32,
-                (v1 as f32).to_bits(),
-            ]);
+            match two.get(1) {
+                Some(&(c1, v1)) => pairs.push([
+                    c0 as u32,
+                    (v0 as f32).to_bits(),
+                    c1 as u32,
+                    (v1 as f32).to_bits(),
+                ]),
+                None => odd = [c0 as u32, (v0 as f32).to_bits()],
+            }
         }
-        spans.push([first, pairs.len() as u32 - first]);
+        spans.push([first, pairs.len() as u32 - first, odd[0], odd[1]]);
     }
     (spans, pairs)
 }
