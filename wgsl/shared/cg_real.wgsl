@@ -14,6 +14,12 @@ fn ent_val(e: E) -> M {
     return bitcast<f32>(e.y);
 }
 
+// The smoother's weight of the entry's column: no room in a real entry, so gathered from `dinv`
+// (declared by every kernel that imports this file; the complex form carries it in the entry).
+fn ent_w(e: E) -> f32 {
+    return dinv[e.x];
+}
+
 // The entry times the unknown.
 fn mat_mul(m: M, v: V) -> V {
     return m * v;
