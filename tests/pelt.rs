@@ -904,6 +904,35 @@ fn glb_attribute(path: &Path, name: &str) -> Vec<f32> {
     bytemuck::pod_collect_to_vec(&bin[off..off + 4 * n])
 }
 
+/// Re-unwrapping a model that has `_PELT_BLEND`, without `--patch`: replacing the pelt's set
+/// (`--uv-set 1 --force`) leaves the old weights out (they paired the old layouts) and says so;
+/// appending a set keeps them, since the sets they pair are untouched. Before, a replaced pelt
+/// kept the old weights and the blended preview mixed the new pelt with the old patch.
+fn stale_weights_are_left_out(patched: &Path, dir: &Path) {
+    let unwrap = |out: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "unwrap",
+            patched.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--cpu",
+        ];
+        args.extend_from_slice(extra);
+        common::cli(&args)
+    };
+    let replaced = dir.join("replaced.glb");
+    let (code, _, err) = unwrap(&replaced, &["--uv-set", "1", "--force"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("_PELT_BLEND"), "{err}");
+    let m = Mesh::load(&replaced).unwrap();
+    assert_eq!((m.uv_sets.len(), m.blend.len(), m.bridge.len()), (3, 0, 0));
+    let appended = dir.join("appended.glb");
+    let (code, _, err) = unwrap(&appended, &[]);
+    assert_eq!(code, 0, "{err}");
+    let m = Mesh::load(&appended).unwrap();
+    assert_eq!((m.uv_sets.len(), m.blend.len()), (4, m.positions.len()));
+}
+
 /// `--patch` (Piponi & Borshukov §5) on Spot: the pelt (TEXCOORD_1, one pelt: the seam is the cut
 /// tree), the patch (TEXCOORD_2) and `_PELT_BLEND` (b0) in a file the validator passes. Checked
 /// from the file alone: the seam is every edge whose two triangles give it different pelt UVs; b0
@@ -955,6 +984,7 @@ fn patch_and_blend_function_hide_the_cut() {
         .collect();
     assert!(shown.len() > 100);
     assert_eq!(flipped_and_overlapping(&shown), (0, 0));
+    stale_weights_are_left_out(&out, &dir);
 
     // Both sets baked by one job: a texture and a report per set. At 256² texels: the patch keeps
     // the seams' tips uncut, so its layout shrinks round them (area distortion up to about 2,000 on

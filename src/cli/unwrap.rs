@@ -217,6 +217,16 @@ fn run_on(
     if let Some(p) = &patch {
         out_mesh.blend = per_split(&p.blend);
         out_mesh.bridge = bridges.map_or_else(Vec::new, |b| per_split(&b.weight));
+    } else if set < mesh.uv_sets.len() && !(mesh.blend.is_empty() && mesh.bridge.is_empty()) {
+        // The model's weights were made with the layouts of an earlier `--patch` run, and which
+        // sets they pair is not recorded: a replaced set may be one of them, and a new pelt
+        // blended with an old patch shows both. Appending a set leaves them valid.
+        out_mesh.blend.clear();
+        out_mesh.bridge.clear();
+        eprintln!(
+            "{}: TEXCOORD_{set} replaced, so the model's _PELT_BLEND and _PELT_BRIDGE weights (made for the old layouts) are left out; add --patch to make new ones",
+            args.out.display()
+        );
     }
     let png = mesh.material.as_ref().and_then(|m| {
         m.base_color_texture
