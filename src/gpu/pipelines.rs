@@ -439,7 +439,6 @@ fn expmap_relax(device: &wgpu::Device) -> Kernel {
         (11, Rw),
         (12, Rw),
         (13, Rw),
-        (14, Ro),
     ];
     Kernel::new(device, "expmap_relax", &binds)
 }

@@ -25,6 +25,32 @@ impl SurfaceData {
     }
 }
 
+/// What the exponential maps' relaxation (`wgsl/maps/expmap_relax.wgsl`) reads of each CSR
+/// adjacency entry v → r, in one 16-byte load: r, the edge's intrinsic angle at v, the reverse
+/// edge's (r → v) at r (0 where r does not list v, as the kernel's scan gave) and r's signed
+/// Gaussian curvature, as bits. On lavapipe every storage load is a loop over the SIMD lanes: this
+/// replaces a neighbour scan's three loads with one, and the two scans of r's and v's lists the
+/// smooth step made for the two angles with none.
+pub fn relax_edges(topo: &Topology, surface: &SurfaceData) -> Vec<[u32; 4]> {
+    let offsets = &topo.adjacency_offsets;
+    let mut out = Vec::with_capacity(topo.adjacency.len());
+    for v in 0..topo.positions.len() {
+        for k in offsets[v] as usize..offsets[v + 1] as usize {
+            let r = topo.adjacency[k] as usize;
+            let back = (offsets[r] as usize..offsets[r + 1] as usize)
+                .find(|&j| topo.adjacency[j] as usize == v)
+                .map_or(0.0, |j| surface.edge_angles[j]);
+            out.push([
+                r as u32,
+                surface.edge_angles[k].to_bits(),
+                back.to_bits(),
+                surface.curvature[r].to_bits(),
+            ]);
+        }
+    }
+    out
+}
+
 /// The intrinsic angle of each edge at its source vertex, per CSR adjacency entry: going around the
 /// vertex in the winding direction, the sum of the corner angles passed, scaled by 2π / (angle sum)
 /// at interior vertices (the usual discrete tangent-space coordinates, e.g. Sharp, Soliman & Crane

@@ -43,9 +43,10 @@ pub struct GpuMesh {
     pub triangle_neighbors: wgpu::Buffer,
     /// |Gaussian curvature| per welded vertex, `f32` (partial decals).
     pub curvature: wgpu::Buffer,
-    /// Intrinsic angle of every edge at its source vertex, per CSR adjacency entry, `f32`
-    /// (the smooth exponential map's frame transport).
-    pub edge_angles: wgpu::Buffer,
+    /// Per CSR adjacency entry, what the exponential maps' relaxation reads of it: the neighbour,
+    /// the edge's intrinsic angle at its source, the reverse edge's at the neighbour and the
+    /// neighbour's curvature, `vec4<u32>` (`crate::mesh::surface::relax_edges`).
+    pub relax_edges: wgpu::Buffer,
     /// Boundary edges (welded ids, smaller first), `vec2<u32>`.
     pub boundary_edges: wgpu::Buffer,
     /// Non-manifold edges, `vec2<u32>`.
@@ -219,10 +220,10 @@ impl GpuMesh {
                 bytemuck::cast_slice(&surface.curvature),
                 none,
             ),
-            edge_angles: storage(
+            relax_edges: storage(
                 device,
-                "mesh.edge_angles",
-                bytemuck::cast_slice(&surface.edge_angles),
+                "mesh.relax_edges",
+                bytemuck::cast_slice(&crate::mesh::surface::relax_edges(topo, surface)),
                 none,
             ),
         }

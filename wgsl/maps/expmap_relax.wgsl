@@ -69,7 +69,10 @@ struct GeoResult {
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> normals: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> adj_offsets: array<u32>;
-@group(0) @binding(4) var<storage, read> adjacency: array<u32>;
+// Per CSR adjacency entry v -> r: (r, the edge's intrinsic angle at v, the reverse edge's at r,
+// r's curvature), the floats as bits: one load where a neighbour scan took three and the smooth
+// step two more scans (`relax_edges` in src/mesh/surface.rs).
+@group(0) @binding(4) var<storage, read> edges: array<vec4<u32>>;
 @group(0) @binding(5) var<storage, read> curvature: array<f32>;
 @group(0) @binding(6) var<storage, read> candidates: array<u32>;
 @group(0) @binding(7) var<storage, read_write> coords: array<vec4<f32>>;
@@ -83,16 +86,13 @@ struct GeoResult {
 @group(0) @binding(12) var<storage, read_write> marks: array<atomic<u32>>;
 // Per slot and vertex: the smooth mode's state (G, G', frame angle, 0) (see shared/expmap.wgsl).
 @group(0) @binding(13) var<storage, read_write> state: array<vec4<f32>>;
-// Per CSR adjacency entry: the edge's intrinsic angle at its source vertex (`edge_angles` in
-// src/maps/expmap/cpu.rs).
-@group(0) @binding(14) var<storage, read> edge_angles: array<f32>;
-
 // The intrinsic angle of edge v -> q at v (0 when q is not a neighbour). Twin of `edge_angle` in
 // src/maps/expmap/cpu.rs.
 fn edge_angle(v: u32, q: u32) -> f32 {
     let k_end = adj_offsets[v + 1u];
     for (var k = adj_offsets[v]; k < k_end; k++) {
-        if (adjacency[k] == q) { return edge_angles[k]; }
+        let e = edges[k];
+        if (e.x == q) { return bitcast<f32>(e.y); }
     }
     return 0.0;
 }
@@ -211,15 +211,19 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
             let pv = positions[v].xyz;
             var best = INF;
             var best_r = NONE;
+            var best_k = 0u;
+            let k_first = adj_offsets[v];
             let k_end = adj_offsets[v + 1u];
-            for (var k = adj_offsets[v]; k < k_end; k++) {
-                let r = adjacency[k];
+            for (var k = k_first; k < k_end; k++) {
+                let e = edges[k];
+                let r = e.x;
                 let cr = coords[base + r];
-                if (cr.w > 0.5 && cr.z <= job.radius && abs(curvature[r]) <= job.curvature_stop) {
+                if (cr.w > 0.5 && cr.z <= job.radius && abs(bitcast<f32>(e.w)) <= job.curvature_stop) {
                     let key = cr.z + length(pv - positions[r].xyz);
                     if (key < best || (key == best && r < best_r)) {
                         best = key;
                         best_r = r;
+                        best_k = k;
                     }
                 }
             }
@@ -230,9 +234,11 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
                 var uv = cr.xy + t;
                 var sv = vec4<f32>(0.0, 1.0, 0.0, 0.0);
                 if (job.smooth_mode != 0u) {
-                    let ty = edge_angle(best_r, v);
-                    let tx = edge_angle(v, best_r);
-                    let out = smooth_step(cr.xy, state[base + best_r], curvature[best_r], curvature[v], length(pv - pr), ty, tx, orient);
+                    // The angles of best_r -> v at best_r and of v -> best_r at v.
+                    let eb = edges[best_k];
+                    let ty = bitcast<f32>(eb.z);
+                    let tx = bitcast<f32>(eb.y);
+                    let out = smooth_step(cr.xy, state[base + best_r], bitcast<f32>(eb.w), curvature[v], length(pv - pr), ty, tx, orient);
                     uv = out.uv;
                     sv = out.state;
                 }
@@ -242,9 +248,8 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
                     state[base + v] = sv;
                     // Queue the neighbours that are candidates (cleared non-candidates have z = 0,
                     // candidates start at INF) and not seed vertices.
-                    let k_end = adj_offsets[v + 1u];
-                    for (var k = adj_offsets[v]; k < k_end; k++) {
-                        let q = adjacency[k];
+                    for (var k = k_first; k < k_end; k++) {
+                        let q = edges[k].x;
                         let cq = coords[base + q];
                         if ((cq.w > 0.5 || cq.z > 1.0e30) && cq.w < 1.5) {
                             if (atomicExchange(&marks[base + q], stamp) != stamp) {

@@ -261,7 +261,7 @@ pub fn run(
                 (1, mesh.positions.as_entire_binding()),
                 (2, mesh.normals.as_entire_binding()),
                 (3, mesh.adjacency_offsets.as_entire_binding()),
-                (4, mesh.adjacency.as_entire_binding()),
+                (4, mesh.relax_edges.as_entire_binding()),
                 (5, mesh.curvature.as_entire_binding()),
                 (6, cand_buf.as_entire_binding()),
                 (7, coords.as_entire_binding()),
@@ -271,7 +271,6 @@ pub fn run(
                 (11, fronts.as_entire_binding()),
                 (12, marks.as_entire_binding()),
                 (13, state.as_entire_binding()),
-                (14, mesh.edge_angles.as_entire_binding()),
             ],
         )
     };
