@@ -212,6 +212,9 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
             var best = INF;
             var best_r = NONE;
             var best_k = 0u;
+            // The best neighbour's coordinates and position, kept rather than loaded again.
+            var best_c = vec4<f32>(0.0);
+            var best_p = vec3<f32>(0.0);
             let k_first = adj_offsets[v];
             let k_end = adj_offsets[v + 1u];
             for (var k = k_first; k < k_end; k++) {
@@ -219,17 +222,20 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
                 let r = e.x;
                 let cr = coords[base + r];
                 if (cr.w > 0.5 && cr.z <= job.radius && abs(bitcast<f32>(e.w)) <= job.curvature_stop) {
-                    let key = cr.z + length(pv - positions[r].xyz);
+                    let pr = positions[r].xyz;
+                    let key = cr.z + length(pv - pr);
                     if (key < best || (key == best && r < best_r)) {
                         best = key;
                         best_r = r;
                         best_k = k;
+                        best_c = cr;
+                        best_p = pr;
                     }
                 }
             }
             if (best_r != NONE) {
-                let cr = coords[base + best_r];
-                let pr = positions[best_r].xyz;
+                let cr = best_c;
+                let pr = best_p;
                 let t = transfer(pr, normals[best_r].xyz, pv, seed_n, job.e1.xyz, job.e2.xyz);
                 var uv = cr.xy + t;
                 var sv = vec4<f32>(0.0, 1.0, 0.0, 0.0);
