@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! Intrinsic surface data of the welded mesh, computed once per mesh on the CPU and uploaded with it
 //! ([`crate::mesh::upload`]): signed Gaussian curvature per vertex and the intrinsic angle of every
-//! edge at its source vertex. The exponential maps ([`crate::maps::expmap`]) read both.
+//! edge at its source vertex. The exponential maps ([`crate::maps::expmap`]) read both, on the GPU
+//! through one record per adjacency entry ([`relax_edges`]).
 
 use crate::mesh::Topology;
 

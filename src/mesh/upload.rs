@@ -4,7 +4,8 @@
 //! Uploaded: welded positions and normals (`vec4<f32>`), welded triangles with a flags word
 //! (`vec4<u32>`, bit 0 = degenerate), split triangles (`u32` × 3), split→welded map, every UV set
 //! (`vec2<f32>` per split vertex), CSR vertex adjacency, triangle adjacency, boundary and
-//! non-manifold edges, and |Gaussian curvature| per vertex. The
+//! non-manifold edges, |Gaussian curvature| per vertex, and the exponential maps' edge records
+//! (neighbour, edge angles, curvature per adjacency entry). The
 //! placement, layer and raster kernels read these; later solvers (geodesics, conformal maps) walk the
 //! adjacency.
 
