@@ -144,6 +144,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
     let orient = seed_orient(job);
     if (lid == 0u) {
         atomicStore(&reached, 0u);
+        atomicStore(&next_len, 0u);
         done_before = 0u;
         if (round.init == 0u) { done_before = results[wid.x].converged; }
     }
@@ -173,13 +174,32 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
                 state[base + v] = vec4<f32>(length(d), 1.0, 0.0, 0.0);
             }
         }
-        for (var i = lid; i < job.cand_count; i += WG) {
-            fronts[2u * job.cand_offset + i] = candidates[job.cand_offset + i];
+        storageBarrier();
+        workgroupBarrier();
+        // The first front: the seeds' neighbours that are candidates (marked with stamp 1; the
+        // sweeps' stamps start at 2). Every other candidate first changes after a neighbour
+        // did, so it is queued then: a first front of every candidate (as before session 18)
+        // gave the same sweeps, its evaluations of vertices far from the seed finding nothing
+        // (about a fifth of a map's evaluations).
+        if (lid < 3u) {
+            let v = job.tri[lid];
+            let k_end = adj_offsets[v + 1u];
+            for (var k = adj_offsets[v]; k < k_end; k++) {
+                let q = edges[k].x;
+                let cq = coords[base + q];
+                if ((cq.w > 0.5 || cq.z > 1.0e30) && cq.w < 1.5) {
+                    if (atomicExchange(&marks[base + q], 1u) != 1u) {
+                        fronts[2u * job.cand_offset + atomicAdd(&next_len, 1u)] = q;
+                    }
+                }
+            }
         }
+        storageBarrier();
+        workgroupBarrier();
         if (lid == 0u) {
-            fstate[4u * wid.x] = job.cand_count;
+            fstate[4u * wid.x] = atomicLoad(&next_len);
             fstate[4u * wid.x + 1u] = 0u;
-            fstate[4u * wid.x + 2u] = 1u;
+            fstate[4u * wid.x + 2u] = 2u;
             fstate[4u * wid.x + 3u] = 0u;
         }
         storageBarrier();
