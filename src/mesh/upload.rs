@@ -46,8 +46,14 @@ pub struct GpuMesh {
     pub curvature: wgpu::Buffer,
     /// Per CSR adjacency entry, what the exponential maps' relaxation reads of it: the neighbour,
     /// the edge's intrinsic angle at its source, the reverse edge's at the neighbour and the
-    /// neighbour's curvature, `vec4<u32>` (`crate::mesh::surface::relax_edges`).
+    /// neighbour's curvature, `vec4<u32>` (`crate::mesh::surface::relax_edges`); a 16-byte
+    /// placeholder where that does not fit one storage binding ([`Self::relax_edges_fit`]).
     pub relax_edges: wgpu::Buffer,
+    /// Whether [`Self::relax_edges`] holds the records. They take 16 bytes an adjacency entry (about
+    /// 96 a vertex), more than any other mesh buffer, so a mesh that fits the device otherwise
+    /// may not fit them: then its exponential maps come from their CPU twin
+    /// (`maps::expmap::gpu::run`) rather than the mesh being refused.
+    pub relax_edges_fit: bool,
     /// Boundary edges (welded ids, smaller first), `vec2<u32>`.
     pub boundary_edges: wgpu::Buffer,
     /// Non-manifold edges, `vec2<u32>`.
@@ -112,6 +118,12 @@ impl GpuMesh {
             .map(|n| [n[0], n[1], n[2], 0])
             .collect();
         let p3: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
+        let relax = crate::mesh::surface::relax_edges(topo, surface);
+        let limits = device.limits();
+        let relax_edges_fit = (16 * relax.len() as u64)
+            <= limits
+                .max_buffer_size
+                .min(limits.max_storage_buffer_binding_size);
         let n3: Vec<[f32; 3]> = mesh.normals.iter().map(|p| p.to_array()).collect();
         let none = wgpu::BufferUsages::empty();
         Self {
@@ -224,9 +236,14 @@ impl GpuMesh {
             relax_edges: storage(
                 device,
                 "mesh.relax_edges",
-                bytemuck::cast_slice(&crate::mesh::surface::relax_edges(topo, surface)),
+                if relax_edges_fit {
+                    bytemuck::cast_slice(&relax)
+                } else {
+                    &[]
+                },
                 none,
             ),
+            relax_edges_fit,
         }
     }
 }

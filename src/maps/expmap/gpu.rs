@@ -176,7 +176,9 @@ pub fn run(
     if maps.is_empty() {
         return Ok((Vec::new(), 0));
     }
-    if ctx.backend == Some(wgpu::Backend::Gl) {
+    // On GL (see `run_cpu_twin`), and on a device whose storage bindings cannot hold the mesh's
+    // edge records (`GpuMesh::relax_edges_fit`), the maps come from the CPU twin.
+    if ctx.backend == Some(wgpu::Backend::Gl) || !mesh.gpu.relax_edges_fit {
         return run_cpu_twin(ctx, mesh, maps, coords);
     }
     let (topo, mesh) = (mesh.topo, mesh.gpu);
@@ -185,8 +187,9 @@ pub fn run(
     let device = &ctx.device;
     // The kernel runs as many sweeps a dispatch as its fronts' sizes fit in `LOOP_BUDGET` (a sweep
     // over a front of n vertices: ceil(n / 256) × `steps_per_vertex` steps), at least one, at most
-    // 1,024. The first front is every candidate; later ones are a ring or two, so a dispatch runs
-    // many (the 120k disc: 265 sweeps in 268 dispatches when the count was fixed from the first).
+    // 1,024. The fronts are a ring or two (the first: the seeds' neighbours), so a dispatch runs
+    // many (the 120k disc: 265 sweeps in 268 dispatches when the count was fixed from the first,
+    // which was then every candidate).
     let sweeps_per_round = 1024;
     let steps_per_vertex = steps_per_vertex(topo, jobs, cands);
     let max_sweeps = jobs.iter().map(|j| j.max_sweeps).max().unwrap_or(16);
