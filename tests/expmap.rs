@@ -458,20 +458,33 @@ fn large_discs_converge_over_several_rounds() {
         curvature_stop: f32::INFINITY,
         accuracy: Accuracy::Fast,
     };
-    use decalbake::maps::expmap::gpu::LOOP_BUDGET_OVERRIDE;
+    use decalbake::maps::expmap::gpu::{LOOP_BUDGET_OVERRIDE, WIDE_MIN_CANDIDATES_OVERRIDE};
     use std::sync::atomic::Ordering::Relaxed;
-    // The default comes back however this test ends.
+    // The defaults come back however this test ends.
     struct Restore;
     impl Drop for Restore {
         fn drop(&mut self) {
             LOOP_BUDGET_OVERRIDE.store(0, Relaxed);
+            WIDE_MIN_CANDIDATES_OVERRIDE.store(0, Relaxed);
         }
     }
     let restore = Restore;
     LOOP_BUDGET_OVERRIDE.store(100, Relaxed);
     let (_, dispatches) = engine.expmaps_status(&mesh, &[(seed, opts)]).unwrap();
     let (coords, res) = &engine.expmaps(&mesh, &[(seed, opts)]).unwrap()[0];
+    // The variant of 256 invocations a map, which the default runs only past 262,144
+    // candidates: the same fixed point, so the same map; it runs more sweeps a dispatch (a
+    // sweep's front split among four times the invocations), so fewer dispatches.
+    WIDE_MIN_CANDIDATES_OVERRIDE.store(1, Relaxed);
+    let (_, wide_dispatches) = engine.expmaps_status(&mesh, &[(seed, opts)]).unwrap();
+    let (wide, wide_res) = &engine.expmaps(&mesh, &[(seed, opts)]).unwrap()[0];
     drop(restore);
+    assert_eq!(wide, coords);
+    assert_eq!((wide_res.reached, wide_res.converged), (res.reached, 1));
+    assert!(
+        wide_dispatches < dispatches,
+        "{wide_dispatches} dispatches 256 wide, {dispatches} 64 wide"
+    );
     assert!(
         dispatches > 8,
         "{dispatches} dispatches: the map should cross several rounds"

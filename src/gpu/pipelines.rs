@@ -205,8 +205,10 @@ pub struct Pipelines {
     pub edt_rows: Kernel,
     /// sRGB encode.
     pub encode: Kernel,
-    /// Exponential-map relaxation.
+    /// Exponential-map relaxation, 64 invocations a map.
     pub expmap_relax: Kernel,
+    /// The same, 256 invocations a map (`shaders::expmap_wide_source`): maps of many candidates.
+    pub expmap_relax_wide: Kernel,
     /// The extended exponential map of a curve (`wgsl/maps/ribbon_relax.wgsl`).
     pub ribbon_relax: Kernel,
     /// Per-layer distortion partials.
@@ -399,7 +401,8 @@ impl Pipelines {
             chart_scatter,
             chart_gather,
             stamp_blend,
-            expmap_relax: expmap_relax(device),
+            expmap_relax: expmap_relax(device, None),
+            expmap_relax_wide: expmap_relax(device, Some(shaders::expmap_wide_source())),
             ribbon_relax: ribbon_relax(device),
             preview: rasters.preview,
             extract_raster: rasters.extract,
@@ -421,8 +424,8 @@ fn ribbon_relax(device: &wgpu::Device) -> Kernel {
     Kernel::new(device, "ribbon_relax", &binds)
 }
 
-/// `expmap_relax`: all exponential maps of a chunk, one workgroup per map.
-fn expmap_relax(device: &wgpu::Device) -> Kernel {
+/// `expmap_relax`: all exponential maps of a chunk, one workgroup per map (`text`: a variant).
+fn expmap_relax(device: &wgpu::Device, text: Option<String>) -> Kernel {
     use Bind::*;
     let binds = [
         (0, Ro),
@@ -440,7 +443,7 @@ fn expmap_relax(device: &wgpu::Device) -> Kernel {
         (12, Rw),
         (13, Rw),
     ];
-    Kernel::new(device, "expmap_relax", &binds)
+    Kernel::with_source(device, "expmap_relax", &binds, text)
 }
 
 /// `transfer_resolve`: a texture transfer's samples averaged per texel into the canvas.

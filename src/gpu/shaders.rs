@@ -197,6 +197,19 @@ pub const LINALG_WG: u32 = 256;
 /// stay under the loop budget (fewer idle lanes and cheaper barriers on small charts).
 pub const LINALG_WG_NARROW: u32 = 64;
 
+/// Workgroup size of `expmap_relax` (`const WG` there).
+pub const EXPMAP_WG: u32 = 64;
+/// Workgroup size of its variant for maps of many candidates ([`expmap_wide_source`]).
+pub const EXPMAP_WG_WIDE: u32 = 256;
+
+/// `expmap_relax` with a workgroup of [`EXPMAP_WG_WIDE`].
+pub fn expmap_wide_source() -> String {
+    let full = source("expmap_relax");
+    let from = format!("const WG: u32 = {EXPMAP_WG}u;");
+    assert!(full.contains(&from), "expmap_relax has no `{from}`");
+    full.replace(&from, &format!("const WG: u32 = {EXPMAP_WG_WIDE}u;"))
+}
+
 /// The source of linear-algebra kernel `name` with a workgroup of [`LINALG_WG_NARROW`].
 pub fn narrow_source(name: &str) -> String {
     let full = source(name);

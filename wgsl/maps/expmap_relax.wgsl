@@ -19,7 +19,12 @@
 // Dispatch: (decals, 1, 1) per round.
 #import expmap
 
-const WG: u32 = 256u;
+// 64 invocations: a map's fronts are a ring or two, so most of a wider workgroup idled through
+// every sweep's barriers (256 maps of ~1,100 vertices: 480-660 -> 920-1,000 maps/s, session 18).
+// Maps of more candidates than `WIDE_MIN_CANDIDATES` (src/maps/expmap/gpu.rs) run a variant of
+// 256 (`shaders::expmap_wide_source`), whose set-up and count loops stay short of lavapipe's
+// loop cut-off. Keep in sync with `shaders::EXPMAP_WG`.
+const WG: u32 = 64u;
 const INF: f32 = 3.0e38;
 const NONE: u32 = 0xffffffffu;
 
@@ -49,10 +54,10 @@ struct Round {
     // At most this many sweeps a dispatch.
     sweeps: u32,
     // Loop steps an invocation may spend a dispatch: a sweep over a front of n vertices costs
-    // ceil(n / 256) * `steps_per_vertex`; the sweeps go on while the next one fits (at least one).
+    // ceil(n / WG) * `steps_per_vertex`; the sweeps go on while the next one fits (at least one).
     budget: u32,
-    // Loop steps one front vertex may cost: 1 + (2 or, in smooth mode, 4) x the candidates'
-    // largest degree (the neighbour scan and the queueing; smooth mode's two edge-angle scans).
+    // Loop steps one front vertex may cost: 1 + 2 x the candidates
+    // largest degree (the neighbour scan and the queueing).
     steps_per_vertex: u32,
 }
 
@@ -136,7 +141,7 @@ var<workgroup> done_before: u32;
 var<workgroup> next_len: atomic<u32>;
 var<workgroup> front_len: u32;
 
-@compute @workgroup_size(256)
+@compute @workgroup_size(WG)
 fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let job = jobs[wid.x];
     let base = job.tri.w * job.vertex_count;

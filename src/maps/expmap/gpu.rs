@@ -157,6 +157,18 @@ const LOOP_BUDGET: u32 = 20_000;
 #[doc(hidden)]
 pub static LOOP_BUDGET_OVERRIDE: std::sync::atomic::AtomicU32 =
     std::sync::atomic::AtomicU32::new(0);
+/// Candidates of a map from which its chunk runs the relaxation 256 invocations a map
+/// (`Pipelines::expmap_relax_wide`) instead of 64: the set-up and count loops (candidates / 64
+/// steps an invocation each) then stay far below lavapipe's cut-off beside the sweeps' budget.
+const WIDE_MIN_CANDIDATES: u32 = 64 * 4_096;
+
+/// When not 0, the candidates from which a chunk runs the wide variant instead of
+/// [`WIDE_MIN_CANDIDATES`]. Tests set it to 1 to run small maps through it; results do not
+/// depend on the variant (the same sweeps, the fronts split among more invocations).
+#[doc(hidden)]
+pub static WIDE_MIN_CANDIDATES_OVERRIDE: std::sync::atomic::AtomicU32 =
+    std::sync::atomic::AtomicU32::new(0);
+
 /// Rounds recorded per submission before the host checks convergence.
 const ROUNDS_PER_SUBMIT: u32 = 4;
 
@@ -186,12 +198,12 @@ pub fn run(
     let (jobs, cands) = (&jobs[..], &cands[..]);
     let device = &ctx.device;
     // The kernel runs as many sweeps a dispatch as its fronts' sizes fit in `LOOP_BUDGET` (a sweep
-    // over a front of n vertices: ceil(n / 256) × `steps_per_vertex` steps), at least one, at most
+    // over a front of n vertices: ceil(n / the workgroup's width) × `steps_per_vertex` steps), at least one, at most
     // 1,024. The fronts are a ring or two (the first: the seeds' neighbours), so a dispatch runs
     // many (the 120k disc: 265 sweeps in 268 dispatches when the count was fixed from the first,
     // which was then every candidate).
     let sweeps_per_round = 1024;
-    let steps_per_vertex = steps_per_vertex(topo, jobs, cands);
+    let steps_per_vertex = steps_per_vertex(topo, cands);
     let max_sweeps = jobs.iter().map(|j| j.max_sweeps).max().unwrap_or(16);
     let results_size = jobs.len() as u64 * 16;
     let slots = jobs.iter().map(|j| j.tri[3] as u64 + 1).max().unwrap_or(1);
@@ -255,8 +267,17 @@ pub fn run(
             )
         })?;
     let (marks, state) = marks;
+    let wide_min = match WIDE_MIN_CANDIDATES_OVERRIDE.load(std::sync::atomic::Ordering::Relaxed) {
+        0 => WIDE_MIN_CANDIDATES,
+        n => n,
+    };
+    let kernel = if jobs.iter().any(|j| j.cand_count >= wide_min) {
+        &pipes.expmap_relax_wide
+    } else {
+        &pipes.expmap_relax
+    };
     let bind = |round: &wgpu::Buffer| {
-        pipes.expmap_relax.bind(
+        kernel.bind(
             device,
             "expmap.relax",
             &[
@@ -280,23 +301,23 @@ pub fn run(
     let (bg_init, bg_more) =
         ctx.scoped("exponential maps", || (bind(&rounds[0]), bind(&rounds[1])))?;
     let status = (&results, results_size, max_sweeps);
-    let done = submit_rounds(ctx, pipes, [&bg_init, &bg_more], jobs.len() as u32, status);
+    let done = submit_rounds(ctx, kernel, [&bg_init, &bg_more], jobs.len() as u32, status);
     // Every dispatch has finished (the status read-backs waited for them), or failed.
     *mesh.expmap_scratch.lock().expect("expmap scratch") = Some([marks, state]);
     done
 }
 
-/// Loop steps a front vertex may cost an invocation: its neighbours scanned, then queued, and in
-/// smooth mode two edge-angle scans more; lanes run in step, so the candidates' largest degree
-/// prices every vertex (a fan-triangulated cap's valence of 16 in smooth mode: 65 steps).
-fn steps_per_vertex(topo: &Topology, jobs: &[GeoJob], cands: &[u32]) -> u32 {
+/// Loop steps a front vertex may cost an invocation: its neighbours scanned, then queued; lanes
+/// run in step, so the candidates' largest degree prices every vertex (a fan-triangulated cap's
+/// valence of 16: 33 steps). Smooth mode scanned two lists more for its edge angles until they
+/// came with the edge records (`GpuMesh::relax_edges`), and is priced the same now.
+fn steps_per_vertex(topo: &Topology, cands: &[u32]) -> u32 {
     let degree = cands
         .iter()
         .map(|&v| topo.adjacency_offsets[v as usize + 1] - topo.adjacency_offsets[v as usize])
         .max()
         .unwrap_or(0);
-    let smooth = jobs.iter().any(|j| j.smooth != 0);
-    1 + if smooth { 4 } else { 2 } * degree
+    1 + 2 * degree
 }
 
 /// Dispatches rounds of the relaxation over `maps` workgroups (the first with `init`),
@@ -305,7 +326,7 @@ fn steps_per_vertex(topo: &Topology, jobs: &[GeoJob], cands: &[u32]) -> u32 {
 /// dispatches issued.
 fn submit_rounds(
     ctx: &crate::gpu::GpuContext,
-    pipes: &Pipelines,
+    kernel: &crate::gpu::pipelines::Kernel,
     [init, more]: [&wgpu::BindGroup; 2],
     maps: u32,
     (results, results_size, max_sweeps): (&wgpu::Buffer, u64, u32),
@@ -323,7 +344,7 @@ fn submit_rounds(
                     label: Some("expmap.relax"),
                     timestamp_writes: None,
                 });
-                pass.set_pipeline(&pipes.expmap_relax.pipeline);
+                pass.set_pipeline(&kernel.pipeline);
                 for k in 0..ROUNDS_PER_SUBMIT {
                     let first = dispatches == 0 && k == 0;
                     pass.set_bind_group(0, if first { init } else { more }, &[]);
