@@ -511,6 +511,8 @@ fn bake(engine: &Engine, job: &Job) -> Result<()> {
     if let Some(frames) = job.frames() {
         return bake_frames(engine, &mesh, &job, frames);
     }
+    // One bake in this process: nothing to pool its canvas for.
+    engine.keep_buffers(0);
     let baked = engine.bake(&mesh, &job)?;
     write_baked(engine, &mesh, &job, baked).map(|_| ())
 }
