@@ -237,6 +237,11 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Bake { job, out } => {
             let job = Job::load(&job, out.as_deref())?;
             let engine = engine(cli.backend.as_deref())?;
+            // One plain bake in this process: nothing to pool its canvas for (README, "Peak
+            // memory"). Animations and several-set jobs bake more than once: they keep the pool.
+            if job.uv_list.is_empty() && job.frames().is_none() {
+                engine.keep_buffers(0);
+            }
             bake(&engine, &job)
         }
         Cmd::Info { mesh } => info(&mesh),
@@ -511,8 +516,6 @@ fn bake(engine: &Engine, job: &Job) -> Result<()> {
     if let Some(frames) = job.frames() {
         return bake_frames(engine, &mesh, &job, frames);
     }
-    // One bake in this process: nothing to pool its canvas for.
-    engine.keep_buffers(0);
     let baked = engine.bake(&mesh, &job)?;
     write_baked(engine, &mesh, &job, baked).map(|_| ())
 }

@@ -224,8 +224,8 @@ pub struct Pipelines {
     /// `wgsl/solve/cg_amg.wgsl`: CG preconditioned by a multigrid V-cycle, 256 invocations per
     /// system (large systems).
     pub cg_amg: Option<Kernel>,
-    /// (`None` on a device with fewer than [`AMG_STORAGE_BUFFERS`] storage buffers a stage, such
-    /// as wgpu's GL backend's 16: the solver then uses Jacobi.)
+    /// (`None` on a device with fewer than [`AMG_STORAGE_BUFFERS`] storage buffers a stage: the
+    /// solver then uses Jacobi. wgpu's GL backend binds 16, enough since session 18.)
     /// `cg_amg` on 2 × 2 complex blocks (`shaders::complex_source`): LSCM systems.
     pub cg_amg_complex: Option<Kernel>,
     /// `wgsl/solve/cg_wide.wgsl` and `cg_wide_plain.wgsl` on 2 × 2 complex blocks: `cg_amg`'s

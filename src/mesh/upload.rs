@@ -75,6 +75,22 @@ pub struct GpuMesh {
     pub expmap_scratch: std::sync::Mutex<Option<[wgpu::Buffer; 2]>>,
 }
 
+/// The exponential maps' edge records ([`crate::mesh::surface::relax_edges`]) and whether they fit
+/// one storage binding of `device`.
+fn relax_records(
+    device: &wgpu::Device,
+    topo: &Topology,
+    surface: &crate::mesh::SurfaceData,
+) -> (Vec<[u32; 4]>, bool) {
+    let relax = crate::mesh::surface::relax_edges(topo, surface);
+    let limits = device.limits();
+    let fit = 16 * relax.len() as u64
+        <= limits
+            .max_buffer_size
+            .min(limits.max_storage_buffer_binding_size);
+    (relax, fit)
+}
+
 fn storage(
     device: &wgpu::Device,
     label: &str,
@@ -118,12 +134,7 @@ impl GpuMesh {
             .map(|n| [n[0], n[1], n[2], 0])
             .collect();
         let p3: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
-        let relax = crate::mesh::surface::relax_edges(topo, surface);
-        let limits = device.limits();
-        let relax_edges_fit = (16 * relax.len() as u64)
-            <= limits
-                .max_buffer_size
-                .min(limits.max_storage_buffer_binding_size);
+        let (relax, relax_edges_fit) = relax_records(device, topo, surface);
         let n3: Vec<[f32; 3]> = mesh.normals.iter().map(|p| p.to_array()).collect();
         let none = wgpu::BufferUsages::empty();
         Self {

@@ -20,8 +20,9 @@
 #import expmap
 
 // 64 invocations: a map's fronts are a ring or two, so most of a wider workgroup idled through
-// every sweep's barriers (256 maps of ~1,100 vertices: 480-660 -> 920-1,000 maps/s, session 18).
-// Maps of more candidates than `WIDE_MIN_CANDIDATES` (src/maps/expmap/gpu.rs) run a variant of
+// every sweep's barriers (256 maps of ~1,100 vertices on bob x 2: 1,078-1,160 -> 1,319-1,367
+// maps/s in alternating runs, session 18).
+// A chunk with a map of `WIDE_MIN_CANDIDATES` candidates or more (src/maps/expmap/gpu.rs) runs a variant of
 // 256 (`shaders::expmap_wide_source`), whose set-up and count loops stay short of lavapipe's
 // loop cut-off. Keep in sync with `shaders::EXPMAP_WG`.
 const WG: u32 = 64u;
@@ -75,7 +76,7 @@ struct GeoResult {
 @group(0) @binding(2) var<storage, read> normals: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> adj_offsets: array<u32>;
 // Per CSR adjacency entry v -> r: (r, the edge's intrinsic angle at v, the reverse edge's at r,
-// r's curvature), the floats as bits: one load where a neighbour scan took three and the smooth
+// r's curvature), the floats as bits: one load where a neighbour scan took two (adjacency, curvature) and the smooth
 // step two more scans (`relax_edges` in src/mesh/surface.rs).
 @group(0) @binding(4) var<storage, read> edges: array<vec4<u32>>;
 @group(0) @binding(5) var<storage, read> curvature: array<f32>;
@@ -141,6 +142,66 @@ var<workgroup> done_before: u32;
 var<workgroup> next_len: atomic<u32>;
 var<workgroup> front_len: u32;
 
+// The first dispatch of a map (`round.init`): its candidates cleared (coordinates, state, marks),
+// the halo around them marked as not candidates, the seed triangle's vertices set, and the first
+// front listed. Called in uniform control flow (it has barriers).
+fn init_map(job: GeoJob, base: u32, seed_n: vec3<f32>, lid: u32, wid: u32) {
+    for (var i = lid; i < job.cand_count; i += WG) {
+        let v = candidates[job.cand_offset + i];
+        coords[base + v] = vec4<f32>(0.0, 0.0, INF, 0.0);
+        state[base + v] = vec4<f32>(0.0, 1.0, 0.0, 0.0);
+        atomicStore(&marks[base + v], 0u);
+    }
+    for (var i = lid; i < job.halo_count; i += WG) {
+        coords[base + candidates[job.cand_offset + job.cand_count + i]] = vec4<f32>(0.0);
+    }
+    storageBarrier();
+    workgroupBarrier();
+    if (lid < 3u) {
+        let v = job.tri[lid];
+        let p = positions[v].xyz;
+        let d = p - job.seed.xyz;
+        if (job.smooth_mode != 0u) {
+            let s = smooth_seed(job, lid, seed_orient(job));
+            coords[base + v] = vec4<f32>(s.uv, length(d), 2.0);
+            state[base + v] = s.state;
+        } else {
+            coords[base + v] = vec4<f32>(transfer(job.seed.xyz, seed_n, p, seed_n, job.e1.xyz, job.e2.xyz), length(d), 2.0);
+            state[base + v] = vec4<f32>(length(d), 1.0, 0.0, 0.0);
+        }
+    }
+    storageBarrier();
+    workgroupBarrier();
+    // The first front: the seeds' neighbours that are candidates (marked with stamp 1; the
+    // sweeps' stamps start at 2). Every other candidate first changes after a neighbour
+    // did, so it is queued then: a first front of every candidate (as before session 18)
+    // gave the same sweeps, its evaluations of vertices far from the seed finding nothing
+    // (about a fifth of a map's evaluations).
+    if (lid < 3u) {
+        let v = job.tri[lid];
+        let k_end = adj_offsets[v + 1u];
+        for (var k = adj_offsets[v]; k < k_end; k++) {
+            let q = edges[k].x;
+            let cq = coords[base + q];
+            if ((cq.w > 0.5 || cq.z > 1.0e30) && cq.w < 1.5) {
+                if (atomicExchange(&marks[base + q], 1u) != 1u) {
+                    fronts[2u * job.cand_offset + atomicAdd(&next_len, 1u)] = q;
+                }
+            }
+        }
+    }
+    storageBarrier();
+    workgroupBarrier();
+    if (lid == 0u) {
+        fstate[4u * wid] = atomicLoad(&next_len);
+        fstate[4u * wid + 1u] = 0u;
+        fstate[4u * wid + 2u] = 2u;
+        fstate[4u * wid + 3u] = 0u;
+    }
+    storageBarrier();
+    workgroupBarrier();
+}
+
 @compute @workgroup_size(WG)
 fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let job = jobs[wid.x];
@@ -155,60 +216,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
     }
     if (workgroupUniformLoad(&done_before) != 0u) { return; }
     if (round.init != 0u) {
-        for (var i = lid; i < job.cand_count; i += WG) {
-            let v = candidates[job.cand_offset + i];
-            coords[base + v] = vec4<f32>(0.0, 0.0, INF, 0.0);
-            state[base + v] = vec4<f32>(0.0, 1.0, 0.0, 0.0);
-            atomicStore(&marks[base + v], 0u);
-        }
-        for (var i = lid; i < job.halo_count; i += WG) {
-            coords[base + candidates[job.cand_offset + job.cand_count + i]] = vec4<f32>(0.0);
-        }
-        storageBarrier();
-        workgroupBarrier();
-        if (lid < 3u) {
-            let v = job.tri[lid];
-            let p = positions[v].xyz;
-            let d = p - job.seed.xyz;
-            if (job.smooth_mode != 0u) {
-                let s = smooth_seed(job, lid, seed_orient(job));
-                coords[base + v] = vec4<f32>(s.uv, length(d), 2.0);
-                state[base + v] = s.state;
-            } else {
-                coords[base + v] = vec4<f32>(transfer(job.seed.xyz, seed_n, p, seed_n, job.e1.xyz, job.e2.xyz), length(d), 2.0);
-                state[base + v] = vec4<f32>(length(d), 1.0, 0.0, 0.0);
-            }
-        }
-        storageBarrier();
-        workgroupBarrier();
-        // The first front: the seeds' neighbours that are candidates (marked with stamp 1; the
-        // sweeps' stamps start at 2). Every other candidate first changes after a neighbour
-        // did, so it is queued then: a first front of every candidate (as before session 18)
-        // gave the same sweeps, its evaluations of vertices far from the seed finding nothing
-        // (about a fifth of a map's evaluations).
-        if (lid < 3u) {
-            let v = job.tri[lid];
-            let k_end = adj_offsets[v + 1u];
-            for (var k = adj_offsets[v]; k < k_end; k++) {
-                let q = edges[k].x;
-                let cq = coords[base + q];
-                if ((cq.w > 0.5 || cq.z > 1.0e30) && cq.w < 1.5) {
-                    if (atomicExchange(&marks[base + q], 1u) != 1u) {
-                        fronts[2u * job.cand_offset + atomicAdd(&next_len, 1u)] = q;
-                    }
-                }
-            }
-        }
-        storageBarrier();
-        workgroupBarrier();
-        if (lid == 0u) {
-            fstate[4u * wid.x] = atomicLoad(&next_len);
-            fstate[4u * wid.x + 1u] = 0u;
-            fstate[4u * wid.x + 2u] = 2u;
-            fstate[4u * wid.x + 3u] = 0u;
-        }
-        storageBarrier();
-        workgroupBarrier();
+        init_map(job, base, seed_n, lid, wid.x);
     }
     var sweeps = 0u;
     var steps = 0u;
@@ -219,8 +227,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
             atomicStore(&next_len, 0u);
         }
         let len = workgroupUniformLoad(&front_len);
-        // The fronts after the first are a ring or two: a dispatch runs as many sweeps as fit its
-        // loop budget, not as many as the first front (every candidate) would allow.
+        // The fronts are a ring or two: a dispatch runs as many sweeps as fit its loop budget.
         let cost = (len + WG - 1u) / WG * round.steps_per_vertex;
         converged = len == 0u;
         if (converged || sweeps >= round.sweeps || (sweeps > 0u && steps + cost > round.budget)) { break; }

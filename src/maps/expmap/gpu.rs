@@ -56,11 +56,10 @@ pub struct GeoResult {
 /// Euclidean distance, each step adds an edge's length), so every expanded vertex and every
 /// vertex on its upwind path lies in the ball, and what it reaches in the ring past it (this was
 /// 1.5 × `radius`, from a time when the map's |u| decided: 2.2 times the candidates of a disc).
-/// Cost proportional to the result. Breadth first, so the list runs outwards from the seed
-/// and a sweep (which visits it in this order, a workgroup's width at a time) carries the map
-/// across more rings: in `tests/expmap.rs` 10-13 sweeps became 5-12; in `bench --geodesic` 22 →
-/// 17 for a 1k disc and 274 → 265 for 120k, the times within noise (the relaxation already
-/// revisits only the active front).
+/// Cost proportional to the result. Breadth first (session 13: when the first sweep visited
+/// every candidate in this order, it carried the map across more rings, 22 → 17 sweeps for a 1k
+/// disc; since session 18 the first front is the seeds' neighbours and the order no longer
+/// matters to the sweeps).
 pub fn candidates(topo: &Topology, seed: &Seed, radius: f32) -> Vec<u32> {
     let mut seen = rustc_hash::FxHashSet::default();
     let mut out = Vec::new();
