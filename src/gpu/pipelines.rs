@@ -846,13 +846,8 @@ fn linalg_kernels(
     // 64 invocations a workgroup (`shaders::narrow_source`'s width): on lavapipe a workgroup's
     // launch costs in proportion to its invocations.
     let narrow_complex = |name: &str| {
-        let (from, to) = (
-            format!("const WG: u32 = {}u;", shaders::LINALG_WG),
-            format!("const WG: u32 = {}u;", shaders::LINALG_WG_NARROW),
-        );
         let text = shaders::complex_source(name);
-        assert!(text.contains(&from), "{name} has no `{from}`");
-        text.replace(&from, &to)
+        shaders::with_workgroup(name, text, shaders::LINALG_WG, shaders::LINALG_WG_NARROW)
     };
     let cg_wide = (limit >= WIDE_STORAGE_BUFFERS).then(|| {
         [

@@ -204,18 +204,25 @@ pub const EXPMAP_WG_WIDE: u32 = 256;
 
 /// `expmap_relax` with a workgroup of [`EXPMAP_WG_WIDE`].
 pub fn expmap_wide_source() -> String {
-    let full = source("expmap_relax");
-    let from = format!("const WG: u32 = {EXPMAP_WG}u;");
-    assert!(full.contains(&from), "expmap_relax has no `{from}`");
-    full.replace(&from, &format!("const WG: u32 = {EXPMAP_WG_WIDE}u;"))
+    with_workgroup(
+        "expmap_relax",
+        source("expmap_relax"),
+        EXPMAP_WG,
+        EXPMAP_WG_WIDE,
+    )
+}
+
+/// Kernel `name`'s source `text` with its `const WG: u32 = {from}u;` (which `@workgroup_size`
+/// and its loops' strides use) set to `to`.
+pub fn with_workgroup(name: &str, text: String, from: u32, to: u32) -> String {
+    let from = format!("const WG: u32 = {from}u;");
+    assert!(text.contains(&from), "{name} has no `{from}`");
+    text.replace(&from, &format!("const WG: u32 = {to}u;"))
 }
 
 /// The source of linear-algebra kernel `name` with a workgroup of [`LINALG_WG_NARROW`].
 pub fn narrow_source(name: &str) -> String {
-    let full = source(name);
-    let from = format!("const WG: u32 = {LINALG_WG}u;");
-    assert!(full.contains(&from), "{name} has no `{from}`");
-    full.replace(&from, &format!("const WG: u32 = {LINALG_WG_NARROW}u;"))
+    with_workgroup(name, source(name), LINALG_WG, LINALG_WG_NARROW)
 }
 
 /// A conjugate gradient on 2 × 2 complex blocks: kernel `name` (`cg_packed`, `cg_amg`, `cg_wide`) with the

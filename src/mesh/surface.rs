@@ -30,8 +30,8 @@ impl SurfaceData {
 /// adjacency entry v → r, in one 16-byte load: r, the edge's intrinsic angle at v, the reverse
 /// edge's (r → v) at r (0 where r does not list v, as the kernel's scan gave) and r's signed
 /// Gaussian curvature, as bits. On lavapipe every storage load is a loop over the SIMD lanes: this
-/// replaces two of a neighbour scan's loads (adjacency, curvature) with one, and the two scans of r's and v's lists the
-/// smooth step made for the two angles with none.
+/// replaces two of a neighbour scan's loads (adjacency, curvature) with one, and the two scans of
+/// r's and v's lists the smooth step made for the two angles with none.
 pub fn relax_edges(topo: &Topology, surface: &SurfaceData) -> Vec<[u32; 4]> {
     let offsets = &topo.adjacency_offsets;
     let mut out = Vec::with_capacity(topo.adjacency.len());

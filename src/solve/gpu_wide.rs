@@ -74,8 +74,8 @@ struct State {
     scale: f32,
 }
 
-/// What the kernel binds, uploaded by `solve::gpu` (bindings 1-6 and 12-17 of cg_amg.wgsl, less 4 and 14), and
-/// the one system's hierarchy.
+/// What the kernel binds, uploaded by `solve::gpu` (bindings 1-6 and 12-17 of cg_amg.wgsl, less 4
+/// and 14), and the one system's hierarchy.
 pub struct WideInputs<'a> {
     /// The `System` row of the one system (`SystemDesc`'s bytes), its rows in block units.
     pub system: &'a [u8],

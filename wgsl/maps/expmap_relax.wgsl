@@ -76,8 +76,8 @@ struct GeoResult {
 @group(0) @binding(2) var<storage, read> normals: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> adj_offsets: array<u32>;
 // Per CSR adjacency entry v -> r: (r, the edge's intrinsic angle at v, the reverse edge's at r,
-// r's curvature), the floats as bits: one load where a neighbour scan took two (adjacency, curvature) and the smooth
-// step two more scans (`relax_edges` in src/mesh/surface.rs).
+// r's curvature), the floats as bits: one load where a neighbour scan took two (adjacency,
+// curvature) and the smooth step two more scans (`relax_edges` in src/mesh/surface.rs).
 @group(0) @binding(4) var<storage, read> edges: array<vec4<u32>>;
 @group(0) @binding(5) var<storage, read> curvature: array<f32>;
 @group(0) @binding(6) var<storage, read> candidates: array<u32>;

@@ -197,10 +197,10 @@ pub fn run(
     let (jobs, cands) = (&jobs[..], &cands[..]);
     let device = &ctx.device;
     // The kernel runs as many sweeps a dispatch as its fronts' sizes fit in `LOOP_BUDGET` (a sweep
-    // over a front of n vertices: ceil(n / the workgroup's width) × `steps_per_vertex` steps), at least one, at most
-    // 1,024. The fronts are a ring or two (the first: the seeds' neighbours), so a dispatch runs
-    // many (the 120k disc: 265 sweeps in 268 dispatches when the count was fixed from the first,
-    // which was then every candidate).
+    // over a front of n vertices: ceil(n / the workgroup's width) × `steps_per_vertex` steps),
+    // at least one, at most 1,024. The fronts are a ring or two (the first: the seeds'
+    // neighbours), so a dispatch runs many (the 120k disc: 265 sweeps in 268 dispatches when the
+    // count was fixed from the first, which was then every candidate).
     let sweeps_per_round = 1024;
     let steps_per_vertex = steps_per_vertex(topo, cands);
     let max_sweeps = jobs.iter().map(|j| j.max_sweeps).max().unwrap_or(16);
