@@ -45,6 +45,19 @@ fn hemisphere(rings: u32, segments: u32) -> Mesh {
     }
 }
 
+/// `decalbake unwrap MESH --out OUT --cpu EXTRA...`: (exit code, stdout, stderr).
+fn unwrap_cli(mesh: &Path, out: &Path, extra: &[&str]) -> (i32, String, String) {
+    let mut args = vec![
+        "unwrap",
+        mesh.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--cpu",
+    ];
+    args.extend_from_slice(extra);
+    common::cli(&args)
+}
+
 fn asset(f: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("assets").join(f)
 }
@@ -501,15 +514,7 @@ fn unwrap_command_refuses_bad_input() {
     let dir = common::scratch("unwrap-bad");
     let out = dir.join("out.glb");
     let run = |mesh: &Path, extra: &[&str]| {
-        let mut args = vec![
-            "unwrap",
-            mesh.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--cpu",
-        ];
-        args.extend_from_slice(extra);
-        let (code, _, err) = common::cli(&args);
+        let (code, _, err) = unwrap_cli(mesh, &out, extra);
         assert!(!out.exists(), "no output on failure");
         (code, err)
     };
@@ -909,17 +914,7 @@ fn glb_attribute(path: &Path, name: &str) -> Vec<f32> {
 /// appending a set keeps them, since the sets they pair are untouched. Before, a replaced pelt
 /// kept the old weights and the blended preview mixed the new pelt with the old patch.
 fn stale_weights_are_left_out(patched: &Path, dir: &Path) {
-    let unwrap = |out: &Path, extra: &[&str]| {
-        let mut args = vec![
-            "unwrap",
-            patched.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--cpu",
-        ];
-        args.extend_from_slice(extra);
-        common::cli(&args)
-    };
+    let unwrap = |out: &Path, extra: &[&str]| unwrap_cli(patched, out, extra);
     let replaced = dir.join("replaced.glb");
     let (code, _, err) = unwrap(&replaced, &["--uv-set", "1", "--force"]);
     assert_eq!(code, 0, "{err}");
