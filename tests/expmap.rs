@@ -460,6 +460,7 @@ fn large_discs_converge_over_several_rounds() {
     };
     use decalbake::maps::expmap::gpu::{LOOP_BUDGET_OVERRIDE, WIDE_MIN_CANDIDATES_OVERRIDE};
     use std::sync::atomic::Ordering::Relaxed;
+    let _overrides = OVERRIDES.lock().unwrap_or_else(|e| e.into_inner());
     // The defaults come back however this test ends.
     struct Restore;
     impl Drop for Restore {
@@ -506,6 +507,70 @@ fn large_discs_converge_over_several_rounds() {
         differ * 100 <= res.reached as usize,
         "{differ} vertices differ"
     );
+}
+
+/// The tests that set the relaxation's overrides (process-wide statics) take turns: one's
+/// dispatch counts would otherwise see the other's settings.
+static OVERRIDES: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// A lone large map spread over many workgroups, a dispatch a sweep (`expmap_spread`, the default
+/// on GPUs; forced here, since lavapipe defaults to one workgroup), reaches the one-workgroup
+/// kernel's fixed point: the same map byte for byte, both update rules, also when the spread
+/// run reuses the scratch (marks, smooth state) a one-workgroup run left on the mesh. Shown to
+/// fail with a `sweep` that handles only the first 64 vertices of each front (the map stops
+/// short: 5,880 of 15,307 vertices reached).
+#[test]
+fn spread_maps_equal_one_workgroup_maps() {
+    use decalbake::maps::expmap::gpu::SPREAD_MIN_CANDIDATES_OVERRIDE as SPREAD;
+    use std::sync::atomic::Ordering::Relaxed;
+    let _overrides = OVERRIDES.lock().unwrap_or_else(|e| e.into_inner());
+    struct Restore;
+    impl Drop for Restore {
+        fn drop(&mut self) {
+            SPREAD.store(0, Relaxed);
+        }
+    }
+    let _restore = Restore;
+    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
+    let engine = engine();
+    let mesh = engine
+        .prepare(Mesh::load(&spot).unwrap().subdivide().subdivide())
+        .unwrap();
+    let seed = seed_at(&mesh.topo, Vec3::new(0.33, 0.0, 0.45), Vec3::Y);
+    for accuracy in [Accuracy::Fast, Accuracy::Smooth] {
+        let m = (
+            seed,
+            Options {
+                radius: 0.8,
+                curvature_stop: f32::INFINITY,
+                accuracy,
+            },
+        );
+        SPREAD.store(u32::MAX, Relaxed);
+        let (one, one_res) = engine.expmaps(&mesh, &[m]).unwrap().remove(0);
+        let (_, one_dispatches) = engine.expmaps_status(&mesh, &[m]).unwrap();
+        SPREAD.store(1, Relaxed);
+        let (spread, spread_res) = engine.expmaps(&mesh, &[m]).unwrap().remove(0);
+        let (_, spread_dispatches) = engine.expmaps_status(&mesh, &[m]).unwrap();
+        eprintln!(
+            "{accuracy:?}: {} vertices; one workgroup {} sweeps in {one_dispatches} dispatches, spread {} in {spread_dispatches}",
+            one_res.reached, one_res.sweeps, spread_res.sweeps
+        );
+        assert_eq!(one_res.converged, 1, "{one_res:?}");
+        assert!(one_res.reached > 8000, "{one_res:?}");
+        // The spread path ran: at least a dispatch a sweep.
+        assert!(
+            spread_dispatches > one_res.sweeps,
+            "{spread_dispatches} dispatches"
+        );
+        assert_eq!(
+            (spread_res.reached, spread_res.converged),
+            (one_res.reached, 1),
+            "{spread_res:?}"
+        );
+        let differ = one.iter().zip(&spread).filter(|(a, b)| a != b).count();
+        assert_eq!(differ, 0, "{accuracy:?}: {differ} vertices differ");
+    }
 }
 
 /// A cylinder is developable: the map must approach its unrolling (u = arc length around, v = height)

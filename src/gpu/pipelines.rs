@@ -209,6 +209,9 @@ pub struct Pipelines {
     pub expmap_relax: Kernel,
     /// The same, 256 invocations a map (`shaders::expmap_wide_source`): maps of many candidates.
     pub expmap_relax_wide: Kernel,
+    /// One large exponential map over many workgroups, a dispatch a sweep
+    /// (`wgsl/maps/expmap_spread.wgsl`).
+    pub expmap_spread: ExpmapSpread,
     /// The extended exponential map of a curve (`wgsl/maps/ribbon_relax.wgsl`).
     pub ribbon_relax: Kernel,
     /// Per-layer distortion partials.
@@ -403,6 +406,7 @@ impl Pipelines {
             stamp_blend,
             expmap_relax: expmap_relax(device, None),
             expmap_relax_wide: expmap_relax(device, Some(shaders::expmap_wide_source())),
+            expmap_spread: ExpmapSpread::new(device),
             ribbon_relax: ribbon_relax(device),
             preview: rasters.preview,
             extract_raster: rasters.extract,
@@ -424,10 +428,10 @@ fn ribbon_relax(device: &wgpu::Device) -> Kernel {
     Kernel::new(device, "ribbon_relax", &binds)
 }
 
-/// `expmap_relax`: all exponential maps of a chunk, one workgroup per map (`text`: a variant).
-fn expmap_relax(device: &wgpu::Device, text: Option<String>) -> Kernel {
+/// `expmap_relax`'s bindings; `expmap_spread`'s less 9 (the rounds), with 14 (its dispatch sizes).
+const EXPMAP_BINDS: [(u32, Bind); 14] = {
     use Bind::*;
-    let binds = [
+    [
         (0, Ro),
         (1, Ro),
         (2, Ro),
@@ -442,8 +446,56 @@ fn expmap_relax(device: &wgpu::Device, text: Option<String>) -> Kernel {
         (11, Rw),
         (12, Rw),
         (13, Rw),
-    ];
-    Kernel::with_source(device, "expmap_relax", &binds, text)
+    ]
+};
+
+/// `expmap_relax`: all exponential maps of a chunk, one workgroup per map (`text`: a variant).
+fn expmap_relax(device: &wgpu::Device, text: Option<String>) -> Kernel {
+    Kernel::with_source(device, "expmap_relax", &EXPMAP_BINDS, text)
+}
+
+/// `expmap_spread`'s five entry points on one bind-group layout (one bind group serves them all).
+pub struct ExpmapSpread {
+    /// The candidates and halo cleared.
+    pub clear: wgpu::ComputePipeline,
+    /// The seed triangle and the first front.
+    pub seed: wgpu::ComputePipeline,
+    /// One sweep over the front (indirect).
+    pub sweep: wgpu::ComputePipeline,
+    /// The next front made current; the next dispatches' sizes.
+    pub advance: wgpu::ComputePipeline,
+    /// The reached vertices counted (indirect).
+    pub finish: wgpu::ComputePipeline,
+    /// The group-0 layout.
+    pub layout: wgpu::BindGroupLayout,
+}
+
+impl ExpmapSpread {
+    fn new(device: &wgpu::Device) -> Self {
+        let name = "expmap_spread";
+        let mut binds: Vec<_> = EXPMAP_BINDS.into_iter().filter(|&(b, _)| b != 9).collect();
+        binds.push((14, Bind::Rw));
+        let layout = layout(device, name, &binds, wgpu::ShaderStages::COMPUTE);
+        let (pl, module) = layout_and_module(device, name, &layout, None);
+        let entry = |e: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(name),
+                layout: Some(&pl),
+                module: &module,
+                entry_point: Some(e),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        Self {
+            clear: entry("clear"),
+            seed: entry("seed"),
+            sweep: entry("sweep"),
+            advance: entry("advance"),
+            finish: entry("finish"),
+            layout,
+        }
+    }
 }
 
 /// `transfer_resolve`: a texture transfer's samples averaged per texel into the canvas.

@@ -83,6 +83,10 @@ pub const KERNELS: &[(&str, &str)] = &[
         include_str!("../../wgsl/maps/expmap_relax.wgsl"),
     ),
     (
+        "expmap_spread",
+        include_str!("../../wgsl/maps/expmap_spread.wgsl"),
+    ),
+    (
         "ribbon_relax",
         include_str!("../../wgsl/maps/ribbon_relax.wgsl"),
     ),
@@ -136,6 +140,10 @@ pub const SHARED: &[(&str, &str)] = &[
     ("clip", include_str!("../../wgsl/shared/clip.wgsl")),
     ("window", include_str!("../../wgsl/shared/window.wgsl")),
     ("expmap", include_str!("../../wgsl/shared/expmap.wgsl")),
+    (
+        "expmap_relax_common",
+        include_str!("../../wgsl/shared/expmap_relax_common.wgsl"),
+    ),
     ("linalg", include_str!("../../wgsl/shared/linalg.wgsl")),
     ("dims", include_str!("../../wgsl/shared/dims.wgsl")),
     ("cg_state", include_str!("../../wgsl/shared/cg_state.wgsl")),

@@ -98,6 +98,10 @@ pub fn run_geodesic(
                 g.push(t.elapsed().as_secs_f64() * 1000.0);
                 last = Some((r[0], d));
             }
+            // The same map in one workgroup and spread over many (`expmap_spread`), whichever
+            // the adapter takes by default (`gpu_ms`), in the same run.
+            let one = forced_ms(engine, &loaded, (seed, o), opts.reps, u32::MAX)?;
+            let spread = forced_ms(engine, &loaded, (seed, o), opts.reps, 1)?;
             let t = Instant::now();
             let cpu = dem_cpu(topo, &seed, o, &k);
             let cpu_ms = t.elapsed().as_secs_f64() * 1000.0;
@@ -114,7 +118,7 @@ pub fn run_geodesic(
                 "bench": "expmap", "mesh_triangles": topo.triangles.len(), "mesh_vertices": topo.positions.len(),
                 "disc_vertices": res.reached, "cpu_reached": cpu.dist.iter().filter(|d| d.is_finite()).count(),
                 "sweeps": res.sweeps, "converged": res.converged == 1, "dispatches": dispatches,
-                "gpu_ms": gpu_ms, "cpu_twin_ms": cpu_ms, "cpu_over_gpu": cpu_ms / gpu_ms,
+                "gpu_ms": gpu_ms, "gpu_one_workgroup_ms": one, "gpu_spread_ms": spread, "cpu_twin_ms": cpu_ms, "cpu_over_gpu": cpu_ms / gpu_ms,
                 "accuracy": opts.accuracy, "peers": peers,
             }));
         }
@@ -254,6 +258,34 @@ fn peer_logmap(dir: &Path, obj: &Path, source: u32, radius: f32) -> serde_json::
         }
         Err(e) => serde_json::json!({ "error": e }),
     }
+}
+
+/// Median ms of `map` with `expmaps::gpu::SPREAD_MIN_CANDIDATES_OVERRIDE` at `spread_min`:
+/// `u32::MAX` computes it in one workgroup (`expmap_relax`), 1 spread over many
+/// (`expmap_spread`), whatever the adapter's default.
+fn forced_ms(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    map: (
+        decalbake::maps::expmap::cpu::Seed,
+        decalbake::maps::expmap::cpu::Options,
+    ),
+    reps: usize,
+    spread_min: u32,
+) -> Result<f64> {
+    use decalbake::maps::expmap::gpu::SPREAD_MIN_CANDIDATES_OVERRIDE as SPREAD;
+    SPREAD.store(spread_min, std::sync::atomic::Ordering::Relaxed);
+    let mut g = Vec::new();
+    let run = expmaps_warm(engine, mesh, &[map]).and_then(|_| {
+        for _ in 0..reps.max(1) {
+            let t = Instant::now();
+            engine.expmaps_status(mesh, &[map])?;
+            g.push(t.elapsed().as_secs_f64() * 1000.0);
+        }
+        Ok(())
+    });
+    SPREAD.store(0, std::sync::atomic::Ordering::Relaxed);
+    run.map(|_| median(g))
 }
 
 fn expmaps_warm(

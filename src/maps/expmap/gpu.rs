@@ -171,10 +171,135 @@ pub static WIDE_MIN_CANDIDATES_OVERRIDE: std::sync::atomic::AtomicU32 =
 /// Rounds recorded per submission before the host checks convergence.
 const ROUNDS_PER_SUBMIT: u32 = 4;
 
+/// Candidates from which a map that is alone in its chunk runs spread over many workgroups
+/// (`run_spread`, `wgsl/maps/expmap_spread.wgsl`) instead of in one, on adapters that are not a
+/// CPU. On lavapipe (a CPU adapter) the spread path is slower, so it is off there: a dispatch
+/// that wakes the second core costs about 50 µs more than the sweep it carries saves
+/// (`bench --geodesic`, session 19: the 12k disc on bob × 2 spread 18-22 ms against 8.5-8.9 ms
+/// in one workgroup; with `LP_NUM_THREADS=1` 10.2 ms; the 120k disc 118-126 against 113-115).
+/// On a GPU a lone map in one workgroup runs on one of its many compute units; the spread path
+/// has not been measured on one yet (no GPU was lent to this project): `bench --geodesic`
+/// reports both, `gpu_ms` and `gpu_one_workgroup_ms`, in the same run. Several maps in a chunk
+/// keep one workgroup each: together they fill the device.
+const SPREAD_MIN_CANDIDATES: u32 = 4_096;
+
+/// When not 0, the candidates from which a lone map runs spread, on any adapter, instead of
+/// [`SPREAD_MIN_CANDIDATES`] on non-CPU adapters only; `u32::MAX` turns the spread path off.
+/// Tests and benchmarks compare the two paths; results do not depend on it (the same fixed
+/// point).
+#[doc(hidden)]
+pub static SPREAD_MIN_CANDIDATES_OVERRIDE: std::sync::atomic::AtomicU32 =
+    std::sync::atomic::AtomicU32::new(0);
+
+/// Sweeps recorded per submission of the spread path before the host reads the status back (a
+/// sweep whose front is empty costs two near-empty dispatches).
+const SPREAD_SWEEPS_PER_SUBMIT: u32 = 24;
+
+/// Bytes of the spread path's state (`sstate` in wgsl/maps/expmap_spread.wgsl) and of its
+/// indirect dispatch sizes (`args`: the sweep's at 0, `finish`'s at 16).
+const SPREAD_STATE_BYTES: u64 = 32;
+const SPREAD_ARGS_BYTES: u64 = 32;
+
+/// Workgroup of the spread path's `clear` and `finish` (`WG_WIDE` in wgsl/maps/expmap_spread.wgsl;
+/// `sweep`'s is sized on the GPU, by `advance`).
+const SPREAD_WG_WIDE: u32 = 256;
+
+/// The buffers both relaxations bind, less their own state (bindings 9 and 10).
+struct MapBuffers {
+    jobs: wgpu::Buffer,
+    cands: wgpu::Buffer,
+    results: wgpu::Buffer,
+    fronts: wgpu::Buffer,
+    marks: wgpu::Buffer,
+    state: wgpu::Buffer,
+}
+
+impl MapBuffers {
+    /// Allocates them for `jobs` and `cands`; the marks and smooth state are the mesh's kept
+    /// scratch where it is large enough.
+    fn new(
+        ctx: &crate::gpu::GpuContext,
+        mesh: &crate::mesh::GpuMesh,
+        jobs: &[GeoJob],
+        cands: &[u32],
+    ) -> Self {
+        let device = &ctx.device;
+        let slots = jobs.iter().map(|j| j.tri[3] as u64 + 1).max().unwrap_or(1);
+        let kept = mesh.expmap_scratch.lock().expect("expmap scratch").take();
+        let size = slots * mesh.vertex_count as u64 * 4;
+        let [marks, state] = match kept.filter(|[m, _]| m.size() >= size) {
+            Some(pair) => pair,
+            None => [
+                plain(ctx, "expmap.marks", size),
+                plain(ctx, "expmap.state", size * 4),
+            ],
+        };
+        let init = |label, contents: &[u8]| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        };
+        Self {
+            jobs: init("expmap.jobs", bytemuck::cast_slice(jobs)),
+            cands: init("expmap.candidates", bytemuck::cast_slice(cands)),
+            results: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("expmap.results"),
+                size: jobs.len() as u64 * 16,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+            fronts: plain(ctx, "expmap.fronts", 2 * cands.len() as u64 * 4),
+            marks,
+            state,
+        }
+    }
+
+    /// Bindings 0-8 and 11-13 (the kernels' own state, 9 and 10, come from the caller).
+    fn entries<'a>(
+        &'a self,
+        mesh: &'a crate::mesh::GpuMesh,
+        coords: &'a wgpu::Buffer,
+    ) -> Vec<(u32, wgpu::BindingResource<'a>)> {
+        vec![
+            (0, self.jobs.as_entire_binding()),
+            (1, mesh.positions.as_entire_binding()),
+            (2, mesh.normals.as_entire_binding()),
+            (3, mesh.adjacency_offsets.as_entire_binding()),
+            (4, mesh.relax_edges.as_entire_binding()),
+            (5, mesh.curvature.as_entire_binding()),
+            (6, self.cands.as_entire_binding()),
+            (7, coords.as_entire_binding()),
+            (8, self.results.as_entire_binding()),
+            (11, self.fronts.as_entire_binding()),
+            (12, self.marks.as_entire_binding()),
+            (13, self.state.as_entire_binding()),
+        ]
+    }
+
+    /// Hands the marks and smooth state back to the mesh for its next maps.
+    fn keep(self, mesh: &crate::mesh::GpuMesh) {
+        *mesh.expmap_scratch.lock().expect("expmap scratch") = Some([self.marks, self.state]);
+    }
+}
+
+/// A zeroed storage buffer of `size` bytes (at least 16).
+fn plain(ctx: &crate::gpu::GpuContext, label: &str, size: u64) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: size.max(16),
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
 /// Computes `maps` (seed, options, coords slot) into their slots of `coords`: builds the jobs and
 /// candidate lists, then runs the relaxation to convergence: seeds the maps (clearing their coords
 /// slots), then dispatches rounds of sweeps, `ROUNDS_PER_SUBMIT` per submission, reading back only
-/// the per-map status between submissions. Returns the per-map results and the dispatches issued.
+/// the per-map status between submissions. A map alone in its chunk with
+/// [`SPREAD_MIN_CANDIDATES`] candidates or more runs spread over many workgroups instead
+/// ([`run_spread`]), on adapters that are not a CPU. Returns the per-map results and the dispatches issued.
 ///
 /// On wgpu's GL backend the maps come from the CPU twin instead (see [`run_cpu_twin`]).
 pub fn run(
@@ -195,78 +320,31 @@ pub fn run(
     let (topo, mesh) = (mesh.topo, mesh.gpu);
     let (jobs, cands) = build_jobs(topo, maps);
     let (jobs, cands) = (&jobs[..], &cands[..]);
+    let spread_min = match SPREAD_MIN_CANDIDATES_OVERRIDE.load(Relaxed) {
+        0 if ctx.device_type == Some(wgpu::DeviceType::Cpu) => u32::MAX,
+        0 => SPREAD_MIN_CANDIDATES,
+        n => n,
+    };
+    if jobs.len() == 1 && jobs[0].cand_count >= spread_min {
+        return run_spread(ctx, pipes, mesh, &jobs[0], cands, coords);
+    }
     let device = &ctx.device;
     // The kernel runs as many sweeps a dispatch as its fronts' sizes fit in `LOOP_BUDGET` (a sweep
     // over a front of n vertices: ceil(n / the workgroup's width) × `steps_per_vertex` steps),
     // at least one, at most 1,024. The fronts are a ring or two (the first: the seeds'
     // neighbours), so a dispatch runs many (the 120k disc: 265 sweeps in 268 dispatches when the
     // count was fixed from the first, which was then every candidate).
-    let sweeps_per_round = 1024;
-    let steps_per_vertex = steps_per_vertex(topo, cands);
+    let round = |init| Round {
+        init,
+        sweeps: 1024,
+        budget: match LOOP_BUDGET_OVERRIDE.load(Relaxed) {
+            0 => LOOP_BUDGET,
+            b => b,
+        },
+        steps_per_vertex: steps_per_vertex(topo, cands),
+    };
     let max_sweeps = jobs.iter().map(|j| j.max_sweeps).max().unwrap_or(16);
-    let results_size = jobs.len() as u64 * 16;
-    let slots = jobs.iter().map(|j| j.tri[3] as u64 + 1).max().unwrap_or(1);
-    let (jobs_buf, cand_buf, results, rounds, fstate, fronts, marks) =
-        ctx.scoped("exponential maps", || {
-            let plain = |label, size: u64| {
-                device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some(label),
-                    size: size.max(16),
-                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                    mapped_at_creation: false,
-                })
-            };
-            let fstate = plain("expmap.front_state", jobs.len() as u64 * 16);
-            let fronts = plain("expmap.fronts", 2 * cands.len() as u64 * 4);
-            let kept = mesh.expmap_scratch.lock().expect("expmap scratch").take();
-            let size = slots * mesh.vertex_count as u64 * 4;
-            let [marks, state] = match kept.filter(|[m, _]| m.size() >= size) {
-                Some(pair) => pair,
-                None => [plain("expmap.marks", size), plain("expmap.state", size * 4)],
-            };
-            let jobs_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("expmap.jobs"),
-                contents: bytemuck::cast_slice(jobs),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
-            let cand_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("expmap.candidates"),
-                contents: bytemuck::cast_slice(cands),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
-            let results = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("expmap.results"),
-                size: results_size,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            });
-            let mk = |init: u32| {
-                device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("expmap.round"),
-                    contents: bytemuck::bytes_of(&Round {
-                        init,
-                        sweeps: sweeps_per_round,
-                        budget: match LOOP_BUDGET_OVERRIDE.load(Relaxed) {
-                            0 => LOOP_BUDGET,
-                            b => b,
-                        },
-                        steps_per_vertex,
-                    }),
-                    usage: wgpu::BufferUsages::UNIFORM,
-                })
-            };
-            (
-                jobs_buf,
-                cand_buf,
-                results,
-                [mk(1), mk(0)],
-                fstate,
-                fronts,
-                (marks, state),
-            )
-        })?;
-    let (marks, state) = marks;
-    let wide_min = match WIDE_MIN_CANDIDATES_OVERRIDE.load(std::sync::atomic::Ordering::Relaxed) {
+    let wide_min = match WIDE_MIN_CANDIDATES_OVERRIDE.load(Relaxed) {
         0 => WIDE_MIN_CANDIDATES,
         n => n,
     };
@@ -275,34 +353,125 @@ pub fn run(
     } else {
         &pipes.expmap_relax
     };
-    let bind = |round: &wgpu::Buffer| {
-        kernel.bind(
-            device,
-            "expmap.relax",
-            &[
-                (0, jobs_buf.as_entire_binding()),
-                (1, mesh.positions.as_entire_binding()),
-                (2, mesh.normals.as_entire_binding()),
-                (3, mesh.adjacency_offsets.as_entire_binding()),
-                (4, mesh.relax_edges.as_entire_binding()),
-                (5, mesh.curvature.as_entire_binding()),
-                (6, cand_buf.as_entire_binding()),
-                (7, coords.as_entire_binding()),
-                (8, results.as_entire_binding()),
-                (9, round.as_entire_binding()),
-                (10, fstate.as_entire_binding()),
-                (11, fronts.as_entire_binding()),
-                (12, marks.as_entire_binding()),
-                (13, state.as_entire_binding()),
-            ],
-        )
-    };
-    let (bg_init, bg_more) =
-        ctx.scoped("exponential maps", || (bind(&rounds[0]), bind(&rounds[1])))?;
-    let status = (&results, results_size, max_sweeps);
+    let (bufs, fstate, bg_init, bg_more) = ctx.scoped("exponential maps", || {
+        let bufs = MapBuffers::new(ctx, mesh, jobs, cands);
+        let fstate = plain(ctx, "expmap.front_state", jobs.len() as u64 * 16);
+        let bind = |r: Round| {
+            let round = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("expmap.round"),
+                contents: bytemuck::bytes_of(&r),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            let mut entries = bufs.entries(mesh, coords);
+            entries.push((9, round.as_entire_binding()));
+            entries.push((10, fstate.as_entire_binding()));
+            kernel.bind(device, "expmap.relax", &entries)
+        };
+        let (bg_init, bg_more) = (bind(round(1)), bind(round(0)));
+        (bufs, fstate, bg_init, bg_more)
+    })?;
+    let status = (&bufs.results, jobs.len() as u64 * 16, max_sweeps);
     let done = submit_rounds(ctx, kernel, [&bg_init, &bg_more], jobs.len() as u32, status);
     // Every dispatch has finished (the status read-backs waited for them), or failed.
-    *mesh.expmap_scratch.lock().expect("expmap scratch") = Some([marks, state]);
+    drop(fstate);
+    bufs.keep(mesh);
+    done
+}
+
+/// One map, `job`, spread over many workgroups (`wgsl/maps/expmap_spread.wgsl`): the candidates
+/// cleared over the whole device, the seeds set, then a dispatch a sweep over the front, one
+/// invocation a front vertex, each followed by a one-invocation `advance` that makes the next
+/// front current and sizes the next sweep's indirect dispatch; [`SPREAD_SWEEPS_PER_SUBMIT`]
+/// sweeps and a `finish` (the reached count, indirect: empty until the map is done) a
+/// submission, the status read back between submissions. The same fixed point as [`run`]'s
+/// one workgroup a map (`tests/expmap.rs` compares them byte for byte). Returns the map's result
+/// and the dispatches issued.
+fn run_spread(
+    ctx: &crate::gpu::GpuContext,
+    pipes: &Pipelines,
+    mesh: &crate::mesh::GpuMesh,
+    job: &GeoJob,
+    cands: &[u32],
+    coords: &wgpu::Buffer,
+) -> Result<(Vec<GeoResult>, u32)> {
+    let k = &pipes.expmap_spread;
+    // `bg` for the entry points that write the dispatch sizes, `bg_indirect` (a stand-in at 14)
+    // for those dispatched from them.
+    let (bufs, args, [bg, bg_indirect]) = ctx.scoped("exponential maps", || {
+        let bufs = MapBuffers::new(ctx, mesh, std::slice::from_ref(job), cands);
+        let sstate = plain(ctx, "expmap.spread_state", SPREAD_STATE_BYTES);
+        let args = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("expmap.spread_args"),
+            size: SPREAD_ARGS_BYTES,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
+            mapped_at_creation: false,
+        });
+        let stand_in = plain(ctx, "expmap.spread_args_stand_in", SPREAD_ARGS_BYTES);
+        let bind = |at_14: &wgpu::Buffer| {
+            let mut entries = bufs.entries(mesh, coords);
+            entries.push((10, sstate.as_entire_binding()));
+            entries.push((14, at_14.as_entire_binding()));
+            crate::gpu::pipelines::make_bind_group(
+                &ctx.device,
+                &k.layout,
+                "expmap.spread",
+                &entries,
+            )
+        };
+        let bgs = [bind(&args), bind(&stand_in)];
+        (bufs, args, bgs)
+    })?;
+    let groups = |n: u32, width: u32| {
+        let g = n.div_ceil(width);
+        (g.min(65_535), g.div_ceil(65_535))
+    };
+    let mut dispatches = 0;
+    let done = loop {
+        let recorded = ctx.scoped("exponential maps", || {
+            let mut enc = ctx.device.create_command_encoder(&Default::default());
+            let mut n = 0;
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("expmap.spread"),
+                    timestamp_writes: None,
+                });
+                if dispatches == 0 {
+                    pass.set_bind_group(0, &bg, &[]);
+                    let (x, y) = groups(job.cand_count + job.halo_count, SPREAD_WG_WIDE);
+                    pass.set_pipeline(&k.clear);
+                    pass.dispatch_workgroups(x, y, 1);
+                    pass.set_pipeline(&k.seed);
+                    pass.dispatch_workgroups(1, 1, 1);
+                    n += 2;
+                }
+                for _ in 0..SPREAD_SWEEPS_PER_SUBMIT {
+                    pass.set_bind_group(0, &bg_indirect, &[]);
+                    pass.set_pipeline(&k.sweep);
+                    pass.dispatch_workgroups_indirect(&args, 0);
+                    pass.set_bind_group(0, &bg, &[]);
+                    pass.set_pipeline(&k.advance);
+                    pass.dispatch_workgroups(1, 1, 1);
+                    n += 2;
+                }
+                pass.set_bind_group(0, &bg_indirect, &[]);
+                pass.set_pipeline(&k.finish);
+                pass.dispatch_workgroups_indirect(&args, 16);
+            }
+            ctx.queue.submit([enc.finish()]);
+            n + 1
+        })?;
+        dispatches += recorded;
+        let bytes = ctx.read_buffer(&bufs.results, 16, "expmap status read-back");
+        let r: GeoResult = match bytes {
+            Ok(b) => bytemuck::pod_read_unaligned(&b[..16]),
+            Err(e) => break Err(e),
+        };
+        if r.converged != 0 || r.sweeps >= job.max_sweeps {
+            break Ok((vec![r], dispatches));
+        }
+    };
+    // Every dispatch has finished (the status read-backs waited for them), or failed.
+    bufs.keep(mesh);
     done
 }
 
