@@ -47,7 +47,8 @@ pub struct GpuMesh {
     /// Per CSR adjacency entry, what the exponential maps' relaxation reads of it: the neighbour,
     /// the edge's intrinsic angle at its source, the reverse edge's at the neighbour and the
     /// neighbour's curvature, `vec4<u32>` (`crate::mesh::surface::relax_edges`); a 16-byte
-    /// placeholder where that does not fit one storage binding ([`Self::relax_edges_fit`]).
+    /// placeholder where that does not fit one storage binding ([`Self::relax_edges_fit`]) and on
+    /// wgpu's GL backend, whose maps come from the CPU twin.
     pub relax_edges: wgpu::Buffer,
     /// Whether [`Self::relax_edges`] holds the records. They take 16 bytes an adjacency entry (about
     /// 96 a vertex), more than any other mesh buffer, so a mesh that fits the device otherwise
@@ -76,12 +77,16 @@ pub struct GpuMesh {
 }
 
 /// The exponential maps' edge records ([`crate::mesh::surface::relax_edges`]) and whether they fit
-/// one storage binding of `device`.
+/// one storage binding of `device`; none on wgpu's GL backend, where they would go unread.
 fn relax_records(
     device: &wgpu::Device,
     topo: &Topology,
     surface: &crate::mesh::SurfaceData,
 ) -> (Vec<[u32; 4]>, bool) {
+    // wgpu's GL backend makes the maps with the CPU twin (`maps::expmap::gpu::run`): no records.
+    if device.adapter_info().backend == wgpu::Backend::Gl {
+        return (Vec::new(), false);
+    }
     let relax = crate::mesh::surface::relax_edges(topo, surface);
     let limits = device.limits();
     let fit = 16 * relax.len() as u64
