@@ -451,6 +451,9 @@ fn large_discs_converge_over_several_rounds() {
     let mesh = engine
         .prepare(Mesh::load(&spot).unwrap().subdivide().subdivide())
         .unwrap();
+    if on_gl(&engine) {
+        return;
+    }
     let topo = &mesh.topo;
     let seed = seed_at(topo, Vec3::new(0.33, 0.0, 0.45), Vec3::Y);
     let opts = Options {
@@ -509,6 +512,16 @@ fn large_discs_converge_over_several_rounds() {
     );
 }
 
+/// On wgpu's GL backend the maps come from the CPU twin (`maps::expmap::gpu::run`): the tests of
+/// the GPU relaxation's paths (dispatch counts, variants) have nothing to compare there.
+fn on_gl(engine: &decalbake::Engine) -> bool {
+    let gl = engine.ctx.backend == Some(wgpu::Backend::Gl);
+    if gl {
+        eprintln!("GL: the maps come from the CPU twin; nothing to compare");
+    }
+    gl
+}
+
 /// The tests that set the relaxation's overrides (process-wide statics) take turns: one's
 /// dispatch counts would otherwise see the other's settings.
 static OVERRIDES: std::sync::Mutex<()> = std::sync::Mutex::new(());
@@ -536,6 +549,9 @@ fn spread_maps_equal_one_workgroup_maps() {
     let mesh = engine
         .prepare(Mesh::load(&spot).unwrap().subdivide().subdivide())
         .unwrap();
+    if on_gl(&engine) {
+        return;
+    }
     let seed = seed_at(&mesh.topo, Vec3::new(0.33, 0.0, 0.45), Vec3::Y);
     for accuracy in [Accuracy::Fast, Accuracy::Smooth] {
         let m = (
