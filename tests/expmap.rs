@@ -446,14 +446,10 @@ fn param_command_writes_the_layer_map_as_csv() {
 /// running meanwhile only take more rounds; results do not depend on the budget).
 #[test]
 fn large_discs_converge_over_several_rounds() {
-    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
     let engine = engine();
-    let mesh = engine
-        .prepare(Mesh::load(&spot).unwrap().subdivide().subdivide())
-        .unwrap();
-    if on_gl(&engine) {
+    let Some(mesh) = spot_subdivided_twice(&engine) else {
         return;
-    }
+    };
     let topo = &mesh.topo;
     let seed = seed_at(topo, Vec3::new(0.33, 0.0, 0.45), Vec3::Y);
     let opts = Options {
@@ -512,6 +508,13 @@ fn large_discs_converge_over_several_rounds() {
     );
 }
 
+/// Spot subdivided twice, or `None` on GL (see [`on_gl`]).
+fn spot_subdivided_twice(engine: &decalbake::Engine) -> Option<decalbake::LoadedMesh> {
+    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
+    let mesh = Mesh::load(&spot).unwrap().subdivide().subdivide();
+    (!on_gl(engine)).then(|| engine.prepare(mesh).unwrap())
+}
+
 /// On wgpu's GL backend the maps come from the CPU twin (`maps::expmap::gpu::run`): the tests of
 /// the GPU relaxation's paths (dispatch counts, variants) have nothing to compare there.
 fn on_gl(engine: &decalbake::Engine) -> bool {
@@ -544,14 +547,10 @@ fn spread_maps_equal_one_workgroup_maps() {
         }
     }
     let _restore = Restore;
-    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
     let engine = engine();
-    let mesh = engine
-        .prepare(Mesh::load(&spot).unwrap().subdivide().subdivide())
-        .unwrap();
-    if on_gl(&engine) {
+    let Some(mesh) = spot_subdivided_twice(&engine) else {
         return;
-    }
+    };
     let seed = seed_at(&mesh.topo, Vec3::new(0.33, 0.0, 0.45), Vec3::Y);
     for accuracy in [Accuracy::Fast, Accuracy::Smooth] {
         let m = (

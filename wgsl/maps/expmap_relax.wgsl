@@ -67,16 +67,7 @@ fn init_map(job: GeoJob, base: u32, lid: u32, wid: u32) {
     }
     storageBarrier();
     workgroupBarrier();
-    if (lid < 3u) {
-        set_seed(job, base, lid);
-    }
-    storageBarrier();
-    workgroupBarrier();
-    if (lid < 3u) {
-        queue_seed_neighbours(job, base, lid);
-    }
-    storageBarrier();
-    workgroupBarrier();
+    seed_map(job, base, lid);
     if (lid == 0u) {
         fstate[4u * wid] = atomicLoad(&next_len);
         fstate[4u * wid + 1u] = 0u;

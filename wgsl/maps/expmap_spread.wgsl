@@ -78,16 +78,7 @@ fn seed(@builtin(local_invocation_index) lid: u32) {
     if (lid == 0u) {
         atomicStore(&sstate[4], 0u);
     }
-    if (lid < 3u) {
-        set_seed(job, base, lid);
-    }
-    storageBarrier();
-    workgroupBarrier();
-    if (lid < 3u) {
-        queue_seed_neighbours(job, base, lid);
-    }
-    storageBarrier();
-    workgroupBarrier();
+    seed_map(job, base, lid);
     if (lid == 0u) {
         let len = atomicLoad(&sstate[4]);
         atomicStore(&sstate[0], len);

@@ -214,3 +214,18 @@ fn relax_vertex(job: GeoJob, base: u32, v: u32, orient: f32, stamp: u32, nxt: u3
         }
     }
 }
+
+// The seed triangle set (invocations 0-2) and its neighbours queued as the first front, after the
+// candidates were cleared. Called by a whole workgroup in uniform control flow (it has barriers).
+fn seed_map(job: GeoJob, base: u32, lid: u32) {
+    if (lid < 3u) {
+        set_seed(job, base, lid);
+    }
+    storageBarrier();
+    workgroupBarrier();
+    if (lid < 3u) {
+        queue_seed_neighbours(job, base, lid);
+    }
+    storageBarrier();
+    workgroupBarrier();
+}
