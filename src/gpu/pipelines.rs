@@ -210,8 +210,10 @@ pub struct Pipelines {
     /// The same, 256 invocations a map (`shaders::expmap_wide_source`): maps of many candidates.
     pub expmap_relax_wide: Kernel,
     /// One large exponential map over many workgroups, a dispatch a sweep
-    /// (`wgsl/maps/expmap_spread.wgsl`).
-    pub expmap_spread: ExpmapSpread,
+    /// (`wgsl/maps/expmap_spread.wgsl`; off by default, see
+    /// `maps::expmap::gpu::SPREAD_MIN_CANDIDATES_OVERRIDE`). `None` on GL (whose maps come from
+    /// the CPU twin) and where a stage binds fewer than its 14 storage buffers.
+    pub expmap_spread: Option<ExpmapSpread>,
     /// The extended exponential map of a curve (`wgsl/maps/ribbon_relax.wgsl`).
     pub ribbon_relax: Kernel,
     /// Per-layer distortion partials.
@@ -471,10 +473,15 @@ pub struct ExpmapSpread {
 }
 
 impl ExpmapSpread {
-    fn new(device: &wgpu::Device) -> Self {
+    fn new(device: &wgpu::Device) -> Option<Self> {
         let name = "expmap_spread";
         let mut binds: Vec<_> = EXPMAP_BINDS.into_iter().filter(|&(b, _)| b != 9).collect();
         binds.push((14, Bind::Rw));
+        if device.adapter_info().backend == wgpu::Backend::Gl
+            || device.limits().max_storage_buffers_per_shader_stage < binds.len() as u32
+        {
+            return None;
+        }
         let layout = layout(device, name, &binds, wgpu::ShaderStages::COMPUTE);
         let (pl, module) = layout_and_module(device, name, &layout, None);
         let entry = |e: &str| {
@@ -487,14 +494,14 @@ impl ExpmapSpread {
                 cache: None,
             })
         };
-        Self {
+        Some(Self {
             clear: entry("clear"),
             seed: entry("seed"),
             sweep: entry("sweep"),
             advance: entry("advance"),
             finish: entry("finish"),
             layout,
-        }
+        })
     }
 }
 

@@ -26,7 +26,7 @@ impl SurfaceData {
     }
 }
 
-/// What the exponential maps' relaxation (`wgsl/maps/expmap_relax.wgsl`) reads of each CSR
+/// What the exponential maps' relaxation (`wgsl/shared/expmap_relax_common.wgsl`) reads of each CSR
 /// adjacency entry v → r, in one 16-byte load: r, the edge's intrinsic angle at v, the reverse
 /// edge's (r → v) at r (0 where r does not list v, as the kernel's scan gave) and r's signed
 /// Gaussian curvature, as bits. On lavapipe every storage load is a loop over the SIMD lanes: this
@@ -123,7 +123,7 @@ pub fn edge_angles(topo: &Topology) -> Vec<f32> {
 }
 
 /// The intrinsic angle of edge v→q at v (0 when q is not a neighbour). Twin of `edge_angle` in
-/// `wgsl/maps/expmap_relax.wgsl`.
+/// `wgsl/shared/expmap_relax_common.wgsl`.
 pub fn edge_angle(topo: &Topology, angles: &[f32], v: u32, q: u32) -> f32 {
     let (a, b) = (
         topo.adjacency_offsets[v as usize] as usize,

@@ -53,7 +53,8 @@ pub struct GpuMesh {
     /// Whether [`Self::relax_edges`] holds the records. They take 16 bytes an adjacency entry (about
     /// 96 a vertex), more than any other mesh buffer, so a mesh that fits the device otherwise
     /// may not fit them: then its exponential maps come from their CPU twin
-    /// (`maps::expmap::gpu::run`) rather than the mesh being refused.
+    /// (`maps::expmap::gpu::run`) rather than the mesh being refused. False on wgpu's GL
+    /// backend, where the CPU twin makes the maps anyway.
     pub relax_edges_fit: bool,
     /// Boundary edges (welded ids, smaller first), `vec2<u32>`.
     pub boundary_edges: wgpu::Buffer,

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-// One large exponential map spread over many workgroups: the relaxation of `expmap_relax` (the
+// One large exponential map spread over many workgroups (off by default: slower on lavapipe,
+// see `SPREAD_MIN_CANDIDATES_OVERRIDE` in src/maps/expmap/gpu.rs): the relaxation of `expmap_relax` (the
 // same update of a front vertex, shared/expmap_relax_common.wgsl, so the same fixed point), but a
 // sweep is one dispatch over the front, one invocation a front vertex, in as many workgroups as
 // the front needs, instead of a loop inside one workgroup. On lavapipe a single map in one
@@ -98,9 +99,12 @@ fn sweep(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
     let stamp = atomicLoad(&sstate[2]);
     let cur = 2u * job.cand_offset + parity * job.cand_count;
     let nxt = 2u * job.cand_offset + (1u - parity) * job.cand_count;
+    if (gid.x >= len) { return; }
+    let base = job.tri.w * job.vertex_count;
+    let orient = seed_orient(job);
     // One front vertex an invocation (more only past 65,535 workgroups).
     for (var i = gid.x; i < len; i += groups.x * WG) {
-        relax_vertex(job, job.tri.w * job.vertex_count, fronts[cur + i], seed_orient(job), stamp, nxt);
+        relax_vertex(job, base, fronts[cur + i], orient, stamp, nxt);
     }
 }
 

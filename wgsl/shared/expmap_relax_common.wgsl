@@ -141,7 +141,7 @@ fn queue_seed_neighbours(job: GeoJob, base: u32, i: u32) {
 // One front vertex v of a sweep: takes the neighbour that minimises (graph distance + edge
 // length) among reached, expandable neighbours, sets its normal coordinates (and smooth state)
 // from it, and where they changed queues into the list at `nxt` (stamp `stamp`) the neighbours
-// it could now be best for. `seed_n`, `orient`: the job's seed normal and `seed_orient`.
+// it could now be best for. `orient`: the job's `seed_orient`.
 fn relax_vertex(job: GeoJob, base: u32, v: u32, orient: f32, stamp: u32, nxt: u32) {
     let seed_n = job.normal.xyz;
     let c = coords[base + v];

@@ -98,8 +98,8 @@ pub fn run_geodesic(
                 g.push(t.elapsed().as_secs_f64() * 1000.0);
                 last = Some((r[0], d));
             }
-            // The same map in one workgroup and spread over many (`expmap_spread`), whichever
-            // the adapter takes by default (`gpu_ms`), in the same run.
+            // The same map in one workgroup (the default, `gpu_ms`, timed again) and spread over
+            // many (`expmap_spread`, off by default), in the same run.
             let one = forced_ms(engine, &loaded, (seed, o), opts.reps, u32::MAX)?;
             let spread = forced_ms(engine, &loaded, (seed, o), opts.reps, 1)?;
             let t = Instant::now();
@@ -260,7 +260,7 @@ fn peer_logmap(dir: &Path, obj: &Path, source: u32, radius: f32) -> serde_json::
     }
 }
 
-/// Median ms of `map` with `expmaps::gpu::SPREAD_MIN_CANDIDATES_OVERRIDE` at `spread_min`:
+/// Median ms of `map` with `maps::expmap::gpu::SPREAD_MIN_CANDIDATES_OVERRIDE` at `spread_min`:
 /// `u32::MAX` computes it in one workgroup (`expmap_relax`), 1 spread over many
 /// (`expmap_spread`), whatever the adapter's default.
 fn forced_ms(

@@ -221,7 +221,7 @@ pub fn smooth_step(
 /// The smooth mode's start at the seed triangle's vertices: their coordinates in the triangle's own
 /// plane (exact: the seed point lies in it) and their frame angle, the intrinsic angle of the seed
 /// frame's first axis at each vertex. Also returns `orient` for [`smooth_step`]. Twin of the seed
-/// start in `wgsl/maps/expmap_relax.wgsl`.
+/// start (`smooth_seed`, `set_seed`) in `wgsl/shared/expmap_relax_common.wgsl`.
 pub fn smooth_seed(
     topo: &Topology,
     angles: &[f32],

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! GPU side of the discrete exponential maps: candidate discs (CPU, proportional to the disc) and the
-//! one-dispatch relaxation (`wgsl/maps/expmap_relax.wgsl`, one workgroup per decal).
+//! relaxation (`wgsl/maps/expmap_relax.wgsl`, a chunk's maps in one dispatch a round, one workgroup
+//! a map; `wgsl/maps/expmap_spread.wgsl`, one map over many workgroups, off by default).
 
 use crate::error::Result;
 use crate::gpu::pipelines::Pipelines;
@@ -9,7 +10,7 @@ use crate::maps::expmap::cpu::{Options, Seed};
 use crate::mesh::{SurfaceRef, Topology};
 use std::sync::atomic::Ordering::Relaxed;
 
-/// One decal's map request. Keep in sync with `GeoJob` in wgsl/maps/expmap_relax.wgsl.
+/// One decal's map request. Keep in sync with `GeoJob` in wgsl/shared/expmap_relax_common.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct GeoJob {
@@ -171,22 +172,18 @@ pub static WIDE_MIN_CANDIDATES_OVERRIDE: std::sync::atomic::AtomicU32 =
 /// Rounds recorded per submission before the host checks convergence.
 const ROUNDS_PER_SUBMIT: u32 = 4;
 
-/// Candidates from which a map that is alone in its chunk runs spread over many workgroups
-/// (`run_spread`, `wgsl/maps/expmap_spread.wgsl`) instead of in one, on adapters that are not a
-/// CPU. On lavapipe (a CPU adapter) the spread path is slower, so it is off there: a dispatch
-/// that wakes the second core costs about 50 µs more than the sweep it carries saves
-/// (`bench --geodesic`, session 19: the 12k disc on bob × 2 spread 18-22 ms against 8.5-8.9 ms
-/// in one workgroup; with `LP_NUM_THREADS=1` 10.2 ms; the 120k disc 118-126 against 113-115).
-/// On a GPU a lone map in one workgroup runs on one of its many compute units; the spread path
-/// has not been measured on one yet (no GPU was lent to this project): `bench --geodesic`
-/// reports both, `gpu_ms` and `gpu_one_workgroup_ms`, in the same run. Several maps in a chunk
-/// keep one workgroup each: together they fill the device.
-const SPREAD_MIN_CANDIDATES: u32 = 4_096;
-
-/// When not 0, the candidates from which a lone map runs spread, on any adapter, instead of
-/// [`SPREAD_MIN_CANDIDATES`] on non-CPU adapters only; `u32::MAX` turns the spread path off.
-/// Tests and benchmarks compare the two paths; results do not depend on it (the same fixed
-/// point).
+/// When not 0, a map alone in its chunk with this many candidates or more runs spread over many
+/// workgroups (`run_spread`, `wgsl/maps/expmap_spread.wgsl`) instead of in one; 0, the default,
+/// and `u32::MAX` keep one workgroup a map. Off by default because it lost where it was
+/// measured: on lavapipe a dispatch that wakes the second core costs more than the sweep it
+/// carries (`bench --geodesic`, session 19: the 12k disc on bob × 2 21-24 ms spread against
+/// 8.5-8.6 ms in one workgroup, 10.2 ms spread with `LP_NUM_THREADS=1`; the 120k disc 123-134
+/// against 115-116). On a GPU it has not been measured (no GPU was lent to this project); a
+/// sweep's front is a ring or two, a few hundred vertices, which one workgroup already covers
+/// in a few steps, so a dispatch a sweep is not expected to win there either. `bench --geodesic`
+/// reports both paths on any adapter (`gpu_one_workgroup_ms`, `gpu_spread_ms`): set it where
+/// they show the spread path ahead. Tests compare the two paths; results do not depend on it
+/// (the same fixed point).
 #[doc(hidden)]
 pub static SPREAD_MIN_CANDIDATES_OVERRIDE: std::sync::atomic::AtomicU32 =
     std::sync::atomic::AtomicU32::new(0);
@@ -297,9 +294,9 @@ fn plain(ctx: &crate::gpu::GpuContext, label: &str, size: u64) -> wgpu::Buffer {
 /// Computes `maps` (seed, options, coords slot) into their slots of `coords`: builds the jobs and
 /// candidate lists, then runs the relaxation to convergence: seeds the maps (clearing their coords
 /// slots), then dispatches rounds of sweeps, `ROUNDS_PER_SUBMIT` per submission, reading back only
-/// the per-map status between submissions. A map alone in its chunk with
-/// [`SPREAD_MIN_CANDIDATES`] candidates or more runs spread over many workgroups instead
-/// ([`run_spread`]), on adapters that are not a CPU. Returns the per-map results and the dispatches issued.
+/// the per-map status between submissions. Where [`SPREAD_MIN_CANDIDATES_OVERRIDE`] is set, a
+/// map alone in its chunk with that many candidates or more runs spread over many workgroups
+/// instead ([`run_spread`]). Returns the per-map results and the dispatches issued.
 ///
 /// On wgpu's GL backend the maps come from the CPU twin instead (see [`run_cpu_twin`]).
 pub fn run(
@@ -321,12 +318,13 @@ pub fn run(
     let (jobs, cands) = build_jobs(topo, maps);
     let (jobs, cands) = (&jobs[..], &cands[..]);
     let spread_min = match SPREAD_MIN_CANDIDATES_OVERRIDE.load(Relaxed) {
-        0 if ctx.device_type == Some(wgpu::DeviceType::Cpu) => u32::MAX,
-        0 => SPREAD_MIN_CANDIDATES,
+        0 => u32::MAX,
         n => n,
     };
-    if jobs.len() == 1 && jobs[0].cand_count >= spread_min {
-        return run_spread(ctx, pipes, mesh, &jobs[0], cands, coords);
+    if let Some(k) = pipes.expmap_spread.as_ref() {
+        if jobs.len() == 1 && jobs[0].cand_count >= spread_min {
+            return run_spread(ctx, k, mesh, &jobs[0], cands, coords);
+        }
     }
     let device = &ctx.device;
     // The kernel runs as many sweeps a dispatch as its fronts' sizes fit in `LOOP_BUDGET` (a sweep
@@ -334,6 +332,7 @@ pub fn run(
     // at least one, at most 1,024. The fronts are a ring or two (the first: the seeds'
     // neighbours), so a dispatch runs many (the 120k disc: 265 sweeps in 268 dispatches when the
     // count was fixed from the first, which was then every candidate).
+    let steps_per_vertex = steps_per_vertex(topo, cands);
     let round = |init| Round {
         init,
         sweeps: 1024,
@@ -341,7 +340,7 @@ pub fn run(
             0 => LOOP_BUDGET,
             b => b,
         },
-        steps_per_vertex: steps_per_vertex(topo, cands),
+        steps_per_vertex,
     };
     let max_sweeps = jobs.iter().map(|j| j.max_sweeps).max().unwrap_or(16);
     let wide_min = match WIDE_MIN_CANDIDATES_OVERRIDE.load(Relaxed) {
@@ -388,13 +387,12 @@ pub fn run(
 /// and the dispatches issued.
 fn run_spread(
     ctx: &crate::gpu::GpuContext,
-    pipes: &Pipelines,
+    k: &crate::gpu::pipelines::ExpmapSpread,
     mesh: &crate::mesh::GpuMesh,
     job: &GeoJob,
     cands: &[u32],
     coords: &wgpu::Buffer,
 ) -> Result<(Vec<GeoResult>, u32)> {
-    let k = &pipes.expmap_spread;
     // `bg` for the entry points that write the dispatch sizes, `bg_indirect` (a stand-in at 14)
     // for those dispatched from them.
     let (bufs, args, [bg, bg_indirect]) = ctx.scoped("exponential maps", || {
@@ -459,8 +457,11 @@ fn run_spread(
             }
             ctx.queue.submit([enc.finish()]);
             n + 1
-        })?;
-        dispatches += recorded;
+        });
+        dispatches += match recorded {
+            Ok(n) => n,
+            Err(e) => break Err(e),
+        };
         let bytes = ctx.read_buffer(&bufs.results, 16, "expmap status read-back");
         let r: GeoResult = match bytes {
             Ok(b) => bytemuck::pod_read_unaligned(&b[..16]),
