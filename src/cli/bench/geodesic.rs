@@ -6,6 +6,7 @@ use super::bake::BenchOptions;
 use super::common::{largest_uv_mesh, median, run_peers_py, write_obj, SHARED_MESHES};
 use decalbake::bake::{Engine, LoadedMesh};
 use decalbake::error::Result;
+use decalbake::maps::expmap::GeoResult;
 use decalbake::mesh::Mesh;
 use std::path::Path;
 use std::time::Instant;
@@ -89,24 +90,13 @@ pub fn run_geodesic(
                 curvature_stop: f32::INFINITY,
                 accuracy: opts.accuracy,
             };
-            expmaps_warm(engine, &loaded, &[(seed, o)])?;
-            let mut g = Vec::new();
-            let mut last = None;
-            for _ in 0..opts.reps.max(1) {
-                let t = Instant::now();
-                let (r, d) = engine.expmaps_status(&loaded, &[(seed, o)])?;
-                g.push(t.elapsed().as_secs_f64() * 1000.0);
-                last = Some((r[0], d));
-            }
-            // The same map in one workgroup (the default, `gpu_ms`, timed again) and spread over
-            // many (`expmap_spread`, off by default), in the same run.
-            let one = forced_ms(engine, &loaded, (seed, o), opts.reps, u32::MAX)?;
-            let spread = forced_ms(engine, &loaded, (seed, o), opts.reps, 1)?;
+            // The default path (one workgroup a map), then the same map spread over many
+            // (`expmap_spread`, off by default), in the same run.
+            let (gpu_ms, res, dispatches) = timed(engine, &loaded, (seed, o), opts.reps, 0)?;
+            let (spread, ..) = timed(engine, &loaded, (seed, o), opts.reps, 1)?;
             let t = Instant::now();
             let cpu = dem_cpu(topo, &seed, o, &k);
             let cpu_ms = t.elapsed().as_secs_f64() * 1000.0;
-            let (res, dispatches) = last.expect("one repetition");
-            let gpu_ms = median(g);
             let peers = match (&opts.peers, &peer_mesh) {
                 (Some(dir), Some(obj)) => {
                     let source = topo.triangles[seed.triangle as usize][0];
@@ -118,7 +108,7 @@ pub fn run_geodesic(
                 "bench": "expmap", "mesh_triangles": topo.triangles.len(), "mesh_vertices": topo.positions.len(),
                 "disc_vertices": res.reached, "cpu_reached": cpu.dist.iter().filter(|d| d.is_finite()).count(),
                 "sweeps": res.sweeps, "converged": res.converged == 1, "dispatches": dispatches,
-                "gpu_ms": gpu_ms, "gpu_one_workgroup_ms": one, "gpu_spread_ms": spread, "cpu_twin_ms": cpu_ms, "cpu_over_gpu": cpu_ms / gpu_ms,
+                "gpu_ms": gpu_ms, "gpu_spread_ms": spread, "cpu_twin_ms": cpu_ms, "cpu_over_gpu": cpu_ms / gpu_ms,
                 "accuracy": opts.accuracy, "peers": peers,
             }));
         }
@@ -260,10 +250,11 @@ fn peer_logmap(dir: &Path, obj: &Path, source: u32, radius: f32) -> serde_json::
     }
 }
 
-/// Median ms of `map` with `maps::expmap::gpu::SPREAD_MIN_CANDIDATES_OVERRIDE` at `spread_min`:
-/// `u32::MAX` computes it in one workgroup (`expmap_relax`), 1 spread over many
-/// (`expmap_spread`), whatever the adapter's default.
-fn forced_ms(
+/// `map` computed once to warm up, then `reps` times with
+/// `maps::expmap::gpu::SPREAD_MIN_CANDIDATES_OVERRIDE` at `spread_min` (0: the default, one
+/// workgroup a map; 1: spread over many, `expmap_spread`): the median ms, and the last run's
+/// result and dispatches.
+fn timed(
     engine: &Engine,
     mesh: &LoadedMesh,
     map: (
@@ -272,20 +263,22 @@ fn forced_ms(
     ),
     reps: usize,
     spread_min: u32,
-) -> Result<f64> {
+) -> Result<(f64, GeoResult, u32)> {
     use decalbake::maps::expmap::gpu::SPREAD_MIN_CANDIDATES_OVERRIDE as SPREAD;
     SPREAD.store(spread_min, std::sync::atomic::Ordering::Relaxed);
     let mut g = Vec::new();
+    let mut last = (GeoResult::default(), 0);
     let run = expmaps_warm(engine, mesh, &[map]).and_then(|_| {
         for _ in 0..reps.max(1) {
             let t = Instant::now();
-            engine.expmaps_status(mesh, &[map])?;
+            let (r, d) = engine.expmaps_status(mesh, &[map])?;
             g.push(t.elapsed().as_secs_f64() * 1000.0);
+            last = (r[0], d);
         }
         Ok(())
     });
     SPREAD.store(0, std::sync::atomic::Ordering::Relaxed);
-    run.map(|_| median(g))
+    run.map(|_| (median(g), last.0, last.1))
 }
 
 fn expmaps_warm(

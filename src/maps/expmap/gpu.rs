@@ -5,7 +5,6 @@
 
 use crate::error::Result;
 use crate::gpu::pipelines::Pipelines;
-use crate::gpu::BufferInit;
 use crate::maps::expmap::cpu::{Options, Seed};
 use crate::mesh::{SurfaceRef, Topology};
 use std::sync::atomic::Ordering::Relaxed;
@@ -181,7 +180,7 @@ const ROUNDS_PER_SUBMIT: u32 = 4;
 /// against 115-116). On a GPU it has not been measured (no GPU was lent to this project); a
 /// sweep's front is a ring or two, a few hundred vertices, which one workgroup already covers
 /// in a few steps, so a dispatch a sweep is not expected to win there either. `bench --geodesic`
-/// reports both paths on any adapter (`gpu_one_workgroup_ms`, `gpu_spread_ms`): set it where
+/// reports both paths on any adapter (`gpu_ms`, `gpu_spread_ms`): set it where
 /// they show the spread path ahead. Tests compare the two paths; results do not depend on it
 /// (the same fixed point).
 #[doc(hidden)]
@@ -231,16 +230,10 @@ impl MapBuffers {
                 plain(ctx, "expmap.state", size * 4),
             ],
         };
-        let init = |label, contents: &[u8]| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents,
-                usage: wgpu::BufferUsages::STORAGE,
-            })
-        };
+        let none = wgpu::BufferUsages::empty();
         Self {
-            jobs: init("expmap.jobs", bytemuck::cast_slice(jobs)),
-            cands: init("expmap.candidates", bytemuck::cast_slice(cands)),
+            jobs: ctx.storage_init("expmap.jobs", bytemuck::cast_slice(jobs), none),
+            cands: ctx.storage_init("expmap.candidates", bytemuck::cast_slice(cands), none),
             results: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("expmap.results"),
                 size: jobs.len() as u64 * 16,
@@ -352,15 +345,11 @@ pub fn run(
     } else {
         &pipes.expmap_relax
     };
-    let (bufs, fstate, bg_init, bg_more) = ctx.scoped("exponential maps", || {
+    let (bufs, _fstate, bg_init, bg_more) = ctx.scoped("exponential maps", || {
         let bufs = MapBuffers::new(ctx, mesh, jobs, cands);
         let fstate = plain(ctx, "expmap.front_state", jobs.len() as u64 * 16);
         let bind = |r: Round| {
-            let round = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("expmap.round"),
-                contents: bytemuck::bytes_of(&r),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+            let round = ctx.uniform_init("expmap.round", bytemuck::bytes_of(&r));
             let mut entries = bufs.entries(mesh, coords);
             entries.push((9, round.as_entire_binding()));
             entries.push((10, fstate.as_entire_binding()));
@@ -372,7 +361,6 @@ pub fn run(
     let status = (&bufs.results, jobs.len() as u64 * 16, max_sweeps);
     let done = submit_rounds(ctx, kernel, [&bg_init, &bg_more], jobs.len() as u32, status);
     // Every dispatch has finished (the status read-backs waited for them), or failed.
-    drop(fstate);
     bufs.keep(mesh);
     done
 }
