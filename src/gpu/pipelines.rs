@@ -212,8 +212,9 @@ pub struct Pipelines {
     /// One large exponential map over many workgroups, a dispatch a sweep
     /// (`wgsl/maps/expmap_spread.wgsl`; off by default, see
     /// `maps::expmap::gpu::SPREAD_MIN_CANDIDATES_OVERRIDE`). `None` on GL (whose maps come from
-    /// the CPU twin) and where a stage binds fewer than its 14 storage buffers.
-    pub expmap_spread: Option<ExpmapSpread>,
+    /// the CPU twin) and where a stage binds fewer than its 14 storage buffers. Built on first
+    /// use ([`Self::expmap_spread`]): the default path never takes it.
+    expmap_spread: std::sync::OnceLock<Option<ExpmapSpread>>,
     /// The extended exponential map of a curve (`wgsl/maps/ribbon_relax.wgsl`).
     pub ribbon_relax: Kernel,
     /// Per-layer distortion partials.
@@ -266,6 +267,14 @@ pub struct Pipelines {
 }
 
 impl Pipelines {
+    /// `expmap_spread`'s pipelines, built on the first call (`None` on GL and short storage
+    /// limits).
+    pub fn expmap_spread(&self, device: &wgpu::Device) -> Option<&ExpmapSpread> {
+        self.expmap_spread
+            .get_or_init(|| ExpmapSpread::new(device))
+            .as_ref()
+    }
+
     /// Creates every pipeline on `device`.
     ///
     /// Longer than a screen on purpose: it is the table of the engine's compute kernels, one entry
@@ -408,7 +417,7 @@ impl Pipelines {
             stamp_blend,
             expmap_relax: expmap_relax(device, None),
             expmap_relax_wide: expmap_relax(device, Some(shaders::expmap_wide_source())),
-            expmap_spread: ExpmapSpread::new(device),
+            expmap_spread: std::sync::OnceLock::new(),
             ribbon_relax: ribbon_relax(device),
             preview: rasters.preview,
             extract_raster: rasters.extract,

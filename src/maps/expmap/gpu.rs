@@ -314,8 +314,8 @@ pub fn run(
         0 => u32::MAX,
         n => n,
     };
-    if let Some(k) = pipes.expmap_spread.as_ref() {
-        if jobs.len() == 1 && jobs[0].cand_count >= spread_min {
+    if jobs.len() == 1 && jobs[0].cand_count >= spread_min {
+        if let Some(k) = pipes.expmap_spread(&ctx.device) {
             return run_spread(ctx, k, mesh, &jobs[0], cands, coords);
         }
     }
