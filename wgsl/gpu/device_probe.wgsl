@@ -116,3 +116,46 @@ fn dense_per_workgroup(@builtin(local_invocation_index) i: u32, @builtin(workgro
         data[s] = xs[0];
     }
 }
+
+// Loads from `data` (262,144 words, 1 MiB: it fits the caches, so these time the load itself, not
+// memory): `reps` of them an invocation, each address from a linear congruential step. `seed` picks
+// the step's start (the same for every invocation, or its own) and `offset` is added to the
+// address (the invocation's place in its workgroup, or 0). The three entry points below differ
+// only in those two: every lane the same address, the lanes of a workgroup on neighbouring
+// addresses (a CSR row's entries), every lane its own random address (a gather through column
+// indices, as the CG's and the relaxations' neighbour scans make). CPU twin: `gather_cpu` in
+// src/cli/bench/device.rs (the divergent loop on one thread).
+const GATHER_MASK: u32 = 262143u;
+
+fn gather(seed: u32, offset: u32) -> f32 {
+    var h = seed;
+    var acc = 0.0;
+    for (var i = 0u; i < probe.reps; i++) {
+        h = h * 1664525u + 1013904223u;
+        acc += data[((h >> 14u) + offset) & GATHER_MASK];
+    }
+    return acc;
+}
+
+// Keeps the loads alive without changing `data`, which the loads read (the store is taken only
+// where a sum is exactly -1, which the small finite values there make vanishingly unlikely).
+fn keep(g: u32, acc: f32) {
+    if acc == -1.0 {
+        data[g] = acc;
+    }
+}
+
+@compute @workgroup_size(64)
+fn gather_uniform(@builtin(global_invocation_id) g: vec3<u32>) {
+    keep(g.x, gather(1u, 0u));
+}
+
+@compute @workgroup_size(64)
+fn gather_contiguous(@builtin(global_invocation_id) g: vec3<u32>, @builtin(local_invocation_index) l: u32) {
+    keep(g.x, gather(1u, l));
+}
+
+@compute @workgroup_size(64)
+fn gather_divergent(@builtin(global_invocation_id) g: vec3<u32>) {
+    keep(g.x, gather(g.x * 2654435761u + 1u, 0u));
+}

@@ -10,7 +10,11 @@
 //!   loop with two barriers a round and the same loop without);
 //! - `atomic`: an atomic add to one counter shared by every invocation, and to a private counter;
 //! - `dense_small_systems`: many 16 × 16 dense Jacobi solves, one per invocation against one per
-//!   16-wide workgroup (same arithmetic, same results), systems per second.
+//!   16-wide workgroup (same arithmetic, same results), systems per second;
+//! - `loads`: storage loads from a cached 1 MiB buffer, with every lane at the same address, the
+//!   lanes of a workgroup on neighbouring addresses, and every lane at its own random address (a
+//!   gather), in loads per second over the whole device, against the same gather loop in plain
+//!   Rust on one CPU thread (`gather_cpu`) in the same run.
 
 use decalbake::error::Result;
 use decalbake::gpu::GpuContext;
@@ -231,5 +235,51 @@ pub fn run(engine: &Engine, mut emit: impl FnMut(serde_json::Value)) -> Result<(
         "per_invocation_over_per_workgroup": per_wg / per_inv,
         "max_difference": max_diff }),
     );
+    loads(&p, &mut emit)
+}
+
+/// The `loads` figure: the three gather probes and their CPU twin on one thread.
+fn loads(p: &Probe, emit: &mut impl FnMut(serde_json::Value)) -> Result<()> {
+    let (groups, reps) = (256u32, 4000u32);
+    let count = groups as f64 * 64.0 * reps as f64;
+    let rate = |entry| -> Result<f64> { Ok(count / p.time(entry, groups, reps, 1)?) };
+    let uniform = rate("gather_uniform")?;
+    let contiguous = rate("gather_contiguous")?;
+    let divergent = rate("gather_divergent")?;
+    let table = vec![0.5f32; GATHER_WORDS];
+    let invocations = 1024u32;
+    let t = Instant::now();
+    let mut sum = 0.0f32;
+    for g in 0..invocations {
+        sum += gather_cpu(
+            std::hint::black_box(&table),
+            g.wrapping_mul(2654435761) + 1,
+            reps,
+        );
+    }
+    let cpu = invocations as f64 * reps as f64 / t.elapsed().as_secs_f64();
+    std::hint::black_box(sum);
+    emit(
+        serde_json::json!({ "probe": "loads", "loads": count, "buffer_bytes": GATHER_WORDS * 4,
+        "uniform_loads_per_s": uniform, "contiguous_loads_per_s": contiguous,
+        "divergent_loads_per_s": divergent, "cpu_thread_divergent_loads_per_s": cpu,
+        "cpu_thread_over_device_divergent": cpu / divergent,
+        "contiguous_over_divergent": contiguous / divergent }),
+    );
     Ok(())
+}
+
+/// Words the gather probes read from (`GATHER_MASK` + 1 in `device_probe.wgsl`).
+const GATHER_WORDS: usize = 1 << 18;
+
+/// CPU twin of `gather` in `wgsl/gpu/device_probe.wgsl` with a lane's own start (`gather_divergent`):
+/// `reps` loads at addresses from the same linear congruential step.
+fn gather_cpu(table: &[f32], seed: u32, reps: u32) -> f32 {
+    let mut h = seed;
+    let mut acc = 0.0;
+    for _ in 0..reps {
+        h = h.wrapping_mul(1664525).wrapping_add(1013904223);
+        acc += table[(h >> 14) as usize & (GATHER_WORDS - 1)];
+    }
+    acc
 }
