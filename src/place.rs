@@ -248,29 +248,112 @@ pub use crate::mesh::bvh::ray_triangle;
 /// CPU twin of the placement kernels: brute force over every non-degenerate triangle.
 pub fn place_cpu(topo: &Topology, query: Query) -> Placement {
     let mut best: Option<(f32, u32)> = None;
-    for (t, tri) in topo.triangles.iter().enumerate() {
-        if topo.degenerate[t] {
+    for t in 0..topo.triangles.len() as u32 {
+        if topo.degenerate[t as usize] {
             continue;
         }
-        let [a, b, c] = tri.map(|i| topo.positions[i as usize]);
-        let key = match query {
-            Query::Point(p) => {
-                let bc = closest_barycentric(p, a, b, c);
-                (bc.x * a + bc.y * b + bc.z * c).distance_squared(p)
+        if let Some(key) = triangle_key(topo, query, t) {
+            if best.is_none_or(|(k, _)| key < k) {
+                best = Some((key, t));
             }
-            Query::Ray(o, d) => {
-                let (t, _, _) = ray_triangle(o, d.normalize(), a, b, c);
-                if t >= 0.0 {
-                    t
-                } else {
-                    continue;
-                }
-            }
-        };
-        if best.is_none_or(|(k, _)| key < k) {
-            best = Some((key, t as u32));
         }
     }
+    placement_of(topo, query, best)
+}
+
+/// The key of triangle `t` for `query` (squared distance to its closest point, or the distance
+/// along the ray to the hit; `None` for a ray that misses it): twin of `candidate_key` in
+/// wgsl/shared/geometry.wgsl.
+fn triangle_key(topo: &Topology, query: Query, t: u32) -> Option<f32> {
+    let [a, b, c] = topo.triangles[t as usize].map(|i| topo.positions[i as usize]);
+    match query {
+        Query::Point(p) => {
+            let bc = closest_barycentric(p, a, b, c);
+            Some((bc.x * a + bc.y * b + bc.z * c).distance_squared(p))
+        }
+        Query::Ray(o, d) => {
+            let (t, _, _) = ray_triangle(o, d.normalize(), a, b, c);
+            (t >= 0.0).then_some(t)
+        }
+    }
+}
+
+/// CPU twin of `place_bvh` (wgsl/place/place_bvh.wgsl): the same walk of `bvh`, nearest child
+/// first, a box skipped when its key exceeds the best triangle key so far by more than the
+/// kernel's rounding margin (so ties are still visited and the lower triangle wins). It has no
+/// step limit (the kernel hands a walk past 50,000 steps to the brute-force test), so it answers
+/// every query as [`place_cpu`] does (`tests/placement.rs` checks that, bit for bit).
+pub fn place_cpu_bvh(topo: &Topology, bvh: &crate::mesh::bvh::Bvh, query: Query) -> Placement {
+    let mut best: Option<(f32, u32)> = None;
+    let worth = |k: f32, best: Option<(f32, u32)>| match best {
+        None => k < f32::INFINITY,
+        Some((b, _)) => k <= b * (1.0 + 1e-5) + 1e-30,
+    };
+    let mut stack = Vec::with_capacity(64);
+    if !bvh.nodes.is_empty() && !bvh.triangles.is_empty() {
+        stack.push(0usize);
+    }
+    while let Some(i) = stack.pop() {
+        let n = bvh.nodes[i];
+        if !worth(box_key(query, n.lo, n.hi), best) {
+            continue;
+        }
+        let first = n.first as usize;
+        if n.count > 0 {
+            for &t in &bvh.triangles[first..first + n.count as usize] {
+                let Some(key) = triangle_key(topo, query, t) else {
+                    continue;
+                };
+                if best.is_none_or(|(k, b)| key < k || (key == k && t < b)) {
+                    best = Some((key, t));
+                }
+            }
+            continue;
+        }
+        let (a, b) = (bvh.nodes[first], bvh.nodes[first + 1]);
+        let (ka, kb) = (box_key(query, a.lo, a.hi), box_key(query, b.lo, b.hi));
+        let (near, far, knear, kfar) = if kb < ka {
+            (first + 1, first, kb, ka)
+        } else {
+            (first, first + 1, ka, kb)
+        };
+        if worth(kfar, best) {
+            stack.push(far);
+        }
+        if worth(knear, best) {
+            stack.push(near);
+        }
+    }
+    placement_of(topo, query, best)
+}
+
+/// The key of box (lo, hi) for `query`, a lower bound of every key inside it: twin of `box_key`
+/// in wgsl/place/place_bvh.wgsl (slabs for a ray, a zero direction component made tiny).
+fn box_key(query: Query, lo: [f32; 3], hi: [f32; 3]) -> f32 {
+    let (lo, hi) = (Vec3::from(lo), Vec3::from(hi));
+    match query {
+        Query::Point(p) => {
+            let e = (lo - p).max(p - hi).max(Vec3::ZERO);
+            e.dot(e)
+        }
+        Query::Ray(o, d) => {
+            let d = d.normalize();
+            let d = Vec3::select(d.abs().cmplt(Vec3::splat(1e-30)), Vec3::splat(1e-30), d);
+            let inv = d.recip();
+            let (t0, t1) = ((lo - o) * inv, (hi - o) * inv);
+            let tmin = t0.min(t1).max_element().max(0.0);
+            let tmax = t0.max(t1).min_element();
+            if tmax < tmin {
+                f32::INFINITY
+            } else {
+                tmin
+            }
+        }
+    }
+}
+
+/// The placement of `query` on the best (key, triangle), or nothing found.
+fn placement_of(topo: &Topology, query: Query, best: Option<(f32, u32)>) -> Placement {
     let Some((key, t)) = best else {
         return Placement {
             point: [0.0; 3],

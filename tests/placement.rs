@@ -9,7 +9,7 @@
 mod common;
 use common::*;
 use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
-use decalbake::place::{place_cpu, place_gpu, Query};
+use decalbake::place::{place_cpu, place_cpu_bvh, place_gpu, Query};
 use glam::Vec3;
 use std::path::Path;
 
@@ -106,7 +106,9 @@ fn placement_on_a_plane_is_exact() {
 /// the triangles of a fan), rays from outside and from inside, and rays that miss; and on a
 /// finely tessellated sphere (`icosphere(128)`) for its centre, nearly equidistant from all 328k triangles:
 /// the walk there is cut short and the brute-force test finishes the query (without that fallback
-/// the query would come back empty or wrong).
+/// the query would come back empty or wrong). The walk's CPU twin (`place_cpu_bvh`) gives the CPU
+/// brute force's answers bit for bit on the same queries (it fails with the margin that keeps ties
+/// removed: checked).
 #[test]
 fn bvh_placement_matches_testing_every_triangle() {
     use decalbake::place::place_gpu_brute;
@@ -157,6 +159,11 @@ fn bvh_placement_matches_testing_every_triangle() {
     for (q, (a, b)) in queries.iter().zip(fast.iter().zip(&brute)) {
         assert_eq!(a, b, "{q:?}");
     }
+    // The walk's CPU twin answers as the CPU's brute force, bit for bit (same f32 arithmetic).
+    for q in &queries {
+        let walk = place_cpu_bvh(&loaded.topo, &loaded.bvh, *q);
+        assert_eq!(walk, place_cpu(&loaded.topo, *q), "CPU walk, {q:?}");
+    }
     // The sphere's centre.
     let sphere = engine
         .prepare(decalbake::maps::expmap::sphere::icosphere(128))
@@ -169,6 +176,14 @@ fn bvh_placement_matches_testing_every_triangle() {
     let brute = place_gpu_brute(ctx, pipes, &sphere.gpu, &q).unwrap();
     assert_eq!(fast, brute);
     assert_eq!(fast[0].found, 1);
+    for q in q {
+        let walk = place_cpu_bvh(&sphere.topo, &sphere.bvh, q);
+        assert_eq!(
+            walk,
+            place_cpu(&sphere.topo, q),
+            "CPU walk on the sphere, {q:?}"
+        );
+    }
 }
 
 /// The BVH's own invariants on Bob: every non-degenerate triangle sits in exactly one leaf, every

@@ -7,7 +7,8 @@
 // finishes as after `place_candidates`. A walk longer than MAX_STEPS (a point equidistant from much
 // of the mesh, as the centre of a sphere) stops and flags the query: `place_candidates` then tests
 // every triangle for it (lavapipe abandons loops past 65,535 iterations).
-// Dispatch: (ceil(queries / 64), 1, 1). CPU twin: `place_cpu` in src/place.rs (brute force).
+// Dispatch: (ceil(queries / 64), 1, 1). CPU twin: `place_cpu_bvh` in src/place.rs (the same walk;
+// `place_cpu` is the brute force both answer as).
 #import geometry
 
 const PLACE_GROUPS: u32 = 32u;
