@@ -263,26 +263,28 @@ pub fn place_cpu(topo: &Topology, query: Query) -> Placement {
 
 /// The key of triangle `t` for `query` (squared distance to its closest point, or the distance
 /// along the ray to the hit; `None` for a ray that misses it): twin of `candidate_key` in
-/// wgsl/shared/geometry.wgsl.
+/// wgsl/shared/geometry.wgsl. Like the kernels, which compare keys as bits, it keeps only keys
+/// whose bits lie below +inf's: a hit at -0.0 (a ray starting on a triangle's plane), an infinite
+/// or a NaN key counts as no hit.
 fn triangle_key(topo: &Topology, query: Query, t: u32) -> Option<f32> {
     let [a, b, c] = topo.triangles[t as usize].map(|i| topo.positions[i as usize]);
-    match query {
+    let key = match query {
         Query::Point(p) => {
             let bc = closest_barycentric(p, a, b, c);
-            Some((bc.x * a + bc.y * b + bc.z * c).distance_squared(p))
+            (bc.x * a + bc.y * b + bc.z * c).distance_squared(p)
         }
-        Query::Ray(o, d) => {
-            let (t, _, _) = ray_triangle(o, d.normalize(), a, b, c);
-            (t >= 0.0).then_some(t)
-        }
-    }
+        Query::Ray(o, d) => ray_triangle(o, d.normalize(), a, b, c).0,
+    };
+    (key.to_bits() < f32::INFINITY.to_bits()).then_some(key)
 }
 
 /// CPU twin of `place_bvh` (wgsl/place/place_bvh.wgsl): the same walk of `bvh`, nearest child
 /// first, a box skipped when its key exceeds the best triangle key so far by more than the
 /// kernel's rounding margin (so ties are still visited and the lower triangle wins). It has no
-/// step limit (the kernel hands a walk past 50,000 steps to the brute-force test), so it answers
-/// every query as [`place_cpu`] does (`tests/placement.rs` checks that, bit for bit).
+/// step limit (the kernel hands a walk past 50,000 steps to the brute-force test). It answers as
+/// [`place_cpu`] does wherever the margin covers the boxes' and keys' rounding, as the GPU walk
+/// must too: `tests/placement.rs` checks it bit for bit on random points and rays, vertex ties and
+/// a sphere's centre.
 pub fn place_cpu_bvh(topo: &Topology, bvh: &crate::mesh::bvh::Bvh, query: Query) -> Placement {
     let mut best: Option<(f32, u32)> = None;
     let worth = |k: f32, best: Option<(f32, u32)>| match best {
