@@ -107,8 +107,8 @@ fn placement_on_a_plane_is_exact() {
 /// finely tessellated sphere (`icosphere(128)`) for its centre, nearly equidistant from all 328k triangles:
 /// the walk there is cut short and the brute-force test finishes the query (without that fallback
 /// the query would come back empty or wrong). The walk's CPU twin (`place_cpu_bvh`) gives the CPU
-/// brute force's answers bit for bit on the same queries (it fails with the margin that keeps ties
-/// removed: checked).
+/// brute force's answers bit for bit on the same queries (it fails with its pruning margin replaced
+/// by a strict `<`, which drops ties: checked).
 #[test]
 fn bvh_placement_matches_testing_every_triangle() {
     use decalbake::place::place_gpu_brute;

@@ -240,8 +240,8 @@ pub fn run(engine: &Engine, mut emit: impl FnMut(serde_json::Value)) -> Result<(
 }
 
 /// The `loads` figure: the three gather probes, less the same loop without its loads
-/// (`gather_none`), and the divergent loop's CPU twin on one thread (best of three, after a
-/// warm-up; its sum and address chains bound it too, so it is a lower bound of the CPU's rate).
+/// (`gather_none`), and the divergent loop's CPU twin on one thread (the best of four runs; its
+/// sum and address chains bound it too, so it understates how fast the CPU loads).
 fn loads(p: &Probe, emit: &mut impl FnMut(serde_json::Value)) -> Result<()> {
     let (groups, reps) = (256u32, 4000u32);
     let count = groups as f64 * 64.0 * reps as f64;
