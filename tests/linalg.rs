@@ -7,7 +7,9 @@
 mod common;
 use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
 use decalbake::solve::cg::pcg;
-use decalbake::solve::gpu::{cg_batched, dots, spmv, GpuPairs, SystemDesc};
+use decalbake::solve::gpu::{
+    cg_batched, cg_batched_with, dots, spmv, GpuPairs, Packing, SystemDesc,
+};
 use decalbake::solve::sparse::{relative_residual, CgStatus, ComplexCsr, Csr};
 
 const EPS: f64 = 5.96e-8;
@@ -205,8 +207,9 @@ fn batched_cg_converges_and_is_batch_independent() {
     }
 }
 
-/// Many small systems in one batch are packed one per invocation (`cg_packed.wgsl`); each alone gets
-/// a workgroup (`cg_batched.wgsl`). Both sum in their own fixed order, so x differs in the last
+/// Many small systems in one batch are packed one per invocation (`cg_packed.wgsl`, `Packing::Packed`,
+/// the engine's choice on lavapipe); each alone, or in a batch that is not packed
+/// (`Packing::PerWorkgroup`, the engine's choice on a GPU), gets a workgroup (`cg_batched.wgsl`). Both sum in their own fixed order, so x differs in the last
 /// bits; both must reach the tolerance, agree with each other to 1e-5 of |x| and with the f64
 /// twin within the forward-error bound (cond × residual; cond < 2 × 8 / 0.05 as in the test
 /// above), and take the same iterations within 10 % (f32 rounding moves the step where the
@@ -229,8 +232,31 @@ fn packed_systems_match_one_workgroup_each() {
         .zip(&starts)
         .map(|(&n, &s)| SystemDesc::new(s, n, rtol, 5000))
         .collect();
-    let batch = cg_batched(&e.ctx, e.pipelines(), &a, &b, &vec![0.0; a.rows], &systems).unwrap();
+    let zero = vec![0.0; a.rows];
+    let batch = cg_batched_with(
+        &e.ctx,
+        e.pipelines(),
+        (&a, &b, &zero),
+        &systems,
+        Packing::Packed,
+    )
+    .unwrap();
     assert_eq!(batch.packed as usize, sizes.len(), "every system packed");
+    // The engine's own choice: packed on a CPU adapter (lavapipe), a workgroup each on a GPU.
+    let auto = cg_batched(&e.ctx, e.pipelines(), &a, &b, &zero, &systems).unwrap();
+    let cpu = e.ctx.device_type == Some(wgpu::DeviceType::Cpu);
+    assert_eq!(auto.packed as usize, if cpu { sizes.len() } else { 0 });
+    // Not packed: each system in its own workgroup of the batch, which gives what it gives alone
+    // bit for bit (checked below).
+    let per_wg = cg_batched_with(
+        &e.ctx,
+        e.pipelines(),
+        (&a, &b, &zero),
+        &systems,
+        Packing::PerWorkgroup,
+    )
+    .unwrap();
+    assert_eq!(per_wg.packed, 0, "no system packed");
     assert!(
         !batch.complex,
         "a random SPD matrix has no complex block structure"
@@ -247,6 +273,12 @@ fn packed_systems_match_one_workgroup_each() {
         )
         .unwrap();
         assert_eq!(alone.packed, 0, "a lone system keeps its workgroup");
+        assert_eq!(
+            per_wg.x[r.clone()],
+            alone.x[..],
+            "system {k}: a workgroup in the batch gives what it gives alone"
+        );
+        assert_eq!(per_wg.reports[k].iterations, alone.reports[0].iterations);
         let xp: Vec<f64> = batch.x[r.clone()].iter().map(|&v| v as f64).collect();
         let xw: Vec<f64> = alone.x.iter().map(|&v| v as f64).collect();
         let mut xc = vec![0.0; s.n as usize];

@@ -13,9 +13,10 @@
 //! next one twice as many). All arithmetic is f32 with a fixed reduction order, so within one kernel
 //! a system's iteration count and result do not depend on the rest of its batch.
 //!
-//! Batches of at least [`PACK_MIN_SYSTEMS`] systems solve their small systems one per invocation
-//! instead (`wgsl/solve/cg_packed.wgsl`): no barriers, and the SIMD lanes and both cores of lavapipe
-//! each work on their own system. On lavapipe (Mesa 22.3) every storage load whose address differs
+//! On a CPU adapter (lavapipe), batches of at least [`PACK_MIN_SYSTEMS`] systems solve their small
+//! systems one per invocation instead (`wgsl/solve/cg_packed.wgsl`, [`Packing`]): no barriers, and
+//! the SIMD lanes and both cores of lavapipe each work on their own system (on a GPU each keeps its
+//! workgroup: the device probe finds packing 5× slower there). On lavapipe (Mesa 22.3) every storage load whose address differs
 //! between the lanes runs as a loop over the lanes, about 5-10 ns a lane, and the CG's loads
 //! dominate its time (hoisting one load per matrix entry out of the product loop made the packed
 //! solve 1.21× faster), so what counts is loads per iteration. LSCM systems are real forms of
@@ -62,9 +63,42 @@ const JACOBI_ONLY: u32 = 4;
 const ONE_WORKGROUP: u32 = 5;
 /// Workgroup size of the packed kernel (`PACK_WG` there).
 const PACK_WG: u32 = 64;
-/// Batches with at least this many systems pack the small ones one per invocation: enough to fill
-/// both cores' SIMD lanes of lavapipe (2 × 8), see [`kernel_classes`].
+/// Batches with at least this many systems pack the small ones one per invocation (where
+/// [`Packing`] says so): enough to fill both cores' SIMD lanes of lavapipe (2 × 8), see
+/// [`kernel_classes`].
 pub const PACK_MIN_SYSTEMS: usize = 16;
+
+/// Whether a batch's small systems are solved one per invocation (`cg_packed`) or one per
+/// workgroup (`cg_batched`, `cg_amg`).
+///
+/// The device probe (`decalbake bench --device`, `dense_small_systems`; README, "On a real GPU")
+/// decides the default: on lavapipe one small system per invocation is 2.6-3.7× faster than one
+/// per workgroup (no barriers, each SIMD lane its own system); on an NVIDIA H200 it is 5× slower
+/// (a warp's lanes each walking their own system). So [`Packing::Auto`] packs on a CPU adapter
+/// only; an adapter of unknown kind (a host's device handed in) is taken for a GPU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Packing {
+    /// Pack batches of at least [`PACK_MIN_SYSTEMS`] systems on a CPU adapter (lavapipe), not on
+    /// a GPU.
+    #[default]
+    Auto,
+    /// Pack batches of at least [`PACK_MIN_SYSTEMS`] systems on any adapter.
+    Packed,
+    /// Never pack: every system gets a workgroup (or, if large, many).
+    PerWorkgroup,
+}
+
+impl Packing {
+    /// Whether a batch of `systems` systems is packed on `ctx`'s adapter.
+    pub fn packs(self, ctx: &GpuContext, systems: usize) -> bool {
+        systems >= PACK_MIN_SYSTEMS
+            && match self {
+                Packing::Auto => ctx.device_type == Some(wgpu::DeviceType::Cpu),
+                Packing::Packed => true,
+                Packing::PerWorkgroup => false,
+            }
+    }
+}
 
 /// One system of a batch. Keep in sync with `System` in wgsl/shared/linalg.wgsl.
 #[repr(C)]
@@ -513,9 +547,10 @@ pub struct Solved {
 /// hierarchy builds and fits the loop limit (`cg_amg`, on complex 2 × 2 blocks for LSCM systems;
 /// a batch that mixes such systems with others is solved as two), Jacobi for the rest.
 ///
-/// A batch of at least [`PACK_MIN_SYSTEMS`] systems whose matrix has the complex 2 × 2 block
-/// structure of LSCM systems ([`ComplexCsr`], every system on whole blocks) is solved by the packed
-/// kernel on the blocks; otherwise see [`kernel_classes`].
+/// A batch that [`Packing::Auto`] packs (at least [`PACK_MIN_SYSTEMS`] systems, on a CPU adapter)
+/// whose matrix has the complex 2 × 2 block structure of LSCM systems ([`ComplexCsr`], every
+/// system on whole blocks) is solved by the packed kernel on the blocks; otherwise see
+/// [`kernel_classes`].
 pub fn cg_batched(
     ctx: &GpuContext,
     pipes: &Pipelines,
@@ -524,7 +559,20 @@ pub fn cg_batched(
     x0: &[f64],
     systems: &[SystemDesc],
 ) -> Result<Solved> {
-    if let Some(c) = complex_batch(a, systems) {
+    cg_batched_with(ctx, pipes, (a, b, x0), systems, Packing::Auto)
+}
+
+/// [`cg_batched`] with the batch's [`Packing`] chosen by the caller (the tests and benchmarks
+/// compare the two packings on one adapter).
+pub fn cg_batched_with(
+    ctx: &GpuContext,
+    pipes: &Pipelines,
+    (a, b, x0): (&Csr, &[f64], &[f64]),
+    systems: &[SystemDesc],
+    packing: Packing,
+) -> Result<Solved> {
+    let pack = packing.packs(ctx, systems.len());
+    if let Some(c) = pack.then(|| complex_batch(a, systems)).flatten() {
         check_sizes(a, b, x0)?;
         let gpu = GpuCsr::upload_complex(ctx, &c, None)?;
         // One Jacobi weight per block row: the diagonal block's a (both real rows' diagonal).
@@ -558,7 +606,6 @@ pub fn cg_batched(
     }
     check_sizes(a, b, x0)?;
     let row_len = a.max_row_len() as u32;
-    let pack = systems.len() >= PACK_MIN_SYSTEMS;
     let ranges: Vec<(usize, usize)> = systems
         .iter()
         .map(|s| (s.row0 as usize, s.n as usize))
@@ -584,13 +631,14 @@ pub fn cg_batched(
     if fits.iter().any(|&f| f) && !fits.iter().all(|&f| f) {
         let split = |group: bool| (0..systems.len()).filter(|&k| fits[k] == group).collect();
         let groups = [(split(true), true), (split(false), false)];
-        return solve_apart(ctx, pipes, (a, b, x0), systems, hs, &groups);
+        return solve_apart(ctx, pipes, (a, b, x0), systems, (hs, packing), &groups);
     }
-    multigrid(ctx, pipes, (a, b, x0), systems, hs, blocks)
+    multigrid(ctx, pipes, (a, b, x0), systems, (hs, packing), blocks)
 }
 
 /// Solves each group of systems as a batch of its own: `(systems, true)` with their hierarchies
-/// `hs` on complex blocks, `(systems, false)` by Jacobi; puts the results back in order. Used for
+/// `hs` on complex blocks, `(systems, false)` by Jacobi (packed as `packing` says); puts the
+/// results back in order. Used for
 /// the systems whose V-cycle fits on complex blocks against the rest, and for the large LSCM
 /// systems of a batch, each alone so that it is spread over workgroups ([`gpu_wide`]).
 fn solve_apart(
@@ -598,7 +646,7 @@ fn solve_apart(
     pipes: &Pipelines,
     (a, b, x0): (&Csr, &[f64], &[f64]),
     systems: &[SystemDesc],
-    mut hs: Vec<Option<Hierarchy>>,
+    (mut hs, packing): (Vec<Option<Hierarchy>>, Packing),
     groups: &[(Vec<usize>, bool)],
 ) -> Result<Solved> {
     let mut x = f32s(x0);
@@ -640,9 +688,16 @@ fn solve_apart(
             .collect();
         let out = if group {
             let sub_hs = idx.iter().map(|&k| hs[k].take()).collect();
-            multigrid(ctx, pipes, (&sub, &sb, &sx), &descs, sub_hs, true)?
+            multigrid(
+                ctx,
+                pipes,
+                (&sub, &sb, &sx),
+                &descs,
+                (sub_hs, packing),
+                true,
+            )?
         } else {
-            cg_batched(ctx, pipes, &sub, &sb, &sx, &descs)?
+            cg_batched_with(ctx, pipes, (&sub, &sb, &sx), &descs, packing)?
         };
         for ((&k, &r0), rep) in idx.iter().zip(&starts).zip(&out.reports) {
             x[rows(k)].copy_from_slice(&out.x[r0..r0 + systems[k].n as usize]);
@@ -666,15 +721,17 @@ fn solve_apart(
 }
 
 /// The batch's solve once its hierarchies `hs` are known (`None`: Jacobi), on complex blocks
-/// when `blocks` and every system has one that fits there.
+/// when `blocks` and every system has one that fits there; the Jacobi systems packed as
+/// `packing` says.
 fn multigrid(
     ctx: &GpuContext,
     pipes: &Pipelines,
     (a, b, x0): (&Csr, &[f64], &[f64]),
     systems: &[SystemDesc],
-    hs: Vec<Option<Hierarchy>>,
+    (hs, packing): (Vec<Option<Hierarchy>>, Packing),
     blocks: bool,
 ) -> Result<Solved> {
+    let pack = packing.packs(ctx, systems.len());
     let row_len = a.max_row_len() as u32;
     let dinv = jacobi(a.diagonal().into_iter());
     let ranges: Vec<(usize, usize)> = systems
@@ -696,13 +753,13 @@ fn multigrid(
         let rest = (0..systems.len()).filter(|k| !large.contains(k)).collect();
         let mut groups: Vec<(Vec<usize>, bool)> = large.iter().map(|&k| (vec![k], true)).collect();
         groups.push((rest, true));
-        return solve_apart(ctx, pipes, (a, b, x0), systems, hs, &groups);
+        return solve_apart(ctx, pipes, (a, b, x0), systems, (hs, packing), &groups);
     }
     let unit = if on_blocks { 2 } else { 1 };
     let limits = (WG, HARD_LOOP_LIMIT, unit);
     let Some(mg) = AmgBatch::build(a, &ranges, hs, limits, dinv.clone()) else {
         let gpu = GpuCsr::upload(ctx, a)?;
-        let (systems, classes) = kernel_classes(pipes, row_len, systems, None)?;
+        let (systems, classes) = kernel_classes(pipes, (row_len, pack), systems, None)?;
         return run(ctx, &gpu, &dinv, a.rows, b, x0, &systems, &classes, None);
     };
     let steps = mg.systems.iter().flatten().map(|h| h.steps).max();
@@ -741,7 +798,7 @@ fn multigrid(
     }
     let gpu = GpuCsr::upload(ctx, &mg.a)?;
     let amg = steps.map(|st| (st, amg_kernel(pipes.cg_amg.as_ref())));
-    let (systems, classes) = kernel_classes(pipes, row_len, &systems, amg)?;
+    let (systems, classes) = kernel_classes(pipes, (row_len, pack), &systems, amg)?;
     let vals = f32s(&mg.pr.vals);
     let bufs = ctx.scoped("conjugate gradient", || {
         MultigridBuffers::upload(
@@ -951,11 +1008,10 @@ impl MultigridBuffers {
     }
 }
 
-/// The blocks of `a` when `systems` are many (at least [`PACK_MIN_SYSTEMS`]), each starts and ends
-/// on a block, `a` has the complex block structure and one packed iteration of the largest fits
+/// The blocks of `a` for a batch that packs, when each system starts and ends on a block, `a` has the complex block structure and one packed iteration of the largest fits
 /// the loop budget.
 fn complex_batch(a: &Csr, systems: &[SystemDesc]) -> Option<ComplexCsr> {
-    if systems.len() < PACK_MIN_SYSTEMS || systems.iter().any(|s| s.row0 % 2 + s.n % 2 != 0) {
+    if systems.iter().any(|s| s.row0 % 2 + s.n % 2 != 0) {
         return None;
     }
     let c = ComplexCsr::from_real(a)?;
@@ -1151,7 +1207,7 @@ fn run(
 
 /// Per system, its kernel; per kernel class (class, kernel, iterations per dispatch).
 ///
-/// A batch of at least [`PACK_MIN_SYSTEMS`] systems puts every system that one invocation can
+/// A batch that packs (`pack`: [`Packing::packs`]) puts every system that one invocation can
 /// iterate within the loop budget into the packed kernel (one system per invocation; class
 /// [`PACKED`]); the rest, and every system of a smaller batch, get the 64-wide workgroup kernel
 /// when one iteration of it stays well under the loop budget with 64 invocations, else the
@@ -1164,7 +1220,7 @@ fn run(
 #[allow(clippy::type_complexity)]
 fn kernel_classes<'p>(
     pipes: &'p Pipelines,
-    row_len: u32,
+    (row_len, pack): (u32, bool),
     systems: &[SystemDesc],
     amg: Option<(usize, &'p Kernel)>,
 ) -> Result<(Vec<SystemDesc>, Vec<(u32, &'p Kernel, u32)>)> {
@@ -1176,7 +1232,6 @@ fn kernel_classes<'p>(
     let cost = |n: u32, wg: u32| (n as usize).div_ceil(wg as usize).max(1) * row_len + 60;
     let packed_cost = |n: u32| packed_steps(max_row_len, n);
     let narrow_wg = crate::gpu::shaders::LINALG_WG_NARROW;
-    let pack = systems.len() >= PACK_MIN_SYSTEMS;
     let systems: Vec<SystemDesc> = systems
         .iter()
         .map(|s| SystemDesc {

@@ -9,13 +9,17 @@
 //!   iteration, dispatches, against the CPU twin (f64 PCG, same tolerance) and, with `--peers`,
 //!   libigl's LSCM (direct solve) and scipy's CG on the same patch (written as OBJ and run through
 //!   `../shared/peers/peers.py lscm`);
-//! - `lscm_batch`: many small charts solved in one batched solve versus one solve per chart.
+//! - `lscm_batch`: many small charts solved in one batched solve versus one solve per chart, the
+//!   batch packed as the engine chooses for this adapter and both ways (`packed_ms`, one chart per
+//!   invocation; `per_workgroup_ms`, one per workgroup: `solve::gpu::Packing`).
 
 use decalbake::error::Result;
 use decalbake::maps::chart::{self, FINAL_RTOL};
 use decalbake::maps::Frame;
 use decalbake::mesh::{Mesh, Topology};
-use decalbake::solve::gpu::{cg_batched, copy_bandwidth, spmv, GpuPairs, SystemDesc};
+use decalbake::solve::gpu::{
+    cg_batched, cg_batched_with, copy_bandwidth, spmv, GpuPairs, Packing, Solved, SystemDesc,
+};
 use decalbake::solve::sparse::Csr;
 use decalbake::Engine;
 use glam::Vec3;
@@ -339,16 +343,21 @@ fn bench_batch(
             )
         })
         .collect();
-    cg_batched(ctx, pipes, &a, &b, &x0, &descs)?;
-    let mut times = Vec::new();
-    let mut last = None;
-    for _ in 0..reps {
-        let t = Instant::now();
-        last = Some(cg_batched(ctx, pipes, &a, &b, &x0, &descs)?);
-        times.push(ms(t));
-    }
-    let batched_ms = median(times);
-    let out = last.expect("one repetition");
+    // The engine's choice (`Packing::Auto`), then both packings on the same adapter.
+    let timed = |packing: Packing| -> decalbake::Result<(f64, Solved)> {
+        cg_batched_with(ctx, pipes, (&a, &b, &x0), &descs, packing)?;
+        let mut times = Vec::new();
+        let mut last = None;
+        for _ in 0..reps {
+            let t = Instant::now();
+            last = Some(cg_batched_with(ctx, pipes, (&a, &b, &x0), &descs, packing)?);
+            times.push(ms(t));
+        }
+        Ok((median(times), last.expect("one repetition")))
+    };
+    let (batched_ms, out) = timed(Packing::Auto)?;
+    let (packed_ms, packed) = timed(Packing::Packed)?;
+    let (per_wg_ms, per_wg) = timed(Packing::PerWorkgroup)?;
     let converged = out
         .reports
         .iter()
@@ -393,6 +402,9 @@ fn bench_batch(
         "batched_ms": batched_ms, "batched_charts_per_s": n / (batched_ms / 1e3), "batched_dispatches": out.dispatches, "batched_submits": out.submits,
         "one_by_one_ms": single_ms, "one_by_one_charts_per_s": n / (single_ms / 1e3), "one_by_one_dispatches": single_dispatches,
         "batched_over_one_by_one": single_ms / batched_ms,
+        "batched_packing": if out.packed > 0 { "packed" } else { "per_workgroup" },
+        "packed_ms": packed_ms, "packed_charts_per_s": n / (packed_ms / 1e3), "packed_systems": packed.packed,
+        "per_workgroup_ms": per_wg_ms, "per_workgroup_charts_per_s": n / (per_wg_ms / 1e3), "per_workgroup_dispatches": per_wg.dispatches,
         "cpu_twin_ms": cpu_ms, "cpu_twin_charts_per_s": n / (cpu_ms / 1e3),
     }));
     Ok(())
