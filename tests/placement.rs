@@ -120,37 +120,7 @@ fn bvh_placement_matches_testing_every_triangle() {
         "a tree, not a list: depth {}",
         loaded.bvh.depth
     );
-    let mut s = 777u32;
-    let mut rnd = || {
-        s = s.wrapping_mul(1664525).wrapping_add(1013904223);
-        (s >> 8) as f32 / (1u32 << 24) as f32 * 2.0 - 1.0
-    };
-    let verts = &loaded.topo.positions;
-    let mut queries = Vec::new();
-    for k in 0..200 {
-        let v = verts[(k * 7919) % verts.len()];
-        let scale = [1e-4, 1e-2, 0.1, 1.0, 5.0][k % 5];
-        queries.push(Query::Point(v + Vec3::new(rnd(), rnd(), rnd()) * scale));
-    }
-    for _ in 0..100 {
-        let o = Vec3::new(rnd(), rnd(), rnd()).normalize() * 3.0;
-        let target = verts[(rnd().abs() * verts.len() as f32) as usize % verts.len()];
-        queries.push(Query::Ray(o, target - o));
-        // From inside the model outwards, and along a coordinate axis (zero direction components).
-        queries.push(Query::Ray(Vec3::ZERO, Vec3::new(rnd(), rnd(), rnd())));
-    }
-    queries.push(Query::Ray(Vec3::new(0.0, 0.1, 5.0), -Vec3::Z));
-    queries.push(Query::Ray(Vec3::new(5.0, 5.0, 5.0), Vec3::X));
-    // Ties: a point exactly at a vertex is at distance 0 from every triangle of its fan (the lower
-    // triangle wins), and a ray through a vertex hits its fan at the same distance.
-    for k in 0..50 {
-        let v = verts[(k * 104_729) % verts.len()];
-        queries.push(Query::Point(v));
-        queries.push(Query::Ray(
-            v + Vec3::new(0.0, 2.0, 0.0),
-            Vec3::new(0.0, -1.0, 0.0),
-        ));
-    }
+    let queries = placement_queries(&loaded.topo.positions);
     let (ctx, pipes) = (&engine.ctx, engine.pipelines());
     let fast = decalbake::place::place_gpu(ctx, pipes, &loaded.gpu, &queries).unwrap();
     let brute = place_gpu_brute(ctx, pipes, &loaded.gpu, &queries).unwrap();
@@ -186,6 +156,43 @@ fn bvh_placement_matches_testing_every_triangle() {
     }
 }
 
+/// Random points near the vertices (1e-4 to 5 × the mesh's scale: on and off the mesh), rays from
+/// outside and from the origin (some along the axes), and ties: points exactly at a vertex (at
+/// distance 0 from its whole fan; the lower triangle wins) and rays through a vertex.
+fn placement_queries(verts: &[Vec3]) -> Vec<Query> {
+    let mut s = 777u32;
+    let mut rnd = || {
+        s = s.wrapping_mul(1664525).wrapping_add(1013904223);
+        (s >> 8) as f32 / (1u32 << 24) as f32 * 2.0 - 1.0
+    };
+    let mut queries = Vec::new();
+    for k in 0..200 {
+        let v = verts[(k * 7919) % verts.len()];
+        let scale = [1e-4, 1e-2, 0.1, 1.0, 5.0][k % 5];
+        queries.push(Query::Point(v + Vec3::new(rnd(), rnd(), rnd()) * scale));
+    }
+    for _ in 0..100 {
+        let o = Vec3::new(rnd(), rnd(), rnd()).normalize() * 3.0;
+        let target = verts[(rnd().abs() * verts.len() as f32) as usize % verts.len()];
+        queries.push(Query::Ray(o, target - o));
+        // From inside the model outwards, and along a coordinate axis (zero direction components).
+        queries.push(Query::Ray(Vec3::ZERO, Vec3::new(rnd(), rnd(), rnd())));
+    }
+    queries.push(Query::Ray(Vec3::new(0.0, 0.1, 5.0), -Vec3::Z));
+    queries.push(Query::Ray(Vec3::new(5.0, 5.0, 5.0), Vec3::X));
+    // Ties: a point exactly at a vertex is at distance 0 from every triangle of its fan (the lower
+    // triangle wins), and a ray through a vertex hits its fan at the same distance.
+    for k in 0..50 {
+        let v = verts[(k * 104_729) % verts.len()];
+        queries.push(Query::Point(v));
+        queries.push(Query::Ray(
+            v + Vec3::new(0.0, 2.0, 0.0),
+            Vec3::new(0.0, -1.0, 0.0),
+        ));
+    }
+    queries
+}
+
 /// The BVH's own invariants on Bob: every non-degenerate triangle sits in exactly one leaf, every
 /// box contains its triangles, the tree is balanced (depth ⌈log₂(n / 4)⌉ + 1 for median splits),
 /// and a box query returns every triangle whose box meets the query box (checked against all
@@ -199,22 +206,74 @@ fn bvh_holds_every_triangle_once_and_box_queries_miss_none() {
     let bob = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/bob.glb");
     let topo = Topology::build(&Mesh::load(&bob).unwrap(), DEFAULT_WELD_TOLERANCE);
     let bvh = Bvh::build(&topo);
+    let live = tree_holds_every_triangle_once(&topo, &bvh);
+    let expect = ((live.len() as f64 / LEAF as f64).log2().ceil() as usize) + 1;
+    assert!(bvh.depth <= expect, "depth {} > {expect}", bvh.depth);
+    queries_through_the_tree_miss_none(&topo, &bvh, &live, 50);
+    // The GPU build's tree (its CPU twin: the GPU gives it bit for bit, tested below) holds the
+    // same invariants and answers the same box and ray queries.
+    let lbvh = decalbake::mesh::lbvh::build_cpu(&topo);
+    assert_eq!(tree_holds_every_triangle_once(&topo, &lbvh), live);
+    queries_through_the_tree_miss_none(&topo, &lbvh, &live, 50);
+}
+
+/// Every non-degenerate triangle of `topo` sits in exactly one leaf of `bvh`, every leaf's box
+/// holds its triangles' corners, every inner node's box its children's boxes, and the depth is
+/// the deepest leaf's (root 1) within the walk's limit. Returns the non-degenerate triangles.
+fn tree_holds_every_triangle_once(topo: &Topology, bvh: &decalbake::mesh::bvh::Bvh) -> Vec<u32> {
+    use decalbake::mesh::bvh::MAX_DEPTH;
     let live: Vec<u32> = (0..topo.triangles.len() as u32)
         .filter(|&t| !topo.degenerate[t as usize])
         .collect();
     let mut held = bvh.triangles.clone();
     held.sort_unstable();
     assert_eq!(held, live);
-    let expect = ((live.len() as f64 / LEAF as f64).log2().ceil() as usize) + 1;
-    assert!(bvh.depth <= expect, "depth {} > {expect}", bvh.depth);
     let corners = |t: u32| topo.triangles[t as usize].map(|v| topo.positions[v as usize]);
-    for n in bvh.nodes.iter().filter(|n| n.count > 0) {
-        for &t in &bvh.triangles[n.first as usize..(n.first + n.count) as usize] {
-            for p in corners(t) {
-                assert!(p.cmpge(Vec3::from(n.lo)).all() && p.cmple(Vec3::from(n.hi)).all());
+    let inside = |p: Vec3, n: &decalbake::mesh::bvh::BvhNode| {
+        p.cmpge(Vec3::from(n.lo)).all() && p.cmple(Vec3::from(n.hi)).all()
+    };
+    // Walk from the root: every node reached once, leaves cover the triangle list in order.
+    let (mut stack, mut seen, mut leaf_entries, mut deepest) = (vec![(0usize, 1usize)], 0, 0, 0);
+    while let Some((i, d)) = stack.pop() {
+        let n = bvh.nodes[i];
+        seen += 1;
+        deepest = deepest.max(d);
+        if n.count > 0 {
+            leaf_entries += n.count as usize;
+            for &t in &bvh.triangles[n.first as usize..(n.first + n.count) as usize] {
+                assert!(
+                    corners(t).into_iter().all(|p| inside(p, &n)),
+                    "leaf {i}, triangle {t}"
+                );
             }
+            continue;
+        }
+        for c in [n.first as usize, n.first as usize + 1] {
+            let child = bvh.nodes[c];
+            assert!(
+                inside(child.lo.into(), &n) && inside(child.hi.into(), &n),
+                "node {c} in {i}"
+            );
+            stack.push((c, d + 1));
         }
     }
+    assert_eq!(seen, bvh.nodes.len(), "every node reached once");
+    assert_eq!(leaf_entries, live.len());
+    assert_eq!(deepest, bvh.depth);
+    assert!(bvh.depth <= MAX_DEPTH);
+    live
+}
+
+/// Box queries ([`decalbake::mesh::bvh::Bvh::overlapping`]) and occlusion rays (`any_hit`) through
+/// `bvh` answer as testing every triangle of `live` does; at least `min_each` of the rays hit and
+/// as many miss (Bob: 50; the rays are laid out for Bob's size).
+fn queries_through_the_tree_miss_none(
+    topo: &Topology,
+    bvh: &decalbake::mesh::bvh::Bvh,
+    live: &[u32],
+    min_each: usize,
+) {
+    let corners = |t: u32| topo.triangles[t as usize].map(|v| topo.positions[v as usize]);
     let mut s = 99u32;
     let mut rnd = || {
         s = s.wrapping_mul(1664525).wrapping_add(1013904223);
@@ -225,7 +284,7 @@ fn bvh_holds_every_triangle_once_and_box_queries_miss_none() {
         let h = Vec3::new(rnd().abs(), rnd().abs(), rnd().abs()) * 0.2;
         let (lo, hi) = (c - h, c + h);
         let got = bvh.overlapping(lo, hi);
-        for &t in &live {
+        for &t in live {
             let p = corners(t);
             let (tlo, thi) = (p[0].min(p[1]).min(p[2]), p[0].max(p[1]).max(p[2]));
             if tlo.cmple(hi).all() && thi.cmpge(lo).all() {
@@ -266,7 +325,7 @@ fn bvh_holds_every_triangle_once_and_box_queries_miss_none() {
                 0.3,
             ),
         };
-        let got = bvh.any_hit(&topo, o, d, 1e-5, tmax);
+        let got = bvh.any_hit(topo, o, d, 1e-5, tmax);
         assert_eq!(got, brute(o, d, 1e-5, tmax), "ray {k} from {o} along {d}");
         if got {
             hits += 1;
@@ -274,5 +333,126 @@ fn bvh_holds_every_triangle_once_and_box_queries_miss_none() {
             misses += 1;
         }
     }
-    assert!(hits > 50 && misses > 50, "{hits} hits, {misses} misses");
+    assert!(
+        hits >= min_each && misses >= min_each,
+        "{hits} hits, {misses} misses"
+    );
+}
+
+/// A triangle soup as a mesh (flat normals, one UV set at zero).
+fn soup(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> Mesh {
+    let mut m = cylinder(3, 1);
+    m.normals = vec![Vec3::Z; positions.len()];
+    m.uv_sets = vec![vec![glam::Vec2::ZERO; positions.len()]];
+    m.positions = positions;
+    m.triangles = triangles;
+    m
+}
+
+/// Meshes whose Morton codes tie: a 20 × 20 grid of quads 5e-4 across (inside one or a few grid
+/// cells of 1/768) beside one large triangle, with a degenerate triangle; and meshes of one leaf
+/// (three triangles) and two leaves (five).
+fn tie_meshes() -> Vec<Mesh> {
+    let mut pos = vec![
+        Vec3::new(-1.0, -1.0, -1.0),
+        Vec3::new(1.0, -1.0, 0.0),
+        Vec3::new(0.0, 1.0, 1.0),
+    ];
+    let mut tris = vec![[0, 1, 2], [0, 0, 1]];
+    let base = Vec3::new(0.3, 0.3, 0.3);
+    let g = |i: u32, j: u32| i * 21 + j + 3;
+    for i in 0..=20 {
+        for j in 0..=20 {
+            pos.push(base + Vec3::new(i as f32, j as f32, (i * j) as f32 * 0.05) * 2.5e-5);
+        }
+    }
+    for i in 0..20 {
+        for j in 0..20 {
+            tris.push([g(i, j), g(i + 1, j), g(i + 1, j + 1)]);
+            tris.push([g(i, j), g(i + 1, j + 1), g(i, j + 1)]);
+        }
+    }
+    let fan = |k: u32| {
+        let p: Vec<Vec3> = (0..=k)
+            .map(|i| Vec3::new(i as f32, (i * i % 7) as f32, 0.5 * i as f32))
+            .chain([Vec3::new(0.0, 0.0, 3.0)])
+            .collect();
+        let t = (0..k).map(|i| [i, i + 1, k + 1]).collect();
+        soup(p, t)
+    };
+    vec![soup(pos, tris), fan(3), fan(5)]
+}
+
+/// The GPU's linear BVH (`mesh::lbvh::build_gpu`, through `Engine::bvh_build`) is its CPU twin's
+/// tree bit for bit (exact arithmetic on both sides: no tolerance) on Bob and on meshes whose
+/// Morton codes tie (the leaf index breaks them: Karras §4), of one leaf and of two; placement
+/// through it, on the GPU and in the CPU twin of the walk, answers as testing every triangle does,
+/// bit for bit, on the queries of `bvh_placement_matches_testing_every_triangle` (points off the
+/// mesh, rays, vertex ties). Checked to fail: the bitonic step's direction reversed (`up` negated)
+/// leaves the keys unsorted and the tree differs from the twin's.
+#[test]
+fn gpu_lbvh_is_its_twin_and_places_as_brute_force() {
+    use decalbake::mesh::lbvh::build_cpu;
+    let mut engine = engine();
+    engine.bvh_build = decalbake::BvhBuild::Gpu;
+    let bob = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/bob.glb");
+    let mut meshes = vec![engine.load_mesh(&bob).unwrap()];
+    for m in tie_meshes() {
+        meshes.push(engine.prepare(m).unwrap());
+    }
+    let (ctx, pipes) = (&engine.ctx, engine.pipelines());
+    for (k, loaded) in meshes.iter().enumerate() {
+        let twin = build_cpu(&loaded.topo);
+        let first_diff = |a: &[u32], b: &[u32]| a.iter().zip(b).position(|(x, y)| x != y);
+        assert!(
+            loaded.bvh.triangles == twin.triangles,
+            "mesh {k}: leaf order differs first at {:?}",
+            first_diff(&loaded.bvh.triangles, &twin.triangles)
+        );
+        let bits =
+            |b: &decalbake::mesh::bvh::Bvh| -> Vec<u32> { bytemuck::cast_slice(&b.nodes).to_vec() };
+        assert!(
+            bits(&loaded.bvh) == bits(&twin),
+            "mesh {k}: nodes differ first at word {:?} of {}",
+            first_diff(&bits(&loaded.bvh), &bits(&twin)),
+            bits(&twin).len()
+        );
+        assert_eq!(loaded.bvh.depth, twin.depth, "mesh {k}: depth");
+        let live = tree_holds_every_triangle_once(&loaded.topo, &loaded.bvh);
+        queries_through_the_tree_miss_none(
+            &loaded.topo,
+            &loaded.bvh,
+            &live,
+            if k == 0 { 50 } else { 0 },
+        );
+        let queries = placement_queries(&loaded.topo.positions);
+        let fast = place_gpu(ctx, pipes, &loaded.gpu, &queries).unwrap();
+        let brute = decalbake::place::place_gpu_brute(ctx, pipes, &loaded.gpu, &queries).unwrap();
+        for (q, (a, b)) in queries.iter().zip(fast.iter().zip(&brute)) {
+            assert_eq!(a, b, "mesh {k}, GPU walk, {q:?}");
+            assert_eq!(
+                place_cpu_bvh(&loaded.topo, &loaded.bvh, *q),
+                place_cpu(&loaded.topo, *q),
+                "mesh {k}, CPU walk, {q:?}"
+            );
+        }
+    }
+    // The tie mesh's grid: most of its 800 triangles share a few codes.
+    let topo = &meshes[1].topo;
+    let setup = decalbake::mesh::lbvh::setup(topo).unwrap();
+    let mut codes: Vec<u32> = setup
+        .ids
+        .iter()
+        .map(|&t| decalbake::mesh::lbvh::morton(&setup, topo, t))
+        .collect();
+    codes.sort_unstable();
+    codes.dedup();
+    assert!(
+        codes.len() <= 16,
+        "{} distinct codes for 801 triangles",
+        codes.len()
+    );
+    assert!(meshes[1].bvh.depth > 8, "depth {}", meshes[1].bvh.depth);
+    assert_eq!(meshes[2].bvh.nodes.len(), 1, "three triangles: one leaf");
+    assert_eq!(meshes[3].bvh.nodes.len(), 3, "five triangles: two leaves");
 }

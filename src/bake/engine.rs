@@ -140,6 +140,22 @@ pub(crate) struct Targets {
     _cov: wgpu::Texture,
 }
 
+/// Where [`Engine::prepare`] builds a mesh's BVH (placement's walk, planar decals' candidates).
+///
+/// Measured (README, "Placement"): on lavapipe the median-split build on the CPU is the faster
+/// (the GPU build's sort runs on the same two cores at the device's load rate), on a GPU the GPU
+/// build; both trees answer every query alike (`tests/placement.rs`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum BvhBuild {
+    /// On the GPU ([`crate::mesh::lbvh`]) unless the adapter is a CPU (lavapipe).
+    #[default]
+    Auto,
+    /// Median splits on the CPU ([`crate::mesh::bvh::Bvh::build`]).
+    Cpu,
+    /// A linear BVH on the GPU ([`crate::mesh::lbvh::build_gpu`]).
+    Gpu,
+}
+
 /// The engine: a device, its pipelines and pooled targets. Load meshes once, bake many jobs.
 ///
 /// `Engine` and [`LoadedMesh`] are `Send` and `Sync`: several threads may bake with one engine
@@ -166,6 +182,8 @@ pub struct Engine {
     /// within 32 of 65535; this is the reference `tests/demo_and_api.rs` and `decalbake bench`
     /// (`compose_unclipped_ms`) compare the clipped raster with. Default `false`.
     pub unclipped_raster: bool,
+    /// Where a prepared mesh's BVH is built ([`BvhBuild`]). Default [`BvhBuild::Auto`].
+    pub bvh_build: BvhBuild,
     /// The raster clips a layer's triangles only where the mesh's triangles cover at least this
     /// many texels on average at the bake's size (its UV area over its triangles): clipping
     /// costs each triangle three corners' reads and pays back through the fringe it drops, which
@@ -316,6 +334,7 @@ impl Engine {
             linear_sampler,
             whole_mesh_selection: false,
             unclipped_raster: false,
+            bvh_build: BvhBuild::Auto,
             clip_min_texels: 128.0,
             images: Mutex::new(Default::default()),
         })
@@ -432,7 +451,16 @@ impl Engine {
         let t1 = Instant::now();
         let topo = Topology::build(&mesh, crate::mesh::DEFAULT_WELD_TOLERANCE);
         let surface = crate::mesh::SurfaceData::new(&topo);
-        let bvh = crate::mesh::bvh::Bvh::build(&topo);
+        let on_gpu = match self.bvh_build {
+            BvhBuild::Auto => self.ctx.device_type != Some(wgpu::DeviceType::Cpu),
+            BvhBuild::Cpu => false,
+            BvhBuild::Gpu => true,
+        };
+        let bvh = if on_gpu {
+            crate::mesh::bvh::Bvh::default()
+        } else {
+            crate::mesh::bvh::Bvh::build(&topo)
+        };
         topo.fill_normals(&mut mesh);
         let weld = ms(t1);
         let t2 = Instant::now();
@@ -442,16 +470,21 @@ impl Engine {
             16 * topo.positions.len().max(topo.triangles.len()),
             8 * mesh.positions.len(),
             4 * topo.adjacency.len(),
-            32 * bvh.nodes.len(),
+            32 * bvh.nodes.len().max(2 * topo.triangles.len().div_ceil(4)),
         ];
         self.ctx.fits(
             || format!("the mesh {}", mesh.source.display()),
             biggest.into_iter().max().unwrap_or(0) as u64,
             "bake on a device with larger storage buffers, or decimate the mesh",
         )?;
-        let gpu = self.ctx.scoped("mesh upload", || {
+        let mut gpu = self.ctx.scoped("mesh upload", || {
             GpuMesh::upload(&self.ctx.device, &mesh, &topo, &surface, &bvh)
         })?;
+        let bvh = if on_gpu {
+            self.gpu_bvh(&mut gpu, &topo)?
+        } else {
+            bvh
+        };
         let upload = ms(t2);
         let stats = LoadedMesh::stats_of(&mesh, &topo);
         Ok(LoadedMesh {
@@ -468,6 +501,17 @@ impl Engine {
             islands: Mutex::new(HashMap::new()),
             tiled_islands: Mutex::new(HashMap::new()),
         })
+    }
+
+    /// The BVH of an uploaded mesh built on the GPU ([`crate::mesh::lbvh::build_gpu`]) and put in
+    /// `gpu`; the median-split build on the CPU where the GPU's tree would be deeper than the walk
+    /// allows.
+    fn gpu_bvh(&self, gpu: &mut GpuMesh, topo: &Topology) -> Result<crate::mesh::bvh::Bvh> {
+        let bvh = crate::mesh::lbvh::build_gpu(&self.ctx, &self.pipes, gpu, topo)?
+            .unwrap_or_else(|| crate::mesh::bvh::Bvh::build(topo));
+        self.ctx
+            .scoped("mesh upload", || gpu.set_bvh(&self.ctx.device, &bvh))?;
+        Ok(bvh)
     }
 
     /// A buffer of `size` bytes and `usage` from the pool ([`BufferPool`]; it holds a previous

@@ -48,7 +48,7 @@ mod tiles;
 pub mod tools;
 mod transfer;
 
-pub use engine::{Baked, Engine, LoadedMesh};
+pub use engine::{Baked, BvhBuild, Engine, LoadedMesh};
 pub use images::{f32_to_f16, load_raw, upload_image};
 pub use param::{size_figures, ParamMap, ParamRow, SizeFigures};
 pub use place::Units;

@@ -15,7 +15,7 @@ pub const PREVIEW_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormS
 /// One binding's kind.
 #[derive(Clone, Copy, Debug)]
 pub enum Bind {
-    /// The `Params` uniform, with a dynamic offset.
+    /// A uniform with a dynamic offset (the bake's `Params`; a build's per-dispatch step).
     Params,
     /// A plain uniform buffer.
     Uniform,
@@ -215,6 +215,9 @@ pub struct Pipelines {
     /// the CPU twin) and where a stage binds fewer than its 14 storage buffers. Built on first
     /// use ([`Self::expmap_spread`]): the default path never takes it.
     expmap_spread: std::sync::OnceLock<Option<ExpmapSpread>>,
+    /// The GPU build of the mesh's BVH (`wgsl/mesh/lbvh.wgsl`), built on first use
+    /// ([`Self::lbvh`]).
+    lbvh: std::sync::OnceLock<Lbvh>,
     /// The extended exponential map of a curve (`wgsl/maps/ribbon_relax.wgsl`).
     pub ribbon_relax: Kernel,
     /// Per-layer distortion partials.
@@ -273,6 +276,11 @@ impl Pipelines {
         self.expmap_spread
             .get_or_init(|| ExpmapSpread::new(device))
             .as_ref()
+    }
+
+    /// The GPU BVH build's pipelines (`crate::mesh::lbvh`), built on the first call.
+    pub fn lbvh(&self, device: &wgpu::Device) -> &Lbvh {
+        self.lbvh.get_or_init(|| Lbvh::new(device))
     }
 
     /// Creates every pipeline on `device`.
@@ -418,6 +426,7 @@ impl Pipelines {
             expmap_relax: expmap_relax(device, None),
             expmap_relax_wide: expmap_relax(device, Some(shaders::expmap_wide_source())),
             expmap_spread: std::sync::OnceLock::new(),
+            lbvh: std::sync::OnceLock::new(),
             ribbon_relax: ribbon_relax(device),
             preview: rasters.preview,
             extract_raster: rasters.extract,
@@ -511,6 +520,64 @@ impl ExpmapSpread {
             finish: entry("finish"),
             layout,
         })
+    }
+}
+
+/// The GPU build of the mesh's BVH (`wgsl/mesh/lbvh.wgsl`, dispatched by `crate::mesh::lbvh`): six
+/// entry points on one bind-group layout.
+pub struct Lbvh {
+    /// Morton codes of the triangles, keyed by triangle.
+    pub morton: wgpu::ComputePipeline,
+    /// One step of the bitonic sort of the keys.
+    pub bitonic: wgpu::ComputePipeline,
+    /// The radix tree's inner nodes: ranges, splits, their children's slots.
+    pub karras: wgpu::ComputePipeline,
+    /// The leaves at their slots.
+    pub leaves: wgpu::ComputePipeline,
+    /// The inner nodes at their slots, with their depths.
+    pub inner: wgpu::ComputePipeline,
+    /// One level of the inner nodes' boxes.
+    pub boxes: wgpu::ComputePipeline,
+    /// The group-0 layout.
+    pub layout: wgpu::BindGroupLayout,
+}
+
+impl Lbvh {
+    fn new(device: &wgpu::Device) -> Self {
+        use Bind::*;
+        let name = "lbvh";
+        let binds = [
+            (0, Ro),
+            (1, Ro),
+            (2, Ro),
+            (3, Uniform),
+            (4, Rw),
+            (5, Params),
+            (6, Rw),
+            (7, Rw),
+            (8, Rw),
+        ];
+        let layout = layout(device, name, &binds, wgpu::ShaderStages::COMPUTE);
+        let (pl, module) = layout_and_module(device, name, &layout, None);
+        let entry = |e: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(name),
+                layout: Some(&pl),
+                module: &module,
+                entry_point: Some(e),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        Self {
+            morton: entry("morton"),
+            bitonic: entry("bitonic"),
+            karras: entry("karras"),
+            leaves: entry("leaves"),
+            inner: entry("inner"),
+            boxes: entry("boxes"),
+            layout,
+        }
     }
 }
 

@@ -7,6 +7,7 @@
 
 /// Kernel and pipeline files: (name, text).
 pub const KERNELS: &[(&str, &str)] = &[
+    ("lbvh", include_str!("../../wgsl/mesh/lbvh.wgsl")),
     ("place_bvh", include_str!("../../wgsl/place/place_bvh.wgsl")),
     (
         "place_candidates",

@@ -21,9 +21,11 @@ pub const LEAF: usize = 4;
 /// Relative padding of every box (times the larger of the mesh's bounding-box diagonal and its
 /// largest coordinate).
 pub const PAD: f32 = 1e-5;
-/// Deepest tree the build allows; the GPU walk's stack (`STACK` = 64 in place_bvh.wgsl) needs
-/// depth + 1 entries, so this leaves room.
-pub const MAX_DEPTH: usize = 30;
+/// Deepest tree a build may give: the GPU walk's stack (`STACK` = 64 in place_bvh.wgsl) needs
+/// depth + 1 entries. The median split stays far below (depth 17 for 171k triangles); the GPU
+/// build's tree (`super::lbvh`) is as deep as its Morton codes make it (at most 30 + ⌈log₂ leaves⌉
+/// + 2) and refuses a deeper one.
+pub const MAX_DEPTH: usize = 62;
 
 /// One node, as the GPU reads it. Keep in sync with `Node` in wgsl/place/place_bvh.wgsl.
 #[repr(C)]

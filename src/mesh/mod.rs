@@ -3,6 +3,7 @@
 //! ([`surface::SurfaceData`]) and the GPU upload ([`upload::GpuMesh`]).
 pub mod bvh;
 mod checks;
+pub mod lbvh;
 mod load;
 pub mod surface;
 mod topology;

@@ -116,6 +116,24 @@ fn storage(
 }
 
 impl GpuMesh {
+    /// Replaces the BVH's buffers with `bvh`'s (a tree built after the upload: `crate::mesh::lbvh`).
+    pub fn set_bvh(&mut self, device: &wgpu::Device, bvh: &crate::mesh::bvh::Bvh) {
+        let none = wgpu::BufferUsages::empty();
+        self.bvh_nodes = storage(
+            device,
+            "mesh.bvh_nodes",
+            bytemuck::cast_slice(&bvh.nodes),
+            none,
+        );
+        self.bvh_triangles = storage(
+            device,
+            "mesh.bvh_triangles",
+            bytemuck::cast_slice(&bvh.triangles),
+            none,
+        );
+        self.bvh_node_count = bvh.nodes.len() as u32;
+    }
+
     /// Uploads a loaded mesh and its topology.
     pub fn upload(
         device: &wgpu::Device,

@@ -58,7 +58,7 @@ pub fn run(
         mesh = mesh.subdivide();
     }
     let load_ms = t.elapsed().as_secs_f64() * 1000.0;
-    let loaded = engine.prepare(mesh)?;
+    let mut loaded = engine.prepare(mesh)?;
     let dir = std::env::temp_dir().join(format!("decalbake-bench-{}", std::process::id()));
     std::fs::create_dir_all(&dir).map_err(|source| decalbake::Error::Io {
         path: dir.clone(),
@@ -107,6 +107,7 @@ pub fn run(
             let t_bvh = Instant::now();
             let _ = decalbake::mesh::bvh::Bvh::build(&loaded.topo);
             let bvh_ms = t_bvh.elapsed().as_secs_f64() * 1000.0;
+            let bvh = bvh_figures(engine, &mut loaded, &job)?;
             // The same bake with every layer selected over the whole mesh (no BVH candidates).
             engine.whole_mesh_selection = true;
             let whole = engine.bake(&loaded, &job);
@@ -163,6 +164,7 @@ pub fn run(
                 "placement_brute_ms": brute_ms,
                 "bvh_build_ms": bvh_ms,
                 "bvh_depth": loaded.bvh.depth,
+                "bvh": bvh,
                 "compose_whole_mesh_selection_ms": whole_compose_ms,
                 "compose_unclipped_ms": unclipped_compose_ms,
                 "texels_composed": texels,
@@ -180,6 +182,12 @@ pub fn run(
 /// The same placements tested against every triangle (`place::place_gpu_brute`, the reference the
 /// BVH walk replaced), timed in the same run: median of 3, ms.
 fn brute_placement_ms(engine: &Engine, loaded: &LoadedMesh, job: &Job) -> Result<f64> {
+    placement_ms(engine, loaded, job, false)
+}
+
+/// Median of three placements of `job`'s points: through the mesh's BVH (`walk`) or testing every
+/// triangle.
+fn placement_ms(engine: &Engine, loaded: &LoadedMesh, job: &Job, walk: bool) -> Result<f64> {
     use decalbake::io::job::AtSpec;
     use decalbake::place::Query;
     let queries: Vec<Query> = job
@@ -190,11 +198,64 @@ fn brute_placement_ms(engine: &Engine, loaded: &LoadedMesh, job: &Job) -> Result
             AtSpec::Ray { ray } => Query::Ray(ray.origin.into(), ray.dir.into()),
         })
         .collect();
+    let (ctx, pipes) = (&engine.ctx, engine.pipelines());
     let mut times = Vec::new();
     for _ in 0..3 {
         let t = Instant::now();
-        decalbake::place::place_gpu_brute(&engine.ctx, engine.pipelines(), &loaded.gpu, &queries)?;
+        if walk {
+            decalbake::place::place_gpu(ctx, pipes, &loaded.gpu, &queries)?;
+        } else {
+            decalbake::place::place_gpu_brute(ctx, pipes, &loaded.gpu, &queries)?;
+        }
         times.push(t.elapsed().as_secs_f64() * 1000.0);
     }
     Ok(median(times))
+}
+
+/// The two BVH builds timed on `loaded` (median of three each: the median split on the CPU, the
+/// linear BVH on the GPU and its CPU twin) and placement through each tree (the GPU's swapped in,
+/// then the median split's; `loaded` keeps the tree it came with).
+fn bvh_figures(engine: &Engine, loaded: &mut LoadedMesh, job: &Job) -> Result<serde_json::Value> {
+    use decalbake::mesh::{bvh::Bvh, lbvh};
+    let time3 = |f: &mut dyn FnMut() -> Result<()>| -> Result<f64> {
+        let mut times = Vec::new();
+        for _ in 0..3 {
+            let t = Instant::now();
+            f()?;
+            times.push(t.elapsed().as_secs_f64() * 1000.0);
+        }
+        Ok(median(times))
+    };
+    let (ctx, pipes) = (&engine.ctx, engine.pipelines());
+    let mut gpu_tree = None;
+    let gpu_ms = time3(&mut || {
+        gpu_tree = lbvh::build_gpu(ctx, pipes, &loaded.gpu, &loaded.topo)?;
+        Ok(())
+    })?;
+    let median_ms = time3(&mut || {
+        Bvh::build(&loaded.topo);
+        Ok(())
+    })?;
+    let twin_ms = time3(&mut || {
+        lbvh::build_cpu(&loaded.topo);
+        Ok(())
+    })?;
+    let kept = loaded.bvh.clone();
+    let median_tree = Bvh::build(&loaded.topo);
+    let mut walks = Vec::new();
+    for tree in [gpu_tree.as_ref(), Some(&median_tree)] {
+        walks.push(match tree {
+            Some(t) => {
+                loaded.gpu.set_bvh(&ctx.device, t);
+                Some(placement_ms(engine, loaded, job, true)?)
+            }
+            None => None,
+        });
+    }
+    loaded.gpu.set_bvh(&ctx.device, &kept);
+    Ok(serde_json::json!({
+        "median_split_cpu_ms": median_ms, "lbvh_gpu_ms": gpu_ms, "lbvh_cpu_twin_ms": twin_ms,
+        "lbvh_depth": gpu_tree.as_ref().map(|t| t.depth), "median_split_depth": median_tree.depth,
+        "placement_walk_lbvh_ms": walks[0], "placement_walk_median_split_ms": walks[1],
+    }))
 }
