@@ -29,7 +29,7 @@
 //! out by `src/solve/gpu_amg.rs`): 17-39× fewer iterations on LSCM charts of 10k-100k
 //! vertices, each costing about 1.7 Jacobi ones on complex blocks (README, "Linear algebra").
 //!
-//! A batch of one such system of at least [`gpu_wide::WIDE_MIN_ROWS`] block rows is spread over
+//! A batch of one such system of at least [`gpu_wide::wide_min_rows`] block rows is spread over
 //! many workgroups instead, a dispatch per pass of the iteration ([`gpu_wide`]), so that every core
 //! works on it.
 
@@ -745,7 +745,7 @@ fn multigrid(
     let large: Vec<usize> = (0..systems.len())
         .filter(|&k| {
             hs[k].is_some()
-                && systems[k].n as usize >= 2 * gpu_wide::WIDE_MIN_ROWS
+                && systems[k].n as usize >= 2 * gpu_wide::wide_min_rows(ctx)
                 && systems[k].wide != ONE_WORKGROUP
         })
         .collect();
@@ -860,7 +860,7 @@ fn multigrid_complex(
         )
     })?;
     let spread = match (pipes.cg_wide_complex.as_ref(), &systems[..]) {
-        (Some([k, plain]), [one]) => (one.n as usize >= gpu_wide::WIDE_MIN_ROWS
+        (Some([k, plain]), [one]) => (one.n as usize >= gpu_wide::wide_min_rows(ctx)
             && lone_class != ONE_WORKGROUP)
             .then_some((k, plain)),
         _ => None,

@@ -8,7 +8,7 @@
 //! 20 ms one iteration of a 10k-vertex chart takes in one workgroup; spreading it lets both cores
 //! work and takes the barriers between passes out of the loop (the dispatch boundary is the
 //! barrier). `solve::gpu::cg_batched` sends a batch of one LSCM system (complex 2 × 2 blocks,
-//! with a multigrid hierarchy) of at least [`WIDE_MIN_ROWS`] block rows here; a lone system on the
+//! with a multigrid hierarchy) of at least [`wide_min_rows`] block rows here; a lone system on the
 //! real form stays in one workgroup.
 
 use crate::error::Result;
@@ -16,10 +16,32 @@ use crate::gpu::pipelines::Kernel;
 use crate::gpu::GpuContext;
 use crate::solve::sparse::{CgReport, CgStatus, PreconditionerKind};
 
-/// Block rows (vertices of an LSCM chart) from which a lone system is spread over workgroups.
-/// Below it the fixed price of a dispatch per pass outweighs the second core (README, "Linear
-/// algebra": measured on 1k and 10k charts).
+/// Block rows (vertices of an LSCM chart) from which a lone system is spread over workgroups on a
+/// CPU adapter. Below it the fixed price of a dispatch per pass outweighs the second core
+/// (README, "Linear algebra": measured on 1k and 10k charts).
 pub const WIDE_MIN_ROWS: usize = 4_096;
+/// The same on a GPU. On an NVIDIA H200 (README, "On a real GPU"; `bench --linalg`'s
+/// `gpu_one_workgroup_ms` and `gpu_spread_forced_ms`) the 10k chart takes as long either way
+/// (118 against 119 ms; 147 against 175 in another run), the 20k chart is 1.5× faster spread
+/// (224 against 326 ms), the 40k 1.8× (518 against 945), the 100k 1.6× (1.26 against 2.08 s):
+/// spread from halfway between the 10k and the 20k chart. See [`wide_min_rows`].
+pub const GPU_WIDE_MIN_ROWS: usize = 16_384;
+
+/// When not 0, the block rows from which a lone system is spread (the benchmarks force both
+/// paths); 0, the default, leaves it to [`wide_min_rows`].
+#[doc(hidden)]
+pub static WIDE_MIN_ROWS_OVERRIDE: std::sync::atomic::AtomicUsize =
+    std::sync::atomic::AtomicUsize::new(0);
+
+/// Block rows from which a lone system is spread on `ctx`'s adapter: [`WIDE_MIN_ROWS`] on a CPU
+/// adapter (lavapipe), [`GPU_WIDE_MIN_ROWS`] on a GPU, unless [`WIDE_MIN_ROWS_OVERRIDE`] is set.
+pub fn wide_min_rows(ctx: &GpuContext) -> usize {
+    match WIDE_MIN_ROWS_OVERRIDE.load(std::sync::atomic::Ordering::Relaxed) {
+        0 if ctx.device_type == Some(wgpu::DeviceType::Cpu) => WIDE_MIN_ROWS,
+        0 => GPU_WIDE_MIN_ROWS,
+        n => n,
+    }
+}
 /// Partial-sum slots per quantity (`PARTS` in cg_wide.wgsl): the most workgroups of a fine pass.
 const PARTS: u32 = 256;
 /// Quantities with partial sums: <p, Ap>, <r, r>, the true residual's, <r, z> twice.

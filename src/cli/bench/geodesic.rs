@@ -92,7 +92,7 @@ pub fn run_geodesic(
             };
             // The default path (one workgroup a map), then the same map spread over many
             // (`expmap_spread`, off by default), in the same run.
-            let (gpu_ms, res, dispatches) = timed(engine, &loaded, (seed, o), opts.reps, 0)?;
+            let (gpu_ms, res, dispatches) = timed(engine, &loaded, (seed, o), opts.reps, u32::MAX)?;
             let (spread, ..) = timed(engine, &loaded, (seed, o), opts.reps, 1)?;
             let t = Instant::now();
             let cpu = dem_cpu(topo, &seed, o, &k);
@@ -251,9 +251,9 @@ fn peer_logmap(dir: &Path, obj: &Path, source: u32, radius: f32) -> serde_json::
 }
 
 /// `map` computed once to warm up, then `reps` times with
-/// `maps::expmap::gpu::SPREAD_MIN_CANDIDATES_OVERRIDE` at `spread_min` (0: the default, one
-/// workgroup a map; 1: spread over many, `expmap_spread`): the median ms, and the last run's
-/// result and dispatches.
+/// `maps::expmap::gpu::SPREAD_MIN_CANDIDATES_OVERRIDE` at `spread_min` (`u32::MAX`: one workgroup
+/// a map; 1: spread over many, `expmap_spread`): the median ms, and the last run's result and
+/// dispatches.
 fn timed(
     engine: &Engine,
     mesh: &LoadedMesh,

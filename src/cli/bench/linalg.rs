@@ -21,6 +21,7 @@ use decalbake::solve::gpu::{
     cg_batched, cg_batched_with, copy_bandwidth, spmv, GpuPairs, Packing, Solved, SystemDesc,
 };
 use decalbake::solve::sparse::Csr;
+use decalbake::solve::sparse::PreconditionerKind;
 use decalbake::Engine;
 use glam::Vec3;
 use std::path::{Path, PathBuf};
@@ -256,10 +257,21 @@ fn bench_charts(
         let jacobi = (!large)
             .then(|| baseline(desc[0].jacobi_only()))
             .transpose()?;
-        // In one workgroup where the chart is spread over many (`cg_wide`).
+        // In one workgroup where the chart is spread over many (`cg_wide`), and spread where the
+        // adapter keeps it in one (a multigrid chart of at least 1,024 vertices).
         let one_workgroup = (out.spread > 0)
             .then(|| baseline(desc[0].one_workgroup()))
             .transpose()?;
+        let spread = (out.spread == 0 && sys.vertices.len() >= 1024 && !large)
+            .then(|| {
+                use decalbake::solve::gpu_wide::WIDE_MIN_ROWS_OVERRIDE as WIDE;
+                WIDE.store(1, std::sync::atomic::Ordering::Relaxed);
+                let r = baseline(desc[0]);
+                WIDE.store(0, std::sync::atomic::Ordering::Relaxed);
+                r
+            })
+            .transpose()?
+            .filter(|r| r.0.preconditioner == PreconditionerKind::Amg);
         let mut xj = zero.clone();
         let t = Instant::now();
         let cpu_jacobi = decalbake::solve::cg::pcg_with(
@@ -293,6 +305,7 @@ fn bench_charts(
             "gpu_ms": gpu_ms, "gpu_ms_per_iteration": gpu_ms / its.max(1) as f64,
             "dispatches": out.dispatches, "submits": out.submits, "gpu_spread": out.spread,
             "gpu_one_workgroup_iterations": one_workgroup.map(|j| j.0.iterations), "gpu_one_workgroup_ms": one_workgroup.map(|j| j.1),
+            "gpu_spread_forced_ms": spread.map(|j| j.1),
             "cpu_twin_preconditioner": cpu.preconditioner, "cpu_twin_iterations": cpu.iterations,
             "cpu_twin_ms": cpu_ms, "cpu_over_gpu": cpu_ms / gpu_ms,
             "cpu_twin_jacobi_iterations": cpu_jacobi.iterations, "cpu_twin_jacobi_ms": cpu_jacobi_ms,

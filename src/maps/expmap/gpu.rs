@@ -172,20 +172,24 @@ pub static WIDE_MIN_CANDIDATES_OVERRIDE: std::sync::atomic::AtomicU32 =
 const ROUNDS_PER_SUBMIT: u32 = 4;
 
 /// When not 0, a map alone in its chunk with this many candidates or more runs spread over many
-/// workgroups (`run_spread`, `wgsl/maps/expmap_spread.wgsl`) instead of in one; 0, the default,
-/// and `u32::MAX` keep one workgroup a map. Off by default because it lost where it was
-/// measured: on lavapipe a dispatch that wakes the second core costs more than the sweep it
-/// carries (`bench --geodesic`, session 19: the 12k disc on bob × 2 21-24 ms spread against
-/// 8.5-8.6 ms in one workgroup, 10.2 ms spread with `LP_NUM_THREADS=1`; the 120k disc 123-134
-/// against 115-116). On a GPU it has not been measured (no GPU was lent to this project); a
-/// sweep's front is a ring or two, a few hundred vertices, which one workgroup already covers
-/// in a few steps, so a dispatch a sweep is not expected to win there either. `bench --geodesic`
-/// reports both paths on any adapter (`gpu_ms`, `gpu_spread_ms`): set it where
-/// they show the spread path ahead. Tests compare the two paths; results do not depend on it
-/// (the same fixed point).
+/// workgroups (`run_spread`, `wgsl/maps/expmap_spread.wgsl`) instead of in one; `u32::MAX` keeps
+/// one workgroup a map; 0, the default, leaves the choice to the adapter: never on a CPU adapter,
+/// from [`GPU_SPREAD_MIN_CANDIDATES`] on a GPU. Measured (`bench --geodesic`, which reports both
+/// paths on any adapter: `gpu_ms`, `gpu_spread_ms`): on lavapipe a dispatch that wakes the second
+/// core costs more than the sweep it carries (session 19: the 12k disc on bob × 2 21-24 ms spread
+/// against 8.5-8.6 ms in one workgroup, 10.2 ms spread with `LP_NUM_THREADS=1`; the 120k disc
+/// 123-134 against 115-116); on an NVIDIA H200 (session 21, README "On a real GPU") the spread
+/// path is slower at 1k vertices (1.2 against 0.7 ms), even at 12k on bob × 2 (6.8 against 6.5),
+/// ahead at 11k on bob × 3 (10.0 against 13.8) and 2.4× at 121k (42 against 103). Tests compare
+/// the two paths; results do not depend on it (the same fixed point).
 #[doc(hidden)]
 pub static SPREAD_MIN_CANDIDATES_OVERRIDE: std::sync::atomic::AtomicU32 =
     std::sync::atomic::AtomicU32::new(0);
+
+/// Candidates from which a lone map is spread over many workgroups on a GPU adapter (see
+/// [`SPREAD_MIN_CANDIDATES_OVERRIDE`]): above the 11k-12k discs where the two paths were level on
+/// the H200, below the 121k one where spreading won 2.4×.
+pub const GPU_SPREAD_MIN_CANDIDATES: u32 = 32_768;
 
 /// Sweeps recorded per submission of the spread path before the host reads the status back (a
 /// sweep whose front is empty costs two near-empty dispatches).
@@ -287,9 +291,9 @@ fn plain(ctx: &crate::gpu::GpuContext, label: &str, size: u64) -> wgpu::Buffer {
 /// Computes `maps` (seed, options, coords slot) into their slots of `coords`: builds the jobs and
 /// candidate lists, then runs the relaxation to convergence: seeds the maps (clearing their coords
 /// slots), then dispatches rounds of sweeps, `ROUNDS_PER_SUBMIT` per submission, reading back only
-/// the per-map status between submissions. Where [`SPREAD_MIN_CANDIDATES_OVERRIDE`] is set, a
-/// map alone in its chunk with that many candidates or more runs spread over many workgroups
-/// instead ([`run_spread`]). Returns the per-map results and the dispatches issued.
+/// the per-map status between submissions. A map alone in its chunk with enough candidates runs
+/// spread over many workgroups instead ([`run_spread`]: on a GPU from
+/// [`GPU_SPREAD_MIN_CANDIDATES`], or as [`SPREAD_MIN_CANDIDATES_OVERRIDE`] says). Returns the per-map results and the dispatches issued.
 ///
 /// On wgpu's GL backend the maps come from the CPU twin instead (see [`run_cpu_twin`]).
 pub fn run(
@@ -311,7 +315,8 @@ pub fn run(
     let (jobs, cands) = build_jobs(topo, maps);
     let (jobs, cands) = (&jobs[..], &cands[..]);
     let spread_min = match SPREAD_MIN_CANDIDATES_OVERRIDE.load(Relaxed) {
-        0 => u32::MAX,
+        0 if ctx.device_type == Some(wgpu::DeviceType::Cpu) => u32::MAX,
+        0 => GPU_SPREAD_MIN_CANDIDATES,
         n => n,
     };
     if jobs.len() == 1 && jobs[0].cand_count >= spread_min {
