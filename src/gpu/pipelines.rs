@@ -474,6 +474,31 @@ fn expmap_relax(device: &wgpu::Device, text: Option<String>) -> Kernel {
     Kernel::with_source(device, "expmap_relax", &EXPMAP_BINDS, text)
 }
 
+/// The bind-group layout of kernel file `name` (several entry points on one layout) and a maker
+/// of its entry points' pipelines.
+fn entry_points<'d>(
+    device: &'d wgpu::Device,
+    name: &'d str,
+    binds: &[(u32, Bind)],
+) -> (
+    wgpu::BindGroupLayout,
+    impl Fn(&str) -> wgpu::ComputePipeline + 'd,
+) {
+    let layout = layout(device, name, binds, wgpu::ShaderStages::COMPUTE);
+    let (pl, module) = layout_and_module(device, name, &layout, None);
+    let entry = move |e: &str| {
+        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(name),
+            layout: Some(&pl),
+            module: &module,
+            entry_point: Some(e),
+            compilation_options: Default::default(),
+            cache: None,
+        })
+    };
+    (layout, entry)
+}
+
 /// `expmap_spread`'s five entry points on one bind-group layout (one bind group serves them all).
 pub struct ExpmapSpread {
     /// The candidates and halo cleared.
@@ -500,18 +525,7 @@ impl ExpmapSpread {
         {
             return None;
         }
-        let layout = layout(device, name, &binds, wgpu::ShaderStages::COMPUTE);
-        let (pl, module) = layout_and_module(device, name, &layout, None);
-        let entry = |e: &str| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(name),
-                layout: Some(&pl),
-                module: &module,
-                entry_point: Some(e),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
+        let (layout, entry) = entry_points(device, name, &binds);
         Some(Self {
             clear: entry("clear"),
             seed: entry("seed"),
@@ -557,18 +571,7 @@ impl Lbvh {
             (7, Rw),
             (8, Rw),
         ];
-        let layout = layout(device, name, &binds, wgpu::ShaderStages::COMPUTE);
-        let (pl, module) = layout_and_module(device, name, &layout, None);
-        let entry = |e: &str| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(name),
-                layout: Some(&pl),
-                module: &module,
-                entry_point: Some(e),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
+        let (layout, entry) = entry_points(device, name, &binds);
         Self {
             morton: entry("morton"),
             bitonic: entry("bitonic"),

@@ -136,6 +136,7 @@ pub const SHARED: &[(&str, &str)] = &[
     ("pelt", include_str!("../../wgsl/shared/pelt.wgsl")),
     ("cone", include_str!("../../wgsl/shared/cone.wgsl")),
     ("geometry", include_str!("../../wgsl/shared/geometry.wgsl")),
+    ("bvh_node", include_str!("../../wgsl/shared/bvh_node.wgsl")),
     ("blend", include_str!("../../wgsl/shared/blend.wgsl")),
     ("acc", include_str!("../../wgsl/shared/acc.wgsl")),
     ("clip", include_str!("../../wgsl/shared/clip.wgsl")),

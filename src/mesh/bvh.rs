@@ -27,7 +27,7 @@ pub const PAD: f32 = 1e-5;
 /// + 2) and refuses a deeper one.
 pub const MAX_DEPTH: usize = 62;
 
-/// One node, as the GPU reads it. Keep in sync with `Node` in wgsl/place/place_bvh.wgsl.
+/// One node, as the GPU reads it. Keep in sync with `Node` in wgsl/shared/bvh_node.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct BvhNode {

@@ -16,6 +16,8 @@
 //   boxes    one per inner node, per level from the deepest: the union of its children's boxes
 // Dispatch: (groups, 1, 1) or, past 65,535 groups, (65,535, rows, 1); index = flat group × 256 + lane.
 
+#import bvh_node
+
 struct Params {
     // Entries (non-degenerate triangles), padded entries (a power of two), leaves.
     n: u32,
@@ -38,13 +40,6 @@ struct Step {
     b: u32,
 }
 
-// Keep in sync with `BvhNode` in src/mesh/bvh.rs.
-struct Node {
-    lo: vec3<f32>,
-    first: u32,
-    hi: vec3<f32>,
-    count: u32,
-}
 
 @group(0) @binding(0) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(1) var<storage, read> tris: array<vec4<u32>>;

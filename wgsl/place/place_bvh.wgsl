@@ -10,6 +10,7 @@
 // Dispatch: (ceil(queries / 64), 1, 1). CPU twin: `place_cpu_bvh` in src/place.rs (the same walk;
 // `place_cpu` is the brute force both answer as).
 #import geometry
+#import bvh_node
 
 const PLACE_GROUPS: u32 = 32u;
 const NO_TRI: u32 = 0xffffffffu;
@@ -17,13 +18,6 @@ const NO_TRI: u32 = 0xffffffffu;
 const STACK: u32 = 64u;
 const MAX_STEPS: u32 = 50000u;
 
-// Keep in sync with `BvhNode` in src/mesh/bvh.rs.
-struct Node {
-    lo: vec3<f32>,
-    first: u32,
-    hi: vec3<f32>,
-    count: u32,
-}
 
 @group(0) @binding(0) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(1) var<storage, read> tris: array<vec4<u32>>;
