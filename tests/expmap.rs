@@ -457,7 +457,9 @@ fn large_discs_converge_over_several_rounds() {
         curvature_stop: f32::INFINITY,
         accuracy: Accuracy::Fast,
     };
-    use decalbake::maps::expmap::gpu::{LOOP_BUDGET_OVERRIDE, WIDE_MIN_CANDIDATES_OVERRIDE};
+    use decalbake::maps::expmap::gpu::{
+        LOOP_BUDGET_OVERRIDE, SPREAD_MIN_CANDIDATES_OVERRIDE, WIDE_MIN_CANDIDATES_OVERRIDE,
+    };
     use std::sync::atomic::Ordering::Relaxed;
     let _overrides = OVERRIDES.lock().unwrap_or_else(|e| e.into_inner());
     // The defaults come back however this test ends.
@@ -466,10 +468,13 @@ fn large_discs_converge_over_several_rounds() {
         fn drop(&mut self) {
             LOOP_BUDGET_OVERRIDE.store(0, Relaxed);
             WIDE_MIN_CANDIDATES_OVERRIDE.store(0, Relaxed);
+            SPREAD_MIN_CANDIDATES_OVERRIDE.store(0, Relaxed);
         }
     }
     let restore = Restore;
     LOOP_BUDGET_OVERRIDE.store(100, Relaxed);
+    // One workgroup a map on any adapter (a GPU would spread a large lone map).
+    SPREAD_MIN_CANDIDATES_OVERRIDE.store(u32::MAX, Relaxed);
     let (_, dispatches) = engine.expmaps_status(&mesh, &[(seed, opts)]).unwrap();
     let (coords, res) = &engine.expmaps(&mesh, &[(seed, opts)]).unwrap()[0];
     // The variant of 256 invocations a map, which the default runs only past 262,144

@@ -147,7 +147,9 @@ pub(crate) struct Targets {
 /// build; both trees answer every query alike (`tests/placement.rs`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum BvhBuild {
-    /// On the GPU ([`crate::mesh::lbvh`]) unless the adapter is a CPU (lavapipe).
+    /// On the GPU ([`crate::mesh::lbvh`]) unless the adapter is a CPU (lavapipe) or the backend
+    /// is GL (where the build was run on llvmpipe only: `tests/placement.rs` under
+    /// `WGPU_BACKEND=gl`).
     #[default]
     Auto,
     /// Median splits on the CPU ([`crate::mesh::bvh::Bvh::build`]).
@@ -452,7 +454,10 @@ impl Engine {
         let topo = Topology::build(&mesh, crate::mesh::DEFAULT_WELD_TOLERANCE);
         let surface = crate::mesh::SurfaceData::new(&topo);
         let on_gpu = match self.bvh_build {
-            BvhBuild::Auto => self.ctx.device_type != Some(wgpu::DeviceType::Cpu),
+            BvhBuild::Auto => {
+                self.ctx.device_type != Some(wgpu::DeviceType::Cpu)
+                    && self.ctx.backend != Some(wgpu::Backend::Gl)
+            }
             BvhBuild::Cpu => false,
             BvhBuild::Gpu => true,
         };

@@ -210,10 +210,10 @@ pub struct Pipelines {
     /// The same, 256 invocations a map (`shaders::expmap_wide_source`): maps of many candidates.
     pub expmap_relax_wide: Kernel,
     /// One large exponential map over many workgroups, a dispatch a sweep
-    /// (`wgsl/maps/expmap_spread.wgsl`; off by default, see
-    /// `maps::expmap::gpu::SPREAD_MIN_CANDIDATES_OVERRIDE`). `None` on GL (whose maps come from
-    /// the CPU twin) and where a stage binds fewer than its 14 storage buffers. Built on first
-    /// use ([`Self::expmap_spread`]): the default path never takes it.
+    /// (`wgsl/maps/expmap_spread.wgsl`; on a GPU adapter for lone maps of many candidates, never
+    /// on a CPU adapter: `maps::expmap::gpu::SPREAD_MIN_CANDIDATES_OVERRIDE`). `None` on GL (whose
+    /// maps come from the CPU twin) and where a stage binds fewer than its 14 storage buffers.
+    /// Built on first use ([`Self::expmap_spread`]).
     expmap_spread: std::sync::OnceLock<Option<ExpmapSpread>>,
     /// The GPU build of the mesh's BVH (`wgsl/mesh/lbvh.wgsl`), built on first use
     /// ([`Self::lbvh`]).

@@ -23,8 +23,8 @@ pub const LEAF: usize = 4;
 pub const PAD: f32 = 1e-5;
 /// Deepest tree a build may give: the GPU walk's stack (`STACK` = 64 in place_bvh.wgsl) needs
 /// depth + 1 entries. The median split stays far below (depth 17 for 171k triangles); the GPU
-/// build's tree (`super::lbvh`) is as deep as its Morton codes make it (at most 30 + ⌈log₂ leaves⌉
-/// + 2) and refuses a deeper one.
+/// build's tree (`super::lbvh`) is as deep as its Morton codes make it (at most 31 + ⌈log₂
+/// leaves⌉) and refuses a deeper one.
 pub const MAX_DEPTH: usize = 62;
 
 /// One node, as the GPU reads it. Keep in sync with `Node` in wgsl/shared/bvh_node.wgsl.

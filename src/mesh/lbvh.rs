@@ -4,8 +4,11 @@
 //! radix tree found on its own from the sorted keys), laid out as [`Bvh`] (a node's two children
 //! side by side, leaves of at most [`LEAF`] triangles), so `place_bvh`, [`Bvh::any_hit`] and
 //! [`Bvh::overlapping`] walk it unchanged. Kernels: `wgsl/mesh/lbvh.wgsl`; CPU twin: [`build_cpu`],
-//! which gives the GPU's tree bit for bit (every step is exact: adds, a subtraction, products by a
-//! power of two, floors, min/max and integer work, no division or fused product).
+//! which gives the GPU's tree bit for bit where the device rounds adds to nearest and keeps
+//! subnormals (Vulkan on lavapipe and NVIDIA; WGSL allows less): the steps are adds, a subtraction,
+//! products by a power of two, floors, min/max and integer work, no division and no product
+//! followed by an add that a compiler could fuse. Not covered: meshes whose coordinates reach
+//! 1e38 (a vertex sum overflows) or whose size is below about 1e-37 (subnormals).
 //!
 //! The CPU does the set-up (one pass over the triangles: the non-degenerate ones, the bounds, the
 //! grid, the box padding: [`Setup`]); the GPU the codes, the sort (bitonic: log₂ N (log₂ N + 1) / 2
@@ -15,8 +18,10 @@
 //! for the tree by the first one's code; the leaf index breaks ties between equal codes (§4).
 //!
 //! Where the two builds differ: the median-split tree ([`Bvh::build`]) is balanced (depth
-//! ⌈log₂(n / 4)⌉ + 1); this one is as deep as the codes make it, at most 30 + ⌈log₂ leaves⌉ + 2,
-//! within the walk's stack ([`MAX_DEPTH`]); its boxes may overlap more. Queries answer the same on
+//! ⌈log₂(n / 4)⌉ + 1); this one is as deep as the codes make it, at most 31 + ⌈log₂ leaves⌉
+//! (30 code bits and the leaf index's bits of prefix, and the leaf), within the walk's stack
+//! ([`MAX_DEPTH`]) for any mesh of fewer than 2³¹ leaves, so the fallback of [`build_gpu`] is a
+//! guard that is not expected to trigger. Queries answer the same on
 //! either (the walk's result does not depend on the tree: `tests/placement.rs`).
 
 use super::bvh::{Bvh, BvhNode, LEAF, MAX_DEPTH, PAD};

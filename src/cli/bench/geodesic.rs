@@ -90,8 +90,8 @@ pub fn run_geodesic(
                 curvature_stop: f32::INFINITY,
                 accuracy: opts.accuracy,
             };
-            // The default path (one workgroup a map), then the same map spread over many
-            // (`expmap_spread`, off by default), in the same run.
+            // One workgroup a map (lavapipe's path; a GPU's below its spread threshold), then the
+            // same map spread over many (`expmap_spread`), in the same run.
             let (gpu_ms, res, dispatches) = timed(engine, &loaded, (seed, o), opts.reps, u32::MAX)?;
             let (spread, ..) = timed(engine, &loaded, (seed, o), opts.reps, 1)?;
             let t = Instant::now();

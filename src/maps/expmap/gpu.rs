@@ -187,8 +187,9 @@ pub static SPREAD_MIN_CANDIDATES_OVERRIDE: std::sync::atomic::AtomicU32 =
     std::sync::atomic::AtomicU32::new(0);
 
 /// Candidates from which a lone map is spread over many workgroups on a GPU adapter (see
-/// [`SPREAD_MIN_CANDIDATES_OVERRIDE`]): above the 11k-12k discs where the two paths were level on
-/// the H200, below the 121k one where spreading won 2.4×.
+/// [`SPREAD_MIN_CANDIDATES_OVERRIDE`]): on the H200 spreading lost at 1k, was level at the 12k
+/// disc on bob × 2 (6.8 against 6.5 ms), won 1.4× at the 11k disc on bob × 3 and 2.4× at the 121k
+/// one; set above the discs where it was not a clear win.
 pub const GPU_SPREAD_MIN_CANDIDATES: u32 = 32_768;
 
 /// Sweeps recorded per submission of the spread path before the host reads the status back (a
