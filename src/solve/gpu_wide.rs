@@ -128,6 +128,196 @@ pub struct WideSolved {
     pub submits: u32,
 }
 
+/// When not 0, a spread solve, once finished, times its fine level's main passes, this many
+/// dispatches of each in one submission, into [`LAST_PASS_TIMES`] (`decalbake bench --linalg`:
+/// the CG's phases against the copy bandwidth). The solve's result is not touched: the timed
+/// passes write a scratch `x`.
+#[doc(hidden)]
+pub static TIME_PASSES_REPS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+/// The last timed solve's passes (see [`TIME_PASSES_REPS`]).
+#[doc(hidden)]
+pub static LAST_PASS_TIMES: std::sync::Mutex<Vec<PassTime>> = std::sync::Mutex::new(Vec::new());
+
+/// One pass's time and the bytes it moves.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct PassTime {
+    /// `spmv` (Ap and <p, Ap>), `update` (x, r and the multigrid's input, <r, r>),
+    /// `smooth_update` (z, <r, z>), `update_p` (p).
+    pub pass: &'static str,
+    /// Microseconds a dispatch, over the whole fine level.
+    pub us: f64,
+    /// Bytes a dispatch reads and writes once each: the matrix's spans and entries and three
+    /// vectors for `spmv`; x, r read and written, p, Ap read, the multigrid's input written for
+    /// `update` (56 bytes a block row); z read and written, its two inputs and r read for
+    /// `smooth_update` (36); z read, p read and written for `update_p` (24).
+    pub bytes: u64,
+}
+
+/// The buffers a spread solve adds to its inputs.
+struct Scratch {
+    sys: wgpu::Buffer,
+    r: wgpu::Buffer,
+    p: wgpu::Buffer,
+    ap: wgpu::Buffer,
+    state: wgpu::Buffer,
+    partials: wgpu::Buffer,
+}
+
+impl Scratch {
+    fn new(ctx: &GpuContext, inputs: &WideInputs) -> Self {
+        let dev = &ctx.device;
+        let vector = |label: &str| {
+            dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: inputs.vector_bytes.max(16),
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        };
+        Self {
+            sys: ctx.storage_init("cg.systems", inputs.system, wgpu::BufferUsages::empty()),
+            r: vector("cg.r"),
+            p: vector("cg.p"),
+            ap: vector("cg.ap"),
+            state: ctx.storage_init(
+                "cg.state",
+                bytemuck::bytes_of(&State::default()),
+                wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+            ),
+            partials: dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("cg.partials"),
+                size: SLOTS * PARTS as u64 * 16,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            }),
+        }
+    }
+
+    /// One bind group per (pass, level) of `keys`, for its kernel, with `x` as the solution.
+    fn groups(
+        &self,
+        ctx: &GpuContext,
+        kernels: (&Kernel, &Kernel),
+        inputs: &WideInputs,
+        fine: u32,
+        keys: &[(u32, u32)],
+        x: &wgpu::Buffer,
+    ) -> std::collections::HashMap<(u32, u32), wgpu::BindGroup> {
+        let mut keys = keys.to_vec();
+        keys.sort_unstable();
+        keys.dedup();
+        let mut bind_groups = std::collections::HashMap::new();
+        for (phase, level) in keys {
+            let u = ctx.storage_init(
+                "cg.wide",
+                bytemuck::bytes_of(&WideRound {
+                    phase,
+                    level,
+                    total: inputs.total,
+                    sys: 0,
+                    parts: fine,
+                    pad: [0; 3],
+                }),
+                wgpu::BufferUsages::empty(),
+            );
+            let [rp, ents] = inputs.matrix;
+            let h = inputs.hierarchy;
+            let entries = [
+                (0, u.as_entire_binding()),
+                (1, self.sys.as_entire_binding()),
+                (2, rp.as_entire_binding()),
+                (3, ents.as_entire_binding()),
+                (5, inputs.b.as_entire_binding()),
+                (6, inputs.dinv.as_entire_binding()),
+                (7, x.as_entire_binding()),
+                (8, self.r.as_entire_binding()),
+                (9, self.p.as_entire_binding()),
+                (10, self.ap.as_entire_binding()),
+                (11, self.state.as_entire_binding()),
+                (12, h[0].as_entire_binding()),
+                (13, h[1].as_entire_binding()),
+                (15, h[2].as_entire_binding()),
+                (16, h[3].as_entire_binding()),
+                (17, h[4].as_entire_binding()),
+                (18, self.partials.as_entire_binding()),
+            ];
+            let kernel = if plain(phase) { kernels.1 } else { kernels.0 };
+            bind_groups.insert(
+                (phase, level),
+                kernel.bind(&ctx.device, "cg.wide", &entries),
+            );
+        }
+        bind_groups
+    }
+}
+
+/// Times the fine level's main passes after a solve (see [`TIME_PASSES_REPS`]): the state set
+/// running again, each pass `reps` times in one submission on a scratch `x`, wall time over
+/// `reps`, less nothing (a dispatch's own cost is in the figure, as it is in a solve).
+fn time_passes(
+    ctx: &GpuContext,
+    kernels: (&Kernel, &Kernel),
+    inputs: &WideInputs,
+    (bufs, fine): (&Scratch, u32),
+    reps: u32,
+) -> Result<Vec<PassTime>> {
+    let n = inputs.rows.1 as u64;
+    let matrix = inputs.matrix[0].size() + inputs.matrix[1].size();
+    let passes = [
+        (pass::SPMV, "spmv", matrix + 3 * 8 * n),
+        (pass::UPDATE, "update", 56 * n),
+        (pass::SMOOTH_UPDATE, "smooth_update", 36 * n),
+        (pass::UPDATE_P, "update_p", 24 * n),
+    ];
+    let x = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("cg.x_timing"),
+        size: inputs.vector_bytes.max(16),
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
+    let keys: Vec<(u32, u32)> = passes.iter().map(|p| (p.0, 0)).collect();
+    let groups = ctx.scoped("conjugate gradient", || {
+        bufs.groups(ctx, kernels, inputs, fine, &keys, &x)
+    })?;
+    // Running, one iteration in (the passes that read the iteration count pick their slots).
+    let running = State {
+        status: 1,
+        iters: 1,
+        ..State::default()
+    };
+    let mut out = Vec::new();
+    for (phase, name, bytes) in passes {
+        let run = |count: u32| -> Result<f64> {
+            ctx.queue
+                .write_buffer(&bufs.state, 0, bytemuck::bytes_of(&running));
+            let t = std::time::Instant::now();
+            ctx.scoped("conjugate gradient", || {
+                let mut enc = ctx.device.create_command_encoder(&Default::default());
+                {
+                    let mut cp = enc.begin_compute_pass(&Default::default());
+                    let kernel = if plain(phase) { kernels.1 } else { kernels.0 };
+                    cp.set_pipeline(&kernel.pipeline);
+                    cp.set_bind_group(0, &groups[&(phase, 0)], &[]);
+                    for _ in 0..count {
+                        cp.dispatch_workgroups(fine, 1, 1);
+                    }
+                }
+                ctx.queue.submit([enc.finish()]);
+            })?;
+            ctx.wait("conjugate gradient")?;
+            Ok(t.elapsed().as_secs_f64() * 1e6)
+        };
+        run(1)?;
+        let us = (run(reps)? / reps as f64).min(run(reps)? / reps as f64);
+        out.push(PassTime {
+            pass: name,
+            us,
+            bytes,
+        });
+    }
+    Ok(out)
+}
+
 /// One dispatch: (pass, level, workgroups).
 type Step = (u32, u32, u32);
 
@@ -177,7 +367,6 @@ pub fn solve(
     kernels: (&Kernel, &Kernel),
     inputs: &WideInputs,
 ) -> Result<WideSolved> {
-    let dev = &ctx.device;
     let cap = max_groups(ctx);
     let groups = |n: u32| n.div_ceil(WG).clamp(1, cap);
     let fine = groups(inputs.rows.1);
@@ -194,82 +383,24 @@ pub fn solve(
     .into_iter()
     .chain(vcycle(&inputs.levels, groups))
     .collect();
-    let (bind_groups, state, keep) = ctx.scoped("conjugate gradient", || {
-        let sys = ctx.storage_init("cg.systems", inputs.system, wgpu::BufferUsages::empty());
-        let vector = |label: &str| {
-            dev.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: inputs.vector_bytes.max(16),
-                usage: wgpu::BufferUsages::STORAGE,
-                mapped_at_creation: false,
-            })
-        };
-        let (r, p, ap) = (vector("cg.r"), vector("cg.p"), vector("cg.ap"));
-        let state = ctx.storage_init(
-            "cg.state",
-            bytemuck::bytes_of(&State::default()),
-            wgpu::BufferUsages::COPY_SRC,
-        );
-        let partials = dev.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("cg.partials"),
-            size: SLOTS * PARTS as u64 * 16,
-            usage: wgpu::BufferUsages::STORAGE,
-            mapped_at_creation: false,
-        });
-        // One bind group per (pass, level) the sequences use, for its kernel.
-        let mut keys: Vec<(u32, u32)> = init.iter().chain(&iteration).map(|s| (s.0, s.1)).collect();
-        keys.sort_unstable();
-        keys.dedup();
-        let mut uniforms = Vec::new();
-        let mut bind_groups = std::collections::HashMap::new();
-        for (phase, level) in keys {
-            let u = ctx.storage_init(
-                "cg.wide",
-                bytemuck::bytes_of(&WideRound {
-                    phase,
-                    level,
-                    total: inputs.total,
-                    sys: 0,
-                    parts: fine,
-                    pad: [0; 3],
-                }),
-                wgpu::BufferUsages::empty(),
-            );
-            let [rp, ents] = inputs.matrix;
-            let h = inputs.hierarchy;
-            let entries = [
-                (0, u.as_entire_binding()),
-                (1, sys.as_entire_binding()),
-                (2, rp.as_entire_binding()),
-                (3, ents.as_entire_binding()),
-                (5, inputs.b.as_entire_binding()),
-                (6, inputs.dinv.as_entire_binding()),
-                (7, inputs.x.as_entire_binding()),
-                (8, r.as_entire_binding()),
-                (9, p.as_entire_binding()),
-                (10, ap.as_entire_binding()),
-                (11, state.as_entire_binding()),
-                (12, h[0].as_entire_binding()),
-                (13, h[1].as_entire_binding()),
-                (15, h[2].as_entire_binding()),
-                (16, h[3].as_entire_binding()),
-                (17, h[4].as_entire_binding()),
-                (18, partials.as_entire_binding()),
-            ];
-            let kernel = if plain(phase) { kernels.1 } else { kernels.0 };
-            bind_groups.insert((phase, level), kernel.bind(dev, "cg.wide", &entries));
-            uniforms.push(u);
-        }
-        (bind_groups, state, (sys, r, p, ap, partials, uniforms))
+    let keys: Vec<(u32, u32)> = init.iter().chain(&iteration).map(|s| (s.0, s.1)).collect();
+    let bufs = ctx.scoped("conjugate gradient", || Scratch::new(ctx, inputs))?;
+    let bind_groups = ctx.scoped("conjugate gradient", || {
+        bufs.groups(ctx, kernels, inputs, fine, &keys, inputs.x)
     })?;
+    let state = &bufs.state;
     let sequences = Sequences {
         init: &init,
         iteration: &iteration,
         kernels,
         bind_groups: &bind_groups,
     };
-    let (st, dispatches, submits) = sequences.run(ctx, &state, inputs.max_iter)?;
-    drop(keep);
+    let (st, dispatches, submits) = sequences.run(ctx, state, inputs.max_iter)?;
+    let reps = TIME_PASSES_REPS.load(std::sync::atomic::Ordering::Relaxed);
+    if reps > 0 {
+        let times = time_passes(ctx, kernels, inputs, (&bufs, fine), reps)?;
+        *LAST_PASS_TIMES.lock().unwrap_or_else(|e| e.into_inner()) = times;
+    }
     Ok(WideSolved {
         report: CgReport {
             preconditioner: PreconditionerKind::Amg,

@@ -155,7 +155,7 @@ pub fn run(
         .unwrap_or_else(|| "spot (bundled)".into());
 
     bench_spmv(engine, &topo, &source, opts, copy_gbs, &mut emit)?;
-    bench_charts(engine, &topo, &source, opts, &mut emit)?;
+    bench_charts(engine, &topo, &source, (opts, copy_gbs), &mut emit)?;
     bench_batch(engine, &topo, &source, opts, &mut emit)
 }
 
@@ -198,12 +198,35 @@ fn bench_spmv(
     Ok(())
 }
 
+/// The spread solve's fine passes, each timed over 50 dispatches after `solve` (a solve spread
+/// over workgroups) finishes (`solve::gpu_wide::TIME_PASSES_REPS`): microseconds a pass, the bytes
+/// it moves and that rate against the copy kernel's (`copy_gbs`, the same run).
+fn cg_pass_times(copy_gbs: f64, solve: impl FnOnce() -> Result<()>) -> Result<serde_json::Value> {
+    use decalbake::solve::gpu_wide::{LAST_PASS_TIMES, TIME_PASSES_REPS};
+    use std::sync::atomic::Ordering::Relaxed;
+    TIME_PASSES_REPS.store(50, Relaxed);
+    let run = solve();
+    TIME_PASSES_REPS.store(0, Relaxed);
+    run?;
+    let times = std::mem::take(&mut *LAST_PASS_TIMES.lock().unwrap_or_else(|e| e.into_inner()));
+    Ok(times
+        .iter()
+        .map(|p| {
+            let gbs = p.bytes as f64 / (p.us * 1e3);
+            serde_json::json!({
+                "pass": p.pass, "us": p.us, "bytes": p.bytes, "gb_per_s": gbs,
+                "fraction_of_copy_bandwidth": gbs / copy_gbs,
+            })
+        })
+        .collect())
+}
+
 /// One chart of each requested size: GPU CG, the CPU twin and (with `--peers`) libigl and scipy.
 fn bench_charts(
     engine: &Engine,
     topo: &Topology,
     source: &str,
-    opts: &LinalgOptions,
+    (opts, copy_gbs): (&LinalgOptions, f64),
     emit: &mut impl FnMut(serde_json::Value),
 ) -> Result<()> {
     let ctx = &engine.ctx;
@@ -272,6 +295,11 @@ fn bench_charts(
             })
             .transpose()?
             .filter(|r| r.0.preconditioner == PreconditionerKind::Amg);
+        let passes = if out.spread > 0 {
+            cg_pass_times(copy_gbs, || solve().map(|_| ()))?
+        } else {
+            serde_json::Value::Null
+        };
         let mut xj = zero.clone();
         let t = Instant::now();
         let cpu_jacobi = decalbake::solve::cg::pcg_with(
@@ -305,7 +333,7 @@ fn bench_charts(
             "gpu_ms": gpu_ms, "gpu_ms_per_iteration": gpu_ms / its.max(1) as f64,
             "dispatches": out.dispatches, "submits": out.submits, "gpu_spread": out.spread,
             "gpu_one_workgroup_iterations": one_workgroup.map(|j| j.0.iterations), "gpu_one_workgroup_ms": one_workgroup.map(|j| j.1),
-            "gpu_spread_forced_ms": spread.map(|j| j.1),
+            "gpu_spread_forced_ms": spread.map(|j| j.1), "cg_passes": passes,
             "cpu_twin_preconditioner": cpu.preconditioner, "cpu_twin_iterations": cpu.iterations,
             "cpu_twin_ms": cpu_ms, "cpu_over_gpu": cpu_ms / gpu_ms,
             "cpu_twin_jacobi_iterations": cpu_jacobi.iterations, "cpu_twin_jacobi_ms": cpu_jacobi_ms,
