@@ -142,14 +142,20 @@ pub static LAST_PASS_TIMES: std::sync::Mutex<Vec<PassTime>> = std::sync::Mutex::
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct PassTime {
     /// `spmv` (Ap and <p, Ap>), `update` (x, r and the multigrid's input, <r, r>),
-    /// `smooth_update` (z, <r, z>), `update_p` (p).
+    /// `smooth_update` (z, <r, z>), `update_p` (p); the V-cycle's `down`, `restrict`, `coarse`,
+    /// `prolong`, `smooth_residual`; `true_residual`.
     pub pass: &'static str,
-    /// Microseconds a dispatch, over the whole fine level.
+    /// Its multigrid level (0: the fine one).
+    pub level: u32,
+    /// Workgroups of its dispatch.
+    pub workgroups: u32,
+    /// Microseconds a dispatch.
     pub us: f64,
     /// Bytes a dispatch reads and writes once each: the matrix's spans and entries and three
     /// vectors for `spmv`; x, r read and written, p, Ap read, the multigrid's input written for
     /// `update` (56 bytes a block row); z read and written, its two inputs and r read for
-    /// `smooth_update` (36); z read, p read and written for `update_p` (24).
+    /// `smooth_update` (36); z read, p read and written for `update_p` (24); 0 for the rest (not
+    /// counted).
     pub bytes: u64,
 }
 
@@ -251,31 +257,56 @@ impl Scratch {
     }
 }
 
-/// Times the fine level's main passes after a solve (see [`TIME_PASSES_REPS`]): the state set
-/// running again, each pass `reps` times in one submission on a scratch `x`, wall time over
-/// `reps`, less nothing (a dispatch's own cost is in the figure, as it is in a solve).
+/// A pass's name in the benchmark's output.
+fn pass_name(phase: u32) -> &'static str {
+    match phase {
+        pass::SPMV => "spmv",
+        pass::UPDATE => "update",
+        pass::TRUE_RESIDUAL => "true_residual",
+        pass::DOWN => "down",
+        pass::RESTRICT => "restrict",
+        pass::COARSE => "coarse",
+        pass::PROLONG => "prolong",
+        pass::SMOOTH_RESIDUAL => "smooth_residual",
+        pass::SMOOTH_UPDATE => "smooth_update",
+        pass::UPDATE_P => "update_p",
+        _ => "other",
+    }
+}
+
+/// Times every step of an iteration after a solve (see [`TIME_PASSES_REPS`]) but the status
+/// check: the state set running again, each step `reps` times in one submission on a scratch `x`,
+/// wall time over `reps` (a dispatch's own cost included, as in a solve); the bytes counted for
+/// the four fine passes [`PassTime`] names.
 fn time_passes(
     ctx: &GpuContext,
     kernels: (&Kernel, &Kernel),
     inputs: &WideInputs,
-    (bufs, fine): (&Scratch, u32),
+    (bufs, fine, iteration): (&Scratch, u32, &[Step]),
     reps: u32,
 ) -> Result<Vec<PassTime>> {
     let n = inputs.rows.1 as u64;
     let matrix = inputs.matrix[0].size() + inputs.matrix[1].size();
-    let passes = [
-        (pass::SPMV, "spmv", matrix + 3 * 8 * n),
-        (pass::UPDATE, "update", 56 * n),
-        (pass::SMOOTH_UPDATE, "smooth_update", 36 * n),
-        (pass::UPDATE_P, "update_p", 24 * n),
-    ];
+    let bytes = |phase: u32, level: u32| match (phase, level) {
+        (pass::SPMV, 0) => matrix + 3 * 8 * n,
+        (pass::UPDATE, 0) => 56 * n,
+        (pass::SMOOTH_UPDATE, 0) => 36 * n,
+        (pass::UPDATE_P, 0) => 24 * n,
+        _ => 0,
+    };
+    let mut steps: Vec<Step> = iteration
+        .iter()
+        .copied()
+        .filter(|s| s.0 != pass::TRUE_CHECK)
+        .collect();
+    steps.dedup();
     let x = ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("cg.x_timing"),
         size: inputs.vector_bytes.max(16),
         usage: wgpu::BufferUsages::STORAGE,
         mapped_at_creation: false,
     });
-    let keys: Vec<(u32, u32)> = passes.iter().map(|p| (p.0, 0)).collect();
+    let keys: Vec<(u32, u32)> = steps.iter().map(|s| (s.0, s.1)).collect();
     let groups = ctx.scoped("conjugate gradient", || {
         bufs.groups(ctx, kernels, inputs, fine, &keys, &x)
     })?;
@@ -286,7 +317,7 @@ fn time_passes(
         ..State::default()
     };
     let mut out = Vec::new();
-    for (phase, name, bytes) in passes {
+    for (phase, level, wgs) in steps {
         let run = |count: u32| -> Result<f64> {
             ctx.queue
                 .write_buffer(&bufs.state, 0, bytemuck::bytes_of(&running));
@@ -297,9 +328,9 @@ fn time_passes(
                     let mut cp = enc.begin_compute_pass(&Default::default());
                     let kernel = if plain(phase) { kernels.1 } else { kernels.0 };
                     cp.set_pipeline(&kernel.pipeline);
-                    cp.set_bind_group(0, &groups[&(phase, 0)], &[]);
+                    cp.set_bind_group(0, &groups[&(phase, level)], &[]);
                     for _ in 0..count {
-                        cp.dispatch_workgroups(fine, 1, 1);
+                        cp.dispatch_workgroups(wgs, 1, 1);
                     }
                 }
                 ctx.queue.submit([enc.finish()]);
@@ -310,9 +341,11 @@ fn time_passes(
         run(1)?;
         let us = (run(reps)? / reps as f64).min(run(reps)? / reps as f64);
         out.push(PassTime {
-            pass: name,
+            pass: pass_name(phase),
+            level,
+            workgroups: wgs,
             us,
-            bytes,
+            bytes: bytes(phase, level),
         });
     }
     Ok(out)
@@ -398,7 +431,7 @@ pub fn solve(
     let (st, dispatches, submits) = sequences.run(ctx, state, inputs.max_iter)?;
     let reps = TIME_PASSES_REPS.load(std::sync::atomic::Ordering::Relaxed);
     if reps > 0 {
-        let times = time_passes(ctx, kernels, inputs, (&bufs, fine), reps)?;
+        let times = time_passes(ctx, kernels, inputs, (&bufs, fine, &iteration), reps)?;
         *LAST_PASS_TIMES.lock().unwrap_or_else(|e| e.into_inner()) = times;
     }
     Ok(WideSolved {

@@ -198,7 +198,7 @@ fn bench_spmv(
     Ok(())
 }
 
-/// The spread solve's fine passes, each timed over 50 dispatches after `solve` (a solve spread
+/// The spread solve's passes, each timed over 50 dispatches after `solve` (a solve spread
 /// over workgroups) finishes (`solve::gpu_wide::TIME_PASSES_REPS`): microseconds a pass, the bytes
 /// it moves and that rate against the copy kernel's (`copy_gbs`, the same run).
 fn cg_pass_times(copy_gbs: f64, solve: impl FnOnce() -> Result<()>) -> Result<serde_json::Value> {
@@ -212,10 +212,11 @@ fn cg_pass_times(copy_gbs: f64, solve: impl FnOnce() -> Result<()>) -> Result<se
     Ok(times
         .iter()
         .map(|p| {
-            let gbs = p.bytes as f64 / (p.us * 1e3);
+            let gbs = (p.bytes > 0).then(|| p.bytes as f64 / (p.us * 1e3));
             serde_json::json!({
-                "pass": p.pass, "us": p.us, "bytes": p.bytes, "gb_per_s": gbs,
-                "fraction_of_copy_bandwidth": gbs / copy_gbs,
+                "pass": p.pass, "level": p.level, "workgroups": p.workgroups, "us": p.us,
+                "bytes": p.bytes, "gb_per_s": gbs,
+                "fraction_of_copy_bandwidth": gbs.map(|g| g / copy_gbs),
             })
         })
         .collect())
