@@ -269,6 +269,30 @@ fn groups(items: usize) -> (u32, u32) {
     (g.min(65_535), g.div_ceil(65_535))
 }
 
+/// The per-dispatch steps, each at its 256-byte slot of one uniform buffer: the bitonic sort's
+/// (k, j) over `n_pad` keys, then the levels 0..=[`MAX_DEPTH`] for the boxes. Returns the sort's
+/// step count and the bytes.
+fn steps(n_pad: usize) -> (usize, Vec<u8>) {
+    let mut steps: Vec<[u32; 2]> = Vec::new();
+    let mut size = 2;
+    while size <= n_pad {
+        let mut j = size / 2;
+        while j >= 1 {
+            steps.push([size as u32, j as u32]);
+            j /= 2;
+        }
+        size *= 2;
+    }
+    let sort_steps = steps.len();
+    steps.extend((0..=MAX_DEPTH as u32).map(|l| [l, 0]));
+    let mut bytes = vec![0u8; steps.len() * STEP_STRIDE as usize];
+    for (s, v) in steps.iter().enumerate() {
+        let at = s * STEP_STRIDE as usize;
+        bytes[at..at + 8].copy_from_slice(bytemuck::cast_slice(v));
+    }
+    (sort_steps, bytes)
+}
+
 /// Builds `topo`'s tree on the GPU from `mesh`'s positions and triangles (uploaded from `topo`),
 /// and reads it back: the same tree as [`build_cpu`]. Two submissions: the codes, sort, tree and
 /// leaves, then the inner boxes once the depth is known. `None` when the tree would be deeper than
@@ -304,24 +328,7 @@ pub fn build_gpu(
         pad: setup.pad,
         _p1: [0; 3],
     };
-    // Steps: the bitonic sort's (k, j), then the levels 0..MAX_DEPTH for the boxes.
-    let mut steps: Vec<[u32; 2]> = Vec::new();
-    let mut size = 2;
-    while size <= n_pad {
-        let mut j = size / 2;
-        while j >= 1 {
-            steps.push([size as u32, j as u32]);
-            j /= 2;
-        }
-        size *= 2;
-    }
-    let sort_steps = steps.len();
-    steps.extend((0..=MAX_DEPTH as u32).map(|l| [l, 0]));
-    let mut step_bytes = vec![0u8; steps.len() * STEP_STRIDE as usize];
-    for (s, v) in steps.iter().enumerate() {
-        let at = s * STEP_STRIDE as usize;
-        step_bytes[at..at + 8].copy_from_slice(bytemuck::cast_slice(v));
-    }
+    let (sort_steps, step_bytes) = steps(n_pad);
     let (ids, uni, step, keys, nodes, links, deepest) = ctx.scoped(STAGE, || {
         let storage = |label: &str, size: usize, extra: wgpu::BufferUsages| {
             dev.create_buffer(&wgpu::BufferDescriptor {
