@@ -21,11 +21,11 @@ use crate::solve::sparse::{CgReport, CgStatus, PreconditionerKind};
 /// (README, "Linear algebra": measured on 1k and 10k charts).
 pub const WIDE_MIN_ROWS: usize = 4_096;
 /// The same on a GPU. On an NVIDIA H200 (README, "On a real GPU"; `bench --linalg`'s
-/// `gpu_one_workgroup_ms` and `gpu_spread_forced_ms`) the 10k chart takes as long either way
-/// (118 against 119 ms; 147 against 175 in another run), the 20k chart is 1.5× faster spread
-/// (224 against 326 ms), the 40k 1.8× (518 against 945), the 100k 1.6× (1.26 against 2.08 s):
-/// spread from halfway between the 10k and the 20k chart. See [`wide_min_rows`].
-pub const GPU_WIDE_MIN_ROWS: usize = 16_384;
+/// `gpu_one_workgroup_ms` and `gpu_spread_forced_ms`) the 10k chart took, in one workgroup
+/// against spread, 147/175, 118/119, 181/76 and 124/92 ms in four runs (medians 136 against
+/// 106), the 20k chart 326/224, the 40k 945/518 and 746/418, the 100k 2.08/1.26 s: spread below
+/// the 10k chart. See [`wide_min_rows`].
+pub const GPU_WIDE_MIN_ROWS: usize = 8_192;
 
 /// When not 0, the block rows from which a lone system is spread (the benchmarks force both
 /// paths); 0, the default, leaves it to [`wide_min_rows`].
