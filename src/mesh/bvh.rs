@@ -75,9 +75,7 @@ impl Bvh {
                 })
         };
         let (lo, hi) = bounds(&tris);
-        // Rounding in the keys grows with the coordinates' magnitude, not only the mesh's size.
-        let scale = (hi - lo).length().max(lo.abs().max(hi.abs()).max_element());
-        let pad = PAD * scale.max(f32::MIN_POSITIVE) + 1e-30;
+        let pad = padding(lo, hi);
         let mut nodes = vec![BvhNode {
             lo: [0.0; 3],
             first: 0,
@@ -121,12 +119,7 @@ impl Bvh {
             "a median-split tree of {} triangles has depth {depth}",
             tris.len()
         );
-        let max_edge = tris.iter().fold(0.0f32, |m, &t| {
-            let c = corners(t);
-            m.max(c[0].distance(c[1]))
-                .max(c[1].distance(c[2]))
-                .max(c[2].distance(c[0]))
-        });
+        let max_edge = longest_edge(topo, &tris);
         Self {
             nodes,
             triangles: tris,
@@ -221,6 +214,24 @@ impl Bvh {
         out.sort_unstable();
         out
     }
+}
+
+/// The padding of every box of a tree over the bounds `lo`..`hi` ([`PAD`] times the larger of the
+/// diagonal and the largest coordinate: rounding in the keys grows with the coordinates'
+/// magnitude, not only the mesh's size). Both builds use it (`super::lbvh`).
+pub(crate) fn padding(lo: Vec3, hi: Vec3) -> f32 {
+    let scale = (hi - lo).length().max(lo.abs().max(hi.abs()).max_element());
+    PAD * scale.max(f32::MIN_POSITIVE) + 1e-30
+}
+
+/// The longest edge of `tris` ([`Bvh::max_edge`]).
+pub(crate) fn longest_edge(topo: &Topology, tris: &[u32]) -> f32 {
+    tris.iter().fold(0.0f32, |m, &t| {
+        let c = topo.triangles[t as usize].map(|v| topo.positions[v as usize]);
+        m.max(c[0].distance(c[1]))
+            .max(c[1].distance(c[2]))
+            .max(c[2].distance(c[0]))
+    })
 }
 
 /// Ray/triangle (Moller-Trumbore, both sides): (t, u, v), t < 0 on a miss. Twin of `ray_triangle` in the placement kernels (`wgsl/place/`).

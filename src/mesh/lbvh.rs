@@ -24,7 +24,7 @@
 //! guard that is not expected to trigger. Queries answer the same on
 //! either (the walk's result does not depend on the tree: `tests/placement.rs`).
 
-use super::bvh::{Bvh, BvhNode, LEAF, MAX_DEPTH, PAD};
+use super::bvh::{Bvh, BvhNode, LEAF, MAX_DEPTH};
 use super::upload::GpuMesh;
 use super::Topology;
 use crate::error::Result;
@@ -85,8 +85,7 @@ pub fn setup(topo: &Topology) -> Option<Setup> {
             (lo.min(p), hi.max(p))
         });
     // The same padding as the median-split build.
-    let size = (hi - lo).length().max(lo.abs().max(hi.abs()).max_element());
-    let pad = PAD * size.max(f32::MIN_POSITIVE) + 1e-30;
+    let pad = super::bvh::padding(lo, hi);
     let (lo3, hi3) = ((lo + lo) + lo, (hi + hi) + hi);
     let extent = (hi3 - lo3).max_element();
     let mut scale = 1.0f32;
@@ -98,12 +97,7 @@ pub fn setup(topo: &Topology) -> Option<Setup> {
             scale *= 0.5;
         }
     }
-    let max_edge = ids.iter().fold(0.0f32, |m, &t| {
-        let c = corners(t);
-        m.max(c[0].distance(c[1]))
-            .max(c[1].distance(c[2]))
-            .max(c[2].distance(c[0]))
-    });
+    let max_edge = super::bvh::longest_edge(topo, &ids);
     Some(Setup {
         ids,
         lo3,
