@@ -355,6 +355,70 @@ fn complex_blocks_are_found_only_where_they_exist() {
     assert!(ComplexCsr::from_real(&random_spd(40, 6, 0.1, &mut Lcg(5))).is_none());
 }
 
+/// Random block patterns (rows of 0-6 blocks at random block columns, some with b = 0 and both
+/// of its entries left out, some rows empty) come back from their real form unchanged: the real
+/// rows of a block row are walked side by side, whatever columns each holds.
+#[test]
+fn complex_blocks_round_trip_through_the_real_form() {
+    let mut rng = Lcg(11);
+    let n = 60;
+    let mut t = Vec::new();
+    let mut blocks = vec![Vec::new(); n];
+    for (i, row) in blocks.iter_mut().enumerate() {
+        for _ in 0..(rng.next() * 7.0) as usize {
+            let j = (rng.next() * n as f64) as u32;
+            let (a, b) = (
+                rng.next() - 0.5,
+                if rng.next() < 0.3 {
+                    0.0
+                } else {
+                    rng.next() - 0.5
+                },
+            );
+            let (r, c) = (2 * i as u32, 2 * j);
+            t.extend([(r, c, a), (r + 1, c + 1, a)]);
+            if b != 0.0 {
+                t.extend([(r, c + 1, -b), (r + 1, c, b)]);
+            }
+            row.push((j, a, b));
+        }
+    }
+    let m = Csr::from_triplets(2 * n, t);
+    let c = ComplexCsr::from_real(&m).expect("complex blocks");
+    for (i, row) in blocks.iter_mut().enumerate() {
+        // Repeated block columns were summed by the triplets; sum them here too.
+        row.sort_by_key(|e| e.0);
+        let mut want: Vec<(u32, [f64; 2])> = Vec::new();
+        for &(j, a, b) in row.iter() {
+            match want.last_mut() {
+                Some((k, v)) if *k == j => *v = [v[0] + a, v[1] + b],
+                _ => want.push((j, [a, b])),
+            }
+        }
+        let (s, e) = (c.row_ptr[i] as usize, c.row_ptr[i + 1] as usize);
+        let got: Vec<(u32, [f64; 2])> = c.cols[s..e]
+            .iter()
+            .copied()
+            .zip(c.vals[s..e].iter().copied())
+            .collect();
+        assert_eq!(got.len(), want.len(), "block row {i}");
+        for ((gj, gv), (wj, wv)) in got.iter().zip(&want) {
+            assert_eq!(gj, wj, "block row {i}");
+            for k in 0..2 {
+                assert!(
+                    (gv[k] - wv[k]).abs() <= 1e-15,
+                    "block row {i}, column {gj}: {gv:?} against {wv:?}"
+                );
+            }
+        }
+    }
+    let x: Vec<f64> = (0..2 * n).map(|i| i as f64 * 0.25 - 3.0).collect();
+    let (y, z) = (m.mul(&x), c.to_real().mul(&x));
+    for (a, b) in y.iter().zip(&z) {
+        assert!((a - b).abs() < 1e-12);
+    }
+}
+
 /// A real mesh system: Spot's (clamped-cotangent) Laplacian plus a mass shift, 2,930 unknowns.
 #[test]
 fn cg_solves_a_mesh_laplacian() {

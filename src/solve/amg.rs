@@ -18,8 +18,16 @@
 //! Aggregation works on nodes of `block` rows: a vertex's (u, v) pair when the matrix has the
 //! complex 2 × 2 structure of LSCM systems ([`ComplexCsr`]), so both coordinates of a vertex share
 //! an aggregate and the coarse matrices keep that structure; single rows otherwise.
+//!
+//! The set-up's cost: on a GPU a large chart's solve waits for it (a 100k-vertex chart: 451 ms
+//! of 1.0 s on an H200's host, README "On a real GPU"). Its sparse products and the power
+//! iteration's products run on every core (rayon, rows in tasks), the transpose is a counting
+//! sort and the prolongator a merge of sorted rows, not triplets sorted again; each row's sums
+//! keep their order, so the hierarchy is the same bit for bit as one thread's (the tests below
+//! compare the parts with the triplet forms they replaced).
 
 use super::sparse::{ComplexCsr, Csr};
+use rayon::prelude::*;
 
 /// Systems with at least this many rows get a V-cycle; smaller ones Jacobi. Below it the cycle
 /// does not pay for its set-up and its dearer iterations (`bench --linalg`, one run: a chart of
@@ -256,65 +264,152 @@ fn prolongator(a: &Csr, d: &[f64], omega: f64, agg: &[u32], count: usize, block:
     for &k in agg {
         size[k as usize] += 1;
     }
-    let tentative = Csr::from_triplets(
-        a.rows,
-        (0..a.rows)
-            .map(|r| {
-                let k = agg[r / block] as usize;
-                let v = 1.0 / (size[k] as f64).sqrt();
-                (r as u32, (k * block + r % block) as u32, v)
-            })
-            .collect(),
-    );
+    // One entry a row: (its aggregate's column for the row, 1 / √size).
+    let entry = |r: usize| {
+        let k = agg[r / block] as usize;
+        (
+            (k * block + r % block) as u32,
+            1.0 / (size[k] as f64).sqrt(),
+        )
+    };
+    let tentative = Csr {
+        rows: a.rows,
+        row_ptr: (0..=a.rows as u32).collect(),
+        cols: (0..a.rows).map(|r| entry(r).0).collect(),
+        vals: (0..a.rows).map(|r| entry(r).1).collect(),
+    };
     let ap = multiply(a, &tentative, count * block);
-    let mut t = Vec::with_capacity(tentative.nnz() + ap.nnz());
-    for (r, &dr) in d.iter().enumerate() {
-        t.extend(tentative.row(r).map(|(c, v)| (r as u32, c as u32, v)));
-        let s = omega / dr;
-        t.extend(ap.row(r).map(|(c, v)| (r as u32, c as u32, -s * v)));
-    }
-    Csr::from_triplets(a.rows, t)
-}
-
-/// `a b`, where `b` has `cols` columns (a dense accumulator per row; columns sorted).
-pub fn multiply(a: &Csr, b: &Csr, cols: usize) -> Csr {
-    let mut acc = vec![0.0f64; cols];
-    let mut mark = vec![usize::MAX; cols];
-    let mut touched = Vec::new();
+    // Row r: the tentative entry merged into −(ω / dᵣ) (A P₀) row r by column, the tentative value
+    // first where both have the column (the sum `Csr::from_triplets` would form).
     let mut out = Csr {
         rows: a.rows,
-        row_ptr: vec![0],
-        cols: Vec::new(),
-        vals: Vec::new(),
+        row_ptr: Vec::with_capacity(a.rows + 1),
+        cols: Vec::with_capacity(ap.nnz() + a.rows),
+        vals: Vec::with_capacity(ap.nnz() + a.rows),
     };
-    for i in 0..a.rows {
-        for (k, av) in a.row(i) {
-            for (j, bv) in b.row(k) {
-                if mark[j] != i {
-                    mark[j] = i;
-                    acc[j] = 0.0;
-                    touched.push(j);
+    out.row_ptr.push(0);
+    for (r, &dr) in d.iter().enumerate() {
+        let s = omega / dr;
+        let (tc, tv) = entry(r);
+        let mut pending = Some((tc, tv));
+        for (c, v) in ap.row(r) {
+            let c = c as u32;
+            match pending {
+                Some((pc, pv)) if pc == c => {
+                    out.cols.push(c);
+                    out.vals.push(pv + -s * v);
+                    pending = None;
+                    continue;
                 }
-                acc[j] += av * bv;
+                Some((pc, pv)) if pc < c => {
+                    out.cols.push(pc);
+                    out.vals.push(pv);
+                    pending = None;
+                }
+                _ => {}
             }
+            out.cols.push(c);
+            out.vals.push(-s * v);
         }
-        touched.sort_unstable();
-        for &j in &touched {
-            out.cols.push(j as u32);
-            out.vals.push(acc[j]);
+        if let Some((pc, pv)) = pending {
+            out.cols.push(pc);
+            out.vals.push(pv);
         }
-        touched.clear();
         out.row_ptr.push(out.cols.len() as u32);
     }
     out
 }
 
-/// The transpose of `a`, which has `cols` columns.
-pub fn transpose(a: &Csr, cols: usize) -> Csr {
-    let t = (0..a.rows)
-        .flat_map(|r| a.row(r).map(move |(c, v)| (c as u32, r as u32, v)))
+/// Rows one task of the set-up's parallel products takes at once: enough that a task's own
+/// accumulator (one entry a column of the product) is worth its allocation.
+const ROWS_PER_TASK: usize = 2048;
+
+/// `a b`, where `b` has `cols` columns (a dense accumulator per row; columns sorted). Rows are
+/// computed in tasks of [`ROWS_PER_TASK`] on every core (rayon); each row's sums run in the same
+/// order whatever the split, so the product is the same bit for bit as one thread's.
+pub fn multiply(a: &Csr, b: &Csr, cols: usize) -> Csr {
+    multiply_in_tasks(a, b, cols, ROWS_PER_TASK)
+}
+
+/// [`multiply`] with `chunk` rows a task (the tests split small matrices finely).
+fn multiply_in_tasks(a: &Csr, b: &Csr, cols: usize, chunk: usize) -> Csr {
+    let tasks = a.rows.div_ceil(chunk.max(1));
+    let parts: Vec<(Vec<u32>, Vec<u32>, Vec<f64>)> = (0..tasks)
+        .into_par_iter()
+        .map_init(
+            || (vec![0.0f64; cols], vec![usize::MAX; cols], Vec::new()),
+            |(acc, mark, touched), t| {
+                let rows = t * chunk..((t + 1) * chunk).min(a.rows);
+                let mut lens = Vec::with_capacity(rows.len());
+                let (mut oc, mut ov) = (Vec::new(), Vec::new());
+                for i in rows {
+                    for (k, av) in a.row(i) {
+                        for (j, bv) in b.row(k) {
+                            if mark[j] != i {
+                                mark[j] = i;
+                                acc[j] = 0.0;
+                                touched.push(j);
+                            }
+                            acc[j] += av * bv;
+                        }
+                    }
+                    touched.sort_unstable();
+                    lens.push(touched.len() as u32);
+                    for &j in touched.iter() {
+                        oc.push(j as u32);
+                        ov.push(acc[j]);
+                    }
+                    touched.clear();
+                }
+                (lens, oc, ov)
+            },
+        )
         .collect();
-    Csr::from_triplets(cols, t)
+    let nnz = parts.iter().map(|p| p.1.len()).sum();
+    let mut out = Csr {
+        rows: a.rows,
+        row_ptr: Vec::with_capacity(a.rows + 1),
+        cols: Vec::with_capacity(nnz),
+        vals: Vec::with_capacity(nnz),
+    };
+    out.row_ptr.push(0);
+    for (lens, oc, ov) in parts {
+        for len in lens {
+            let last = *out.row_ptr.last().expect("row 0's start");
+            out.row_ptr.push(last + len);
+        }
+        out.cols.extend(oc);
+        out.vals.extend(ov);
+    }
+    out
+}
+
+/// The transpose of `a`, which has `cols` columns (a counting sort of the entries by column: each
+/// transposed row comes out sorted, as [`Csr::from_triplets`] would sort it).
+pub fn transpose(a: &Csr, cols: usize) -> Csr {
+    let mut row_ptr = vec![0u32; cols + 1];
+    for &c in &a.cols {
+        row_ptr[c as usize + 1] += 1;
+    }
+    for i in 0..cols {
+        row_ptr[i + 1] += row_ptr[i];
+    }
+    let mut fill: Vec<usize> = row_ptr[..cols].iter().map(|&v| v as usize).collect();
+    let mut out_cols = vec![0u32; a.nnz()];
+    let mut out_vals = vec![0.0f64; a.nnz()];
+    for r in 0..a.rows {
+        for (c, v) in a.row(r) {
+            out_cols[fill[c]] = r as u32;
+            out_vals[fill[c]] = v;
+            fill[c] += 1;
+        }
+    }
+    Csr {
+        rows: cols,
+        row_ptr,
+        cols: out_cols,
+        vals: out_vals,
+    }
 }
 
 /// An upper estimate of ρ(D⁻¹ A): 20 power iterations on D^-½ A D^-½ (whose spectrum it shares),
@@ -325,7 +420,7 @@ fn spectral_radius(a: &Csr, d: &[f64]) -> f64 {
     let mut est = 1.0;
     for _ in 0..20 {
         let sx: Vec<f64> = x.iter().zip(&s).map(|(v, s)| v * s).collect();
-        let y: Vec<f64> = a.mul(&sx).iter().zip(&s).map(|(v, s)| v * s).collect();
+        let y: Vec<f64> = a.mul_par(&sx).iter().zip(&s).map(|(v, s)| v * s).collect();
         let (ny, nx) = (norm(&y), norm(&x));
         if ny == 0.0 || nx == 0.0 {
             break;
@@ -458,6 +553,80 @@ mod tests {
             assert!((pt_ape[i] - direct[i]).abs() < 1e-12, "row {i}");
         }
         assert!(h.level_rows().len() >= 3, "{:?}", h.level_rows());
+    }
+
+    /// The products run in tasks of rows; however the rows are split, the product is the same,
+    /// and it is A B (checked column by column against the matrix-vector product).
+    #[test]
+    fn products_in_tasks_are_one_threads() {
+        let a = grid(23);
+        let h = Hierarchy::build(&a).expect("a hierarchy");
+        let p = &h.levels[0].p;
+        let cols = h.level_rows()[1];
+        let whole = multiply_in_tasks(&a, p, cols, a.rows);
+        for chunk in [1, 7, 64, 500] {
+            assert_eq!(
+                multiply_in_tasks(&a, p, cols, chunk),
+                whole,
+                "{chunk} rows a task"
+            );
+        }
+        for k in [0, 5, cols - 1] {
+            let e: Vec<f64> = (0..cols).map(|i| f64::from(i == k)).collect();
+            let (direct, two) = (whole.mul(&e), a.mul(&p.mul(&e)));
+            for (x, y) in direct.iter().zip(&two) {
+                assert!((x - y).abs() < 1e-12, "column {k}: {x} against {y}");
+            }
+        }
+    }
+
+    /// The transpose by counting equals the one `Csr::from_triplets` forms, and transposing twice
+    /// gives the matrix back.
+    #[test]
+    fn transpose_is_the_triplets_one() {
+        let h = Hierarchy::build(&grid(23)).expect("a hierarchy");
+        let p = &h.levels[0].p;
+        let cols = h.level_rows()[1];
+        let t = (0..p.rows)
+            .flat_map(|r| p.row(r).map(move |(c, v)| (c as u32, r as u32, v)))
+            .collect();
+        let r = transpose(p, cols);
+        assert_eq!(r, Csr::from_triplets(cols, t));
+        assert_eq!(transpose(&r, p.rows), *p);
+    }
+
+    /// The prolongator's merge of P₀ into −ω D⁻¹ A P₀ forms what the triplets of both would sum
+    /// to, entry for entry (the tentative value first where both have a column).
+    #[test]
+    fn prolongator_is_the_triplets_sum() {
+        let a = grid(23);
+        let d = a.diagonal();
+        let (agg, count) = aggregate(&a, 1);
+        let omega = 4.0 / (3.0 * spectral_radius(&a, &d));
+        let p = prolongator(&a, &d, omega, &agg, count, 1);
+        let mut size = vec![0usize; count];
+        for &k in &agg {
+            size[k as usize] += 1;
+        }
+        let tentative = Csr::from_triplets(
+            a.rows,
+            (0..a.rows)
+                .map(|r| {
+                    let k = agg[r] as usize;
+                    (r as u32, k as u32, 1.0 / (size[k] as f64).sqrt())
+                })
+                .collect(),
+        );
+        let ap = multiply(&a, &tentative, count);
+        let mut t = Vec::new();
+        for (r, &dr) in d.iter().enumerate() {
+            t.extend(tentative.row(r).map(|(c, v)| (r as u32, c as u32, v)));
+            t.extend(
+                ap.row(r)
+                    .map(|(c, v)| (r as u32, c as u32, -(omega / dr) * v)),
+            );
+        }
+        assert_eq!(p, Csr::from_triplets(a.rows, t));
     }
 
     #[test]

@@ -103,6 +103,49 @@ pub(crate) struct ComplexLayout {
     pub systems: Vec<[u32; 3]>,
 }
 
+/// One level's transfers placed in the index space: P's rows are the level's (from `fine`), its
+/// columns the next level's (from `coarse`); R = Pᵀ the other way.
+struct Transfer<'h> {
+    fine: usize,
+    coarse: usize,
+    p: &'h Csr,
+    r: &'h Csr,
+}
+
+/// The CSR of `2 total` rows: every level's prolongator rows at its own rows, its restriction's
+/// at `total` + the next level's rows, columns shifted to where they live; empty rows elsewhere.
+/// Rows are copied whole (each row of the index space has at most one source, its columns stay
+/// sorted under the shift).
+fn transfer_rows(total: usize, transfers: &[Transfer]) -> Csr {
+    let mut source: Vec<Option<(&Csr, usize, usize)>> = vec![None; 2 * total];
+    for t in transfers {
+        for i in 0..t.p.rows {
+            source[t.fine + i] = Some((t.p, i, t.coarse));
+        }
+        for j in 0..t.r.rows {
+            source[total + t.coarse + j] = Some((t.r, j, t.fine));
+        }
+    }
+    let nnz = transfers.iter().map(|t| t.p.nnz() + t.r.nnz()).sum();
+    let mut out = Csr {
+        rows: 2 * total,
+        row_ptr: Vec::with_capacity(2 * total + 1),
+        cols: Vec::with_capacity(nnz),
+        vals: Vec::with_capacity(nnz),
+    };
+    out.row_ptr.push(0);
+    for s in source {
+        if let Some((m, i, shift)) = s {
+            for (c, v) in m.row(i) {
+                out.cols.push((shift + c) as u32);
+                out.vals.push(v);
+            }
+        }
+        out.row_ptr.push(out.cols.len() as u32);
+    }
+    out
+}
+
 impl AmgBatch {
     /// The layout of the hierarchies `hs` (one per system, `(row0, n)` of the block-diagonal
     /// `a`) whose iteration stays within `max_steps` loop steps per invocation of a `wg`-wide
@@ -135,30 +178,28 @@ impl AmgBatch {
             total: a.rows,
             systems: Vec::new(),
         };
-        let (mut p_t, mut r_t) = (Vec::new(), Vec::new());
+        // Per level of every hierarchy: (its first row, the next level's first row, P, R).
+        let mut transfers = Vec::new();
         for (&(row0, n), h) in systems.iter().zip(&hierarchies) {
             let Some((h, steps)) = h else {
                 out.systems.push(None);
                 continue;
             };
-            let placed = out.lay_out(h, row0, n, *steps, &mut p_t, &mut r_t);
+            let placed = out.lay_out(h, row0, n, *steps, &mut transfers);
             out.systems.push(Some(placed));
         }
-        let total = out.total as u32;
-        p_t.extend(r_t.into_iter().map(|(r, c, v)| (r + total, c, v)));
-        out.pr = Csr::from_triplets(2 * out.total, p_t);
+        out.pr = transfer_rows(out.total, &transfers);
         Some(out)
     }
 
     /// Appends one system's coarse levels to the index space; returns where they are.
-    fn lay_out(
+    fn lay_out<'h>(
         &mut self,
-        h: &Hierarchy,
+        h: &'h Hierarchy,
         row0: usize,
         n: usize,
         [steps, steps_real]: [usize; 2],
-        p_t: &mut Vec<(u32, u32, f64)>,
-        r_t: &mut Vec<(u32, u32, f64)>,
+        transfers: &mut Vec<Transfer<'h>>,
     ) -> AmgSystem {
         let lvl0 = self.levels.len() as u32;
         let mut bases = vec![row0];
@@ -192,19 +233,12 @@ impl AmgBatch {
             self.a.rows += nl;
         }
         for (l, lv) in h.levels.iter().enumerate() {
-            let (fine, coarse) = (bases[l] as u32, bases[l + 1] as u32);
-            for i in 0..lv.p.rows {
-                p_t.extend(
-                    lv.p.row(i)
-                        .map(|(c, v)| (fine + i as u32, coarse + c as u32, v)),
-                );
-            }
-            for j in 0..lv.r.rows {
-                r_t.extend(
-                    lv.r.row(j)
-                        .map(|(c, v)| (coarse + j as u32, fine + c as u32, v)),
-                );
-            }
+            transfers.push(Transfer {
+                fine: bases[l],
+                coarse: bases[l + 1],
+                p: &lv.p,
+                r: &lv.r,
+            });
         }
         let cinv0 = self.cinv.len() as u32;
         self.cinv.extend(h.coarse_inverse.iter().map(|&v| v as f32));
@@ -248,5 +282,66 @@ impl AmgBatch {
             cinv,
             systems,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The 5-point Laplacian of a k × k grid plus a small shift (SPD).
+    fn grid(k: usize) -> Csr {
+        let mut t = Vec::new();
+        let id = |x: usize, y: usize| (y * k + x) as u32;
+        for y in 0..k {
+            for x in 0..k {
+                t.push((id(x, y), id(x, y), 4.0 + 1e-3));
+                for (dx, dy) in [(1i32, 0i32), (-1, 0), (0, 1), (0, -1)] {
+                    let (nx, ny) = (x as i32 + dx, y as i32 + dy);
+                    if nx >= 0 && ny >= 0 && (nx as usize) < k && (ny as usize) < k {
+                        t.push((id(x, y), id(nx as usize, ny as usize), -1.0));
+                    }
+                }
+            }
+        }
+        Csr::from_triplets(k * k, t)
+    }
+
+    /// The transfers' rows copied in place equal the triplets of every P and R entry, shifted to
+    /// their rows and columns in the index space and summed by `Csr::from_triplets`: a batch of
+    /// three systems, the middle one too small for a hierarchy.
+    #[test]
+    fn transfer_rows_are_the_triplets_ones() {
+        let (g1, g2, g3) = (grid(60), grid(5), grid(57));
+        let (a, row0) = Csr::block_diagonal(&[&g1, &g2, &g3]);
+        let systems: Vec<(usize, usize)> = row0
+            .iter()
+            .zip([g1.rows, g2.rows, g3.rows])
+            .map(|(&r, n)| (r, n))
+            .collect();
+        let hs = hierarchies(&a, &systems, |_| true);
+        assert!(hs[0].is_some() && hs[1].is_none() && hs[2].is_some());
+        let jacobi = vec![1.0; a.rows];
+        let batch = AmgBatch::build(&a, &systems, hs.clone(), (64, usize::MAX, 1), jacobi)
+            .expect("a layout");
+        let mut t = Vec::new();
+        for (s, h) in batch.systems.iter().zip(&hs) {
+            let (Some(s), Some(h)) = (s, h) else { continue };
+            for (l, lv) in h.levels.iter().enumerate() {
+                let lvl = s.lvl0 as usize + l;
+                let (fine, coarse) = (batch.levels[lvl][0], batch.levels[lvl + 1][0]);
+                for i in 0..lv.p.rows {
+                    t.extend(
+                        lv.p.row(i)
+                            .map(|(c, v)| (fine + i as u32, coarse + c as u32, v)),
+                    );
+                }
+                for j in 0..lv.r.rows {
+                    let row = batch.total as u32 + coarse + j as u32;
+                    t.extend(lv.r.row(j).map(|(c, v)| (row, fine + c as u32, v)));
+                }
+            }
+        }
+        assert_eq!(batch.pr, Csr::from_triplets(2 * batch.total, t));
     }
 }
