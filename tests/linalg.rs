@@ -356,8 +356,9 @@ fn complex_blocks_are_found_only_where_they_exist() {
 }
 
 /// Random block patterns (rows of 0-6 blocks at random block columns, some with b = 0 and both
-/// of its entries left out, some rows empty) come back from their real form unchanged: the real
-/// rows of a block row are walked side by side, whatever columns each holds.
+/// of its entries left out, some rows empty, some block columns held by only one of the two
+/// real rows, as an explicit zero) come back from their real form unchanged: the real rows of a
+/// block row are walked side by side, whatever columns each holds.
 #[test]
 fn complex_blocks_round_trip_through_the_real_form() {
     let mut rng = Lcg(11);
@@ -381,6 +382,14 @@ fn complex_blocks_round_trip_through_the_real_form() {
                 t.extend([(r, c + 1, -b), (r + 1, c, b)]);
             }
             row.push((j, a, b));
+        }
+        // Now and then an explicit zero in one of the two real rows only: a block column that
+        // the other row lacks (a zero block).
+        if rng.next() < 0.4 {
+            let k = (rng.next() * n as f64) as u32;
+            let r = 2 * i as u32 + u32::from(rng.next() < 0.5);
+            t.push((r, 2 * k + u32::from(rng.next() < 0.5), 0.0));
+            row.push((k, 0.0, 0.0));
         }
     }
     let m = Csr::from_triplets(2 * n, t);

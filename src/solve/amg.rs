@@ -333,7 +333,8 @@ pub fn multiply(a: &Csr, b: &Csr, cols: usize) -> Csr {
 
 /// [`multiply`] with `chunk` rows a task (the tests split small matrices finely).
 fn multiply_in_tasks(a: &Csr, b: &Csr, cols: usize, chunk: usize) -> Csr {
-    let tasks = a.rows.div_ceil(chunk.max(1));
+    let chunk = chunk.max(1);
+    let tasks = a.rows.div_ceil(chunk);
     let parts: Vec<(Vec<u32>, Vec<u32>, Vec<f64>)> = (0..tasks)
         .into_par_iter()
         .map_init(
@@ -596,37 +597,82 @@ mod tests {
     }
 
     /// The prolongator's merge of P₀ into −ω D⁻¹ A P₀ forms what the triplets of both would sum
-    /// to, entry for entry (the tentative value first where both have a column).
+    /// to, entry for entry (the tentative value first where both have a column): on the grid's
+    /// own aggregates, single rows and (u, v) pairs, and on a grid without its stored diagonal
+    /// and with aggregates dealt out at random, where a row's tentative column may come before,
+    /// between or after those of A P₀, or be alone.
     #[test]
     fn prolongator_is_the_triplets_sum() {
+        let check = |a: &Csr, d: &[f64], agg: &[u32], count: usize, block: usize| {
+            let omega = 0.7;
+            let p = prolongator(a, d, omega, agg, count, block);
+            let mut size = vec![0usize; count];
+            for &k in agg {
+                size[k as usize] += 1;
+            }
+            let tentative = Csr::from_triplets(
+                a.rows,
+                (0..a.rows)
+                    .map(|r| {
+                        let k = agg[r / block] as usize;
+                        let col = (k * block + r % block) as u32;
+                        (r as u32, col, 1.0 / (size[k] as f64).sqrt())
+                    })
+                    .collect(),
+            );
+            let ap = multiply(a, &tentative, count * block);
+            let mut t = Vec::new();
+            for (r, &dr) in d.iter().enumerate() {
+                t.extend(tentative.row(r).map(|(c, v)| (r as u32, c as u32, v)));
+                t.extend(
+                    ap.row(r)
+                        .map(|(c, v)| (r as u32, c as u32, -(omega / dr) * v)),
+                );
+            }
+            assert_eq!(p, Csr::from_triplets(a.rows, t), "block {block}");
+        };
         let a = grid(23);
-        let d = a.diagonal();
         let (agg, count) = aggregate(&a, 1);
-        let omega = 4.0 / (3.0 * spectral_radius(&a, &d));
-        let p = prolongator(&a, &d, omega, &agg, count, 1);
-        let mut size = vec![0usize; count];
-        for &k in &agg {
-            size[k as usize] += 1;
-        }
-        let tentative = Csr::from_triplets(
-            a.rows,
+        check(&a, &a.diagonal(), &agg, count, 1);
+        // Each entry v as the 2 × 2 block v I: a vertex's (u, v) rows.
+        let pairs = Csr::from_triplets(
+            2 * a.rows,
             (0..a.rows)
-                .map(|r| {
-                    let k = agg[r] as usize;
-                    (r as u32, k as u32, 1.0 / (size[k] as f64).sqrt())
+                .flat_map(|r| a.row(r).map(move |(c, v)| (r, c, v)))
+                .flat_map(|(r, c, v)| {
+                    let (r, c) = (2 * r as u32, 2 * c as u32);
+                    [(r, c, v), (r + 1, c + 1, v)]
                 })
                 .collect(),
         );
-        let ap = multiply(&a, &tentative, count);
-        let mut t = Vec::new();
-        for (r, &dr) in d.iter().enumerate() {
-            t.extend(tentative.row(r).map(|(c, v)| (r as u32, c as u32, v)));
-            t.extend(
-                ap.row(r)
-                    .map(|(c, v)| (r as u32, c as u32, -(omega / dr) * v)),
-            );
+        let (agg, count) = aggregate(&pairs, 2);
+        check(&pairs, &pairs.diagonal(), &agg, count, 2);
+        let g = grid(12);
+        let off = Csr::from_triplets(
+            g.rows,
+            (0..g.rows)
+                .flat_map(|r| g.row(r).map(move |(c, v)| (r as u32, c as u32, v)))
+                .filter(|&(r, c, _)| r != c)
+                .collect(),
+        );
+        let count = 17;
+        let agg: Vec<u32> = (0..off.rows)
+            .map(|r| ((r * 7 + r / 5) % count) as u32)
+            .collect();
+        let mut seen = [false; 3];
+        for r in 0..off.rows {
+            let cols: Vec<usize> = off.row(r).map(|(c, _)| agg[c] as usize).collect();
+            let own = agg[r] as usize;
+            let (lo, hi) = (cols.iter().min(), cols.iter().max());
+            seen[0] |= lo.is_some_and(|&m| own < m);
+            seen[1] |= lo.is_some_and(|&m| own > m) && hi.is_some_and(|&m| own < m);
+            seen[2] |= hi.is_some_and(|&m| own > m);
         }
-        assert_eq!(p, Csr::from_triplets(a.rows, t));
+        assert_eq!(
+            seen, [true; 3],
+            "the random aggregates cover every place of the merge"
+        );
+        check(&off, &vec![4.0; off.rows], &agg, count, 1);
     }
 
     #[test]
