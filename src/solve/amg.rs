@@ -518,11 +518,12 @@ fn dense_inverse(a: &Csr) -> Option<Vec<f64>> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    /// The 5-point Laplacian of a k × k grid plus a small shift (SPD).
-    fn grid(k: usize) -> Csr {
+    /// The 5-point Laplacian of a k × k grid plus a small shift (SPD); also the layout's tests'
+    /// (`solve::gpu_amg`).
+    pub(crate) fn grid(k: usize) -> Csr {
         let mut t = Vec::new();
         let id = |x: usize, y: usize| (y * k + x) as u32;
         for y in 0..k {

@@ -288,24 +288,7 @@ impl AmgBatch {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The 5-point Laplacian of a k × k grid plus a small shift (SPD).
-    fn grid(k: usize) -> Csr {
-        let mut t = Vec::new();
-        let id = |x: usize, y: usize| (y * k + x) as u32;
-        for y in 0..k {
-            for x in 0..k {
-                t.push((id(x, y), id(x, y), 4.0 + 1e-3));
-                for (dx, dy) in [(1i32, 0i32), (-1, 0), (0, 1), (0, -1)] {
-                    let (nx, ny) = (x as i32 + dx, y as i32 + dy);
-                    if nx >= 0 && ny >= 0 && (nx as usize) < k && (ny as usize) < k {
-                        t.push((id(x, y), id(nx as usize, ny as usize), -1.0));
-                    }
-                }
-            }
-        }
-        Csr::from_triplets(k * k, t)
-    }
+    use crate::solve::amg::tests::grid;
 
     /// The transfers' rows copied in place equal the triplets of every P and R entry, shifted to
     /// their rows and columns in the index space and summed by `Csr::from_triplets`: a batch of
