@@ -2,7 +2,8 @@
 //! Criterion benchmarks of the GPU linear algebra on the bundled Spot: SpMV on its Laplacian (one
 //! submission, 20 products), one LSCM chart of about 1k vertices solved by the GPU CG and by the f64
 //! CPU twin, a larger chart with the multigrid V-cycle against Jacobi (GPU and twin; the twin's
-//! V-cycle time includes its set-up), and 64 small charts batched versus one solve each. `decalbake bench --linalg` gives the
+//! V-cycle time includes its set-up; the set-up and the complex-block check also alone), and 64
+//! small charts batched versus one solve each. `decalbake bench --linalg` gives the
 //! larger sizes, bandwidth ratios and the libigl comparison.
 //!
 //! Run: `cargo bench --bench linalg` (set `WGPU_BACKEND=vulkan` for lavapipe).
@@ -81,6 +82,15 @@ fn linalg(c: &mut Criterion) {
             let mut x = big_x0.clone();
             decalbake::solve::cg::pcg_with(m, r, &mut x, FINAL_RTOL as f64, budget, &jacobi)
         })
+    });
+
+    // The V-cycle's hierarchy alone (part of both V-cycle solves above), and the complex-block
+    // check the GPU path runs on the chart before it.
+    group.bench_function(format!("lscm_chart_{rows}_amg_setup"), |b| {
+        b.iter(|| decalbake::solve::amg::Hierarchy::build(m).expect("a hierarchy"))
+    });
+    group.bench_function(format!("lscm_chart_{rows}_complex_check"), |b| {
+        b.iter(|| decalbake::solve::sparse::ComplexCsr::from_real(m).expect("complex blocks"))
     });
 
     let systems: Vec<_> = (0..64)

@@ -172,41 +172,26 @@ fn sweep(lv: &Level, b: &[f64], x: &mut [f64]) {
     }
 }
 
-/// The strongly connected neighbour nodes of each node (nodes of `block` rows).
+/// The strongly connected neighbour nodes of each node (nodes of `block` rows). Nodes run in
+/// tasks of [`ROWS_PER_TASK`] on every core; each node's sums keep their order.
 fn strong_graph(a: &Csr, block: usize) -> Vec<Vec<u32>> {
     let nodes = a.rows / block;
-    let mut acc = vec![0.0f64; nodes];
-    let mut touched: Vec<usize> = Vec::new();
-    let mut sums: Vec<Vec<(u32, f64)>> = Vec::with_capacity(nodes);
-    let mut diag = vec![0.0f64; nodes];
-    #[allow(
-        clippy::needless_range_loop,
-        reason = "i is a node, its rows are i·block .."
-    )]
-    for i in 0..nodes {
-        for r in i * block..(i + 1) * block {
-            for (c, v) in a.row(r) {
-                let j = c / block;
-                if acc[j] == 0.0 {
-                    touched.push(j);
-                }
-                acc[j] += v.abs().max(f64::MIN_POSITIVE);
-            }
-        }
-        touched.sort_unstable();
-        let mut row = Vec::with_capacity(touched.len());
-        for &j in &touched {
-            if j == i {
-                diag[i] = acc[j];
-            } else {
-                row.push((j as u32, acc[j]));
-            }
-            acc[j] = 0.0;
-        }
-        touched.clear();
-        sums.push(row);
-    }
-    sums.iter()
+    let tasks = nodes.div_ceil(ROWS_PER_TASK);
+    // Per node: its block sums with its neighbour nodes, and with itself.
+    let parts: Vec<Vec<(Vec<(u32, f64)>, f64)>> = (0..tasks)
+        .into_par_iter()
+        .map_init(
+            || (vec![0.0f64; nodes], Vec::new()),
+            |(acc, touched), t| {
+                let range = t * ROWS_PER_TASK..((t + 1) * ROWS_PER_TASK).min(nodes);
+                range
+                    .map(|i| node_sums(a, block, i, acc, touched))
+                    .collect()
+            },
+        )
+        .collect();
+    let (sums, diag): (Vec<Vec<(u32, f64)>>, Vec<f64>) = parts.into_iter().flatten().unzip();
+    sums.par_iter()
         .enumerate()
         .map(|(i, row)| {
             row.iter()
@@ -215,6 +200,40 @@ fn strong_graph(a: &Csr, block: usize) -> Vec<Vec<u32>> {
                 .collect()
         })
         .collect()
+}
+
+/// Node `i`'s sums of |a| over its block with each node its rows reach (each entry at least
+/// the smallest positive f64), its own apart; `acc` (zero on entry and on return, one slot a
+/// node) and `touched` (empty) are scratch.
+fn node_sums(
+    a: &Csr,
+    block: usize,
+    i: usize,
+    acc: &mut [f64],
+    touched: &mut Vec<usize>,
+) -> (Vec<(u32, f64)>, f64) {
+    for r in i * block..(i + 1) * block {
+        for (c, v) in a.row(r) {
+            let j = c / block;
+            if acc[j] == 0.0 {
+                touched.push(j);
+            }
+            acc[j] += v.abs().max(f64::MIN_POSITIVE);
+        }
+    }
+    touched.sort_unstable();
+    let mut row = Vec::with_capacity(touched.len());
+    let mut diag = 0.0;
+    for &j in touched.iter() {
+        if j == i {
+            diag = acc[j];
+        } else {
+            row.push((j as u32, acc[j]));
+        }
+        acc[j] = 0.0;
+    }
+    touched.clear();
+    (row, diag)
 }
 
 /// Greedy aggregation (Vaněk et al.'s three passes): a node whose strong neighbours are all free
