@@ -178,7 +178,7 @@ fn strong_graph(a: &Csr, block: usize) -> Vec<Vec<u32>> {
     let nodes = a.rows / block;
     let tasks = nodes.div_ceil(ROWS_PER_TASK);
     // Per node: its block sums with its neighbour nodes, and with itself.
-    let parts: Vec<Vec<(Vec<(u32, f64)>, f64)>> = (0..tasks)
+    let parts: Vec<Vec<NodeSums>> = (0..tasks)
         .into_par_iter()
         .map_init(
             || (vec![0.0f64; nodes], Vec::new()),
@@ -202,6 +202,9 @@ fn strong_graph(a: &Csr, block: usize) -> Vec<Vec<u32>> {
         .collect()
 }
 
+/// A node's block sums with its neighbour nodes (node, sum), and with itself.
+type NodeSums = (Vec<(u32, f64)>, f64);
+
 /// Node `i`'s sums of |a| over its block with each node its rows reach (each entry at least
 /// the smallest positive f64), its own apart; `acc` (zero on entry and on return, one slot a
 /// node) and `touched` (empty) are scratch.
@@ -211,7 +214,7 @@ fn node_sums(
     i: usize,
     acc: &mut [f64],
     touched: &mut Vec<usize>,
-) -> (Vec<(u32, f64)>, f64) {
+) -> NodeSums {
     for r in i * block..(i + 1) * block {
         for (c, v) in a.row(r) {
             let j = c / block;
