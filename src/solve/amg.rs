@@ -20,8 +20,9 @@
 //! an aggregate and the coarse matrices keep that structure; single rows otherwise.
 //!
 //! The set-up's cost: on a GPU a large chart's solve waits for it (a 100k-vertex chart: 451 ms
-//! of 1.0 s on an H200's host, README "On a real GPU"). Its sparse products and the power
-//! iteration's products run on every core (rayon, rows in tasks), the transpose is a counting
+//! of 1.0 s on an H200's host, README "On a real GPU"). Its sparse products, the power
+//! iteration's products and the strong-connection graph run on every core (rayon, rows or nodes
+//! in tasks), the transpose is a counting
 //! sort and the prolongator a merge of sorted rows, not triplets sorted again; each row's sums
 //! keep their order, so the hierarchy is the same bit for bit as one thread's (the tests below
 //! compare the parts with the triplet forms they replaced).
