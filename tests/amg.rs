@@ -114,6 +114,7 @@ fn mesh(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>, name: &str) -> Mesh {
         material: None,
         blend: Vec::new(),
         bridge: Vec::new(),
+        ..Default::default()
     }
 }
 

@@ -109,6 +109,7 @@ fn cube_on_corner(n: u32) -> Mesh {
         material: None,
         blend: Vec::new(),
         bridge: Vec::new(),
+        ..Default::default()
     }
 }
 
@@ -142,6 +143,7 @@ fn torus(big: f32, small: f32, m: u32, n: u32) -> Mesh {
         material: None,
         blend: Vec::new(),
         bridge: Vec::new(),
+        ..Default::default()
     }
 }
 

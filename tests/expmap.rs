@@ -693,6 +693,7 @@ fn cone_maps_converge_to_the_unrolling() {
             material: None,
             blend: Vec::new(),
             bridge: Vec::new(),
+            ..Default::default()
         };
         let mesh = engine.prepare(mesh).unwrap();
         let topo = &mesh.topo;
@@ -907,6 +908,7 @@ fn maps_go_around_holes_and_stay_on_their_component() {
         material: None,
         blend: Vec::new(),
         bridge: Vec::new(),
+        ..Default::default()
     };
     let engine = engine();
     let mesh = engine.prepare(mesh).unwrap();

@@ -106,6 +106,7 @@ fn planar_patch_is_reproduced() {
         material: None,
         blend: Vec::new(),
         bridge: Vec::new(),
+        ..Default::default()
     };
     let engine = engine();
     let loaded = engine.prepare(mesh).unwrap();

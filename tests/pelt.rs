@@ -42,6 +42,7 @@ fn hemisphere(rings: u32, segments: u32) -> Mesh {
         material: None,
         blend: Vec::new(),
         bridge: Vec::new(),
+        ..Default::default()
     }
 }
 
@@ -420,7 +421,8 @@ fn closed_models_become_disks() {
         topo.fill_normals(&mut filled);
         let out = pelt::apply(&filled, &un, mesh.uv_sets.len());
         let glb = common::scratch(&format!("closed-{genus}")).join(file);
-        std::fs::write(&glb, decalbake::output::glb::build_glb(&out, None, 0)).unwrap();
+        let written = decalbake::output::gltf::write_model(&out, None, &glb).unwrap();
+        std::fs::write(&glb, &written.files[0].1).unwrap();
         validate(&glb);
         let q = &un.report.quality;
         eprintln!("{file}: {} pelts, {q:?}", un.cut.pieces.len());
@@ -1321,6 +1323,7 @@ fn grid_wh(w: u32, h: u32) -> Mesh {
         material: None,
         blend: Vec::new(),
         bridge: Vec::new(),
+        ..Default::default()
     }
 }
 
@@ -1371,6 +1374,7 @@ fn parts(list: &[(Vec<Vec3>, Vec<[u32; 3]>)]) -> Mesh {
         material: None,
         blend: Vec::new(),
         bridge: Vec::new(),
+        ..Default::default()
     }
 }
 

@@ -42,6 +42,7 @@ fn plane(n: u32) -> Mesh {
         material: None,
         blend: Vec::new(),
         bridge: Vec::new(),
+        ..Default::default()
     }
 }
 

@@ -86,3 +86,27 @@ pub fn check_job(
     }
     Ok(())
 }
+
+/// A warning for each primitive without the baked UV set: its triangles cover no texel of it
+/// (the loader gives it (0, 0)), so decals flow across it on the surface but leave no paint.
+pub fn unpainted(mesh: &LoadedMesh, job: &Job) -> Vec<String> {
+    let set = job.uv_set as usize;
+    if mesh.mesh.new_uv_sets.contains(&set) {
+        return Vec::new();
+    }
+    let bare: Vec<&str> = mesh
+        .mesh
+        .primitives
+        .iter()
+        .filter(|p| p.uv_sets as usize <= set)
+        .map(|p| p.name.as_str())
+        .collect();
+    if bare.is_empty() {
+        return Vec::new();
+    }
+    vec![format!(
+        "{}: {} without TEXCOORD_{set}: left unpainted (decals still flow across on the surface); give every part UVs in your modelling tool to paint it",
+        mesh.mesh.source.display(),
+        bare.join(", "),
+    )]
+}

@@ -108,7 +108,7 @@ pub(crate) fn run_in(
             upload_ms: mesh.timings.2,
             ..Default::default()
         },
-        warnings: Vec::new(),
+        warnings: check::unpainted(mesh, job),
         commands: 0,
     };
     let cx = Cx { engine, mesh, job };

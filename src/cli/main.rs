@@ -621,8 +621,10 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
     for p in m.positions.iter_mut().chain(m.normals.iter_mut()) {
         *p = glam::Vec3::new(p.x, -p.z, p.y);
     }
-    let glb = decalbake::output::glb::build_glb(&m, None, 0);
-    decalbake::io::image::write_atomic(&sheet, &glb)?;
+    // Turned in memory: a model of its own, not the bundled document.
+    m.document = None;
+    let written = decalbake::output::gltf::write_model(&m, None, &sheet)?;
+    decalbake::io::image::write_atomic(&sheet, &written.files[0].1)?;
     let args = unwrap::UnwrapArgs {
         mesh: sheet,
         out: out.join("unwrapped.glb"),

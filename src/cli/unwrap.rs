@@ -228,17 +228,12 @@ fn run_on(
             args.out.display()
         );
     }
-    let png = mesh.material.as_ref().and_then(|m| {
-        m.base_color_texture
-            .as_ref()
-            .map(|t| (t.encode_png(8), m.base_color_uv_set))
-    });
-    let glb = decalbake::output::glb::build_glb(
-        &out_mesh,
-        png.as_ref().map(|p| p.0.as_slice()),
-        png.as_ref().map_or(0, |p| p.1),
-    );
-    decalbake::io::image::write_atomic(&args.out, &glb)?;
+    // The model as it came in, with the new sets (its own images, unchanged).
+    let written = decalbake::output::gltf::write_model(&out_mesh, None, &args.out)?;
+    decalbake::output::write_files(&written.files)?;
+    for w in &written.warnings {
+        eprintln!("warning: {}: {w}", args.out.display());
+    }
     let q = &un.report.quality;
     eprintln!(
         "{}: TEXCOORD_{set} from {} pelts ({} splits), {}, angle distortion mean {:.3} p95 {:.3}, {} flipped, {} overlaps, {:.0} % of the texture used, {:.0} ms",
@@ -391,13 +386,14 @@ fn preview(engine: &Engine, mesh: Mesh, set: usize, path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// The output must be a binary glTF.
+/// The output must be a glTF: a `.glb`, or a `.gltf` (with its `.bin` and images beside it).
 fn check_out(args: &UnwrapArgs) -> Result<()> {
-    if args.out.extension().and_then(|e| e.to_str()) != Some("glb") {
+    let ext = args.out.extension().and_then(|e| e.to_str());
+    if !matches!(ext, Some("glb" | "gltf")) {
         return Err(input(
             &args.out,
             "--out",
-            "the output is a binary glTF: give it a .glb name".into(),
+            "the output is a glTF model: give it a .glb name (or .gltf for JSON with a .bin and image files beside it)".into(),
         ));
     }
     Ok(())

@@ -59,8 +59,68 @@ pub(crate) fn parse(bytes: &[u8], name: &Path) -> Result<gltf::Gltf> {
             }
         }
     }
+    let mut root = root;
+    required_extensions(&mut root.extensions_required, name)?;
     let document = gltf::Document::from_json(root).map_err(|e| gltf_err(name, e))?;
     Ok(gltf::Gltf { document, blob })
+}
+
+/// Required extensions that change the geometry and that the loader cannot decode: a model that
+/// requires one is refused with its name.
+const GEOMETRY_EXTENSIONS: &[&str] = &[
+    "KHR_draco_mesh_compression",
+    "EXT_meshopt_compression",
+    "KHR_mesh_quantization",
+    "EXT_mesh_gpu_instancing",
+];
+
+/// Prefixes of extensions that do not change the geometry (materials, textures, lights, metadata):
+/// a required one is kept in the output and otherwise ignored.
+const HARMLESS_PREFIXES: &[&str] = &[
+    "KHR_materials_",
+    "KHR_texture_",
+    "EXT_texture_",
+    "MSFT_texture_",
+    "KHR_lights_",
+    "EXT_lights_",
+    "KHR_xmp",
+    "KHR_animation_pointer",
+    "KHR_audio",
+];
+
+/// Checks `extensionsRequired` (of the typed model the loader reads with; the document the writer
+/// keeps is untouched): one that changes the geometry and one the loader does not know refuse the
+/// model with its name; the rest are cleared, so that the `gltf` crate's validation, which refuses
+/// every extension it does not implement, reads the geometry as the extensions leave it.
+fn required_extensions(required: &mut Vec<String>, name: &Path) -> Result<()> {
+    for ext in required.iter() {
+        if GEOMETRY_EXTENSIONS.contains(&ext.as_str()) {
+            return Err(gltf_err(
+                name,
+                format!("extensionsRequired names {ext}, which changes how the geometry is stored, and decalbake cannot decode it; write an uncompressed copy first (for example `gltf-transform copy IN OUT` from npm's @gltf-transform/cli)"),
+            ));
+        }
+        if !HARMLESS_PREFIXES.iter().any(|p| ext.starts_with(p)) {
+            return Err(gltf_err(
+                name,
+                format!("extensionsRequired names {ext}, which decalbake does not know, so it cannot tell whether the geometry it reads is the model's; write a copy without it"),
+            ));
+        }
+    }
+    required.clear();
+    Ok(())
+}
+
+/// The document's JSON (a `.glb`'s JSON chunk) as it is, for the writer to keep.
+pub(crate) fn raw_json(bytes: &[u8], name: &Path) -> Result<serde_json::Value> {
+    let json: std::borrow::Cow<[u8]> = if bytes.starts_with(b"glTF") {
+        gltf::binary::Glb::from_slice(bytes)
+            .map_err(|e| gltf_err(name, e))?
+            .json
+    } else {
+        bytes.into()
+    };
+    serde_json::from_slice(&json).map_err(|e| gltf_err(name, e))
 }
 
 /// Buffer and image URIs the `gltf` crate can resolve without panicking (it unwraps their

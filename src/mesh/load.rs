@@ -8,6 +8,7 @@
 //! rasterization needs; [`crate::mesh::Topology`] welds them for the surface.
 
 use super::checks::{self, gltf_err};
+use super::document::SourceDocument;
 use crate::error::{Error, Result};
 use crate::io::image::LinearImage;
 use glam::{Mat3, Mat4, Vec2, Vec3};
@@ -15,10 +16,25 @@ use gltf::accessor::{DataType, Dimensions};
 use std::path::{Path, PathBuf};
 
 /// One glTF primitive as it appears in the scene.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, Default, serde::Serialize)]
 pub struct PrimitiveInfo {
     /// `mesh[i].primitives[j]` in the source file.
     pub name: String,
+    /// `i` of `meshes[i].primitives[j]`.
+    #[serde(skip)]
+    pub mesh_index: usize,
+    /// `j` of `meshes[i].primitives[j]`.
+    #[serde(skip)]
+    pub primitive_index: usize,
+    /// The node that draws this instance.
+    #[serde(skip)]
+    pub node: usize,
+    /// The primitive's vertex 0 in [`Mesh::positions`] as loaded (its vertices follow in order).
+    #[serde(skip)]
+    pub first_vertex: u32,
+    /// Whether the node's transform mirrors it (its triangles' winding was turned on loading).
+    #[serde(skip)]
+    pub flipped: bool,
     /// First triangle of this primitive in [`Mesh::triangles`].
     pub first_triangle: u32,
     /// Triangle count.
@@ -36,6 +52,8 @@ pub struct PrimitiveInfo {
 /// Material data the baker uses.
 #[derive(Debug, Clone)]
 pub struct MaterialInfo {
+    /// Its index in the document's `materials`.
+    pub index: usize,
     /// `baseColorFactor`, linear RGBA.
     pub base_color_factor: [f32; 4],
     /// The base-colour texture decoded to linear RGBA, if the material has one.
@@ -49,7 +67,7 @@ pub struct MaterialInfo {
 }
 
 /// A triangle mesh as loaded: split (per-UV-seam) vertices with world-space attributes.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct Mesh {
     /// Where it came from (for error messages).
     pub source: PathBuf,
@@ -57,7 +75,9 @@ pub struct Mesh {
     pub positions: Vec<Vec3>,
     /// World-space unit normals, one per split vertex.
     pub normals: Vec<Vec3>,
-    /// `uv_sets[n][v]` is `TEXCOORD_n` of split vertex `v`. Only sets present on every primitive.
+    /// `uv_sets[n][v]` is `TEXCOORD_n` of split vertex `v`: every set some primitive has. A
+    /// primitive without set `n` has (0, 0) at every vertex, so its triangles cover no texel of
+    /// that set (`PrimitiveInfo::uv_sets` says which sets it has).
     pub uv_sets: Vec<Vec<Vec2>>,
     /// Triangles as split vertex indices, counter-clockwise seen from outside.
     pub triangles: Vec<[u32; 3]>,
@@ -73,6 +93,15 @@ pub struct Mesh {
     /// cycles (`crate::pelt::bridge`; the patch's weight is then 1 − blend − bridge); empty
     /// otherwise.
     pub bridge: Vec<f32>,
+    /// The glTF document it was loaded from (`None` for a mesh made in code), which the writer
+    /// gives back with the bake's changes (`crate::output::gltf`).
+    pub document: Option<std::sync::Arc<SourceDocument>>,
+    /// Each split vertex's vertex as loaded, where the vertices were split or reordered since
+    /// (a new UV set by pelting, `crate::pelt::apply_all`); empty: the vertices are as loaded.
+    pub vertex_origin: Vec<u32>,
+    /// The UV sets made since loading (by pelting), which the writer adds to the document's
+    /// primitives as `TEXCOORD_n` (replacing a set of that number).
+    pub new_uv_sets: Vec<usize>,
 }
 
 /// The primitive's custom attribute `_{attribute}` (one float per vertex: `_PELT_BLEND`,
@@ -132,6 +161,7 @@ impl Mesh {
         let buffers = gltf::import_buffers(&document, base_dir, gltf.blob)
             .map_err(|e| gltf_err(name, format!("loading buffers: {e}")))?;
         checks::views(&document, &buffers, name)?;
+        let json = checks::raw_json(bytes, name)?;
 
         let scene = document
             .default_scene()
@@ -140,14 +170,7 @@ impl Mesh {
 
         let mut mesh = Mesh {
             source: name.to_path_buf(),
-            positions: Vec::new(),
-            normals: Vec::new(),
-            uv_sets: Vec::new(),
-            triangles: Vec::new(),
-            primitives: Vec::new(),
-            material: None,
-            blend: Vec::new(),
-            bridge: Vec::new(),
+            ..Default::default()
         };
         let mut per = PerPrimitive::default();
         let mut stack: Vec<(gltf::Node, Mat4)> =
@@ -173,7 +196,8 @@ impl Mesh {
                     );
                     continue;
                 }
-                mesh.add_primitive(&prim, pname, world, &buffers, &mut per)?;
+                let at = (node.index(), gmesh.index());
+                mesh.add_primitive(&prim, pname, at, world, &buffers, &mut per)?;
             }
         }
         if mesh.triangles.is_empty() {
@@ -183,16 +207,24 @@ impl Mesh {
         if let Some(mi) = per.material {
             mesh.material = Some(load_material(&document, mi, &buffers, name, base_dir)?);
         }
+        mesh.document = Some(std::sync::Arc::new(SourceDocument {
+            json,
+            buffers: buffers.into_iter().map(|d| d.0).collect(),
+            path: name.to_path_buf(),
+            base: base_dir.map(Path::to_path_buf),
+        }));
         Ok(mesh)
     }
 
-    /// Appends primitive `prim` (`pname` in messages) with its node's `world` transform; its UV
+    /// Appends primitive `prim` (`pname` in messages) of `(node, mesh)` with the node's `world`
+    /// transform; its UV
     /// sets, blend weights and material go to `per`. Every accessor is checked
     /// ([`checks::accessor`]) before the `gltf` crate reads it.
     fn add_primitive(
         &mut self,
         prim: &gltf::Primitive,
         pname: String,
+        (node, mesh_index): (usize, usize),
         world: Mat4,
         buffers: &[gltf::buffer::Data],
         per: &mut PerPrimitive,
@@ -316,6 +348,11 @@ impl Mesh {
         }
         self.primitives.push(PrimitiveInfo {
             name: pname,
+            mesh_index,
+            primitive_index: prim.index(),
+            node,
+            first_vertex: base,
+            flipped: flip,
             first_triangle,
             triangles: (indices.len() / 3) as u32,
             vertices: nverts,
@@ -328,22 +365,24 @@ impl Mesh {
     }
 
     /// The per-primitive UV sets, `_PELT_BLEND` and `_PELT_BRIDGE` joined over the whole mesh:
-    /// only UV sets every primitive has can be baked into, and a weight only when every primitive
-    /// has it.
+    /// every set some primitive has (a primitive without it at (0, 0), covering no texel), and a
+    /// weight only when every primitive has it.
     fn join_primitive_attributes(
         &mut self,
         per_prim_uvs: Vec<Vec<Vec<Vec2>>>,
         per_blend: Vec<Option<Vec<f32>>>,
         per_bridge: Vec<Option<Vec<f32>>>,
     ) {
-        let common = per_prim_uvs.iter().map(|s| s.len()).min().unwrap_or(0);
-        for n in 0..common {
-            self.uv_sets.push(
-                per_prim_uvs
-                    .iter()
-                    .flat_map(|s| s[n].iter().copied())
-                    .collect(),
-            );
+        let most = per_prim_uvs.iter().map(|s| s.len()).max().unwrap_or(0);
+        for n in 0..most {
+            let mut set = Vec::with_capacity(self.positions.len());
+            for (p, sets) in self.primitives.iter().zip(&per_prim_uvs) {
+                match sets.get(n) {
+                    Some(uv) => set.extend_from_slice(uv),
+                    None => set.extend(std::iter::repeat_n(Vec2::ZERO, p.vertices as usize)),
+                }
+            }
+            self.uv_sets.push(set);
         }
         if per_blend.iter().all(Option::is_some) {
             self.blend = per_blend.into_iter().flatten().flatten().collect();
@@ -375,6 +414,7 @@ fn load_material(
         .ok_or_else(|| gltf_err(name, format!("material {index} does not exist")))?;
     let pbr = mat.pbr_metallic_roughness();
     let mut info = MaterialInfo {
+        index,
         base_color_factor: pbr.base_color_factor(),
         base_color_texture: None,
         base_color_uv_set: 0,
@@ -441,6 +481,8 @@ impl Mesh {
     pub fn subdivide(&self) -> Mesh {
         use std::collections::HashMap;
         let mut out = self.clone();
+        // New vertices that no document has: the copy is a mesh of its own.
+        (out.document, out.vertex_origin, out.new_uv_sets) = (None, Vec::new(), Vec::new());
         let mut mids: HashMap<(u32, u32), u32> = HashMap::new();
         let mut tris = Vec::with_capacity(self.triangles.len() * 4);
         for t in &self.triangles {

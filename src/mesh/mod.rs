@@ -3,6 +3,7 @@
 //! ([`surface::SurfaceData`]) and the GPU upload ([`upload::GpuMesh`]).
 pub mod bvh;
 mod checks;
+pub mod document;
 pub mod lbvh;
 mod load;
 pub mod surface;
@@ -10,6 +11,7 @@ mod topology;
 pub mod upload;
 
 pub use checks::MAX_ELEMENTS;
+pub use document::SourceDocument;
 pub use load::{MaterialInfo, Mesh, PrimitiveInfo};
 pub use surface::SurfaceData;
 pub use topology::{Topology, DEFAULT_WELD_TOLERANCE, NO_NEIGHBOR};

@@ -5,7 +5,7 @@
 //! and renamed into place. A failure before the renames leaves no output behind.
 
 pub mod extract;
-pub mod glb;
+pub mod gltf;
 pub mod matte;
 pub mod preview;
 
@@ -45,10 +45,14 @@ pub fn write_outputs(
     let mut files: Vec<(PathBuf, Vec<u8>)> = Vec::new();
     let png = baked.to_png();
     if let Some(p) = &job.out_glb {
-        files.push((
-            p.clone(),
-            crate::output::glb::build_glb(&mesh.mesh, Some(&png), job.uv_set),
-        ));
+        let color = gltf::BakedColor {
+            png: &png,
+            uv_set: job.uv_set,
+            from_material: matches!(job.base, crate::io::job::Base::Material),
+        };
+        let written = gltf::write_model(&mesh.mesh, Some(&color), p)?;
+        files.extend(written.files);
+        baked.report.warnings.extend(written.warnings);
     }
     if let Some(p) = &job.out_preview {
         let px = crate::output::preview::render_preview(engine, mesh, baked)?;
@@ -76,7 +80,14 @@ pub fn write_outputs(
         let json = serde_json::to_vec_pretty(&baked.report).expect("the report serializes");
         files.push((p.clone(), json));
     }
-    for (p, _) in &files {
+    write_files(&files)?;
+    Ok(files.into_iter().map(|(p, _)| p).collect())
+}
+
+/// Writes every file: each to a temporary file beside its target, then all renamed into place; a
+/// failure leaves none of them (output directories are made as needed).
+pub fn write_files(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
+    for (p, _) in files {
         if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(|source| Error::Io {
                 path: dir.to_path_buf(),
@@ -87,7 +98,7 @@ pub fn write_outputs(
     }
     // Stage everything, then rename.
     let mut staged = Vec::new();
-    for (p, bytes) in &files {
+    for (p, bytes) in files {
         let tmp = tmp_path(p);
         if let Err(source) = std::fs::write(&tmp, bytes) {
             for (t, _) in &staged {
@@ -119,7 +130,7 @@ pub fn write_outputs(
             });
         }
     }
-    Ok(files.into_iter().map(|(p, _)| p).collect())
+    Ok(())
 }
 
 fn tmp_path(p: &std::path::Path) -> PathBuf {

@@ -747,6 +747,14 @@ pub fn apply_all(mesh: &Mesh, layouts: &[(&Unwrapped, usize)]) -> (Mesh, Vec<u32
         } else {
             out.uv_sets.push(uv);
         }
+        if !out.new_uv_sets.contains(set) {
+            out.new_uv_sets.push(*set);
+        }
     }
+    // Each output vertex's vertex as the document has it, for the writer (`Mesh::vertex_origin`).
+    out.vertex_origin = remap
+        .iter()
+        .map(|&o| mesh.vertex_origin.get(o as usize).copied().unwrap_or(o))
+        .collect();
     (out, remap)
 }

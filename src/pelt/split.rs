@@ -397,6 +397,7 @@ pub fn cut_region_with(
         material: None,
         blend: Vec::new(),
         bridge: Vec::new(),
+        ..Default::default()
     };
     // A tenth of the mesh's welding distance at most (the region is no larger than the mesh): the
     // welded vertices, further apart than that, stay apart.

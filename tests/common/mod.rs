@@ -239,5 +239,7 @@ pub fn cylinder(n: u32, m: u32) -> decalbake::mesh::Mesh {
         material: None,
         blend: Vec::new(),
         bridge: Vec::new(),
+        ..Default::default()
     }
 }
+pub mod rich;

@@ -1,11 +1,21 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // Runs the Khronos glTF-Validator (npm package `gltf-validator`, installed here by .ci/run) on a
-// .glb and prints its issue summary as JSON; exit 1 when it reports errors.
+// .glb or a .gltf (its .bin and images read from beside it) and prints its issue summary as JSON;
+// exit 1 when it reports errors.
 const validator = require('gltf-validator');
 const fs = require('fs');
-const bytes = new Uint8Array(fs.readFileSync(process.argv[2]));
+const path = require('path');
+const file = process.argv[2];
+const bytes = new Uint8Array(fs.readFileSync(file));
 validator
-  .validateBytes(bytes)
+  .validateBytes(bytes, {
+    uri: path.basename(file),
+    externalResourceFunction: (uri) =>
+      new Promise((resolve, reject) => {
+        fs.readFile(path.join(path.dirname(file), decodeURIComponent(uri)), (err, data) =>
+          err ? reject(err.toString()) : resolve(new Uint8Array(data)));
+      }),
+  })
   .then((report) => {
     const i = report.issues;
     console.log(JSON.stringify({

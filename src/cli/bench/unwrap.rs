@@ -103,10 +103,8 @@ pub fn run(engine: &Engine, opts: &UnwrapBenchOptions, emit: impl Fn(String)) ->
                 name.replace(|c: char| !c.is_ascii_alphanumeric(), "_"),
                 std::process::id()
             ));
-            decalbake::io::image::write_atomic(
-                &file,
-                &decalbake::output::glb::build_glb(&mesh, None, 0),
-            )?;
+            let written = decalbake::output::gltf::write_model(&mesh, None, &file)?;
+            decalbake::io::image::write_atomic(&file, &written.files[0].1)?;
             for cmd in ["atlas", "arap", "harmonic"] {
                 let v = run_peers_py(dir, &[cmd.as_ref(), file.as_os_str()])
                     .unwrap_or_else(|e| json!({ "error": e }));

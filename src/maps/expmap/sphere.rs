@@ -84,6 +84,7 @@ pub fn icosphere(f: u32) -> Mesh {
         material: None,
         blend: Vec::new(),
         bridge: Vec::new(),
+        ..Default::default()
     }
 }
 
