@@ -6,6 +6,7 @@
 mod common;
 use common::rich::{
     json_diff, read_accessor, read_model, read_uri, validate, view, write_rich_gltf,
+    write_rich_overlapping,
 };
 use serde_json::{json, Value};
 use std::path::Path;
@@ -60,13 +61,20 @@ fn a_bake_keeps_the_document_and_replaces_the_image_it_baked() {
     let output = read_model(&dir.join("out.glb"));
     let mut diff = Vec::new();
     json_diff(&input.0, &output.0, "", &mut diff);
-    // Images 0 (an external file) and 1 (a data URI) are embedded; image 0 is the bake.
+    // Images 0 (an external file) and 1 (a data URI) are embedded; image 0 is the bake of the
+    // set "painted" (its material's image, replaced in place), image 2 the bake of "glossy"
+    // (untextured: a texture of its own, its factor in the texture).
     let odd = unexpected(
         &diff,
-        &["/buffers/", "/bufferViews/", "/images/0/", "/images/1/"],
+        &[
+            "/buffers/",
+            "/bufferViews/",
+            "/images/",
+            "/textures/2",
+            "/materials/1/pbrMetallicRoughness/",
+        ],
     );
     assert!(odd.is_empty(), "the bake changed {odd:?}");
-    assert!(diff.iter().any(|p| p.starts_with("/images/0/")), "{diff:?}");
     same_accessors(&input, &output);
     let image = |i: usize| {
         let v = output.0["images"][i]["bufferView"].as_u64().unwrap() as usize;
@@ -74,8 +82,8 @@ fn a_bake_keeps_the_document_and_replaces_the_image_it_baked() {
     };
     assert_eq!(
         image(0),
-        std::fs::read(dir.join("baked.png")).unwrap(),
-        "images[0] is the baked texture"
+        std::fs::read(dir.join("baked_painted.png")).unwrap(),
+        "images[0] is the painted set's bake"
     );
     let normal = read_uri(&dir, input.0["images"][1]["uri"].as_str().unwrap());
     assert_eq!(
@@ -83,14 +91,30 @@ fn a_bake_keeps_the_document_and_replaces_the_image_it_baked() {
         normal,
         "images[1] is the source's normal map, embedded"
     );
+    assert_eq!(
+        image(2),
+        std::fs::read(dir.join("baked_glossy.png")).unwrap(),
+        "images[2] is the glossy set's bake"
+    );
+    let pbr = &output.0["materials"][1]["pbrMetallicRoughness"];
+    assert_eq!(
+        output.0["textures"][pbr["baseColorTexture"]["index"].as_u64().unwrap() as usize]["source"],
+        2
+    );
+    assert_eq!(pbr["baseColorFactor"], json!([1.0, 1.0, 1.0, 1.0]));
+    assert_eq!(
+        pbr["roughnessFactor"],
+        input.0["materials"][1]["pbrMetallicRoughness"]["roughnessFactor"]
+    );
+    // The glossy set's base is its factor (0.2, 0.4, 0.8), in sRGB.
+    let glossy = image::open(dir.join("baked_glossy.png"))
+        .unwrap()
+        .to_rgba8();
+    assert_eq!(glossy.get_pixel(120, 8).0, [124, 170, 231, 255]);
     // The report names what the model could not show.
     let report: Value =
         serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap();
     let warnings = report["warnings"].to_string();
-    assert!(
-        warnings.contains("materials[1] (\\\"glossy\\\") keeps its own base colour"),
-        "{warnings}"
-    );
     assert!(
         warnings.contains("meshes[0].primitives[2] without TEXCOORD_0"),
         "{warnings}"
@@ -111,13 +135,27 @@ fn a_gltf_output_has_its_bin_and_image_files() {
     let input = read_model(&src);
     let mut diff = Vec::new();
     json_diff(&input.0, &output.0, "", &mut diff);
-    let odd = unexpected(&diff, &["/buffers/", "/bufferViews/", "/images/0/"]);
+    let odd = unexpected(
+        &diff,
+        &[
+            "/buffers/",
+            "/bufferViews/",
+            "/images/0/",
+            "/images/2",
+            "/textures/2",
+            "/materials/1/pbrMetallicRoughness/",
+        ],
+    );
     assert!(odd.is_empty(), "the bake changed {odd:?}");
     assert_eq!(output.0["buffers"][0]["uri"], "model.bin");
     assert_eq!(output.0["images"][0]["uri"], "model_baked.png");
     assert_eq!(
         std::fs::read(out_dir.join("model_baked.png")).unwrap(),
-        std::fs::read(dir.join("baked.png")).unwrap()
+        std::fs::read(dir.join("baked_painted.png")).unwrap()
+    );
+    assert_eq!(
+        std::fs::read(out_dir.join("model_baked_2.png")).unwrap(),
+        std::fs::read(dir.join("baked_glossy.png")).unwrap()
     );
     assert_eq!(
         output.0["images"][1], input.0["images"][1],
@@ -264,4 +302,172 @@ fn bundled_models_keep_their_document() {
         same_accessors(&input, &output);
         validate(&dir.join(&model));
     }
+}
+
+/// The rich model with its JSON changed by `edit`, written as `name` beside it.
+fn edited(dir: &Path, name: &str, edit: impl FnOnce(&mut Value)) -> std::path::PathBuf {
+    let src = write_rich_gltf(dir);
+    let mut doc: Value = serde_json::from_slice(&std::fs::read(&src).unwrap()).unwrap();
+    edit(&mut doc);
+    let path = dir.join(name);
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    path
+}
+
+#[test]
+fn required_extensions_refuse_only_what_changes_the_geometry() {
+    let dir = common::scratch("document-required");
+    // Harmless ones are kept and ignored.
+    let fine = edited(&dir, "unlit.gltf", |d| {
+        d["extensionsUsed"]
+            .as_array_mut()
+            .unwrap()
+            .push(json!("KHR_materials_unlit"));
+        d["extensionsRequired"]
+            .as_array_mut()
+            .unwrap()
+            .push(json!("KHR_materials_unlit"));
+        d["materials"][2]["extensions"] = json!({"KHR_materials_unlit": {}});
+    });
+    let (code, _, err) = common::cli(&["info", fine.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    // One that changes how the geometry is stored is refused by name, as is one nobody knows.
+    for (ext, needle) in [
+        ("KHR_draco_mesh_compression", "cannot decode it"),
+        ("EXT_unheard_of", "does not know"),
+    ] {
+        let bad = edited(&dir, &format!("{ext}.gltf"), |d| {
+            d["extensionsUsed"].as_array_mut().unwrap().push(json!(ext));
+            d["extensionsRequired"]
+                .as_array_mut()
+                .unwrap()
+                .push(json!(ext));
+        });
+        let (code, _, err) = common::cli(&["info", bad.to_str().unwrap()]);
+        assert_eq!(code, 2, "{ext}: {err}");
+        assert!(err.contains(ext) && err.contains(needle), "{ext}: {err}");
+    }
+}
+
+#[test]
+fn a_texture_transform_is_applied_to_the_base_and_left_out_of_the_bake() {
+    let dir = common::scratch("document-transform");
+    let src = edited(&dir, "shifted.gltf", |d| {
+        d["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["extensions"] =
+            json!({"KHR_texture_transform": {"offset": [0.5, 0.0]}});
+    });
+    // Left half red, right half blue: shifted by half, the base at u = 0.25 is blue.
+    let px: Vec<u16> = (0..4)
+        .flat_map(|x| {
+            if x < 2 {
+                [255, 0, 0, 255]
+            } else {
+                [0, 0, 255, 255]
+            }
+        })
+        .collect();
+    std::fs::write(
+        dir.join("albedo.png"),
+        decalbake::io::image::png_bytes(4, 1, 8, &px),
+    )
+    .unwrap();
+    let (code, _, err) = common::cli(&["bake", job(&dir, &src, "out.glb").to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let baked = image::open(dir.join("baked_painted.png"))
+        .unwrap()
+        .to_rgba8();
+    let at = |u: f32| baked.get_pixel((u * 128.0) as u32, 8).0;
+    assert_eq!(
+        at(0.25),
+        [0, 0, 255, 255],
+        "u = 0.25 shows the image at u = 0.75"
+    );
+    assert_eq!(
+        at(0.75),
+        [255, 0, 0, 255],
+        "u = 0.75 shows the image at u = 0.25 (wrapped)"
+    );
+    // The material takes the bake without the transform; the source image is left as it was.
+    let (out, _) = read_model(&dir.join("out.glb"));
+    let info = &out["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"];
+    assert!(info.get("extensions").is_none(), "{info}");
+    assert_ne!(info["index"], 0, "a texture of its own: {info}");
+    validate(&dir.join("out.glb"));
+}
+
+#[test]
+fn each_texture_set_gets_its_own_texture_continuous_across_the_material_boundary() {
+    let dir = common::scratch("document-sets");
+    // Two textured materials whose layouts overlap (u in 0..0.5 both).
+    let src = write_rich_overlapping(&dir);
+    let mut doc: Value = serde_json::from_slice(&std::fs::read(&src).unwrap()).unwrap();
+    doc["images"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"uri": "second.png"}));
+    doc["textures"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"source": 2}));
+    doc["materials"][1]["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 2});
+    std::fs::write(&src, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let blue: Vec<u16> = (0..16).flat_map(|_| [30, 60, 220, 255]).collect();
+    std::fs::write(
+        dir.join("second.png"),
+        decalbake::io::image::png_bytes(4, 4, 8, &blue),
+    )
+    .unwrap();
+    let job = job(&dir, &src, "out.glb");
+    let mut j: Value = serde_json::from_slice(&std::fs::read(&job).unwrap()).unwrap();
+    j["output"]["texture"] = json!("baked_{set}.png");
+    j["output"]["preview"] = json!("preview.png");
+    std::fs::write(&job, serde_json::to_vec(&j).unwrap()).unwrap();
+    let (code, _, err) = common::cli(&["bake", job.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let texel = |set: &str, x: f32| {
+        // Row 64 is y = 0.5 on the plane; u = x / 2 on the first part, (x - 1) / 2 on the second.
+        let img = image::open(dir.join(format!("baked_{set}.png")))
+            .unwrap()
+            .to_rgba8();
+        let u = if x < 1.0 { x / 2.0 } else { (x - 1.0) / 2.0 };
+        img.get_pixel((u * 128.0) as u32, 64).0
+    };
+    let green = [20, 200, 90, 255];
+    // The decal covers x in 0.75..1.25: both sides of the boundary (x = 1) are green in their
+    // own set's texture, right up to it.
+    assert_eq!(texel("painted", 0.8), green);
+    assert_eq!(texel("painted", 0.98), green);
+    assert_eq!(texel("glossy", 1.02), green);
+    assert_eq!(texel("glossy", 1.2), green);
+    // Where the other part's triangles lie in the overlapping layout, each keeps its base.
+    assert_eq!(
+        texel("painted", 0.1),
+        [200, 120, 40, 255],
+        "the glossy part's paint stays out of the painted texture"
+    );
+    assert_eq!(
+        texel("glossy", 1.9),
+        [30, 60, 220, 255],
+        "the painted part's paint stays out of the glossy texture"
+    );
+    let report: Value =
+        serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap();
+    let sets = report["texture_sets"].as_array().unwrap();
+    assert_eq!(sets.len(), 2, "{sets:?}");
+    assert!(
+        sets.iter()
+            .all(|s| s["texels_covered"].as_u64().unwrap() > 0),
+        "{sets:?}"
+    );
+    // The model: each set's bake replaced its own image.
+    let (out, bufs) = read_model(&dir.join("out.glb"));
+    for (image, set) in [(0, "painted"), (2, "glossy")] {
+        let v = out["images"][image]["bufferView"].as_u64().unwrap() as usize;
+        assert_eq!(
+            view(&out, &bufs, v),
+            std::fs::read(dir.join(format!("baked_{set}.png"))).unwrap()
+        );
+    }
+    assert!(dir.join("preview.png").exists());
+    validate(&dir.join("out.glb"));
 }

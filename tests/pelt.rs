@@ -421,7 +421,7 @@ fn closed_models_become_disks() {
         topo.fill_normals(&mut filled);
         let out = pelt::apply(&filled, &un, mesh.uv_sets.len());
         let glb = common::scratch(&format!("closed-{genus}")).join(file);
-        let written = decalbake::output::gltf::write_model(&out, None, &glb).unwrap();
+        let written = decalbake::output::gltf::write_model(&out, &[], &glb).unwrap();
         std::fs::write(&glb, &written.files[0].1).unwrap();
         validate(&glb);
         let q = &un.report.quality;

@@ -43,6 +43,7 @@ pub mod place;
 pub mod plan;
 pub mod report;
 pub mod select;
+pub mod sets;
 mod stage;
 mod tiles;
 pub mod tools;
@@ -167,6 +168,7 @@ pub(crate) fn run_in(
         input_hash: None,
         unwrap: mesh.unwrap.clone(),
         tiles: None,
+        texture_sets: Vec::new(),
     };
     Ok(Run {
         encoded,

@@ -145,6 +145,26 @@ pub struct Report {
     /// A tiled bake (`bake/tiles.rs`): [tile side, tiles]. Its stage times add up the tiles'.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tiles: Option<[u32; 2]>,
+    /// A bake into several texture sets (`crate::bake::sets`): one entry per set. The report's
+    /// layers, timings and island texels are then the first set's, with each layer's
+    /// `texels_covered` added up over the sets.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub texture_sets: Vec<SetReport>,
+}
+
+/// One texture set of a bake.
+#[derive(Debug, Clone, Serialize)]
+pub struct SetReport {
+    /// Its name (`{set}` in file names).
+    pub name: String,
+    /// The materials it paints (document indices).
+    pub materials: Vec<usize>,
+    /// Its primitives (`meshes[i].primitives[j]`).
+    pub primitives: Vec<String>,
+    /// The texture written, or `null` when no layer touched the set.
+    pub texture: Option<String>,
+    /// Texels the layers changed in it.
+    pub texels_covered: u64,
 }
 
 /// What a stroke reports (the layer's `stroke` block).

@@ -516,6 +516,15 @@ fn bake(engine: &Engine, job: &Job) -> Result<()> {
     if let Some(frames) = job.frames() {
         return bake_frames(engine, &mesh, &job, frames);
     }
+    // One texture per texture set (material image or material) of the baked UV set.
+    let sets = mesh.mesh.texture_sets(job.uv_set);
+    if sets.len() > 1 {
+        let mut bakes = engine.bake_texture_sets(&mesh, &job, sets)?;
+        let files = decalbake::output::write_set_outputs(engine, &mesh, &job, &mut bakes)?;
+        print_bake(&bakes[0].baked.report, files);
+        return Ok(());
+    }
+    let job = job.for_single_set(sets.first().map_or("default", |s| s.name.as_str()));
     let baked = engine.bake(&mesh, &job)?;
     write_baked(engine, &mesh, &job, baked).map(|_| ())
 }
@@ -564,7 +573,12 @@ fn write_baked(
     mut baked: decalbake::Baked,
 ) -> Result<decalbake::output::preview::PreviewTexture> {
     let files = decalbake::output::write_outputs(engine, mesh, job, &mut baked)?;
-    let r = &baked.report;
+    print_bake(&baked.report, files);
+    Ok(decalbake::output::preview::PreviewTexture::of(&baked))
+}
+
+/// What a bake prints: each layer's coverage and the warnings on stderr, the files on stdout.
+fn print_bake(r: &decalbake::bake::report::Report, files: Vec<PathBuf>) {
     for l in &r.layers {
         eprintln!(
             "layer {}: {} triangles, {} texels, placed at {:?} (moved {:.4})",
@@ -577,7 +591,6 @@ fn write_baked(
     for f in files {
         println!("{}", f.display());
     }
-    Ok(decalbake::output::preview::PreviewTexture::of(&baked))
 }
 
 /// The demo's animated ribbon (`frames.json`: 8 textures) and the badge extracted from the baked
@@ -623,7 +636,7 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
     }
     // Turned in memory: a model of its own, not the bundled document.
     m.document = None;
-    let written = decalbake::output::gltf::write_model(&m, None, &sheet)?;
+    let written = decalbake::output::gltf::write_model(&m, &[], &sheet)?;
     decalbake::io::image::write_atomic(&sheet, &written.files[0].1)?;
     let args = unwrap::UnwrapArgs {
         mesh: sheet,

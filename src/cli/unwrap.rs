@@ -229,7 +229,7 @@ fn run_on(
         );
     }
     // The model as it came in, with the new sets (its own images, unchanged).
-    let written = decalbake::output::gltf::write_model(&out_mesh, None, &args.out)?;
+    let written = decalbake::output::gltf::write_model(&out_mesh, &[], &args.out)?;
     decalbake::output::write_files(&written.files)?;
     for w in &written.warnings {
         eprintln!("warning: {}: {w}", args.out.display());

@@ -563,6 +563,49 @@ impl Job {
         }
     }
 
+    /// This job's bake of texture set `set` (its name): `{set}` in the texture's name replaced by
+    /// it and `{channel}` by `base_color` (a name without `{set}` gets `_<set>` before its
+    /// extension); no `.glb`, report or preview (one each for all the sets, written by the caller).
+    pub fn for_texture_set(&self, set: &str) -> Job {
+        let texture = self.out_texture.as_ref().map(|p| {
+            let text = p.to_string_lossy();
+            if text.contains("{set}") {
+                PathBuf::from(
+                    text.replace("{set}", set)
+                        .replace("{channel}", "base_color"),
+                )
+            } else {
+                let stem = p.file_stem().unwrap_or_default().to_string_lossy();
+                let stem = stem.replace("{channel}", "base_color");
+                let ext = p.extension().map(|e| format!(".{}", e.to_string_lossy()));
+                p.with_file_name(format!("{stem}_{set}{}", ext.unwrap_or_default()))
+            }
+        });
+        Job {
+            out_texture: texture,
+            out_glb: None,
+            out_report: None,
+            out_preview: None,
+            ..self.clone()
+        }
+    }
+
+    /// The job for a mesh of one texture set, `set`: `{set}` and `{channel}` in the texture's
+    /// name replaced (`base_color`); the same job where the name has neither.
+    pub fn for_single_set(&self, set: &str) -> Job {
+        let mut job = self.clone();
+        if let Some(p) = &self.out_texture {
+            let text = p.to_string_lossy();
+            if text.contains("{set}") || text.contains("{channel}") {
+                job.out_texture = Some(PathBuf::from(
+                    text.replace("{set}", set)
+                        .replace("{channel}", "base_color"),
+                ));
+            }
+        }
+        job
+    }
+
     /// Layer `index` (a command's `--layer`), or an error naming how many there are.
     pub fn layer_at(&self, index: usize) -> Result<&Layer> {
         self.layers.get(index).ok_or_else(|| {

@@ -193,20 +193,6 @@ pub(crate) fn views(
     Ok(())
 }
 
-/// An image the loader can read: one with a buffer view has a MIME type, and one without has a
-/// URI.
-pub(crate) fn image(document: &gltf::Document, index: usize, name: &Path) -> Result<()> {
-    let Some(img) = document.as_json().images.get(index) else {
-        return Ok(());
-    };
-    let what = match (&img.buffer_view, &img.mime_type, &img.uri) {
-        (Some(_), None, _) => "has a bufferView but no mimeType",
-        (None, _, None) => "has neither a uri nor a bufferView",
-        _ => return Ok(()),
-    };
-    Err(gltf_err(name, format!("images[{index}] {what}")))
-}
-
 /// Checks accessor `a` (`what`, e.g. `meshes[0].primitives[1] POSITION`, for messages) before it is
 /// read: its type among `types`, at least one and at most [`MAX_ELEMENTS`] elements, its elements
 /// (and a sparse accessor's indices and values) inside their buffer views with a stride no smaller

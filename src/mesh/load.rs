@@ -204,15 +204,16 @@ impl Mesh {
             return Err(Error::mesh(name, "the scene has no triangles (no triangle primitives in any node); decalbake needs a triangle mesh"));
         }
         mesh.join_primitive_attributes(per.uvs, per.blend, per.bridge);
-        if let Some(mi) = per.material {
-            mesh.material = Some(load_material(&document, mi, &buffers, name, base_dir)?);
-        }
-        mesh.document = Some(std::sync::Arc::new(SourceDocument {
+        let doc = std::sync::Arc::new(SourceDocument {
             json,
             buffers: buffers.into_iter().map(|d| d.0).collect(),
             path: name.to_path_buf(),
             base: base_dir.map(Path::to_path_buf),
-        }));
+        });
+        if let Some(mi) = per.material {
+            mesh.material = Some(material_info(&doc, mi)?);
+        }
+        mesh.document = Some(doc);
         Ok(mesh)
     }
 
@@ -401,76 +402,106 @@ impl Mesh {
     }
 }
 
-fn load_material(
-    document: &gltf::Document,
-    index: usize,
-    buffers: &[gltf::buffer::Data],
-    name: &Path,
-    base: Option<&Path>,
-) -> Result<MaterialInfo> {
-    let mat = document
-        .materials()
-        .nth(index)
+/// Material `index` of `doc` as the baker uses it: its factors and its base-colour texture
+/// decoded (sRGB to linear, with `LinearImage::decode`'s limits), resampled through its
+/// `KHR_texture_transform` where it has one.
+pub(crate) fn material_info(doc: &SourceDocument, index: usize) -> Result<MaterialInfo> {
+    let name = doc.path.as_path();
+    let mat = doc
+        .array("materials")
+        .get(index)
         .ok_or_else(|| gltf_err(name, format!("material {index} does not exist")))?;
-    let pbr = mat.pbr_metallic_roughness();
+    let pbr = &mat["pbrMetallicRoughness"];
+    let number = |v: &serde_json::Value, default: f32| v.as_f64().map_or(default, |x| x as f32);
+    let mut factor = [1.0f32; 4];
+    if let Some(f) = pbr["baseColorFactor"].as_array() {
+        for (k, v) in f.iter().take(4).enumerate() {
+            factor[k] = number(v, 1.0);
+        }
+    }
     let mut info = MaterialInfo {
         index,
-        base_color_factor: pbr.base_color_factor(),
+        base_color_factor: factor,
         base_color_texture: None,
         base_color_uv_set: 0,
-        metallic: pbr.metallic_factor(),
-        roughness: pbr.roughness_factor(),
+        metallic: number(&pbr["metallicFactor"], 1.0),
+        roughness: number(&pbr["roughnessFactor"], 1.0),
     };
-    if let Some(tex) = pbr.base_color_texture() {
-        info.base_color_uv_set = tex.tex_coord();
-        let src = tex.texture().source();
-        checks::image(document, src.index(), name)?;
-        let what = format!(
-            "materials[{index}] baseColorTexture (images[{}])",
-            src.index()
-        );
-        let image_err = |d: String| Error::Image {
-            path: name.to_path_buf(),
-            action: "decoding",
-            detail: format!("{what}: {d}"),
-        };
-        info.base_color_texture = Some(match embedded_image(src.source(), buffers) {
-            // Embedded images decode with `LinearImage::decode`'s limits, checked before decoding.
-            Some(bytes) => LinearImage::decode(&bytes.map_err(image_err)?).map_err(image_err)?,
-            None => {
-                let Some(base) = base else {
-                    return Err(gltf_err(name, format!("{what} is an external file, but the mesh was read from memory with no directory to find it in")));
-                };
-                let data = gltf::image::Data::from_source(src.source(), Some(base), buffers)
-                    .map_err(|e| image_err(e.to_string()))?;
-                LinearImage::from_gltf(&data, true).map_err(image_err)?
-            }
-        });
+    let tex = &pbr["baseColorTexture"];
+    let Some(t) = tex["index"].as_u64() else {
+        return Ok(info);
+    };
+    info.base_color_uv_set = tex["texCoord"].as_u64().unwrap_or(0) as u32;
+    let Some(image) = doc
+        .array("textures")
+        .get(t as usize)
+        .and_then(|t| t["source"].as_u64())
+    else {
+        return Err(gltf_err(name, format!("materials[{index}].pbrMetallicRoughness.baseColorTexture names textures[{t}], which does not exist or has no source")));
+    };
+    let what = format!("materials[{index}] baseColorTexture (images[{image}])");
+    let image_err = |d: String| Error::Image {
+        path: name.to_path_buf(),
+        action: "decoding",
+        detail: format!("{what}: {d}"),
+    };
+    let data = doc.image(image as usize).map_err(image_err)?;
+    info.base_color_texture = Some(LinearImage::decode(&data.bytes).map_err(image_err)?);
+    if let Some(t) = texture_transform(tex) {
+        apply_texture_transform(&mut info, t);
     }
     Ok(info)
 }
 
-/// The encoded bytes of an image in a buffer view or a data URI (`None` for an external file).
-fn embedded_image<'a>(
-    src: gltf::image::Source<'a>,
-    buffers: &'a [gltf::buffer::Data],
-) -> Option<std::result::Result<std::borrow::Cow<'a, [u8]>, String>> {
-    use std::borrow::Cow;
-    match src {
-        // In range: `checks::views`.
-        gltf::image::Source::View { view, .. } => Some(Ok(Cow::Borrowed(
-            &buffers[view.buffer().index()][view.offset()..view.offset() + view.length()],
-        ))),
-        gltf::image::Source::Uri { uri, .. } => {
-            let data = uri.strip_prefix("data:")?;
-            let b64 = data.split_once(";base64,").map_or(data, |(_, b)| b);
-            Some(
-                base64::decode(b64)
-                    .map(Cow::Owned)
-                    .map_err(|e| format!("its data URI is not base64: {e}")),
-            )
-        }
+/// A texture reference's `KHR_texture_transform` (the raw JSON of the reference): the affine map
+/// from UV to texture coordinates (offset · rotation · scale, as the extension defines it) and
+/// its `texCoord` override.
+fn texture_transform(info: &serde_json::Value) -> Option<(glam::Affine2, Option<u32>)> {
+    let t = info.pointer("/extensions/KHR_texture_transform")?;
+    let pair = |key: &str, default: Vec2| {
+        t.get(key)
+            .and_then(|v| v.as_array())
+            .and_then(|a| {
+                Some(Vec2::new(
+                    a.first()?.as_f64()? as f32,
+                    a.get(1)?.as_f64()? as f32,
+                ))
+            })
+            .unwrap_or(default)
+    };
+    let (offset, scale) = (pair("offset", Vec2::ZERO), pair("scale", Vec2::ONE));
+    let r = t.get("rotation").and_then(|v| v.as_f64()).unwrap_or(0.0) as f32;
+    let (s, c) = r.sin_cos();
+    // Rows (c, s) and (-s, c), times the scale.
+    let linear = glam::Mat2::from_cols(Vec2::new(c, -s) * scale.x, Vec2::new(s, c) * scale.y);
+    let set = t.get("texCoord").and_then(|v| v.as_u64()).map(|n| n as u32);
+    Some((glam::Affine2::from_mat2_translation(linear, offset), set))
+}
+
+/// The material's base-colour texture resampled through its `KHR_texture_transform`, so that the
+/// bake's base is what a viewer shows (wrapping as glTF's default sampler); the writer gives the
+/// baked texture to the material without the transform.
+fn apply_texture_transform(mat: &mut MaterialInfo, (m, set): (glam::Affine2, Option<u32>)) {
+    if let Some(set) = set {
+        mat.base_color_uv_set = set;
     }
+    let Some(img) = &mat.base_color_texture else {
+        return;
+    };
+    let (w, h) = (img.width, img.height);
+    let pixels = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let uv = Vec2::new((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
+            let t = m.transform_point2(uv);
+            img.bilinear(t.x, t.y, true)
+        })
+        .collect();
+    mat.base_color_texture = Some(LinearImage {
+        width: w,
+        height: h,
+        pixels,
+    });
 }
 
 impl Mesh {

@@ -34,6 +34,8 @@ pub struct BakedColor<'a> {
     /// Whether the bake's base was the material's own (`texture.base: "material"`): the image it
     /// came from is then replaced in place, and materials that share it see the bake.
     pub from_material: bool,
+    /// The texture set it was baked for (`None`: the whole mesh's one texture).
+    pub set: Option<&'a crate::mesh::TextureSet>,
 }
 
 /// A written model's files (the `.glb`, or the `.gltf`, its `.bin` and its images), not yet on
@@ -56,9 +58,10 @@ pub fn is_gltf_name(out: &Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("gltf"))
 }
 
-/// The model of `mesh` with `color` as its base colour (`None`: the document's own), written to
-/// `out` (`.glb`, or `.gltf` with `<stem>.bin` and image files beside it).
-pub fn write_model(mesh: &Mesh, color: Option<&BakedColor>, out: &Path) -> Result<Written> {
+/// The model of `mesh` with `colors` as its base colours (one per texture set; none: the
+/// document's own), written to `out` (`.glb`, or `.gltf` with `<stem>.bin` and image files beside
+/// it).
+pub fn write_model(mesh: &Mesh, colors: &[BakedColor], out: &Path) -> Result<Written> {
     let mut doc = match mesh.document.as_deref() {
         Some(src) => Doc::from_source(src),
         None => Doc::fresh(mesh),
@@ -66,8 +69,11 @@ pub fn write_model(mesh: &Mesh, color: Option<&BakedColor>, out: &Path) -> Resul
     if mesh.document.is_some() && (!mesh.new_uv_sets.is_empty() || !mesh.vertex_origin.is_empty()) {
         doc.write_vertex_edits(mesh);
     }
-    if let Some(c) = color {
-        doc.apply_color(mesh, c, out);
+    for c in colors {
+        match c.set {
+            Some(set) => doc.apply_set_color(mesh, c, set, out),
+            None => doc.apply_color(mesh, c, out),
+        }
     }
     doc.finish(out)
 }

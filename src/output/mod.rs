@@ -49,24 +49,15 @@ pub fn write_outputs(
             png: &png,
             uv_set: job.uv_set,
             from_material: matches!(job.base, crate::io::job::Base::Material),
+            set: None,
         };
-        let written = gltf::write_model(&mesh.mesh, Some(&color), p)?;
+        let written = gltf::write_model(&mesh.mesh, &[color], p)?;
         files.extend(written.files);
         baked.report.warnings.extend(written.warnings);
     }
     if let Some(p) = &job.out_preview {
-        let px = crate::output::preview::render_preview(engine, mesh, baked)?;
-        let side = 2 * crate::output::preview::VIEW_SIDE;
-        let mut out = Vec::new();
-        use image::ImageEncoder;
-        image::codecs::png::PngEncoder::new(&mut out)
-            .write_image(&px, side, side, image::ExtendedColorType::Rgba8)
-            .map_err(|e| Error::Image {
-                path: p.clone(),
-                action: "encoding",
-                detail: e.to_string(),
-            })?;
-        files.push((p.clone(), out));
+        let px = preview::render_preview(engine, mesh, baked)?;
+        files.push((p.clone(), preview_png(&px, p)?));
     }
     if let Some(p) = &job.out_texture {
         let bytes = match &baked.linear {
@@ -131,6 +122,126 @@ pub fn write_files(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Writes a bake into several texture sets (`Engine::bake_texture_sets`): the texture of every
+/// set a layer touched (every set's when none was), one model whose materials take them, one
+/// preview drawing each set with its texture, and one report (the first set's, with
+/// `texture_sets` and each layer's coverage added up over the sets). Files written, in order.
+pub fn write_set_outputs(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    job: &Job,
+    bakes: &mut [crate::bake::sets::SetBake],
+) -> Result<Vec<PathBuf>> {
+    let t = Instant::now();
+    let any = bakes.iter().any(|b| b.touched());
+    let written: Vec<bool> = bakes.iter().map(|b| b.touched() || !any).collect();
+    let pngs: Vec<Vec<u8>> = bakes.iter().map(|b| b.baked.to_png()).collect();
+    let mut files: Vec<(PathBuf, Vec<u8>)> = Vec::new();
+    let mut warnings = Vec::new();
+    for ((b, png), &w) in bakes.iter().zip(&pngs).zip(&written) {
+        if let (Some(p), true) = (&b.job.out_texture, w) {
+            let bytes = match &b.baked.linear {
+                Some(linear) if job.exr() => exr_bytes(b.baked.width, b.baked.height, linear, p)?,
+                _ => png.clone(),
+            };
+            files.push((p.clone(), bytes));
+        }
+    }
+    if let Some(p) = &job.out_glb {
+        let colors: Vec<gltf::BakedColor> = bakes
+            .iter()
+            .zip(&pngs)
+            .zip(&written)
+            .filter(|(_, &w)| w)
+            .map(|((b, png), _)| gltf::BakedColor {
+                png,
+                uv_set: job.uv_set,
+                from_material: matches!(job.base, crate::io::job::Base::Material),
+                set: Some(&b.set),
+            })
+            .collect();
+        let model = gltf::write_model(&mesh.mesh, &colors, p)?;
+        files.extend(model.files);
+        warnings.extend(model.warnings);
+    }
+    if let Some(p) = &job.out_preview {
+        let sets: Vec<_> = bakes
+            .iter()
+            .map(|b| {
+                let ranges = b.set.primitives.iter().map(|&i| {
+                    let q = &mesh.mesh.primitives[i];
+                    q.first_triangle..q.first_triangle + q.triangles
+                });
+                (preview::PreviewTexture::of(&b.baked), ranges.collect())
+            })
+            .collect();
+        let px = preview::render_sets_preview(engine, mesh, &sets)?;
+        files.push((p.clone(), preview_png(&px, p)?));
+    }
+    let mut report = bakes[0].baked.report.clone();
+    for b in &bakes[1..] {
+        for (l, o) in report.layers.iter_mut().zip(&b.baked.report.layers) {
+            l.texels_covered += o.texels_covered;
+        }
+        warnings.extend(b.baked.report.warnings.iter().cloned());
+    }
+    report.warnings.extend(warnings);
+    let mut seen = std::collections::HashSet::new();
+    report.warnings.retain(|w| seen.insert(w.clone()));
+    report.texture_sets = bakes
+        .iter()
+        .zip(&written)
+        .map(|(b, &w)| crate::bake::report::SetReport {
+            name: b.set.name.clone(),
+            materials: b.set.materials.clone(),
+            primitives: b
+                .set
+                .primitives
+                .iter()
+                .map(|&i| mesh.mesh.primitives[i].name.clone())
+                .collect(),
+            texture: b
+                .job
+                .out_texture
+                .as_ref()
+                .filter(|_| w)
+                .map(|p| p.display().to_string()),
+            texels_covered: b
+                .baked
+                .report
+                .layers
+                .iter()
+                .map(|l| l.texels_covered as u64)
+                .sum(),
+        })
+        .collect();
+    report.timings.write_ms = t.elapsed().as_secs_f64() * 1000.0;
+    if let Some(p) = &job.out_report {
+        files.push((
+            p.clone(),
+            serde_json::to_vec_pretty(&report).expect("the report serializes"),
+        ));
+    }
+    bakes[0].baked.report = report;
+    write_files(&files)?;
+    Ok(files.into_iter().map(|(p, _)| p).collect())
+}
+
+/// A preview's pixels as PNG bytes.
+fn preview_png(px: &[u8], p: &std::path::Path) -> Result<Vec<u8>> {
+    use image::ImageEncoder;
+    let side = 2 * preview::VIEW_SIDE;
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(px, side, side, image::ExtendedColorType::Rgba8)
+        .map_err(|e| Error::Image {
+            path: p.to_path_buf(),
+            action: "encoding",
+            detail: e.to_string(),
+        })?;
+    Ok(out)
 }
 
 fn tmp_path(p: &std::path::Path) -> PathBuf {

@@ -96,19 +96,9 @@ pub fn render_texture_preview(
     baked: &PreviewTexture,
 ) -> Result<Vec<u8>> {
     let ctx = &engine.ctx;
-    let dev = &ctx.device;
     ctx.scoped("preview", || {
         let view = upload_texture(engine, baked);
-        let sampler = dev.create_sampler(&wgpu::SamplerDescriptor {
-            label: Some("preview.sampler"),
-            address_mode_u: wgpu::AddressMode::Repeat,
-            address_mode_v: wgpu::AddressMode::Repeat,
-            mag_filter: wgpu::FilterMode::Linear,
-            min_filter: wgpu::FilterMode::Linear,
-            mipmap_filter: wgpu::MipmapFilterMode::Linear,
-            anisotropy_clamp: 8,
-            ..Default::default()
-        });
+        let sampler = preview_sampler(engine);
         let second = baked.second.as_ref().map(|t| upload_texture(engine, t));
         let third = baked.third.as_ref().map(|t| upload_texture(engine, t));
         let groups = view_groups(
@@ -121,9 +111,52 @@ pub fn render_texture_preview(
             ],
             &sampler,
         );
-        draw(engine, mesh, baked, &groups)
+        let all = 0..mesh.mesh.triangles.len() as u32;
+        draw(engine, mesh, baked, &[(groups, vec![all])])
     })
     .and_then(|readback| ctx.map_and_read(&readback, "preview read-back"))
+}
+
+/// The preview of a bake into several texture sets: each set's triangles (`ranges`, triangle
+/// index ranges) drawn with its own texture, on the first texture's UV set.
+pub fn render_sets_preview(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    sets: &[(PreviewTexture, Vec<std::ops::Range<u32>>)],
+) -> Result<Vec<u8>> {
+    let ctx = &engine.ctx;
+    let Some((first, _)) = sets.first() else {
+        return Ok(Vec::new());
+    };
+    ctx.scoped("preview", || {
+        let sampler = preview_sampler(engine);
+        let draws: Vec<_> = sets
+            .iter()
+            .map(|(t, ranges)| {
+                let view = upload_texture(engine, t);
+                (
+                    view_groups(engine, mesh, [&view; 3], &sampler),
+                    ranges.clone(),
+                )
+            })
+            .collect();
+        draw(engine, mesh, first, &draws)
+    })
+    .and_then(|readback| ctx.map_and_read(&readback, "preview read-back"))
+}
+
+/// The preview's sampler: wrapping, trilinear, anisotropic.
+fn preview_sampler(engine: &Engine) -> wgpu::Sampler {
+    engine.ctx.device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some("preview.sampler"),
+        address_mode_u: wgpu::AddressMode::Repeat,
+        address_mode_v: wgpu::AddressMode::Repeat,
+        mag_filter: wgpu::FilterMode::Linear,
+        min_filter: wgpu::FilterMode::Linear,
+        mipmap_filter: wgpu::MipmapFilterMode::Linear,
+        anisotropy_clamp: 8,
+        ..Default::default()
+    })
 }
 
 /// The baked texture with a box-filtered mip chain (in sRGB bytes: good enough for a preview).
@@ -242,12 +275,19 @@ fn view_groups(
     groups
 }
 
+/// Each view's bind group (with its uniform buffer) for one texture, and the triangle ranges
+/// drawn with it.
+type ViewDraw = (
+    Vec<(wgpu::BindGroup, wgpu::Buffer)>,
+    Vec<std::ops::Range<u32>>,
+);
+
 /// Draws the four views (4× MSAA, resolved) and copies the result into a mappable buffer.
 fn draw(
     engine: &Engine,
     mesh: &LoadedMesh,
     baked: &PreviewTexture,
-    groups: &[(wgpu::BindGroup, wgpu::Buffer)],
+    draws: &[ViewDraw],
 ) -> wgpu::Buffer {
     let (ctx, dev) = (&engine.ctx, &engine.ctx.device);
     let side = 2 * VIEW_SIDE;
@@ -353,8 +393,8 @@ fn draw(
         pass.set_vertex_buffer(4, weight_buf.slice(..));
         pass.set_vertex_buffer(5, uv3_buf.slice(..));
         pass.set_index_buffer(mesh.gpu.split_tris.slice(..), wgpu::IndexFormat::Uint32);
-        for (k, (bg, _)) in groups.iter().enumerate() {
-            let (x, y) = ((k as u32 % 2) * VIEW_SIDE, (k as u32 / 2) * VIEW_SIDE);
+        for k in 0..4u32 {
+            let (x, y) = ((k % 2) * VIEW_SIDE, (k / 2) * VIEW_SIDE);
             pass.set_viewport(
                 x as f32,
                 y as f32,
@@ -363,8 +403,12 @@ fn draw(
                 0.0,
                 1.0,
             );
-            pass.set_bind_group(0, bg, &[]);
-            pass.draw_indexed(0..3 * mesh.mesh.triangles.len() as u32, 0, 0..1);
+            for (groups, ranges) in draws {
+                pass.set_bind_group(0, &groups[k as usize].0, &[]);
+                for r in ranges {
+                    pass.draw_indexed(3 * r.start..3 * r.end, 0, 0..1);
+                }
+            }
         }
     }
     enc.copy_texture_to_buffer(

@@ -111,6 +111,15 @@ fn png(w: u32, h: u32, rgb: [u8; 3]) -> Vec<u8> {
 
 /// Writes the model into `dir` (`rich.gltf`, `rich.bin`, `albedo.png`) and returns its path.
 pub fn write_rich_gltf(dir: &Path) -> PathBuf {
+    write_rich(dir, false)
+}
+
+/// The model with the second primitive's UVs laid over the first's (`u` in 0..0.5 both).
+pub fn write_rich_overlapping(dir: &Path) -> PathBuf {
+    write_rich(dir, true)
+}
+
+fn write_rich(dir: &Path, overlap: bool) -> PathBuf {
     let mut bin = Bin {
         bytes: Vec::new(),
         views: Vec::new(),
@@ -119,7 +128,12 @@ pub fn write_rich_gltf(dir: &Path) -> PathBuf {
     let mut primitives = Vec::new();
     let parts = [
         ((0.0, 1.0), Some((0.0, 0.5)), 0, false),
-        ((1.0, 2.0), Some((0.5, 1.0)), 1, true),
+        (
+            (1.0, 2.0),
+            Some(if overlap { (0.0, 0.5) } else { (0.5, 1.0) }),
+            1,
+            true,
+        ),
         ((2.0, 2.25), None, 2, false),
     ];
     for ((x0, x1), u, material, short_uv) in parts {

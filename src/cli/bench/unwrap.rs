@@ -103,7 +103,7 @@ pub fn run(engine: &Engine, opts: &UnwrapBenchOptions, emit: impl Fn(String)) ->
                 name.replace(|c: char| !c.is_ascii_alphanumeric(), "_"),
                 std::process::id()
             ));
-            let written = decalbake::output::gltf::write_model(&mesh, None, &file)?;
+            let written = decalbake::output::gltf::write_model(&mesh, &[], &file)?;
             decalbake::io::image::write_atomic(&file, &written.files[0].1)?;
             for cmd in ["atlas", "arap", "harmonic"] {
                 let v = run_peers_py(dir, &[cmd.as_ref(), file.as_os_str()])

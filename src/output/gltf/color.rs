@@ -20,6 +20,62 @@ use std::collections::BTreeSet;
 use std::path::Path;
 
 impl Doc<'_> {
+    /// The bake of one texture set: the image its materials share replaced, or a new texture for
+    /// its materials (a new material for its primitives without one).
+    pub(super) fn apply_set_color(
+        &mut self,
+        mesh: &Mesh,
+        c: &BakedColor,
+        set: &crate::mesh::TextureSet,
+        out: &Path,
+    ) {
+        let home = set.materials.first().copied();
+        let replaced = home
+            .filter(|_| c.from_material)
+            .and_then(|m| self.base_image(m, c.uv_set as usize));
+        let texture = match replaced {
+            Some(image) => {
+                self.set_image(image, c.png, out);
+                self.texture_of(image)
+            }
+            None => {
+                let t = self.add_texture(c.png, home, out);
+                for &m in &set.materials {
+                    let white = !c.from_material || self.base_texture(m).is_none();
+                    self.set_base_texture(m, t, c.uv_set, white);
+                }
+                t
+            }
+        };
+        let bare: Vec<(usize, usize)> = set
+            .primitives
+            .iter()
+            .map(|&i| {
+                (
+                    mesh.primitives[i].mesh_index,
+                    mesh.primitives[i].primitive_index,
+                )
+            })
+            .filter(|&(m, p)| self.primitive(m, p).get("material").is_none())
+            .collect();
+        self.add_material(bare, texture, c.uv_set);
+    }
+
+    /// A material painted with texture `t` on set `uv_set` for `primitives` (none: nothing).
+    fn add_material(&mut self, primitives: Vec<(usize, usize)>, t: usize, uv_set: u32) {
+        if primitives.is_empty() {
+            return;
+        }
+        let list = array(&mut self.json, "materials");
+        list.push(json!({"name": "decalbake", "pbrMetallicRoughness": {
+            "baseColorTexture": {"index": t, "texCoord": uv_set},
+            "metallicFactor": 0.0, "roughnessFactor": 1.0}}));
+        let k = list.len() - 1;
+        for (m, p) in primitives {
+            self.json["meshes"][m]["primitives"][p]["material"] = json!(k);
+        }
+    }
+
     pub(super) fn apply_color(&mut self, mesh: &Mesh, c: &BakedColor, out: &Path) {
         let set = c.uv_set as usize;
         let painted: Vec<(usize, usize)> = mesh
@@ -57,7 +113,10 @@ impl Doc<'_> {
                 }
             };
             match (shares, texture) {
-                (true, Some(t)) => self.set_base_texture(m, t, c.uv_set),
+                (true, Some(t)) => {
+                    let white = !c.from_material || self.base_texture(m).is_none();
+                    self.set_base_texture(m, t, c.uv_set, white)
+                }
                 (true, None) => {}
                 (false, _) => self.warnings.push(format!(
                     "materials[{m}]{} keeps its own base colour: a bake writes one base-colour texture, {}, so the paint on its primitives is not in the model",
@@ -79,14 +138,7 @@ impl Doc<'_> {
                 (None, Some(image)) => self.texture_of(image),
                 (None, None) => unreachable!("a texture is added where no image is replaced"),
             };
-            let list = array(&mut self.json, "materials");
-            list.push(json!({"name": "decalbake", "pbrMetallicRoughness": {
-                "baseColorTexture": {"index": t, "texCoord": c.uv_set},
-                "metallicFactor": 0.0, "roughnessFactor": 1.0}}));
-            let k = list.len() - 1;
-            for (m, p) in bare {
-                self.json["meshes"][m]["primitives"][p]["material"] = json!(k);
-            }
+            self.add_material(bare, t, c.uv_set);
         }
     }
 
@@ -142,9 +194,10 @@ impl Doc<'_> {
         })
     }
 
-    /// Material `m`'s base colour becomes texture `t` on set `set`, its factor white (the base
-    /// is in the texture).
-    fn set_base_texture(&mut self, m: usize, t: usize, set: u32) {
+    /// Material `m`'s base colour becomes texture `t` on set `set`; its factor becomes white
+    /// where the bake's base holds it (`white`: a job's own base, or a material base without a
+    /// texture, whose factor was the base), and stays where it multiplies the material's texture.
+    fn set_base_texture(&mut self, m: usize, t: usize, set: u32, white: bool) {
         let mat = &mut self.json["materials"][m];
         if !mat
             .get("pbrMetallicRoughness")
@@ -154,7 +207,9 @@ impl Doc<'_> {
         }
         let pbr = &mut mat["pbrMetallicRoughness"];
         pbr["baseColorTexture"] = json!({"index": t, "texCoord": set});
-        pbr["baseColorFactor"] = json!([1.0, 1.0, 1.0, 1.0]);
+        if white {
+            pbr["baseColorFactor"] = json!([1.0, 1.0, 1.0, 1.0]);
+        }
     }
 
     /// The bake as a new image and texture (sampled as material `home`'s base colour was, where it
