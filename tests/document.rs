@@ -471,3 +471,48 @@ fn each_texture_set_gets_its_own_texture_continuous_across_the_material_boundary
     assert!(dir.join("preview.png").exists());
     validate(&dir.join("out.glb"));
 }
+
+/// `"uv_set": "auto"` on a non-manifold mesh without UVs (three triangles on one edge) opens the
+/// shared edge into chart boundaries and bakes; the model carries the new set on its primitive.
+#[test]
+fn auto_uvs_open_non_manifold_edges() {
+    let dir = common::scratch("document-fin");
+    let fin = dir.join("fin.glb");
+    let pos = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.5, 1.0, 0.0],
+        [0.5, -1.0, 0.0],
+        [0.5, 0.0, 1.0],
+    ];
+    common::write_glb(&fin, &pos, None, &[0, 1, 2, 1, 0, 3, 0, 1, 4]);
+    let img: Vec<u16> = (0..16 * 16).flat_map(|_| [20, 200, 90, 255]).collect();
+    std::fs::write(
+        dir.join("green.png"),
+        decalbake::io::image::png_bytes(16, 16, 8, &img),
+    )
+    .unwrap();
+    let job = json!({
+        "mesh": "fin.glb", "uv_set": "auto",
+        "texture": {"width": 64, "height": 64, "padding": 2},
+        "layers": [{"image": "green.png", "at": [0.5, 0.2, 0.0], "size": [0.3, 0.3], "depth": 2.0, "method": "planar"}],
+        "output": {"texture": "fin.png", "glb": "fin-out.glb", "report": "fin.json"}
+    });
+    let path = dir.join("job.json");
+    std::fs::write(&path, serde_json::to_vec(&job).unwrap()).unwrap();
+    let (code, _, err) = common::cli(&["bake", path.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let report: Value =
+        serde_json::from_slice(&std::fs::read(dir.join("fin.json")).unwrap()).unwrap();
+    assert_eq!(
+        report["unwrap"]["pieces"].as_array().unwrap().len(),
+        3,
+        "{}",
+        report["unwrap"]
+    );
+    let (out, _) = read_model(&dir.join("fin-out.glb"));
+    assert!(out["meshes"][0]["primitives"][0]["attributes"]
+        .get("TEXCOORD_0")
+        .is_some());
+    validate(&dir.join("fin-out.glb"));
+}

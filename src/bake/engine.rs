@@ -68,6 +68,7 @@ impl LoadedMesh {
             triangles: mesh.triangles.len(),
             degenerate_triangles: topo.degenerate_count(),
             uv_sets: mesh.uv_sets.len(),
+            texture_sets: mesh.texture_sets(0),
             boundary_edges: topo.boundary_edges.len(),
             non_manifold_edges: topo.non_manifold_edges.len(),
             components: topo.components,
@@ -412,7 +413,8 @@ impl Engine {
 
     /// Loads the mesh of `job` and resolves `"uv_set": "auto"`: the base-colour texture's set
     /// (0 without one), or, on a mesh without UVs, a `TEXCOORD_0` made by pelting on this engine's
-    /// GPU (`crate::pelt::unwrap` with its defaults, as `decalbake unwrap`), which the mesh then
+    /// GPU (`crate::pelt::unwrap` with its defaults, as `decalbake unwrap`, non-manifold edges
+    /// opened as `--split-non-manifold` does), which the mesh then
     /// carries into the `.glb` and its report into the bake's (`unwrap`). Returns the job with its
     /// set resolved.
     pub fn load_mesh_for(&self, job: &Job) -> Result<(LoadedMesh, Job)> {
@@ -427,8 +429,11 @@ impl Engine {
             let topo = Topology::build(&mesh, crate::mesh::DEFAULT_WELD_TOLERANCE);
             topo.fill_normals(&mut mesh);
             let dev = crate::pelt::Device::Gpu(&self.ctx, &self.pipes);
+            // Non-manifold edges (a body whose parts meet at shared edges) become chart
+            // boundaries, as xatlas and Blender do, instead of refusing the model.
             let opts = crate::pelt::Options {
                 size: job.width.max(job.height),
+                split_non_manifold: true,
                 ..Default::default()
             };
             let un = crate::pelt::unwrap(dev, &mesh, &topo, &opts, &job.mesh)?;

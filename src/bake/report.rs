@@ -20,8 +20,10 @@ pub struct MeshStats {
     pub triangles: usize,
     /// Degenerate triangles (skipped).
     pub degenerate_triangles: usize,
-    /// UV sets present on every primitive.
+    /// UV sets (each on some primitive; `primitives[i].uv_sets` says which a primitive has).
     pub uv_sets: usize,
+    /// The texture sets on `TEXCOORD_0` (`crate::mesh::TextureSet`: one texture each).
+    pub texture_sets: Vec<crate::mesh::TextureSet>,
     /// Boundary edges.
     pub boundary_edges: usize,
     /// Non-manifold edges.

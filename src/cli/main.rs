@@ -217,6 +217,10 @@ struct BenchArgs {
     /// With `--linalg`: chart sizes (vertices) to solve one at a time.
     #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000")]
     charts: Vec<usize>,
+    /// Bake one decal onto every glTF model of this corpus (`benches/corpus/fetch.sh DIR`): a
+    /// row per model, baked or refused and why, seconds, and whether its document was kept.
+    #[arg(long)]
+    corpus: Option<PathBuf>,
 }
 
 fn main() {
@@ -336,8 +340,12 @@ fn bench_cmd(backend: Option<&str>, args: BenchArgs) -> Result<()> {
         soak,
         tiles,
         ribbons,
+        corpus,
     } = args;
     let mut engine = engine(backend)?;
+    if let Some(dir) = corpus {
+        return bench::corpus::run(&engine, &dir, |v| println!("{v}"));
+    }
     if ribbons {
         return bench::ribbons::run(
             &engine,

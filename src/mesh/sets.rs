@@ -15,7 +15,7 @@ use crate::error::Result;
 use glam::Vec2;
 
 /// One texture set of a mesh on a UV set.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct TextureSet {
     /// Its name in file names (`{set}`): the first material's name made file-safe, or
     /// `material<N>`, or `default` for primitives without a material; unique in the mesh.

@@ -4,6 +4,7 @@
 pub mod bake;
 pub mod batch;
 pub mod common;
+pub mod corpus;
 pub mod device;
 pub mod geodesic;
 pub mod linalg;
