@@ -110,6 +110,20 @@ fn demo_writes_decodable_outputs_and_a_glb_that_loads_back() {
             .all(|(a, b)| (0..4).all(|k| (a[k] - b[k]).abs() < 1e-6)),
         "glb texture differs from baked.png"
     );
+    // The skinned knight goes out as it came in, its skin and five animations with it: only the
+    // bytes of its image (replaced by the bake) differ.
+    let (knight, _) = common::rich::read_model(&out.join("knight.glb"));
+    let (baked_knight, _) = common::rich::read_model(&out.join("knight-baked.glb"));
+    let mut diff = Vec::new();
+    common::rich::json_diff(&knight, &baked_knight, "", &mut diff);
+    assert!(
+        diff.iter()
+            .all(|p| p.starts_with("/buffers/") || p.starts_with("/bufferViews/")),
+        "{diff:?}"
+    );
+    assert_eq!(baked_knight["animations"].as_array().unwrap().len(), 5);
+    assert!(stdout.contains("knight-preview.png"), "{stdout}");
+    common::rich::validate(&out.join("knight-baked.glb"));
     // The demo's job file re-bakes with `decalbake bake`, writing into another directory.
     let again = dir.join("again");
     let (code, _, stderr) = cli(&[

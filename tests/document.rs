@@ -516,3 +516,55 @@ fn auto_uvs_open_non_manifold_edges() {
         .is_some());
     validate(&dir.join("fin-out.glb"));
 }
+
+/// `decalbake batch` bakes a job on a model of two texture sets as `decalbake bake` does (a
+/// texture per set, the same bytes), and `--resume` finds them done.
+#[test]
+fn a_batch_bakes_every_texture_set_and_resumes() {
+    let dir = common::scratch("document-batch-sets");
+    let src = write_rich_overlapping(&dir);
+    let job = job(&dir, &src, "out.glb");
+    let (code, _, err) = common::cli(&["bake", job.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    std::fs::write(
+        dir.join("manifest.jsonl"),
+        format!("{:?}\n", job.file_name().unwrap().to_str().unwrap()),
+    )
+    .unwrap();
+    let out = dir.join("batch");
+    let summary = out.join("summary.json");
+    let run = |extra: &[&str]| {
+        let manifest = dir.join("manifest.jsonl");
+        let mut args = vec![
+            "batch",
+            manifest.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--summary",
+            summary.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        common::cli(&args)
+    };
+    let (code, _, err) = run(&[]);
+    assert_eq!(code, 0, "{err}");
+    let job_dir = std::fs::read_dir(&out)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| p.is_dir())
+        .unwrap();
+    for set in ["painted", "glossy"] {
+        let name = format!("baked_{set}.png");
+        assert_eq!(
+            std::fs::read(job_dir.join(&name)).unwrap(),
+            std::fs::read(dir.join(&name)).unwrap(),
+            "{name}: the batch bakes what bake bakes"
+        );
+    }
+    assert!(!job_dir.join("baked.png").exists());
+    let (code, _, err) = run(&["--resume"]);
+    assert_eq!(code, 0, "{err}");
+    let s: Value = serde_json::from_slice(&std::fs::read(&summary).unwrap()).unwrap();
+    assert_eq!(s["jobs"][0]["status"], "skipped", "{s}");
+}

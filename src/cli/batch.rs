@@ -528,6 +528,11 @@ fn write_sets(
     (outputs, set_preview): (&[PathBuf], Option<&Path>),
     undo: &mut Undo,
 ) -> Result<()> {
+    if let [job] = jobs.as_slice() {
+        if write_texture_sets(cx, job, outputs, undo)? {
+            return Ok(());
+        }
+    }
     let baked_sets = jobs
         .into_iter()
         .map(|j| bake_one(cx, j))
@@ -548,6 +553,37 @@ fn write_sets(
         undo.files.push(p.to_path_buf());
     }
     Ok(())
+}
+
+/// A job on a mesh of several texture sets: one texture per set, one model, preview and report
+/// (`decalbake::output::write_set_outputs`, as `decalbake bake` writes them); `false`, having
+/// done nothing, for a mesh of one set.
+fn write_texture_sets(
+    cx: WriteCx<'_>,
+    job: &Job,
+    outputs: &[PathBuf],
+    undo: &mut Undo,
+) -> Result<bool> {
+    let (engine, generation, shared, hash, on_stage) = cx;
+    let (mesh, uv_set) = shared
+        .meshes
+        .lock()
+        .expect("mesh cache")
+        .get(engine, generation, job)?;
+    let mut j = job.clone();
+    j.uv_set = uv_set;
+    let sets = mesh.mesh.texture_sets(uv_set);
+    if sets.len() < 2 {
+        return Ok(false);
+    }
+    on_stage("texture sets");
+    let mut bakes = engine.bake_texture_sets(&mesh, &j, sets)?;
+    bakes[0].baked.report.input_hash = Some(hash.to_string());
+    undo.prepare(std::slice::from_ref(&j), outputs)?;
+    on_stage("writing outputs");
+    let files = decalbake::output::write_set_outputs(engine, &mesh, &j, &mut bakes)?;
+    undo.files.extend(files);
+    Ok(true)
 }
 
 /// An animated job's frames, each written as soon as it is baked (a thousand 4096² frames are not
@@ -572,11 +608,26 @@ fn up_to_date(job: &Job, outputs: &[PathBuf], hash: &str) -> bool {
     let Some(report) = &job.out_report else {
         return false;
     };
-    let recorded = std::fs::read(report)
-        .ok()
-        .and_then(|b| serde_json::from_slice::<Value>(&b).ok())
-        .and_then(|v| v["input_hash"].as_str().map(str::to_string));
-    recorded.as_deref() == Some(hash) && outputs.iter().all(|p| p.exists())
+    let Some(report) = report_json(report) else {
+        return false;
+    };
+    // A bake into several texture sets wrote a texture per set (its report's `texture_sets`)
+    // instead of the job's one texture.
+    let sets: Vec<PathBuf> = report["texture_sets"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|s| s["texture"].as_str().map(PathBuf::from))
+        .collect();
+    let one_texture = |p: &&PathBuf| sets.is_empty() || Some(*p) != job.out_texture.as_ref();
+    report["input_hash"].as_str() == Some(hash)
+        && outputs.iter().filter(one_texture).all(|p| p.exists())
+        && sets.iter().all(|p| p.exists())
+}
+
+/// A report's JSON (`None` when it cannot be read).
+fn report_json(path: &Path) -> Option<Value> {
+    serde_json::from_slice(&std::fs::read(path).ok()?).ok()
 }
 
 /// What the jobs of one run share: loaded meshes and the digests of the files they read.

@@ -16,6 +16,23 @@ pub const SPOT_GLB: &[u8] = include_bytes!("../../assets/spot.glb");
 pub const CRUMPLED_GLB: &[u8] = include_bytes!("../../assets/crumpled_developable.glb");
 /// Keenan Crane's bob (CC0), a model with a handle: the demo's patch with bridges.
 pub const BOB_GLB: &[u8] = include_bytes!("../../assets/bob.glb");
+/// The animated knight by Clement Wu, Nikolaus & Botanic (CC-BY 3.0; `assets/README.md`): a
+/// skinned character with five animations, which the demo's badge bake keeps.
+pub const KNIGHT_GLB: &[u8] = include_bytes!("../../assets/knight.glb");
+
+/// The demo's knight job (`knight.json`): the badge on its chest, a surface-following decal.
+pub fn knight_json() -> String {
+    serde_json::to_string_pretty(&serde_json::json!({
+        "mesh": "knight.glb",
+        "texture": { "width": 1024, "height": 1024, "base": "material", "padding": 8 },
+        "layers": [
+            { "kind": "decal", "image": "decals/badge.png", "at": { "ray": { "origin": [0.0, 1.35, 3.0], "dir": [0, 0, -1] } },
+              "size": [0.35, 0.35], "up": [0, 1, 0], "method": "expmap" }
+        ],
+        "output": { "texture": "knight-baked.png", "glb": "knight-baked.glb", "preview": "knight-preview.png", "report": "knight-report.json" }
+    }))
+    .expect("static JSON serializes")
+}
 
 fn img(side: u32, f: impl Fn(f32, f32) -> [f32; 4]) -> LinearImage {
     let mut out = LinearImage::solid(side, side, [0.0; 4]);

@@ -635,6 +635,11 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
     (exr.out_glb, exr.out_report, exr.out_preview) = (None, None, None);
     bake(&engine, &exr)?;
     demo_ribbon_extras(&engine, out, &job_path)?;
+    // A skinned, animated character: the model goes out with its skin and animations.
+    decalbake::io::image::write_atomic(&out.join("knight.glb"), demo::KNIGHT_GLB)?;
+    let knight = out.join("knight.json");
+    decalbake::io::image::write_atomic(&knight, demo::knight_json().as_bytes())?;
+    bake(&engine, &Job::load(&knight, None)?)?;
     // A new UV set by pelting: the crumpled sheet, whose pelt refines to its isometric flattening.
     // Stood up (it lies in the xz plane), so the preview's side views see its face.
     let sheet = out.join("crumpled.glb");

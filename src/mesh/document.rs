@@ -84,7 +84,7 @@ impl SourceDocument {
             });
         }
         let base = self.base.as_deref().ok_or_else(|| {
-            format!("images[{index}] is an external file, but the model was read from memory")
+            format!("images[{index}] is an external file, but the mesh was read from memory with no directory to find it in")
         })?;
         let decoded = urlencoding::decode(uri)
             .map_err(|e| format!("images[{index}].uri {uri:?} is not valid UTF-8: {e}"))?;

@@ -275,6 +275,28 @@ fn view_groups(
     groups
 }
 
+/// Per split vertex, the first and third textures' weights: `_PELT_BLEND` and `_PELT_BRIDGE`
+/// when blending, else 1 and 0 (the second's is 1 minus both), as a vertex buffer.
+fn weight_buffer(engine: &Engine, mesh: &LoadedMesh, baked: &PreviewTexture) -> wgpu::Buffer {
+    let dev = &engine.ctx.device;
+    let n = mesh.mesh.positions.len();
+    let blending = baked.second.is_some() && mesh.mesh.blend.len() == n;
+    let first: Vec<f32> = match blending {
+        true => mesh.mesh.blend.clone(),
+        false => vec![1.0; n],
+    };
+    let third = match &baked.third {
+        Some(_) if blending && mesh.mesh.bridge.len() == n => mesh.mesh.bridge.clone(),
+        _ => vec![0.0; n],
+    };
+    let weights: Vec<[f32; 2]> = first.into_iter().zip(third).map(|(a, c)| [a, c]).collect();
+    dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("preview.weight"),
+        contents: bytemuck::cast_slice(&weights),
+        usage: wgpu::BufferUsages::VERTEX,
+    })
+}
+
 /// Each view's bind group (with its uniform buffer) for one texture, and the triangle ranges
 /// drawn with it.
 type ViewDraw = (
@@ -294,24 +316,7 @@ fn draw(
     let uv_buf = &mesh.gpu.uvs[baked.uv_set];
     let uv2_buf = &mesh.gpu.uvs[baked.second.as_ref().map_or(baked.uv_set, |t| t.uv_set)];
     let uv3_buf = &mesh.gpu.uvs[baked.third.as_ref().map_or(baked.uv_set, |t| t.uv_set)];
-    // Per split vertex, the first and third textures' weights: `_PELT_BLEND` and `_PELT_BRIDGE`
-    // when blending, else 1 and 0 (the second's is 1 minus both).
-    let n = mesh.mesh.positions.len();
-    let blending = baked.second.is_some() && mesh.mesh.blend.len() == n;
-    let first: Vec<f32> = match blending {
-        true => mesh.mesh.blend.clone(),
-        false => vec![1.0; n],
-    };
-    let third = match &baked.third {
-        Some(_) if blending && mesh.mesh.bridge.len() == n => mesh.mesh.bridge.clone(),
-        _ => vec![0.0; n],
-    };
-    let weights: Vec<[f32; 2]> = first.into_iter().zip(third).map(|(a, c)| [a, c]).collect();
-    let weight_buf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("preview.weight"),
-        contents: bytemuck::cast_slice(&weights),
-        usage: wgpu::BufferUsages::VERTEX,
-    });
+    let weight_buf = weight_buffer(engine, mesh, baked);
     let mk = |label: &str, format, samples, usage| {
         dev.create_texture(&wgpu::TextureDescriptor {
             label: Some(label),
