@@ -3,6 +3,7 @@
 //! analytic shapes (a hemisphere on its circle, a cylinder unrolled), closed models cut into disks,
 //! and the command's output and errors.
 mod common;
+use common::rich::validate;
 
 use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
 use decalbake::pelt::{self, relax, CutSpec, Device, Frame, Options, Refine, SystemCfg};
@@ -434,33 +435,6 @@ fn write_mesh(path: &Path, mesh: &Mesh) {
     let pos: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
     let idx: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
     common::write_glb(path, &pos, None, &idx);
-}
-
-/// Runs the Khronos glTF-Validator (`tests/gltf/validate.js`, installed by `.ci/run`) on `glb`;
-/// without node or the package it says so and checks nothing, except under CI, where it fails.
-fn validate(glb: &Path) {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/gltf");
-    let have = dir.join("node_modules/gltf-validator").exists()
-        && std::process::Command::new("node")
-            .arg("--version")
-            .output()
-            .is_ok();
-    if !have {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "CI must install the glTF validator (.ci/run: npm install --prefix tests/gltf gltf-validator)"
-        );
-        eprintln!("glTF-Validator not installed (npm install --prefix tests/gltf gltf-validator): not run");
-        return;
-    }
-    let out = std::process::Command::new("node")
-        .arg(dir.join("validate.js"))
-        .arg(glb)
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{}: {text}", glb.display());
-    assert!(text.contains("\"errors\":0"), "{text}");
 }
 
 /// `decalbake unwrap` on a mesh without UVs writes TEXCOORD_0, a report and a preview; on Spot

@@ -52,6 +52,34 @@ const ARRAY_BUFFER: u32 = 34962;
 const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 const F32: u32 = 5126;
 
+/// The JSON paths (`/key/0/...`) where documents `a` and `b` differ, appended to `out`: a key or
+/// element one side lacks is named whole. How the tests and `decalbake bench --corpus` check that
+/// a model went out as it came in.
+pub fn json_diff(a: &Value, b: &Value, path: &str, out: &mut Vec<String>) {
+    match (a, b) {
+        (Value::Object(x), Value::Object(y)) => {
+            for k in x.keys().chain(y.keys().filter(|k| !x.contains_key(*k))) {
+                let p = format!("{path}/{k}");
+                match (x.get(k), y.get(k)) {
+                    (Some(u), Some(v)) => json_diff(u, v, &p, out),
+                    _ => out.push(p),
+                }
+            }
+        }
+        (Value::Array(x), Value::Array(y)) => {
+            for i in 0..x.len().max(y.len()) {
+                let p = format!("{path}/{i}");
+                match (x.get(i), y.get(i)) {
+                    (Some(u), Some(v)) => json_diff(u, v, &p, out),
+                    _ => out.push(p),
+                }
+            }
+        }
+        _ if a != b => out.push(path.to_string()),
+        _ => {}
+    }
+}
+
 /// Whether `out` names a `.gltf` (JSON with a `.bin` and image files) rather than a `.glb`.
 pub fn is_gltf_name(out: &Path) -> bool {
     out.extension()

@@ -151,7 +151,7 @@ fn bake_one(engine: &Engine, model: &Path, out: &Path, decal: &Path) -> Result<V
         .unwrap_or_default();
     let output = read_json(&out_model)?;
     let mut changed = Vec::new();
-    diff(&input, &output, "", &mut changed);
+    decalbake::output::gltf::json_diff(&input, &output, "", &mut changed);
     changed.retain(|p| !may_change(p, unwrapped));
     Ok(json!({
         "triangles": loaded.mesh.triangles.len(),
@@ -195,31 +195,5 @@ fn may_change(path: &str, unwrapped: bool) -> bool {
                             .is_some_and(|k| ["attributes", "indices", "targets"].contains(k))))
         }
         _ => false,
-    }
-}
-
-/// The JSON paths where `a` and `b` differ.
-fn diff(a: &Value, b: &Value, path: &str, out: &mut Vec<String>) {
-    match (a, b) {
-        (Value::Object(x), Value::Object(y)) => {
-            for k in x.keys().chain(y.keys().filter(|k| !x.contains_key(*k))) {
-                let p = format!("{path}/{k}");
-                match (x.get(k), y.get(k)) {
-                    (Some(u), Some(v)) => diff(u, v, &p, out),
-                    _ => out.push(p),
-                }
-            }
-        }
-        (Value::Array(x), Value::Array(y)) => {
-            for i in 0..x.len().max(y.len()) {
-                let p = format!("{path}/{i}");
-                match (x.get(i), y.get(i)) {
-                    (Some(u), Some(v)) => diff(u, v, &p, out),
-                    _ => out.push(p),
-                }
-            }
-        }
-        _ if a != b => out.push(path.to_string()),
-        _ => {}
     }
 }
