@@ -568,3 +568,35 @@ fn a_batch_bakes_every_texture_set_and_resumes() {
     let s: Value = serde_json::from_slice(&std::fs::read(&summary).unwrap()).unwrap();
     assert_eq!(s["jobs"][0]["status"], "skipped", "{s}");
 }
+
+/// `texture.sets` sizes a material's set (by name or index); a key that names no material is
+/// refused (exit 2) with the key and the materials there are, and nothing is written.
+#[test]
+fn texture_sets_take_their_own_sizes_and_unknown_materials_are_refused() {
+    let dir = common::scratch("document-set-sizes");
+    let src = write_rich_overlapping(&dir);
+    let job = job(&dir, &src, "out.glb");
+    let mut j: Value = serde_json::from_slice(&std::fs::read(&job).unwrap()).unwrap();
+    j["texture"]["sets"] = json!({"glossy": {"width": 64}, "0": {"height": 32}});
+    std::fs::write(&job, serde_json::to_vec(&j).unwrap()).unwrap();
+    let (code, _, err) = common::cli(&["bake", job.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let size = |set: &str| image::image_dimensions(dir.join(format!("baked_{set}.png"))).unwrap();
+    assert_eq!(
+        size("glossy"),
+        (64, 128),
+        "by name, its height the texture's"
+    );
+    assert_eq!(size("painted"), (128, 32), "by index");
+    let out = dir.join("refused");
+    j["texture"]["sets"] = json!({"chrome": {"width": 64}});
+    j["output"] = json!({"texture": "refused/baked.png", "glb": "refused/out.glb"});
+    std::fs::write(&job, serde_json::to_vec(&j).unwrap()).unwrap();
+    let (code, _, err) = common::cli(&["bake", job.to_str().unwrap()]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("texture.sets.chrome") && err.contains("painted, glossy, trim"),
+        "{err}"
+    );
+    assert!(!out.exists() || std::fs::read_dir(&out).unwrap().next().is_none());
+}

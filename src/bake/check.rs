@@ -52,6 +52,7 @@ pub fn check_job(
         ));
     }
     super::stage::check_units(super::stage::Cx { engine, mesh, job })?;
+    super::sets::check_set_keys(job, &mesh.mesh)?;
     let sets = mesh.mesh.uv_sets.len();
     if sets == 0 {
         return Err(Error::mesh(

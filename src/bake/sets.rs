@@ -5,9 +5,10 @@
 //! boundary continues from one set's texture into the other's as it does across a UV seam.
 
 use super::engine::{Baked, Engine, LoadedMesh};
+use crate::error::Error;
 use crate::error::Result;
 use crate::io::job::Job;
-use crate::mesh::TextureSet;
+use crate::mesh::{Mesh, TextureSet};
 
 /// One texture set's bake.
 pub struct SetBake {
@@ -45,7 +46,8 @@ impl Engine {
         let mut out = Vec::with_capacity(sets.len());
         for set in sets {
             let m = self.prepare(mesh.mesh.for_texture_set(&set, job.uv_set)?)?;
-            let j = job.for_texture_set(&set.name);
+            let mut j = job.for_texture_set(&set.name);
+            (j.width, j.height) = set_size(job, &mesh.mesh, &set);
             let baked = self.bake(&m, &j)?;
             out.push(SetBake {
                 set,
@@ -56,4 +58,45 @@ impl Engine {
         }
         Ok(out)
     }
+}
+
+/// The size of `set`'s texture: its `texture.sets` entry (by a material's name or index), or the
+/// job's.
+pub fn set_size(job: &Job, mesh: &Mesh, set: &TextureSet) -> (u32, u32) {
+    let names: Vec<(usize, Option<String>)> = set
+        .materials
+        .iter()
+        .map(|&m| (m, mesh.material_name(m)))
+        .collect();
+    let named: Vec<(usize, Option<&str>)> = names.iter().map(|(m, n)| (*m, n.as_deref())).collect();
+    job.set_size(&named)
+}
+
+/// Every `texture.sets` key names a material of the mesh (by name or index), or an error naming
+/// the key and the materials there are.
+pub fn check_set_keys(job: &Job, mesh: &Mesh) -> Result<()> {
+    let count = mesh.material_count();
+    for (key, _, _) in &job.set_sizes {
+        let by_index = key.parse::<usize>().is_ok_and(|i| i < count);
+        let by_name = (0..count).any(|m| mesh.material_name(m).as_deref() == Some(key.as_str()));
+        if !by_index && !by_name {
+            let names: Vec<String> = (0..count)
+                .map(|m| mesh.material_name(m).unwrap_or_else(|| m.to_string()))
+                .collect();
+            return Err(Error::job(
+                &job.source,
+                format!("texture.sets.{key}"),
+                format!(
+                    "{} has no material named or numbered {key:?}; its materials are: {}",
+                    mesh.source.display(),
+                    if names.is_empty() {
+                        "none".into()
+                    } else {
+                        names.join(", ")
+                    }
+                ),
+            ));
+        }
+    }
+    Ok(())
 }

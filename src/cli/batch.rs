@@ -515,6 +515,9 @@ fn bake_one(cx: WriteCx<'_>, mut j: Job) -> Result<(Arc<LoadedMesh>, Job, decalb
         .expect("mesh cache")
         .get(engine, generation, &j)?;
     j.uv_set = uv_set;
+    if let [set] = mesh.mesh.texture_sets(uv_set).as_slice() {
+        (j.width, j.height) = decalbake::bake::sets::set_size(&j, &mesh.mesh, set);
+    }
     let mut baked = engine.bake_with_progress(&mesh, &j, on_stage)?;
     baked.report.input_hash = Some(hash.to_string());
     Ok((mesh, j, baked))

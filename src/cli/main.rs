@@ -532,7 +532,10 @@ fn bake(engine: &Engine, job: &Job) -> Result<()> {
         print_bake(&bakes[0].baked.report, files);
         return Ok(());
     }
-    let job = job.for_single_set(sets.first().map_or("default", |s| s.name.as_str()));
+    let mut job = job.for_single_set(sets.first().map_or("default", |s| s.name.as_str()));
+    if let Some(set) = sets.first() {
+        (job.width, job.height) = decalbake::bake::sets::set_size(&job, &mesh.mesh, set);
+    }
     let baked = engine.bake(&mesh, &job)?;
     write_baked(engine, &mesh, &job, baked).map(|_| ())
 }

@@ -8,6 +8,7 @@
 //! |---|---|
 //! | `uv_set` | `0` (a set's number, or `"auto"`: the base-colour texture's set, or on a mesh without UVs a `TEXCOORD_0` made by pelting, `crate::pelt`) |
 //! | `texture.width`, `texture.height` | `2048` |
+//! | `texture.sets` | none (a material's name or index to its texture set's `width` and `height`) |
 //! | `texture.base` | `"material"` (the material's base-colour texture; its factor as a solid colour if it has none; mid grey without a material); also an image path, a linear RGBA colour, or `{"transfer": {"from_uv_set": N, "image": "material" or a path}}` |
 //! | `texture.padding` | `16` texels (`"full"` fills the whole background) |
 //! | `texture.samples` | `4` (2×2 supersampling; 1, 4, 9 or 16) |
@@ -94,6 +95,20 @@ pub struct TextureSpec {
     /// texture does not fit one storage buffer of the device.
     #[serde(default)]
     pub tile: Option<u32>,
+    /// Per texture set sizes: a material's name or index to its set's `width` and `height`
+    /// (each defaulting to the texture's).
+    #[serde(default)]
+    pub sets: std::collections::BTreeMap<String, SetSize>,
+}
+
+/// `texture.sets.<material>`: the size of that material's texture set.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SetSize {
+    /// Width in texels (default: `texture.width`).
+    pub width: Option<u32>,
+    /// Height in texels (default: `texture.height`).
+    pub height: Option<u32>,
 }
 
 fn default_side() -> u32 {
@@ -112,6 +127,7 @@ impl Default for TextureSpec {
             padding: PaddingSpec::default(),
             samples: default_samples(),
             tile: None,
+            sets: Default::default(),
         }
     }
 }
@@ -500,6 +516,8 @@ pub struct Job {
     pub width: u32,
     /// Height.
     pub height: u32,
+    /// `texture.sets`: a material's name or index, and its set's width and height.
+    pub set_sizes: Vec<(String, u32, u32)>,
     /// Base.
     pub base: Base,
     /// Padding.
@@ -588,6 +606,21 @@ impl Job {
             out_preview: None,
             ..self.clone()
         }
+    }
+
+    /// The size of the texture set of `materials` (index and name of each): the first
+    /// `texture.sets` entry naming one of them by name or index, else `texture.width` × `height`.
+    pub fn set_size(&self, materials: &[(usize, Option<&str>)]) -> (u32, u32) {
+        for &(m, name) in materials {
+            let hit = self
+                .set_sizes
+                .iter()
+                .find(|(k, _, _)| Some(k.as_str()) == name || *k == m.to_string());
+            if let Some(&(_, w, h)) = hit {
+                return (w, h);
+            }
+        }
+        (self.width, self.height)
     }
 
     /// The job for a mesh of one texture set, `set`: `{set}` and `{channel}` in the texture's
@@ -728,6 +761,16 @@ impl Job {
                 return Err(err(name, "must be at least 1 texel".into()));
             }
         }
+        for (key, size) in &t.sets {
+            for (side, v) in [("width", size.width), ("height", size.height)] {
+                if v == Some(0) {
+                    return Err(err(
+                        &format!("texture.sets.{key}.{side}"),
+                        "must be at least 1 texel".into(),
+                    ));
+                }
+            }
+        }
         let ss = match t.samples {
             1 => 1,
             4 => 2,
@@ -816,6 +859,14 @@ impl Job {
             },
             width: t.width,
             height: t.height,
+            set_sizes: t
+                .sets
+                .iter()
+                .map(|(k, v)| {
+                    let (w, h) = (v.width.unwrap_or(t.width), v.height.unwrap_or(t.height));
+                    (k.clone(), w, h)
+                })
+                .collect(),
             base,
             padding,
             ss,

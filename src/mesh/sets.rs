@@ -134,6 +134,23 @@ impl Mesh {
     }
 }
 
+impl Mesh {
+    /// Material `m`'s name in the document (`None` without one, or without a document).
+    pub fn material_name(&self, m: usize) -> Option<String> {
+        let doc = self.document.as_ref()?;
+        doc.array("materials").get(m)?["name"]
+            .as_str()
+            .map(String::from)
+    }
+
+    /// How many materials the document has (0 without a document).
+    pub fn material_count(&self) -> usize {
+        self.document
+            .as_ref()
+            .map_or(0, |d| d.array("materials").len())
+    }
+}
+
 /// `name` with every character but letters, digits, `-` and `_` replaced by `_`.
 fn file_safe(name: &str) -> String {
     name.chars()
