@@ -111,6 +111,22 @@ pub struct SetSize {
     pub height: Option<u32>,
 }
 
+/// Every side `texture.sets` gives is at least 1 texel.
+fn check_set_sizes(t: &TextureSpec, src: &Path) -> Result<()> {
+    for (key, size) in &t.sets {
+        for (side, v) in [("width", size.width), ("height", size.height)] {
+            if v == Some(0) {
+                return Err(Error::job(
+                    src,
+                    format!("texture.sets.{key}.{side}"),
+                    "must be at least 1 texel",
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 fn default_side() -> u32 {
     2048
 }
@@ -761,16 +777,7 @@ impl Job {
                 return Err(err(name, "must be at least 1 texel".into()));
             }
         }
-        for (key, size) in &t.sets {
-            for (side, v) in [("width", size.width), ("height", size.height)] {
-                if v == Some(0) {
-                    return Err(err(
-                        &format!("texture.sets.{key}.{side}"),
-                        "must be at least 1 texel".into(),
-                    ));
-                }
-            }
-        }
+        check_set_sizes(t, src)?;
         let ss = match t.samples {
             1 => 1,
             4 => 2,
