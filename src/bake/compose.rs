@@ -401,8 +401,7 @@ impl Recording<'_> {
             // target: llvmpipe then loads and stores only the bins the jobs touch. Measured with a
             // temporary switch between the two, one pair of runs of `decalbake bench` on bob: 256
             // decals at 4096² (46 targets of 2048², about 60 % packed) compose 3.09 → 2.76 s; 16
-            // decals 394 → 372 ms; one decal the same (a tiled 8192² bake: 1.80 → 1.62 s,
-            // session 13).
+            // decals 394 → 372 ms; one decal the same (a tiled 8192² bake: 1.80 → 1.62 s).
             let mut pass =
                 crate::gpu::render_pass(enc, "bake.layer_raster", &views, wgpu::LoadOp::Load);
             pass.set_pipeline(&pipes.atlas_clear.pipeline);

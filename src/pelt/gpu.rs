@@ -7,7 +7,7 @@
 //!
 //! Why one dispatch per step: a loop of steps inside one workgroup needs a barrier per step, and
 //! llvmpipe runs such a loop an invocation batch at a time: 17 ms a step on Spot's 3,200 vertices,
-//! on one core, with this session's first kernel (a workgroup per piece looping over steps; not
+//! on one core, with the first kernel written for it (a workgroup per piece looping over steps; not
 //! kept, so no command here reproduces it) against about 0.6 ms now (`decalbake bench --unwrap`:
 //! `stages_ms.relax` over the steps run). A dispatch costs about 80 µs (`../shared/notes`).
 

@@ -480,7 +480,7 @@ pub const REST_SCALES: [f32; 3] = [1.0, 0.5, 0.0];
 /// at a backward error, and from a folded start the error left over is large: on the crumpled
 /// sheet the layout refined from its folded eq. 1 pelt had 2.5 % area distortion (the test
 /// `developable_sheet_unwraps_to_its_flattening` allows 0.5 % and fails with it), against 0.1 %
-/// from Tutte's. Until session 16 the start was eq. 1's pelt where it did not fold, Tutte's where
+/// from Tutte's. The start used to be eq. 1's pelt where it did not fold, Tutte's where
 /// it did; eq. 1's pelt folded on every piece of bob subdivided twice, so most of the 12.2 s of
 /// dynamics (of 20.7 s in all: `stages_ms.relax` of `decalbake bench --unwrap --mesh
 /// assets/bob.glb --subdivide 2` at commit 97235a5; 7.4 s for eq. 1's rung in a one-off timing)
