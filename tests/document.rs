@@ -478,14 +478,7 @@ fn each_texture_set_gets_its_own_texture_continuous_across_the_material_boundary
 fn auto_uvs_open_non_manifold_edges() {
     let dir = common::scratch("document-fin");
     let fin = dir.join("fin.glb");
-    let pos = [
-        [0.0, 0.0, 0.0],
-        [1.0, 0.0, 0.0],
-        [0.5, 1.0, 0.0],
-        [0.5, -1.0, 0.0],
-        [0.5, 0.0, 1.0],
-    ];
-    common::write_glb(&fin, &pos, None, &[0, 1, 2, 1, 0, 3, 0, 1, 4]);
+    common::write_fin(&fin);
     let img: Vec<u16> = (0..16 * 16).flat_map(|_| [20, 200, 90, 255]).collect();
     std::fs::write(
         dir.join("green.png"),

@@ -529,14 +529,7 @@ fn unwrap_command_refuses_bad_input() {
 
     // Three triangles on one edge.
     let fin = dir.join("fin.glb");
-    let pos = [
-        [0.0, 0.0, 0.0],
-        [1.0, 0.0, 0.0],
-        [0.5, 1.0, 0.0],
-        [0.5, -1.0, 0.0],
-        [0.5, 0.0, 1.0],
-    ];
-    common::write_glb(&fin, &pos, None, &[0, 1, 2, 1, 0, 3, 0, 1, 4]);
+    common::write_fin(&fin);
     let (code, err) = run(&fin, &[]);
     assert_eq!(code, 2, "{err}");
     assert!(

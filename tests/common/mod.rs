@@ -49,6 +49,18 @@ pub fn data(file: &str) -> PathBuf {
         .join(file)
 }
 
+/// Writes a non-manifold GLB without UVs: three triangles on one edge (a fin).
+pub fn write_fin(path: &Path) {
+    let pos = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.5, 1.0, 0.0],
+        [0.5, -1.0, 0.0],
+        [0.5, 0.0, 1.0],
+    ];
+    write_glb(path, &pos, None, &[0, 1, 2, 1, 0, 3, 0, 1, 4]);
+}
+
 /// Writes a minimal GLB: one primitive, no material.
 pub fn write_glb(path: &Path, positions: &[[f32; 3]], uvs: Option<&[[f32; 2]]>, indices: &[u32]) {
     let mut bin: Vec<u8> = Vec::new();
