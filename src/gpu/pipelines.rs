@@ -234,7 +234,7 @@ pub struct Pipelines {
     /// system (large systems).
     pub cg_amg: Option<Kernel>,
     /// (`None` on a device with fewer than [`AMG_STORAGE_BUFFERS`] storage buffers a stage: the
-    /// solver then uses Jacobi. wgpu's GL backend binds 16, enough since session 18.)
+    /// solver then uses Jacobi. wgpu's GL backend binds 16, enough.)
     /// `cg_amg` on 2 × 2 complex blocks (`shaders::complex_source`): LSCM systems.
     pub cg_amg_complex: Option<Kernel>,
     /// `wgsl/solve/cg_wide.wgsl` and `cg_wide_plain.wgsl` on 2 × 2 complex blocks: `cg_amg`'s

@@ -22,7 +22,7 @@
 
 // 64 invocations: a map's fronts are a ring or two, so most of a wider workgroup idled through
 // every sweep's barriers (256 maps of ~1,100 vertices on bob x 2: 1,078-1,160 -> 1,319-1,367
-// maps/s in alternating runs, session 18).
+// maps/s in alternating runs on lavapipe).
 // A chunk with a map of `WIDE_MIN_CANDIDATES` candidates or more (src/maps/expmap/gpu.rs) runs a variant of
 // 256 (`shaders::expmap_wide_source`), whose set-up and count loops stay short of lavapipe's
 // loop cut-off. Keep in sync with `shaders::EXPMAP_WG`.

@@ -122,7 +122,7 @@ fn set_seed(job: GeoJob, base: u32, i: u32) {
 // The first front: seed vertex i's neighbours that are candidates (marked with stamp 1; the
 // sweeps' stamps start at 2), into the front list at 2 * cand_offset. Every other candidate
 // first changes after a neighbour did, so it is queued then: a first front of every candidate
-// (as before session 18) gave the same sweeps, its evaluations of vertices far from the seed
+// (as the kernel once had) gave the same sweeps, its evaluations of vertices far from the seed
 // finding nothing (about a fifth of a map's evaluations).
 fn queue_seed_neighbours(job: GeoJob, base: u32, i: u32) {
     let v = job.tri[i];
@@ -197,7 +197,7 @@ fn relax_vertex(job: GeoJob, base: u32, v: u32, orient: f32, stamp: u32, nxt: u3
             // scan forms) at most q's distance. Distances only decrease, so where v was
             // q's best its key cannot have grown: `<=` keeps q queued when v's
             // coordinates or state changed at the same distance, and a tie. Any other q
-            // would scan its neighbours and keep what it has (session 18: a map's
+            // would scan its neighbours and keep what it has (without the check a map's
             // vertices were evaluated 3.9-5 times each).
             if (best <= job.radius && abs(kv) <= job.curvature_stop) {
                 for (var k = k_first; k < k_end; k++) {

@@ -56,9 +56,9 @@ pub struct GeoResult {
 /// Euclidean distance, each step adds an edge's length), so every expanded vertex and every
 /// vertex on its upwind path lies in the ball, and what it reaches in the ring past it (this was
 /// 1.5 × `radius`, from a time when the map's |u| decided: 2.2 times the candidates of a disc).
-/// Cost proportional to the result. Breadth first (session 13: when the first sweep visited
+/// Cost proportional to the result. Breadth first (when the first sweep visited
 /// every candidate in this order, it carried the map across more rings, 22 → 17 sweeps for a 1k
-/// disc; since session 18 the first front is the seeds' neighbours and the order no longer
+/// disc; now the first front is the seeds' neighbours and the order no longer
 /// matters to the sweeps).
 pub fn candidates(topo: &Topology, seed: &Seed, radius: f32) -> Vec<u32> {
     let mut seen = rustc_hash::FxHashSet::default();
@@ -176,9 +176,9 @@ const ROUNDS_PER_SUBMIT: u32 = 4;
 /// one workgroup a map; 0, the default, leaves the choice to the adapter: never on a CPU adapter,
 /// from [`GPU_SPREAD_MIN_CANDIDATES`] on a GPU. Measured (`bench --geodesic`, which reports both
 /// paths on any adapter: `gpu_ms`, `gpu_spread_ms`): on lavapipe a dispatch that wakes the second
-/// core costs more than the sweep it carries (session 19: the 12k disc on bob × 2 21-24 ms spread
+/// core costs more than the sweep it carries (lavapipe on this 2-core machine: the 12k disc on bob × 2 21-24 ms spread
 /// against 8.5-8.6 ms in one workgroup, 10.2 ms spread with `LP_NUM_THREADS=1`; the 120k disc
-/// 123-134 against 115-116); on an NVIDIA H200 (session 21, README "On a real GPU") the spread
+/// 123-134 against 115-116); on an NVIDIA H200 (2026-11-27, README "On a real GPU") the spread
 /// path is slower at 1k vertices (1.2 against 0.7 ms), even at 12k on bob × 2 (6.8 against 6.5),
 /// ahead at 11k on bob × 3 (10.0 against 13.8) and 2.4× at 121k (42 against 103). Tests compare
 /// the two paths; results do not depend on it (the same fixed point).
