@@ -42,6 +42,7 @@ fn frame_at(topo: &Topology, at: Vec3, up: [f32; 3], size: [f32; 2]) -> (Frame, 
         stroke: None,
         ribbon: None,
         warp: Vec::new(),
+        channels: Default::default(),
     };
     (Frame::new(&p, &job_layer), p.triangle)
 }

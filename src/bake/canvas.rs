@@ -172,8 +172,89 @@ impl Canvas {
         Ok(canvas)
     }
 
+    /// A channel pass's canvas ([`super::channels`]): new accumulation planes (and stroke
+    /// buffers) filled with the pass's base, or transferred from it where it is laid out on
+    /// another UV set; the islands and `Params` are this canvas's, and the stats buffer a new one
+    /// of the same shape (the compose counts into it; the colour's counts are the report's).
+    pub(crate) fn channel(
+        &self,
+        cx: Cx<'_>,
+        base: (&Arc<super::engine::GpuImage>, u32),
+        log: &mut Log,
+    ) -> Result<Self> {
+        let Cx { engine, mesh, job } = cx;
+        let dev = &engine.ctx.device;
+        let [_, _, w, h] = self.global.window();
+        let bytes = w as u64 * h as u64 * 8;
+        let usage = wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST;
+        let plane = |label: &str| {
+            dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let (acc_rg, _) = engine.pooled_buffer("bake.channel_rg", bytes, usage);
+        let (acc_ba, _) = engine.pooled_buffer("bake.channel_ba", bytes, usage);
+        let carry = self.carry.as_ref().map(|c| {
+            dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("bake.smear_carry"),
+                size: c.size(),
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        });
+        let canvas = Self {
+            acc_rg,
+            acc_ba,
+            stroke: self
+                .stroke
+                .as_ref()
+                .map(|_| [plane("bake.stroke_rg"), plane("bake.stroke_ba")]),
+            carry,
+            stats: dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("bake.channel_stats"),
+                size: self.stats_size,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+            stats_size: self.stats_size,
+            stats_stride: self.stats_stride,
+            grid: self.grid,
+            global: self.global,
+            islands: self.islands.clone(),
+        };
+        let (image, from) = base;
+        if from != job.uv_set && (from as usize) < mesh.mesh.uv_sets.len() {
+            engine.ctx.scoped("canvas clear", || {
+                let mut enc = dev.create_command_encoder(&Default::default());
+                enc.clear_buffer(&canvas.acc_rg, 0, None);
+                enc.clear_buffer(&canvas.acc_ba, 0, None);
+                engine.ctx.queue.submit([enc.finish()]);
+            })?;
+            let acc = [&canvas.acc_rg, &canvas.acc_ba];
+            super::transfer::fill(engine, mesh, job, (image, from), canvas.global, acc, log)?;
+        } else {
+            canvas.fill_base_image(engine, image, log)?;
+        }
+        Ok(canvas)
+    }
+
     /// `base_init`: the base image, sampled at every texel centre, into the accumulation planes.
     fn fill_base(&self, engine: &Engine, images: &Images, log: &mut Log) -> Result<()> {
+        self.fill_base_image(engine, &images.base, log)
+    }
+
+    /// `base_init` of `base`.
+    fn fill_base_image(
+        &self,
+        engine: &Engine,
+        base: &super::engine::GpuImage,
+        log: &mut Log,
+    ) -> Result<()> {
         let (dev, pipes) = (&engine.ctx.device, &engine.pipes);
         let [_, _, w, h] = self.global.window();
         let base_params = params_buffer(dev, "bake.base_params", &[self.global]);
@@ -186,7 +267,7 @@ impl Canvas {
                 "bake.base_init",
                 &[
                     (0, pbind(&base_params)),
-                    (1, wgpu::BindingResource::TextureView(&images.base.view)),
+                    (1, wgpu::BindingResource::TextureView(&base.view)),
                     (2, wgpu::BindingResource::Sampler(&engine.linear_sampler)),
                     (10, self.acc_rg.as_entire_binding()),
                     (11, self.acc_ba.as_entire_binding()),

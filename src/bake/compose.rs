@@ -7,6 +7,7 @@
 //! the whole stage: [`crate::bake::cpu::bake_cpu`].
 
 use super::canvas::Canvas;
+use super::channels::{Draw, Pass};
 use super::engine::{Engine, LoadedMesh};
 use super::images::Images;
 use super::maps::{LayerMaps, Slots};
@@ -129,6 +130,7 @@ fn flushes(
     maps: &LayerMaps,
     jobs: &[RasterJob],
     global: &Params,
+    pass: Option<&Pass>,
 ) -> (Vec<Flush>, Vec<Params>) {
     let entries = jobs.last().map_or(0, |j| j.entry + j.units.len());
     let mut out = Vec::new();
@@ -143,11 +145,22 @@ fn flushes(
             params: entries + params.len(),
         });
         let [x, y, w, h] = global.window();
+        // A channel pass applies the stroke with its channel's blend and opacity.
+        let (blend, opacity, chan) = match pass.map(|p| &p.draws[s.layer]) {
+            Some(Draw::Channel {
+                opacity,
+                blend,
+                chan,
+                ..
+            }) => (*blend, *opacity, *chan),
+            _ => (s.blend as u32, s.opacity, [0.0; 4]),
+        };
         params.push(Params {
             rect_origin: [x as i32, y as i32],
             rect_size: [w, h],
-            blend: s.blend as u32,
-            opacity: s.opacity,
+            blend,
+            opacity,
+            chan,
             aux: last as u32,
             ..*global
         });
@@ -156,7 +169,9 @@ fn flushes(
 }
 
 /// Rasterizes and composes the chunk's layers into the canvas (a stroke's stamps into the stroke
-/// buffer, applied to the canvas after its last stamp); returns each layer's distortion.
+/// buffer, applied to the canvas after its last stamp); returns each layer's distortion. `pass`:
+/// a channel's pass ([`super::channels`]) into its own canvas, each unit drawn as its job layer's
+/// [`Draw`] says (no distortion measured: the colour's pass did).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn compose(
     cx: Cx<'_>,
@@ -166,6 +181,7 @@ pub(crate) fn compose(
     maps: &LayerMaps,
     stats: &[i32],
     placed: &Placed,
+    pass: Option<&Pass>,
     log: &mut Log,
 ) -> Result<Vec<Distortion>> {
     let Cx { engine, mesh, job } = cx;
@@ -204,7 +220,7 @@ pub(crate) fn compose(
             batches.len()
         );
     }
-    let (flush, flush_params) = flushes(placed, maps, &jobs, &canvas.global);
+    let (flush, flush_params) = flushes(placed, maps, &jobs, &canvas.global, pass);
     super::tools::check_window(canvas, maps, stats, placed, &job.source)?;
     // One entry per (raster job, unit): the rectangle's fields with the unit's own.
     // Tool stamps read their cell of the chunk's flat images (`bake/tools.rs`).
@@ -224,7 +240,11 @@ pub(crate) fn compose(
                     flags |= FLAG_WARP;
                     [w, 0, 0, 0]
                 });
+                let (opacity, blend, chan) = unit_draw(pass, placed, u, &p, &mut flags);
                 Params {
+                    opacity,
+                    blend,
+                    chan,
                     rect_origin: j.params.rect_origin,
                     rect_size: j.params.rect_size,
                     tile: j.params.tile,
@@ -279,8 +299,12 @@ pub(crate) fn compose(
             placed,
             flush: &flush,
             flats: flats.as_ref().map_or(&no_flats, |f| &f.buffer),
+            pass,
         };
-        log.commands += record_distortion(engine, mesh, canvas, slots, maps, &partials, &mut enc);
+        if pass.is_none() {
+            log.commands +=
+                record_distortion(engine, mesh, canvas, slots, maps, &partials, &mut enc);
+        }
         let mut layer_bgs = HashMap::new();
         let mut flushed = 0;
         for batch in &batches {
@@ -294,6 +318,9 @@ pub(crate) fn compose(
         drop(pass);
         engine.ctx.queue.submit([enc.finish()]);
     })?;
+    if pass.is_some() {
+        return Ok(Vec::new());
+    }
     let pb = engine
         .ctx
         .read_buffer(&partials, partials_size, "distortion read-back")?;
@@ -303,6 +330,36 @@ pub(crate) fn compose(
         .chunks_exact(per)
         .map(Distortion::from_partials)
         .collect())
+}
+
+/// Unit `u`'s opacity, blend and data weights in `pass` (its `Params` `p` in the colour's), and
+/// its raster flags added to `flags`. A stroke's stamps keep theirs (their stroke is applied with
+/// the channel's, [`flushes`]); a unit whose layer does not paint the channel gets opacity 0 and is
+/// not drawn ([`Recording::drawn`]).
+fn unit_draw(
+    pass: Option<&Pass>,
+    placed: &Placed,
+    u: usize,
+    p: &Params,
+    flags: &mut u32,
+) -> (f32, u32, [f32; 4]) {
+    match pass.map(|s| &s.draws[placed.origin[u].0]) {
+        None | Some(Draw::Colour) => (p.opacity, p.blend, p.chan),
+        Some(Draw::Skip) => (0.0, p.blend, p.chan),
+        Some(Draw::Channel {
+            opacity,
+            blend,
+            chan,
+            flags: f,
+            ..
+        }) => {
+            *flags |= f;
+            match placed.stroke_of(u) {
+                Some(_) => (p.opacity, p.blend, p.chan),
+                None => (*opacity, *blend, *chan),
+            }
+        }
+    }
 }
 
 /// `distortion`: each layer's map over its selected triangles, partial sums per workgroup.
@@ -377,6 +434,8 @@ struct Recording<'a> {
     flush: &'a [Flush],
     /// The chunk's filtered flat images (a 16-byte placeholder without tool stamps).
     flats: &'a wgpu::Buffer,
+    /// A channel's pass, `None` for the colour's.
+    pass: Option<&'a Pass>,
 }
 
 impl Recording<'_> {
@@ -410,7 +469,13 @@ impl Recording<'_> {
                 pass.set_scissor_rect(origin[0] + sx, origin[1] + sy, sw, sh);
                 pass.draw(0..3, 0..1);
             }
-            pass.set_pipeline(&pipes.layer_raster.pipeline);
+            let raster = match self.pass.map(|p| p.kind) {
+                Some(super::channels::ChannelKind::Normal) => {
+                    pipes.layer_raster_normal(&engine.ctx.device)
+                }
+                _ => &pipes.layer_raster,
+            };
+            pass.set_pipeline(&raster.pipeline);
             for &(k, origin) in batch {
                 let rj = &self.jobs[k];
                 let p = &rj.params;
@@ -428,7 +493,7 @@ impl Recording<'_> {
                 let [sx, sy, sw, sh] = scissor(p, win, ss);
                 pass.set_scissor_rect(origin[0] + sx, origin[1] + sy, sw, sh);
                 for (e, i) in rj.units.clone().enumerate() {
-                    if self.placed.sources[i] {
+                    if self.placed.sources[i] || !self.drawn(i) {
                         continue;
                     }
                     let bg = layer_bgs
@@ -512,31 +577,48 @@ impl Recording<'_> {
         n
     }
 
-    /// Layer `i`'s raster bind group: its triangle list, UVs, coords, image and mask.
+    /// Whether unit `i` is drawn in this pass (always in the colour's).
+    fn drawn(&self, i: usize) -> bool {
+        self.pass
+            .is_none_or(|p| !matches!(p.draws[self.placed.origin[i].0], Draw::Skip))
+    }
+
+    /// Layer `i`'s raster bind group: its triangle list, UVs, coords, image and mask (in a
+    /// channel's pass, its channel image; for normals, the mesh's frames too).
     fn layer_bind_group(&self, i: usize) -> wgpu::BindGroup {
         let (engine, g) = (self.engine, &self.mesh.gpu);
-        let (img, m) = &self.images.layers[i];
+        let (colour, m) = &self.images.layers[i];
+        let img = match self.pass.map(|p| &p.draws[self.placed.origin[i].0]) {
+            Some(Draw::Channel { image, .. }) => image,
+            _ => colour,
+        };
+        let tangents = self.pass.and_then(|p| p.tangents.as_ref());
         let mview = m
             .as_ref()
             .map(|m| &m.view)
             .unwrap_or(&self.images.dummy.view);
-        make_bind_group(
-            &engine.ctx.device,
-            &engine.pipes.layer_raster.layout,
-            "bake.layer_raster",
-            &[
-                (0, pbind(self.job_params)),
-                (1, self.slots.lists.as_entire_binding()),
-                (2, g.split_tris.as_entire_binding()),
-                (3, g.uvs[self.job.uv_set as usize].as_entire_binding()),
-                (4, g.welded_of.as_entire_binding()),
-                (5, self.slots.coords.as_entire_binding()),
-                (6, wgpu::BindingResource::TextureView(&img.view)),
-                (7, wgpu::BindingResource::TextureView(mview)),
-                (8, wgpu::BindingResource::Sampler(&engine.linear_sampler)),
-                (9, self.flats.as_entire_binding()),
-                (10, self.images.warps.as_entire_binding()),
-            ],
-        )
+        let mut entries = vec![
+            (0, pbind(self.job_params)),
+            (1, self.slots.lists.as_entire_binding()),
+            (2, g.split_tris.as_entire_binding()),
+            (3, g.uvs[self.job.uv_set as usize].as_entire_binding()),
+            (4, g.welded_of.as_entire_binding()),
+            (5, self.slots.coords.as_entire_binding()),
+            (6, wgpu::BindingResource::TextureView(&img.view)),
+            (7, wgpu::BindingResource::TextureView(mview)),
+            (8, wgpu::BindingResource::Sampler(&engine.linear_sampler)),
+            (9, self.flats.as_entire_binding()),
+            (10, self.images.warps.as_entire_binding()),
+        ];
+        let layout = match tangents {
+            Some(t) => {
+                entries.push((11, g.split_positions.as_entire_binding()));
+                entries.push((12, g.split_normals.as_entire_binding()));
+                entries.push((13, t.as_entire_binding()));
+                &engine.pipes.layer_raster_normal(&engine.ctx.device).layout
+            }
+            None => &engine.pipes.layer_raster.layout,
+        };
+        make_bind_group(&engine.ctx.device, layout, "bake.layer_raster", &entries)
     }
 }

@@ -97,8 +97,21 @@ pub struct Baked {
     /// For a float output (`output.texture` ending in `.exr`): the padded canvas, linear
     /// straight-alpha RGBA f32, 4 values a texel.
     pub linear: Option<Vec<f32>>,
+    /// Each PBR channel the layers painted besides the colour (`bake::channels`), in pass
+    /// order: its texels as `texels` holds the colour's (data and normals as stored, emissive
+    /// sRGB-encoded).
+    pub channels: Vec<BakedChannel>,
     /// The report.
     pub report: Report,
+}
+
+/// One channel's texture of a [`Baked`].
+#[derive(Debug, Clone)]
+pub struct BakedChannel {
+    /// Which.
+    pub kind: crate::io::channels::ChannelKind,
+    /// RGBA, 4 values a texel, as [`Baked::texels`].
+    pub texels: Vec<u16>,
 }
 
 impl Baked {
@@ -118,6 +131,16 @@ impl Baked {
     /// PNG bytes at the bake's bit depth.
     pub fn to_png(&self) -> Vec<u8> {
         crate::io::image::png_bytes(self.width, self.height, self.bit_depth, &self.texels)
+    }
+
+    /// Each channel's PNG, in [`Self::channels`]' order.
+    pub fn channel_pngs(&self) -> Vec<Vec<u8>> {
+        self.channels
+            .iter()
+            .map(|c| {
+                crate::io::image::png_bytes(self.width, self.height, self.bit_depth, &c.texels)
+            })
+            .collect()
     }
 
     /// sRGB RGBA8 bytes (16-bit bakes are rounded).
@@ -622,25 +645,45 @@ impl Engine {
         let run = super::run(self, mesh, job, on_stage)?;
         on_stage("read-back");
         let t = Instant::now();
-        let (w, h) = (job.width, job.height);
-        let mut texels = vec![0u16; (w * h * 4) as usize];
         let e = &run.encoded;
-        self.ctx
-            .read_buffer_with(&e.packed, e.packed_size, "encode read-back", |bytes| {
-                let words = bytemuck::cast_slice(bytes);
-                unpack_rows(&mut texels, w, [0, 0, w, h], words, e.stride, job.bit_depth)
-            })?;
-        self.return_buffers([run.encoded.packed.clone()]);
+        let texels = self.read_encoded((&e.packed, e.packed_size, e.stride), job)?;
+        let mut channels = Vec::with_capacity(run.channels.len());
+        for (kind, e) in &run.channels {
+            let texels = self.read_encoded((&e.packed, e.packed_size, e.stride), job)?;
+            channels.push(BakedChannel {
+                kind: *kind,
+                texels,
+            });
+        }
         let mut report = run.report;
         report.timings.encode_ms += ms(t);
         Ok(Baked {
-            width: w,
-            height: h,
+            width: job.width,
+            height: job.height,
             bit_depth: job.bit_depth,
             texels,
             linear: None,
+            channels,
             report,
         })
+    }
+
+    /// An encoded texture (packed buffer, its bytes, words a row) read back into texels (the
+    /// packed buffer then goes back to the pool).
+    fn read_encoded(
+        &self,
+        (packed, size, stride): (&wgpu::Buffer, u64, u32),
+        job: &Job,
+    ) -> Result<Vec<u16>> {
+        let (w, h) = (job.width, job.height);
+        let mut texels = vec![0u16; (w * h * 4) as usize];
+        self.ctx
+            .read_buffer_with(packed, size, "encode read-back", |bytes| {
+                let words = bytemuck::cast_slice(bytes);
+                unpack_rows(&mut texels, w, [0, 0, w, h], words, stride, job.bit_depth)
+            })?;
+        self.return_buffers([packed.clone()]);
+        Ok(texels)
     }
 
     /// Bakes `job` onto `mesh` and returns the result as an `Rgba8UnormSrgb` texture that never leaves

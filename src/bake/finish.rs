@@ -5,7 +5,7 @@
 //! packed buffer with 256-byte rows, ready for one read-back or a copy into a host texture.
 
 use super::canvas::Canvas;
-use super::params::{params_buffer, pbind, Params, FLAG_16BIT, FLAG_NO_PAD};
+use super::params::{params_buffer, pbind, Params, FLAG_16BIT, FLAG_LINEAR, FLAG_NO_PAD};
 use super::stage::{Cx, Log};
 use crate::error::Result;
 use crate::io::job::Padding;
@@ -22,11 +22,12 @@ pub struct Encoded {
 
 /// Pads and encodes the canvas.
 /// `pad`: pad here (false for a tile of a tiled bake, which is padded on the CPU); the encoded
-/// texels are the canvas window's.
+/// texels are the canvas window's. `linear`: write the values as stored (a data or normal
+/// channel), not sRGB-encoded.
 pub(crate) fn pad_and_encode(
     cx: Cx<'_>,
     canvas: &Canvas,
-    pad: bool,
+    (pad, linear): (bool, bool),
     log: &mut Log,
 ) -> Result<Encoded> {
     let Cx { engine, job, .. } = cx;
@@ -39,7 +40,9 @@ pub(crate) fn pad_and_encode(
     };
     let fin = [Params {
         rect_size: [stride, 0],
-        flags: if job.bit_depth == 16 { FLAG_16BIT } else { 0 } | if pad { 0 } else { FLAG_NO_PAD },
+        flags: if job.bit_depth == 16 { FLAG_16BIT } else { 0 }
+            | if pad { 0 } else { FLAG_NO_PAD }
+            | if linear { FLAG_LINEAR } else { 0 },
         aux: padding_radius(job.padding),
         ..canvas.global
     }];

@@ -26,6 +26,7 @@
 //! GPU buffers and per-mesh caches) are in [`engine`]; [`cpu`] is the CPU twin of the whole bake.
 pub mod blend;
 mod canvas;
+pub mod channels;
 mod check;
 mod compose;
 pub mod cpu;
@@ -49,7 +50,7 @@ mod tiles;
 pub mod tools;
 mod transfer;
 
-pub use engine::{Baked, BvhBuild, Engine, LoadedMesh};
+pub use engine::{Baked, BakedChannel, BvhBuild, Engine, LoadedMesh};
 pub use images::{f32_to_f16, load_raw, upload_image};
 pub use param::{size_figures, ParamMap, ParamRow, SizeFigures};
 pub use place::Units;
@@ -63,6 +64,8 @@ use std::time::Instant;
 /// A bake on the GPU before read-back: the encoded texture and the report.
 pub(crate) struct Run {
     pub encoded: finish::Encoded,
+    /// Each channel pass's encoded texture ([`channels`]), in pass order.
+    pub channels: Vec<(channels::ChannelKind, finish::Encoded)>,
     pub report: Report,
     /// The canvas, linear RGBA f32 (unpadded), for a float (EXR) output.
     pub linear: Option<Vec<f32>>,
@@ -131,14 +134,33 @@ pub(crate) fn run_in(
     let t = Instant::now();
     on_stage("canvas");
     let canvas = canvas::Canvas::new(ucx, &images, !placed.strokes.is_empty(), window, &mut log)?;
-    let units = compose_units(ucx, &placed, &images, &canvas, &mut log, on_stage)
-        .map_err(|e| placed.rename(e))?;
+    let mut passes = Vec::new();
+    for kind in channels::passes(job) {
+        let pass = channels::pass(engine, mesh, job, kind, &mut log.warnings)?;
+        let c = canvas.channel(ucx, (&pass.base.0, pass.base.1), &mut log)?;
+        passes.push((pass, c));
+    }
+    let units = compose_units(
+        ucx,
+        &placed,
+        &images,
+        (&canvas, &passes),
+        &mut log,
+        on_stage,
+    )
+    .map_err(|e| placed.rename(e))?;
     engine.ctx.wait("compose")?;
     log.timings.compose_ms = ms(t);
 
     let t = Instant::now();
     on_stage("padding and encode");
-    let encoded = finish::pad_and_encode(cx, &canvas, window.is_none(), &mut log)?;
+    let encoded = finish::pad_and_encode(cx, &canvas, (window.is_none(), false), &mut log)?;
+    let mut encoded_channels = Vec::with_capacity(passes.len());
+    for (pass, c) in &passes {
+        let pad = (window.is_none(), pass.kind.linear());
+        encoded_channels.push((pass.kind, finish::pad_and_encode(cx, c, pad, &mut log)?));
+        engine.return_buffers([c.acc_rg.clone(), c.acc_ba.clone()]);
+    }
     let linear = match job.exr() {
         true => Some(canvas.read_linear(engine)?),
         false => None,
@@ -172,18 +194,20 @@ pub(crate) fn run_in(
     };
     Ok(Run {
         encoded,
+        channels: encoded_channels,
         report,
         linear,
     })
 }
 
-/// Stages 4 to 6 for every chunk of units: maps, selection, raster and compose. Returns each unit's
-/// report (texels covered not yet read back).
+/// Stages 4 to 6 for every chunk of units: maps, selection, raster and compose, the colour's and
+/// then each channel pass's (`passes`, with their canvases) over the same maps and selection.
+/// Returns each unit's report (texels covered not yet read back).
 fn compose_units(
     cx: Cx<'_>,
     placed: &place::Placed,
     images: &images::Images,
-    canvas: &canvas::Canvas,
+    (canvas, passes): (&canvas::Canvas, &[(channels::Pass, canvas::Canvas)]),
     log: &mut Log,
     on_stage: &dyn Fn(&str),
 ) -> Result<Vec<LayerReport>> {
@@ -206,9 +230,13 @@ fn compose_units(
             let r = layer_report(job, i, placed, &maps, row, &mut log.warnings);
             units.push(r);
         }
-        let d = compose::compose(cx, images, canvas, &slots, &maps, &stats, placed, log)?;
+        let d = compose::compose(cx, images, canvas, &slots, &maps, &stats, placed, None, log)?;
         for (l, d) in units[first..].iter_mut().zip(d) {
             l.distortion = d;
+        }
+        for (pass, c) in passes {
+            let at = (&slots, &maps, &stats);
+            compose::compose(cx, images, c, at.0, at.1, at.2, placed, Some(pass), log)?;
         }
     }
     Ok(units)

@@ -63,9 +63,12 @@ pub struct Params {
     /// [`FLAG_WARP`]: x = where the layer's thin-plate spline starts in the warps buffer (vec4s,
     /// [`crate::maps::warp::Tps::pack`]).
     pub warp: [u32; 4],
+    /// A data channel's blend (`BLEND_DATA_*`, `wgsl/shared/blend.wgsl`): each output channel's
+    /// weight on the source's alpha (its `<channel>_opacity`; 0 leaves it unchanged).
+    pub chan: [f32; 4],
 }
 
-const _: () = assert!(std::mem::size_of::<Params>() == 224);
+const _: () = assert!(std::mem::size_of::<Params>() == 240);
 
 impl Params {
     /// The canvas window x, y, w, h ([`Params::win`], the whole texture when unset).
@@ -99,6 +102,10 @@ pub const FLAG_WARP: u32 = 128;
 /// `layer_raster`: draw the triangles whole, not clipped to the image and its margin
 /// ([`crate::Engine::unclipped_raster`]).
 pub const FLAG_NO_CLIP: u32 = 256;
+/// `encode`: write the canvas as stored (a data or normal channel), not sRGB-encoded.
+pub const FLAG_LINEAR: u32 = 512;
+/// `layer_raster`'s normal variant: the normal map's green points down the image (`"dx"`).
+pub const FLAG_NORMAL_DX: u32 = 1024;
 
 /// Texels per side of a tool stamp's flat cell (`bake/tools.rs`). Keep in sync with `FLAT_RES` in
 /// `wgsl/bake/stamp_flatten.wgsl`, `stamp_filter.wgsl` and `layer_raster.wgsl`.

@@ -62,6 +62,16 @@ pub(crate) fn bake(
     side: u32,
     on_stage: &dyn Fn(&str),
 ) -> Result<Baked> {
+    if let Some(kind) = super::channels::passes(job).first() {
+        return Err(crate::error::Error::job(
+            &job.source,
+            "texture",
+            format!(
+                "this bake goes by tiles (a texture beyond one storage buffer, `texture.tile` or an .exr output), which bake the colour only, and a layer paints the {} channel; bake PBR channels at a size that fits one pass ({side}² here) to a PNG, without `texture.tile`",
+                kind.name()
+            ),
+        ));
+    }
     let (w, h) = (job.width, job.height);
     let wins = windows(w, h, side);
     let islands = islands(engine, mesh, job, &wins)?;
@@ -107,6 +117,7 @@ pub(crate) fn bake(
     report.padding = Some(radius).filter(|&p| p != u32::MAX);
     report.tiles = Some([side, wins.len() as u32]);
     Ok(Baked {
+        channels: Vec::new(),
         width: w,
         height: h,
         bit_depth: job.bit_depth,

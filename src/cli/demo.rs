@@ -20,14 +20,16 @@ pub const BOB_GLB: &[u8] = include_bytes!("../../assets/bob.glb");
 /// skinned character with five animations, which the demo's badge bake keeps.
 pub const KNIGHT_GLB: &[u8] = include_bytes!("../../assets/knight.glb");
 
-/// The demo's knight job (`knight.json`): the badge on its chest, a surface-following decal.
+/// The demo's knight job (`knight.json`): the badge on its chest, a surface-following material
+/// decal: colour, an embossed normal map, roughness and metallic (gold metal, enamel not).
 pub fn knight_json() -> String {
     serde_json::to_string_pretty(&serde_json::json!({
         "mesh": "knight.glb",
         "texture": { "width": 1024, "height": 1024, "base": "material", "padding": 8 },
         "layers": [
             { "kind": "decal", "image": "decals/badge.png", "at": { "ray": { "origin": [0.0, 1.35, 3.0], "dir": [0, 0, -1] } },
-              "size": [0.35, 0.35], "up": [0, 1, 0], "method": "expmap" }
+              "size": [0.35, 0.35], "up": [0, 1, 0], "method": "expmap",
+              "normal": "decals/badge_normal.png", "roughness": 0.3, "metallic": "decals/badge_metal.png" }
         ],
         "output": { "texture": "knight-baked.png", "glb": "knight-baked.glb", "preview": "knight-preview.png", "report": "knight-report.json" }
     }))
@@ -80,6 +82,46 @@ pub fn badge(side: u32) -> LinearImage {
         };
         let c = mix(mix(base, gold, ring), gold, star);
         [c[0], c[1], c[2], disc]
+    })
+}
+
+/// The badge's gold (star and ring, 1) and enamel (0): `(gold, disc)` at centred (u, v).
+fn badge_parts(u: f32, v: f32, aa: f32) -> (f32, f32) {
+    let r = (u * u + v * v).sqrt();
+    let disc = smooth_edge(r - 0.95, aa);
+    let ring = smooth_edge((r - 0.84).abs() - 0.05, aa);
+    let a = v.atan2(u) - PI / 2.0;
+    let sector = (a.rem_euclid(2.0 * PI / 5.0) - PI / 5.0).abs() / (PI / 5.0);
+    let star_r = 0.3 + 0.42 * (1.0 - sector).powf(1.6);
+    let star = smooth_edge(r - star_r, aa);
+    (ring.max(star), disc)
+}
+
+/// The badge embossed: a tangent-space normal map (glTF's convention, green up) of its gold
+/// raised over the enamel and the disc's rim, from the height field's slopes.
+pub fn badge_normal(side: u32) -> LinearImage {
+    // Soft edges so the slopes span a few texels.
+    let soft = 0.06;
+    let height = |u: f32, v: f32| {
+        let (gold, disc) = badge_parts(u, v, soft);
+        0.5 * disc + 0.6 * gold
+    };
+    let d = 2.0 / side as f32;
+    let depth = 0.05;
+    img(side, |u, v| {
+        let hx = (height(u + d, v) - height(u - d, v)) / (2.0 * d);
+        let hy = (height(u, v + d) - height(u, v - d)) / (2.0 * d);
+        let n = glam::Vec3::new(-hx * depth, -hy * depth, 1.0).normalize();
+        [n.x * 0.5 + 0.5, n.y * 0.5 + 0.5, n.z * 0.5 + 0.5, 1.0]
+    })
+}
+
+/// The badge's metallic: its gold 1, its enamel 0 (a data image: red read as stored).
+pub fn badge_metal(side: u32) -> LinearImage {
+    let aa = 2.0 / side as f32;
+    img(side, |u, v| {
+        let (gold, _) = badge_parts(u, v, aa);
+        [gold, gold, gold, 1.0]
     })
 }
 
@@ -239,6 +281,8 @@ pub fn frames_json() -> String {
 pub fn decals() -> Vec<(&'static str, LinearImage)> {
     vec![
         ("badge.png", badge(256)),
+        ("badge_normal.png", badge_normal(256)),
+        ("badge_metal.png", badge_metal(256)),
         ("stripes.png", stripes(256)),
         ("rings.png", rings(256)),
         ("glow.png", glow(256)),

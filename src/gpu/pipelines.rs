@@ -179,6 +179,10 @@ pub struct Pipelines {
     pub select_triangles: Kernel,
     /// Layer raster.
     pub layer_raster: Raster,
+    /// `layer_raster`'s normal variant (`shaders::normal_source`), same targets, three more
+    /// bindings (split positions, normals, tangents); built on first use
+    /// ([`Pipelines::layer_raster_normal`]).
+    layer_raster_normal: std::sync::OnceLock<Raster>,
     /// Clears the layer raster's targets inside the scissor (a tile's raster rectangles).
     pub atlas_clear: Raster,
     /// Inverse rendering of the canvas into tool stamps' flat space.
@@ -270,6 +274,16 @@ pub struct Pipelines {
 }
 
 impl Pipelines {
+    /// `layer_raster`'s normal variant, built on the first call (a bake without normal decals
+    /// never compiles it). Its targets are the layer raster's: the format that one got (the f16
+    /// fallback blends).
+    pub fn layer_raster_normal(&self, device: &wgpu::Device) -> &Raster {
+        self.layer_raster_normal.get_or_init(|| {
+            let blending = self.layer_blending;
+            layer_raster(device, blending, true).0
+        })
+    }
+
     /// `expmap_spread`'s pipelines, built on the first call (`None` on GL and short storage
     /// limits).
     pub fn expmap_spread(&self, device: &wgpu::Device) -> Option<&ExpmapSpread> {
@@ -336,6 +350,7 @@ impl Pipelines {
                 ],
             ),
             layer_raster: rasters.layer,
+            layer_raster_normal: std::sync::OnceLock::new(),
             atlas_clear: rasters.clear,
             stamp_flatten: rasters.flatten,
             stamp_filter: Kernel::new(
@@ -629,7 +644,7 @@ struct Rasters {
 impl Rasters {
     /// `layer_blending`: whether f32 targets blend on this device.
     fn new(device: &wgpu::Device, layer_blending: bool) -> Self {
-        let (layer, layer_format, layer_blending) = layer_raster(device, layer_blending);
+        let (layer, layer_format, layer_blending) = layer_raster(device, layer_blending, false);
         let clear = raster(
             device,
             "atlas_clear",
@@ -667,9 +682,18 @@ const UNIT_BINDS: [(u32, Bind); 6] = [
 
 /// `layer_raster` into f32 targets (blending premultiplied source-over where the device can), or
 /// into f16 targets with blending where f32 is not renderable (GL); returns the pipeline, its
-/// colour format and whether it blends.
-fn layer_raster(device: &wgpu::Device, blending: bool) -> (Raster, wgpu::TextureFormat, bool) {
+/// colour format and whether it blends. `normal`: its normal variant (`shaders::normal_source`).
+fn layer_raster(
+    device: &wgpu::Device,
+    blending: bool,
+    normal: bool,
+) -> (Raster, wgpu::TextureFormat, bool) {
     use Bind::*;
+    let extra: &[(u32, Bind)] = if normal {
+        &[(11, Ro), (12, Ro), (13, Ro)]
+    } else {
+        &[]
+    };
     let binds: Vec<(u32, Bind)> = UNIT_BINDS
         .into_iter()
         .chain([
@@ -679,13 +703,14 @@ fn layer_raster(device: &wgpu::Device, blending: bool) -> (Raster, wgpu::Texture
             (9, Ro),
             (10, Ro),
         ])
+        .chain(extra.iter().copied())
         .collect();
-    let layer_layout = layout(
-        device,
-        "layer_raster",
-        &binds,
-        wgpu::ShaderStages::VERTEX_FRAGMENT,
-    );
+    let name = if normal {
+        "layer_raster_normal"
+    } else {
+        "layer_raster"
+    };
+    let layer_layout = layout(device, name, &binds, wgpu::ShaderStages::VERTEX_FRAGMENT);
     let premult = wgpu::BlendComponent {
         src_factor: wgpu::BlendFactor::One,
         dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
@@ -699,10 +724,14 @@ fn layer_raster(device: &wgpu::Device, blending: bool) -> (Raster, wgpu::Texture
     // (`clip_planes` in the shader); GL without the extension draws them whole.
     let clipped = device.features().contains(wgpu::Features::CLIP_DISTANCES);
     let make_layer = |format: wgpu::TextureFormat, blend: bool| {
+        let text = match normal {
+            true => Some(shaders::normal_source(clipped)),
+            false => clipped.then(|| shaders::clipped_source("layer_raster")),
+        };
         raster(
             device,
-            "layer_raster",
-            clipped.then(|| shaders::clipped_source("layer_raster")),
+            name,
+            text,
             layer_layout.clone(),
             &[],
             &[

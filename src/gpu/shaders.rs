@@ -261,6 +261,21 @@ pub fn clipped_source(name: &str) -> String {
     format!("enable clip_distances;\n{}", text.replace("// CLIP: ", ""))
 }
 
+/// `layer_raster`'s normal variant (a layer's tangent-space normal map, turned into the mesh's
+/// tangent frame per sample): its `// NORMAL: ` lines live, and its `// CLIP: ` lines too when
+/// `clipped`.
+pub fn normal_source(clipped: bool) -> String {
+    let text = match clipped {
+        true => clipped_source("layer_raster"),
+        false => source("layer_raster"),
+    };
+    assert!(
+        text.contains("// NORMAL: "),
+        "layer_raster has no `// NORMAL: ` lines"
+    );
+    text.replace("// NORMAL: ", "")
+}
+
 /// Creates a shader module for kernel `name`.
 pub fn module(device: &wgpu::Device, name: &str) -> wgpu::ShaderModule {
     module_from(device, name, source(name))

@@ -312,6 +312,45 @@ pub struct LayerSpec {
     /// (`super::warp`).
     #[serde(default)]
     pub warp: Option<Vec<[[f32; 2]; 2]>>,
+    /// A tangent-space normal map (`super::channels`).
+    #[serde(default)]
+    pub normal: Option<PathBuf>,
+    /// `"gl"` (default) or `"dx"`.
+    #[serde(default)]
+    pub normal_y: Option<String>,
+    /// `"rnm"` (default), `"udn"` or `"replace"`.
+    #[serde(default)]
+    pub normal_blend: Option<String>,
+    /// Roughness: a number in [0, 1] or an image (its red channel).
+    #[serde(default)]
+    pub roughness: Option<super::channels::ValueSpec>,
+    /// Metallic: a number in [0, 1] or an image.
+    #[serde(default)]
+    pub metallic: Option<super::channels::ValueSpec>,
+    /// Ambient occlusion: a number in [0, 1] or an image.
+    #[serde(default)]
+    pub occlusion: Option<super::channels::ValueSpec>,
+    /// Emissive: a linear RGB triple or an image.
+    #[serde(default)]
+    pub emissive: Option<super::channels::ValueSpec>,
+    /// The normal's opacity (default: `opacity`).
+    #[serde(default)]
+    pub normal_opacity: Option<f32>,
+    /// Roughness's opacity.
+    #[serde(default)]
+    pub roughness_opacity: Option<f32>,
+    /// Metallic's opacity.
+    #[serde(default)]
+    pub metallic_opacity: Option<f32>,
+    /// Occlusion's opacity.
+    #[serde(default)]
+    pub occlusion_opacity: Option<f32>,
+    /// Emissive's opacity.
+    #[serde(default)]
+    pub emissive_opacity: Option<f32>,
+    /// How roughness, metallic and occlusion blend: `"normal"` (default) or `"replace"`.
+    #[serde(default)]
+    pub data_blend: Option<String>,
 }
 
 fn default_kind() -> String {
@@ -470,6 +509,8 @@ pub struct Layer {
     /// The image's thin-plate-spline warp: `[from, to]` pairs in image coordinates (empty: none;
     /// [`super::warp`]).
     pub warp: Vec<[[f32; 2]; 2]>,
+    /// The PBR channels it paints beside its colour (none by default).
+    pub channels: super::channels::Channels,
 }
 
 impl Layer {
@@ -597,24 +638,41 @@ impl Job {
         }
     }
 
-    /// This job's bake of texture set `set` (its name): `{set}` in the texture's name replaced by
-    /// it and `{channel}` by `base_color` (a name without `{set}` gets `_<set>` before its
-    /// extension); no `.glb`, report or preview (one each for all the sets, written by the caller).
+    /// The texture file of texture set `set` (`None`: the whole mesh's one texture) and
+    /// `channel` (`base_color`, or a [`crate::bake::channels::ChannelKind`]'s name): `{set}` and
+    /// `{channel}` in `output.texture` replaced by them; a name without `{set}` gets `_<set>`
+    /// before its extension (for a set), and one without `{channel}` gets `_<channel>` (for a
+    /// channel other than the colour): `baked.png` gives `baked.png` and `baked_normal.png`.
+    pub fn texture_path(&self, set: Option<&str>, channel: &str) -> Option<PathBuf> {
+        let p = self.out_texture.as_ref()?;
+        let text = p.to_string_lossy();
+        if text.contains("{set}") || text.contains("{channel}") {
+            let full = text
+                .replace("{set}", set.unwrap_or("model"))
+                .replace("{channel}", channel);
+            return Some(PathBuf::from(full));
+        }
+        let ext = p.extension().map(|e| format!(".{}", e.to_string_lossy()));
+        let stem = p
+            .file_stem()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned();
+        let mut stem_out = stem;
+        if let Some(s) = set {
+            stem_out = format!("{stem_out}_{s}");
+        }
+        if channel != "base_color" {
+            stem_out = format!("{stem_out}_{channel}");
+        }
+        Some(p.with_file_name(format!("{stem_out}{}", ext.unwrap_or_default())))
+    }
+
+    /// This job's bake of texture set `set` (its name): its texture file
+    /// ([`Self::texture_path`] of the colour); no `.glb`, report or preview (one each for all the
+    /// sets, written by the caller).
     pub fn for_texture_set(&self, set: &str) -> Job {
-        let texture = self.out_texture.as_ref().map(|p| {
-            let text = p.to_string_lossy();
-            if text.contains("{set}") {
-                PathBuf::from(
-                    text.replace("{set}", set)
-                        .replace("{channel}", "base_color"),
-                )
-            } else {
-                let stem = p.file_stem().unwrap_or_default().to_string_lossy();
-                let stem = stem.replace("{channel}", "base_color");
-                let ext = p.extension().map(|e| format!(".{}", e.to_string_lossy()));
-                p.with_file_name(format!("{stem}_{set}{}", ext.unwrap_or_default()))
-            }
-        });
+        let texture = self.texture_path(Some(set), "base_color");
         Job {
             out_texture: texture,
             out_glb: None,
@@ -1130,6 +1188,26 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
         stroke,
         ribbon,
         warp: super::warp::validate(&l.warp, i, src)?,
+        channels: super::channels::validate(
+            &super::channels::Fields {
+                normal: &l.normal,
+                normal_y: &l.normal_y,
+                normal_blend: &l.normal_blend,
+                values: [&l.roughness, &l.metallic, &l.occlusion, &l.emissive],
+                opacities: [
+                    l.normal_opacity,
+                    l.roughness_opacity,
+                    l.metallic_opacity,
+                    l.occlusion_opacity,
+                    l.emissive_opacity,
+                ],
+                data_blend: &l.data_blend,
+            },
+            i,
+            src,
+            input_dir,
+            l.opacity,
+        )?,
     })
 }
 

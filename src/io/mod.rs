@@ -3,6 +3,7 @@
 //! batch manifest ([`manifest`]) and image decoding and encoding ([`image`], also the atomic file
 //! writer every output goes through).
 pub mod at;
+pub mod channels;
 pub mod image;
 pub mod job;
 pub mod manifest;

@@ -3,8 +3,8 @@
 //!
 //! Every triangle primitive of the default scene (or the first scene) is taken with its node's world
 //! transform applied. Positions, normals (computed, area-weighted over the welded surface, when a
-//! primitive has none), indices (generated when absent), every `TEXCOORD_n` set and the base-colour
-//! texture of the first textured material are read. The result keeps glTF's split vertices, which
+//! primitive has none), indices (generated when absent), every `TEXCOORD_n` set, `TANGENT` (when
+//! every primitive has it) and the base-colour texture of the first textured material are read. The result keeps glTF's split vertices, which
 //! rasterization needs; [`crate::mesh::Topology`] welds them for the surface.
 
 use super::checks::{self, gltf_err};
@@ -75,6 +75,11 @@ pub struct Mesh {
     pub positions: Vec<Vec3>,
     /// World-space unit normals, one per split vertex.
     pub normals: Vec<Vec3>,
+    /// World-space tangents `TANGENT`, one per split vertex, when every primitive has them (empty
+    /// otherwise): xyz through the node's linear part, normalised (zero where that fails), w the
+    /// bitangent sign as in glTF (bitangent = cross(normal, xyz) · w), negated where the node's
+    /// transform mirrors. [`crate::mesh::tangents::tangents`] gives a frame per vertex either way.
+    pub tangents: Vec<[f32; 4]>,
     /// `uv_sets[n][v]` is `TEXCOORD_n` of split vertex `v`: every set some primitive has. A
     /// primitive without set `n` has (0, 0) at every vertex, so its triangles cover no texel of
     /// that set (`PrimitiveInfo::uv_sets` says which sets it has).
@@ -124,6 +129,42 @@ fn read_weight(
     Some(it.collect::<Vec<f32>>()).filter(|v| v.len() == vertices)
 }
 
+/// The primitive's `TANGENT` in world space (`m3`: the node's linear part; `flip`: it mirrors), if
+/// it has one of the right type and length; a malformed one is skipped with a warning (the
+/// tangents are then generated, [`crate::mesh::tangents::tangents`]).
+fn read_tangents(
+    prim: &gltf::Primitive,
+    buffers: &[gltf::buffer::Data],
+    (vertices, m3, flip): (usize, Mat3, bool),
+    pname: &str,
+    name: &Path,
+) -> Option<Vec<[f32; 4]>> {
+    let accessor = prim.get(&gltf::Semantic::Tangents)?;
+    let what = format!("{pname} TANGENT");
+    let types = [(DataType::F32, Dimensions::Vec4)];
+    match checks::accessor(&accessor, &what, &types, false, name) {
+        Ok(n) if n == vertices => {}
+        Ok(n) => {
+            log::warn!("{}: {what} has {n} elements for {vertices} vertices; ignored (tangents are generated)", name.display());
+            return None;
+        }
+        Err(e) => {
+            log::warn!("{e}; {what} ignored (tangents are generated)");
+            return None;
+        }
+    }
+    let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+    let sign = if flip { -1.0 } else { 1.0 };
+    let out: Vec<[f32; 4]> = reader
+        .read_tangents()?
+        .map(|[x, y, z, w]| {
+            let t = (m3 * Vec3::new(x, y, z)).normalize_or_zero();
+            [t.x, t.y, t.z, w * sign]
+        })
+        .collect();
+    Some(out).filter(|t| t.len() == vertices)
+}
+
 /// What the scene's primitives hold beyond positions, normals and triangles, joined at the end
 /// ([`Mesh::join_primitive_attributes`]).
 #[derive(Default)]
@@ -131,6 +172,7 @@ struct PerPrimitive {
     uvs: Vec<Vec<Vec<Vec2>>>,
     blend: Vec<Option<Vec<f32>>>,
     bridge: Vec<Option<Vec<f32>>>,
+    tangents: Vec<Option<Vec<[f32; 4]>>>,
     material: Option<usize>,
 }
 
@@ -202,6 +244,9 @@ impl Mesh {
         }
         if mesh.triangles.is_empty() {
             return Err(Error::mesh(name, "the scene has no triangles (no triangle primitives in any node); decalbake needs a triangle mesh"));
+        }
+        if per.tangents.iter().all(Option::is_some) {
+            mesh.tangents = per.tangents.into_iter().flatten().flatten().collect();
         }
         mesh.join_primitive_attributes(per.uvs, per.blend, per.bridge);
         let doc = std::sync::Arc::new(SourceDocument {
@@ -320,6 +365,9 @@ impl Mesh {
         let m3 = Mat3::from_mat4(world);
         let nmat = m3.inverse().transpose();
         let flip = m3.determinant() < 0.0;
+        let at = (n, m3, flip);
+        per.tangents
+            .push(read_tangents(prim, buffers, at, &pname, name));
         let base = self.positions.len() as u32;
         let first_triangle = self.triangles.len() as u32;
         for (i, p) in positions.iter().enumerate() {
@@ -505,8 +553,8 @@ fn apply_texture_transform(mat: &mut MaterialInfo, (m, set): (glam::Affine2, Opt
 }
 
 impl Mesh {
-    /// Midpoint subdivision: every triangle becomes four; positions, normals and every UV set are
-    /// interpolated at edge midpoints (no smoothing, so the surface is unchanged). Seams stay seams:
+    /// Midpoint subdivision: every triangle becomes four; positions, normals, tangents (w: the
+    /// first end's) and every UV set are interpolated at edge midpoints (no smoothing, so the surface is unchanged). Seams stay seams:
     /// midpoints are shared per split-vertex edge, and welding joins the two sides again. Used to make
     /// large benchmark meshes from the bundled ones.
     pub fn subdivide(&self) -> Mesh {
@@ -527,6 +575,11 @@ impl Mesh {
                         .push(0.5 * (self.positions[a] + self.positions[b]));
                     out.normals
                         .push((self.normals[a] + self.normals[b]).normalize_or_zero());
+                    if !self.tangents.is_empty() {
+                        let (ta, tb) = (self.tangents[a], self.tangents[b]);
+                        let t = (Vec3::from_slice(&ta) + Vec3::from_slice(&tb)).normalize_or_zero();
+                        out.tangents.push([t.x, t.y, t.z, ta[3]]);
+                    }
                     for (set, src) in out.uv_sets.iter_mut().zip(&self.uv_sets) {
                         set.push(0.5 * (src[a] + src[b]));
                     }

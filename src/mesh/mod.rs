@@ -1,13 +1,16 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! Meshes: loading ([`Mesh`]), welded surface topology ([`Topology`]), intrinsic surface data
-//! ([`surface::SurfaceData`]) and the GPU upload ([`upload::GpuMesh`]).
+//! ([`surface::SurfaceData`]), tangent frames for normal maps ([`tangents::tangents`]) and the GPU
+//! upload ([`upload::GpuMesh`]).
 pub mod bvh;
 mod checks;
 pub mod document;
 pub mod lbvh;
 mod load;
+pub mod material;
 mod sets;
 pub mod surface;
+pub mod tangents;
 mod topology;
 pub mod upload;
 

@@ -8,6 +8,8 @@
 //! except where the bake changes it:
 //! - the baked base colour replaces the image it was baked from ([`BakedColor`]), or is added as
 //!   an image and texture that the painted materials reference;
+//! - baked PBR channels are added as images and textures that the materials showing the bake
+//!   reference (`gltf/channels.rs`);
 //! - UV sets made since loading ([`Mesh::new_uv_sets`], by pelting) are added to the primitives as
 //!   `TEXCOORD_n` (with `_PELT_BLEND` / `_PELT_BRIDGE` when the mesh has them); where pelting split
 //!   or reordered vertices ([`Mesh::vertex_origin`]) every attribute and morph target of the
@@ -36,6 +38,19 @@ pub struct BakedColor<'a> {
     pub from_material: bool,
     /// The texture set it was baked for (`None`: the whole mesh's one texture).
     pub set: Option<&'a crate::mesh::TextureSet>,
+    /// The PBR channels baked with it (`bake::channels`), each an encoded PNG.
+    pub channels: Vec<BakedChannelPng<'a>>,
+}
+
+/// A baked channel the materials that show a [`BakedColor`] take.
+pub struct BakedChannelPng<'a> {
+    /// Which.
+    pub kind: crate::bake::channels::ChannelKind,
+    /// The encoded PNG.
+    pub png: &'a [u8],
+    /// For [`crate::bake::channels::ChannelKind::Orm`]: whether a layer painted occlusion (the
+    /// materials then read it from R as their `occlusionTexture`).
+    pub occlusion: bool,
 }
 
 /// A written model's files (the `.glb`, or the `.gltf`, its `.bin` and its images), not yet on
@@ -98,9 +113,12 @@ pub fn write_model(mesh: &Mesh, colors: &[BakedColor], out: &Path) -> Result<Wri
         doc.write_vertex_edits(mesh);
     }
     for c in colors {
-        match c.set {
+        let texture = match c.set {
             Some(set) => doc.apply_set_color(mesh, c, set, out),
             None => doc.apply_color(mesh, c, out),
+        };
+        if !c.channels.is_empty() {
+            doc.apply_channels(mesh, c, texture, out);
         }
     }
     doc.finish(out)
@@ -363,6 +381,7 @@ fn component_value(b: &[u8], c: u64) -> f64 {
     }
 }
 
+mod channels;
 mod color;
 mod pack;
 mod vertices;

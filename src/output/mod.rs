@@ -44,12 +44,14 @@ pub fn write_outputs(
     let t = Instant::now();
     let mut files: Vec<(PathBuf, Vec<u8>)> = Vec::new();
     let png = baked.to_png();
+    let channel_pngs = baked.channel_pngs();
     if let Some(p) = &job.out_glb {
         let color = gltf::BakedColor {
             png: &png,
             uv_set: job.uv_set,
             from_material: matches!(job.base, crate::io::job::Base::Material),
             set: None,
+            channels: channel_list(job, baked, &channel_pngs),
         };
         let written = gltf::write_model(&mesh.mesh, &[color], p)?;
         files.extend(written.files);
@@ -65,6 +67,11 @@ pub fn write_outputs(
             _ => png,
         };
         files.insert(0, (p.clone(), bytes));
+        for (c, png) in baked.channels.iter().zip(channel_pngs) {
+            if let Some(q) = job.texture_path(None, c.kind.name()) {
+                files.insert(1, (q, png));
+            }
+        }
     }
     baked.report.timings.write_ms = t.elapsed().as_secs_f64() * 1000.0;
     if let Some(p) = &job.out_report {
@@ -73,6 +80,25 @@ pub fn write_outputs(
     }
     write_files(&files)?;
     Ok(files.into_iter().map(|(p, _)| p).collect())
+}
+
+/// The channels of `baked` with their PNGs, for the model.
+fn channel_list<'a>(
+    job: &Job,
+    baked: &Baked,
+    pngs: &'a [Vec<u8>],
+) -> Vec<gltf::BakedChannelPng<'a>> {
+    let occlusion = job.layers.iter().any(|l| l.channels.occlusion.is_some());
+    baked
+        .channels
+        .iter()
+        .zip(pngs)
+        .map(|(c, png)| gltf::BakedChannelPng {
+            kind: c.kind,
+            png,
+            occlusion,
+        })
+        .collect()
 }
 
 /// Writes every file: each to a temporary file beside its target, then all renamed into place; a
@@ -138,15 +164,21 @@ pub fn write_set_outputs(
     let any = bakes.iter().any(|b| b.touched());
     let written: Vec<bool> = bakes.iter().map(|b| b.touched() || !any).collect();
     let pngs: Vec<Vec<u8>> = bakes.iter().map(|b| b.baked.to_png()).collect();
+    let channel_pngs: Vec<Vec<Vec<u8>>> = bakes.iter().map(|b| b.baked.channel_pngs()).collect();
     let mut files: Vec<(PathBuf, Vec<u8>)> = Vec::new();
     let mut warnings = Vec::new();
-    for ((b, png), &w) in bakes.iter().zip(&pngs).zip(&written) {
+    for (((b, png), &w), cpngs) in bakes.iter().zip(&pngs).zip(&written).zip(&channel_pngs) {
         if let (Some(p), true) = (&b.job.out_texture, w) {
             let bytes = match &b.baked.linear {
                 Some(linear) if job.exr() => exr_bytes(b.baked.width, b.baked.height, linear, p)?,
                 _ => png.clone(),
             };
             files.push((p.clone(), bytes));
+            for (c, cpng) in b.baked.channels.iter().zip(cpngs) {
+                if let Some(q) = job.texture_path(Some(&b.set.name), c.kind.name()) {
+                    files.push((q, cpng.clone()));
+                }
+            }
         }
     }
     if let Some(p) = &job.out_glb {
@@ -154,12 +186,14 @@ pub fn write_set_outputs(
             .iter()
             .zip(&pngs)
             .zip(&written)
-            .filter(|(_, &w)| w)
-            .map(|((b, png), _)| gltf::BakedColor {
+            .zip(&channel_pngs)
+            .filter(|((_, &w), _)| w)
+            .map(|(((b, png), _), cpngs)| gltf::BakedColor {
                 png,
                 uv_set: job.uv_set,
                 from_material: matches!(job.base, crate::io::job::Base::Material),
                 set: Some(&b.set),
+                channels: channel_list(job, &b.baked, cpngs),
             })
             .collect();
         let model = gltf::write_model(&mesh.mesh, &colors, p)?;

@@ -730,6 +730,9 @@ pub fn apply_all(mesh: &Mesh, layouts: &[(&Unwrapped, usize)]) -> (Mesh, Vec<u32
     }
     out.positions = remap.iter().map(|&o| mesh.positions[o as usize]).collect();
     out.normals = remap.iter().map(|&o| mesh.normals[o as usize]).collect();
+    if mesh.tangents.len() == mesh.positions.len() {
+        out.tangents = remap.iter().map(|&o| mesh.tangents[o as usize]).collect();
+    }
     out.uv_sets = mesh
         .uv_sets
         .iter()

@@ -34,6 +34,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (src.a <= 0.0) { return; }
     let idx = win_index(vec2<i32>(gid.xy) + params.rect_origin);
     if (idx == 0xffffffffu) { return; }
-    acc_store(idx, blend(params.blend, acc_load(idx), src));
+    acc_store(idx, blend_any(params.blend, acc_load(idx), src, params.chan));
     atomicAdd(&stats[params.aux * params.stats_stride + 5u], 1);
 }

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // Pads and encodes. Padding: a background texel whose nearest island texel (exact distance transform,
 // see edt_rows.wgsl) lies within `params.aux` texels (0xffffffff = any distance) takes that texel's
-// colour. Encoding: sRGB, 8 bits (one u32 per texel, RGBA8) or, with flag bit 2, 16 bits (two u32 per
+// colour. Encoding: sRGB (or, with FLAG_LINEAR, as stored: a data or normal channel), 8 bits (one u32 per texel, RGBA8) or, with flag bit 2, 16 bits (two u32 per
 // texel, RGBA16), rows `rect_size.x` words apart; alpha stays linear. Over the canvas window only
 // (shared/window.wgsl). CPU twins: `nearest_island` in
 // src/bake/cpu.rs, `linear_to_srgb` in src/io/image.rs. Dispatch: (ceil(W / 8), ceil(H / 8), 1).
@@ -46,7 +46,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let c = acc_load(src);
     // Row stride of `packed` in u32 words (rows padded to 256 bytes for texture copies).
     let row = gid.y * params.rect_size.x;
-    let e = vec4<f32>(to_srgb(c.r), to_srgb(c.g), to_srgb(c.b), clamp(c.a, 0.0, 1.0));
+    var e = vec4<f32>(to_srgb(c.r), to_srgb(c.g), to_srgb(c.b), clamp(c.a, 0.0, 1.0));
+    if ((params.flags & FLAG_LINEAR) != 0u) {
+        e = clamp(c, vec4<f32>(0.0), vec4<f32>(1.0));
+    }
     if ((params.flags & FLAG_16BIT) != 0u) {
         packed[row + 2u * gid.x] = pack2x16unorm(e.rg);
         packed[row + 2u * gid.x + 1u] = pack2x16unorm(e.ba);

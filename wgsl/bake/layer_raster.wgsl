@@ -13,6 +13,10 @@
 // A warped layer (FLAG_WARP) samples its image at T(img), T the layer's thin-plate spline
 // (`warps`, from params.warp.x; twin `Tps::eval` in src/maps/warp.rs), each copy of a tiled ribbon
 // alike; it paints only where T(img) lies in the image.
+// The normal variant (`// NORMAL: ` lines live; `gpu::shaders::normal_source`) draws a layer's
+// tangent-space normal map: each sample's normal, given in the decal's own frame (image x right,
+// image y up, z out of the surface), is turned into the mesh's tangent frame at that point
+// (`to_tangent_space`; CPU twin `bake::channels::to_tangent_space`).
 // Non-indexed draw of 3 * (triangles in the layer's list) vertices.
 // CPU twin: `LayerRaster` in src/bake/cpu.rs.
 #import params
@@ -36,6 +40,11 @@ const FLAT_RES: u32 = 64u;
 // The thin-plate splines of warped layers: vec4(a0, a1), vec4(a2, centres, 0), then vec4(c, w)
 // per centre (src/maps/warp.rs, `Tps::pack`).
 @group(0) @binding(10) var<storage, read> warps: array<vec4<f32>>;
+// The normal variant: split positions and normals (xyz, 3 floats a vertex, model space) and the
+// tangent frames of the baked UV set (xyz, bitangent sign w) per split vertex.
+// NORMAL: @group(0) @binding(11) var<storage, read> split_pos: array<f32>;
+// NORMAL: @group(0) @binding(12) var<storage, read> split_nrm: array<f32>;
+// NORMAL: @group(0) @binding(13) var<storage, read> tangents: array<vec4<f32>>;
 
 // T(p) = a0 + a1 p.x + a2 p.y + sum_k w_k phi(|p - c_k|), phi(r) = r^2 ln r; in the twin's order of
 // operations, so an identity spline returns p bit for bit.
@@ -99,14 +108,22 @@ struct VsOut {
     // Decal image coordinates: (0,0) top-left, (1,1) bottom-right; a cone chart's uncut chart
     // coordinates (model units), opened in the fragment stage.
     @location(0) img: vec2<f32>,
+    // NORMAL: @location(1) wpos: vec3<f32>,
+    // NORMAL: @location(2) wnrm: vec3<f32>,
+    // NORMAL: @location(3) wtan: vec4<f32>,
     // CLIP: @builtin(clip_distances) clip: array<f32, 4>,
+}
+
+// The split vertex of corner `vi`.
+fn split_of(vi: u32) -> u32 {
+    let t = lists[params.slot * params.triangle_count + vi / 3u];
+    return split_tris[3u * t + vi % 3u];
 }
 
 // Texel position (in the raster rectangle) and local coordinates (xy of the layer's slot) of
 // corner `vi` of its triangle.
 fn corner(vi: u32) -> array<vec2<f32>, 2> {
-    let t = lists[params.slot * params.triangle_count + vi / 3u];
-    let s = split_tris[3u * t + vi % 3u];
+    let s = split_of(vi);
     let uv = uvs[s] - vec2<f32>(params.tile);
     let c = coords[params.slot * params.vertex_count + welded_of[s]];
     let texel = uv * vec2<f32>(params.tex_size) - vec2<f32>(params.rect_origin);
@@ -154,6 +171,10 @@ fn vs_main(@builtin(vertex_index) vi: u32) -> VsOut {
     o.pos = vec4<f32>(ndc.x, -ndc.y, 0.0, 1.0);
     o.img = image_point(c[1]);
     // CLIP: o.clip = clip_planes(vi, o.img);
+    // NORMAL: let sv = split_of(vi);
+    // NORMAL: o.wpos = vec3<f32>(split_pos[3u * sv], split_pos[3u * sv + 1u], split_pos[3u * sv + 2u]);
+    // NORMAL: o.wnrm = vec3<f32>(split_nrm[3u * sv], split_nrm[3u * sv + 1u], split_nrm[3u * sv + 2u]);
+    // NORMAL: o.wtan = tangents[sv];
     if ((params.flags & FLAG_CONE) != 0u) {
         o.img = c[1];
     }
@@ -165,6 +186,36 @@ fn vs_main(@builtin(vertex_index) vi: u32) -> VsOut {
 struct FsIn {
     @builtin(position) pos: vec4<f32>,
     @location(0) img: vec2<f32>,
+    // NORMAL: @location(1) wpos: vec3<f32>,
+    // NORMAL: @location(2) wnrm: vec3<f32>,
+    // NORMAL: @location(3) wtan: vec4<f32>,
+}
+
+// A decal normal `c` (premultiplied, encoded n * 0.5 + 0.5, in the decal's frame) turned into the
+// mesh's tangent frame. The decal's axes on the surface come from the derivatives of position
+// and image coordinates over the raster (both affine on a triangle, so this is the triangle's
+// own map, and it follows a bent map, an opened cone, a warp or a tiled ribbon): d pos / d img =
+// [dpx dpy] [gx gy]^-1; image x is right, image y down, so up is -d pos / d img.y. They are made
+// orthonormal about the interpolated normal (Gram-Schmidt: a sheared map keeps its x axis and
+// its handedness), and the normal is read in the mesh's frame (t, cross(n, t) * w, n), as glTF's
+// bitangent is.
+fn to_tangent_space(c: vec4<f32>, dpx: vec3<f32>, dpy: vec3<f32>, gx: vec2<f32>, gy: vec2<f32>,
+                    nrm: vec3<f32>, tan: vec4<f32>) -> vec4<f32> {
+    if (c.a <= 0.0) { return c; }
+    var nd = c.rgb / c.a * 2.0 - 1.0;
+    if ((params.flags & FLAG_NORMAL_DX) != 0u) { nd.y = -nd.y; }
+    let det = gx.x * gy.y - gy.x * gx.y;
+    let n = normalize(nrm);
+    var ex = (dpx * gy.y - dpy * gx.y) / det;
+    var ey = -(dpy * gx.x - dpx * gy.x) / det;
+    ex = normalize(ex - n * dot(n, ex));
+    ey = normalize(ey - n * dot(n, ey) - ex * dot(ex, ey));
+    let w = normalize(nd.x * ex + nd.y * ey + nd.z * n);
+    let t = normalize(tan.xyz - n * dot(n, tan.xyz));
+    let b = cross(n, t) * select(1.0, -1.0, tan.w < 0.0);
+    let ts = vec3<f32>(dot(w, t), dot(w, b), dot(w, n));
+    if (any(ts != ts) || abs(det) < 1e-30) { return vec4<f32>(0.0); }
+    return vec4<f32>((ts * 0.5 + 0.5) * c.a, c.a);
 }
 
 struct FsOut {
@@ -189,6 +240,8 @@ fn fs_main(in: FsIn) -> FsOut {
     let unwrapped = img * vec2<f32>(select(1.0, params.cone_a.w, repeat), 1.0);
     var gx = dpdx(unwrapped);
     var gy = dpdy(unwrapped);
+    // NORMAL: let dpx = dpdx(in.wpos);
+    // NORMAL: let dpy = dpdy(in.wpos);
     var inside = in_image(img);
     // Where the stamp's flat image (FLAG_TOOL) is read: its cell is laid out unwarped.
     let flat_img = img;
@@ -223,6 +276,7 @@ fn fs_main(in: FsIn) -> FsOut {
         let shape = select(0.0, c.a, f.a > 0.0);
         c = vec4<f32>(f.rgb * shape, shape);
     }
+    // NORMAL: c = to_tangent_space(c, dpx, dpy, gx, gy, in.wnrm, in.wtan);
     o.color = c * params.opacity;
     return o;
 }

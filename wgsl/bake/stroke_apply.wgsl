@@ -27,6 +27,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     stroke_rg[idx] = vec2<f32>(0.0);
     stroke_ba[idx] = vec2<f32>(0.0);
     let src = vec4<f32>(s.rgb * s.a, s.a) * params.opacity;
-    acc_store(idx, blend(params.blend, acc_load(idx), src));
+    acc_store(idx, blend_any(params.blend, acc_load(idx), src, params.chan));
     atomicAdd(&stats[params.aux * params.stats_stride + 7u], 1);
 }

@@ -49,6 +49,9 @@ struct Params {
     win: vec4<u32>,
     // FLAG_WARP: x = start of the layer's thin-plate spline in `warps` (layer_raster.wgsl).
     warp: vec4<u32>,
+    // A data channel's blend (BLEND_DATA_*, shared/blend.wgsl): each output channel's weight on the
+    // source's alpha (its `<channel>_opacity`; 0 leaves it unchanged).
+    chan: vec4<f32>,
 }
 
 const FLAG_FACING: u32 = 1u;
@@ -63,3 +66,7 @@ const FLAG_REPEAT: u32 = 64u;
 const FLAG_WARP: u32 = 128u;
 // layer_raster.wgsl: triangles drawn whole (the reference of the clipped raster).
 const FLAG_NO_CLIP: u32 = 256u;
+// encode.wgsl: the canvas written as stored (a data or normal channel), not sRGB-encoded.
+const FLAG_LINEAR: u32 = 512u;
+// layer_raster.wgsl's normal variant: the normal map's green points down the image ("dx").
+const FLAG_NORMAL_DX: u32 = 1024u;

@@ -21,14 +21,14 @@ use std::path::Path;
 
 impl Doc<'_> {
     /// The bake of one texture set: the image its materials share replaced, or a new texture for
-    /// its materials (a new material for its primitives without one).
+    /// its materials (a new material for its primitives without one). Returns the bake's texture.
     pub(super) fn apply_set_color(
         &mut self,
         mesh: &Mesh,
         c: &BakedColor,
         set: &crate::mesh::TextureSet,
         out: &Path,
-    ) {
+    ) -> usize {
         let home = set.materials.first().copied();
         let replaced = home
             .filter(|_| c.from_material)
@@ -59,6 +59,7 @@ impl Doc<'_> {
             .filter(|&(m, p)| self.primitive(m, p).get("material").is_none())
             .collect();
         self.add_material(bare, texture, c.uv_set);
+        texture
     }
 
     /// A material painted with texture `t` on set `uv_set` for `primitives` (none: nothing).
@@ -76,7 +77,8 @@ impl Doc<'_> {
         }
     }
 
-    pub(super) fn apply_color(&mut self, mesh: &Mesh, c: &BakedColor, out: &Path) {
+    /// The bake of the whole mesh's one texture; returns the bake's texture.
+    pub(super) fn apply_color(&mut self, mesh: &Mesh, c: &BakedColor, out: &Path) -> usize {
         let set = c.uv_set as usize;
         let painted: Vec<(usize, usize)> = mesh
             .primitives
@@ -132,27 +134,26 @@ impl Doc<'_> {
             .into_iter()
             .filter(|&(m, p)| self.primitive(m, p).get("material").is_none())
             .collect();
-        if !bare.is_empty() {
-            let t = match (texture, replaced) {
-                (Some(t), _) => t,
-                (None, Some(image)) => self.texture_of(image),
-                (None, None) => unreachable!("a texture is added where no image is replaced"),
-            };
-            self.add_material(bare, t, c.uv_set);
-        }
+        let t = match (texture, replaced) {
+            (Some(t), _) => t,
+            (None, Some(image)) => self.texture_of(image),
+            (None, None) => unreachable!("a texture is added where no image is replaced"),
+        };
+        self.add_material(bare, t, c.uv_set);
+        t
     }
 
-    fn primitive(&self, m: usize, p: usize) -> &Value {
+    pub(super) fn primitive(&self, m: usize, p: usize) -> &Value {
         &self.json["meshes"][m]["primitives"][p]
     }
 
-    fn material_name(&self, m: usize) -> String {
+    pub(super) fn material_name(&self, m: usize) -> String {
         self.json["materials"][m]["name"]
             .as_str()
             .map_or_else(String::new, |n| format!(" ({n:?})"))
     }
 
-    fn base_texture(&self, m: usize) -> Option<&Value> {
+    pub(super) fn base_texture(&self, m: usize) -> Option<&Value> {
         self.json["materials"][m]
             .pointer("/pbrMetallicRoughness/baseColorTexture")
             .filter(|t| t.is_object())
@@ -214,7 +215,7 @@ impl Doc<'_> {
 
     /// The bake as a new image and texture (sampled as material `home`'s base colour was, where it
     /// had one); returns the texture.
-    fn add_texture(&mut self, png: &[u8], home: Option<usize>, out: &Path) -> usize {
+    pub(super) fn add_texture(&mut self, png: &[u8], home: Option<usize>, out: &Path) -> usize {
         let sampler = home
             .and_then(|m| self.base_texture(m))
             .and_then(|info| info.get("index")?.as_u64())

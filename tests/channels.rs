@@ -1,0 +1,229 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! PBR channels: normal decals turned into the mesh's tangent frame (against the analytic
+//! normal of a bump on a plane, turned by `angle`, on mirrored UVs), reoriented normal mapping,
+//! roughness and metallic in the metallic-roughness texture's G and B, and the colour texture
+//! unchanged by the channels a layer adds.
+
+mod common;
+
+use decalbake::bake::channels::{combine_normals, ChannelKind};
+use decalbake::io::channels::NormalBlend;
+use decalbake::io::image::png_bytes;
+use decalbake::{Baked, Engine, Job};
+use glam::{Vec2, Vec3};
+use serde_json::json;
+use std::path::Path;
+
+/// Grid cells of the plane a side.
+const N: u32 = 16;
+/// Texture side.
+const SIZE: u32 = 128;
+/// The bump's slope: the normal at image point (s, t) is normalize(A (s - ½), A (½ - t), 1).
+const A: f32 = 1.2;
+
+/// The unit square at z = 0, normal +z, UV (x, 1 - y) or, `mirrored`, (1 - x, 1 - y).
+fn write_plane(path: &Path, mirrored: bool) {
+    let mut pos = Vec::new();
+    let mut uv = Vec::new();
+    for j in 0..=N {
+        for i in 0..=N {
+            let (x, y) = (i as f32 / N as f32, j as f32 / N as f32);
+            pos.push([x, y, 0.0]);
+            uv.push([if mirrored { 1.0 - x } else { x }, 1.0 - y]);
+        }
+    }
+    let mut idx = Vec::new();
+    for j in 0..N {
+        for i in 0..N {
+            let a = j * (N + 1) + i;
+            let (b, c, d) = (a + 1, a + N + 1, a + N + 2);
+            // Counter-clockwise seen from +z.
+            idx.extend([a, b, d, a, d, c]);
+        }
+    }
+    common::write_glb(path, &pos, Some(&uv), &idx);
+}
+
+/// The bump's normal in the decal's frame at image point (s, t) (t down the image).
+fn bump(s: f32, t: f32) -> Vec3 {
+    Vec3::new(A * (s - 0.5), A * (0.5 - t), 1.0).normalize()
+}
+
+/// A 16-bit RGBA PNG of `f(s, t)` at `side`² texels, written as stored (no sRGB encoding).
+fn write_raw_png(path: &Path, side: u32, f: impl Fn(f32, f32) -> [f32; 4]) {
+    let mut samples = Vec::new();
+    for y in 0..side {
+        for x in 0..side {
+            let (s, t) = (
+                (x as f32 + 0.5) / side as f32,
+                (y as f32 + 0.5) / side as f32,
+            );
+            samples.extend(f(s, t).map(|v| (v.clamp(0.0, 1.0) * 65535.0).round() as u16));
+        }
+    }
+    std::fs::write(path, png_bytes(side, side, 16, &samples)).unwrap();
+}
+
+/// Writes the images (white colour, the bump's normal map) and bakes one normal decal of
+/// `size` at the plane's centre, turned by `angle`, with the extra layer fields `extra`.
+fn bake(dir: &Path, mirrored: bool, angle: f32, extra: serde_json::Value) -> (Baked, Job) {
+    write_plane(&dir.join("plane.glb"), mirrored);
+    write_raw_png(&dir.join("white.png"), 8, |_, _| [1.0; 4]);
+    write_raw_png(&dir.join("bump.png"), 256, |s, t| {
+        let n = bump(s, t) * 0.5 + 0.5;
+        [n.x, n.y, n.z, 1.0]
+    });
+    let mut layer = json!({
+        "image": "white.png", "normal": "bump.png", "at": [0.5, 0.5, 0.0], "size": [0.5, 0.5],
+        "angle": angle, "up": [0.0, 1.0, 0.0]
+    });
+    for (k, v) in extra.as_object().unwrap() {
+        layer[k] = v.clone();
+    }
+    let job = json!({
+        "mesh": "plane.glb",
+        "texture": {"width": SIZE, "height": SIZE, "base": [0.5, 0.5, 0.5, 1.0], "padding": 2},
+        "output": {"texture": "baked.png", "bit_depth": 16},
+        "layers": [layer]
+    });
+    std::fs::write(dir.join("job.json"), job.to_string()).unwrap();
+    let job = Job::load(&dir.join("job.json"), None).unwrap();
+    let engine: Engine = common::engine();
+    let (mesh, job) = engine.load_mesh_for(&job).unwrap();
+    (engine.bake(&mesh, &job).unwrap(), job)
+}
+
+/// Channel `kind`'s texel (x, y) as stored, in [0, 1].
+fn texel(b: &Baked, kind: ChannelKind, x: u32, y: u32) -> [f32; 4] {
+    let c = b
+        .channels
+        .iter()
+        .find(|c| c.kind == kind)
+        .expect("the channel");
+    let i = ((y * b.width + x) * 4) as usize;
+    std::array::from_fn(|k| c.texels[i + k] as f32 / 65535.0)
+}
+
+/// The world normal at every texel well inside the decal (image point in [0.1, 0.9]²),
+/// decoded from the baked tangent-space normal with the plane's frame (tangent ±x by the UVs,
+/// bitangent +y, normal +z), with the expected world normal there: the bump's, turned by
+/// `angle` about +z.
+fn world_normals(b: &Baked, mirrored: bool, angle: f32) -> Vec<(Vec3, Vec3)> {
+    let (sn, cs) = angle.to_radians().sin_cos();
+    let tangent = if mirrored { Vec3::NEG_X } else { Vec3::X };
+    let mut out = Vec::new();
+    for y in 0..SIZE {
+        for x in 0..SIZE {
+            let (u, v) = (
+                (x as f32 + 0.5) / SIZE as f32,
+                (y as f32 + 0.5) / SIZE as f32,
+            );
+            let px = if mirrored { 1.0 - u } else { u };
+            let p = Vec2::new(px - 0.5, (1.0 - v) - 0.5);
+            // The decal's frame: image x along (cos, sin), image up along (-sin, cos).
+            let local = Vec2::new(p.x * cs + p.y * sn, -p.x * sn + p.y * cs) / 0.5;
+            let (s, t) = (local.x + 0.5, 0.5 - local.y);
+            if !(0.1..=0.9).contains(&s) || !(0.1..=0.9).contains(&t) {
+                continue;
+            }
+            let d = bump(s, t);
+            let want = Vec3::new(d.x * cs - d.y * sn, d.x * sn + d.y * cs, d.z);
+            let e = texel(b, ChannelKind::Normal, x, y);
+            let ts = Vec3::new(e[0], e[1], e[2]) * 2.0 - 1.0;
+            let got = (ts.x * tangent + ts.y * Vec3::Y + ts.z * Vec3::Z).normalize();
+            out.push((got, want));
+        }
+    }
+    assert!(out.len() > 1500, "{} texels inside the decal", out.len());
+    out
+}
+
+fn max_angle_deg(pairs: &[(Vec3, Vec3)]) -> f32 {
+    pairs
+        .iter()
+        .map(|(a, b)| a.dot(*b).clamp(-1.0, 1.0).acos().to_degrees())
+        .fold(0.0, f32::max)
+}
+
+#[test]
+fn normal_decal_reproduces_a_bump_on_a_plane() {
+    let dir = common::scratch("channels-bump");
+    let (b, _) = bake(&dir, false, 0.0, json!({}));
+    let err = max_angle_deg(&world_normals(&b, false, 0.0));
+    assert!(err < 1.0, "worst texel {err}° from the bump's normal");
+}
+
+#[test]
+fn a_turned_decal_and_mirrored_uvs_give_the_same_world_normals() {
+    let dir = common::scratch("channels-turned");
+    let (b, _) = bake(&dir, false, 90.0, json!({}));
+    let err = max_angle_deg(&world_normals(&b, false, 90.0));
+    assert!(err < 1.0, "turned 90°: worst texel {err}°");
+    let (b, _) = bake(&dir, false, 30.0, json!({}));
+    let err = max_angle_deg(&world_normals(&b, false, 30.0));
+    assert!(err < 1.0, "turned 30°: worst texel {err}°");
+    let (b, _) = bake(&dir, true, 30.0, json!({}));
+    let err = max_angle_deg(&world_normals(&b, true, 30.0));
+    assert!(err < 1.0, "mirrored UVs, turned 30°: worst texel {err}°");
+}
+
+#[test]
+fn dx_normal_maps_flip_green() {
+    let dir = common::scratch("channels-dx");
+    // The same map read as DirectX's: its slopes up the image turn over.
+    let (b, _) = bake(&dir, false, 0.0, json!({"normal_y": "dx"}));
+    let pairs: Vec<(Vec3, Vec3)> = world_normals(&b, false, 0.0)
+        .into_iter()
+        .map(|(got, want)| (got, Vec3::new(want.x, -want.y, want.z)))
+        .collect();
+    let err = max_angle_deg(&pairs);
+    assert!(err < 1.0, "worst texel {err}°");
+}
+
+#[test]
+fn rnm_over_a_flat_base_is_the_decals_normal() {
+    let flat = Vec3::Z;
+    for d in [
+        Vec3::new(0.3, -0.2, 0.9).normalize(),
+        Vec3::new(-0.7, 0.1, 0.3).normalize(),
+        Vec3::Z,
+    ] {
+        let r = combine_normals(NormalBlend::Rnm, flat, d);
+        assert!((r - d).length() < 1e-6, "{r} != {d}");
+    }
+    // Over a tilted base RNM turns the detail with the base: a flat detail gives the base.
+    let base = Vec3::new(0.4, 0.1, 0.9).normalize();
+    let r = combine_normals(NormalBlend::Rnm, base, Vec3::Z);
+    assert!((r - base).length() < 1e-6, "{r} != {base}");
+    // UDN keeps the base's z: not the same as RNM on a tilted base.
+    let d = Vec3::new(0.3, 0.0, 0.95).normalize();
+    let udn = combine_normals(NormalBlend::Udn, base, d);
+    let rnm = combine_normals(NormalBlend::Rnm, base, d);
+    assert!((udn - rnm).length() > 1e-3);
+}
+
+#[test]
+fn roughness_and_metallic_land_in_g_and_b_and_leave_the_colour_alone() {
+    let dir = common::scratch("channels-data");
+    let extra = json!({"roughness": 0.25, "metallic": 0.75, "metallic_opacity": 0.5});
+    let (b, _) = bake(&dir, false, 0.0, extra);
+    let orm = |x, y| texel(&b, ChannelKind::Orm, x, y);
+    // Inside: roughness replaces, metallic mixes half way from the default factor 1.
+    let c = orm(SIZE / 2, SIZE / 2);
+    assert!((c[1] - 0.25).abs() < 1e-3, "roughness {c:?}");
+    assert!((c[2] - 0.875).abs() < 1e-3, "metallic {c:?}");
+    assert_eq!(c[0], 1.0, "occlusion untouched: {c:?}");
+    // Outside the decal: the material's defaults (roughness 1, metallic 1, occlusion 1).
+    for (x, y) in [(2, 2), (SIZE - 3, 5), (10, SIZE / 2)] {
+        assert_eq!(orm(x, y), [1.0; 4], "texel ({x}, {y})");
+    }
+    // The colour is the same texture as without the channels, bit for bit.
+    let plain = common::scratch("channels-data-plain");
+    let (c0, _) = bake(&plain, false, 0.0, json!({}));
+    assert_eq!(
+        b.texels, c0.texels,
+        "the channels changed the colour texture"
+    );
+    // The normal pass ran only for the layer with a normal; both have one here.
+    assert!(b.channels.iter().any(|c| c.kind == ChannelKind::Normal));
+}
