@@ -227,3 +227,131 @@ fn roughness_and_metallic_land_in_g_and_b_and_leave_the_colour_alone() {
     // The normal pass ran only for the layer with a normal; both have one here.
     assert!(b.channels.iter().any(|c| c.kind == ChannelKind::Normal));
 }
+
+/// A material decal (colour, normal, roughness, metallic, emissive) across the rich model's two
+/// materials: each texture set gets every channel's texture, the model's materials take them
+/// (factors white, the normal map's scale and transform gone into the bake), nothing else of the
+/// document changes, and the glTF-Validator reports no errors.
+#[test]
+fn a_material_decal_writes_every_channel_into_each_set_it_touches() {
+    use common::rich::{json_diff, read_model, validate, view, write_rich_gltf};
+    let dir = common::scratch("channels-model");
+    let src = write_rich_gltf(&dir);
+    write_raw_png(&dir.join("white.png"), 8, |_, _| [1.0; 4]);
+    write_raw_png(&dir.join("bump.png"), 64, |s, t| {
+        let n = bump(s, t) * 0.5 + 0.5;
+        [n.x, n.y, n.z, 1.0]
+    });
+    let job = json!({
+        "mesh": src,
+        "texture": {"width": 128, "height": 128, "base": "material", "padding": 4},
+        "layers": [{"image": "white.png", "at": [1.0, 0.5, 0.0], "size": [0.5, 0.5],
+                    "up": [0, 1, 0], "method": "planar", "normal": "bump.png",
+                    "roughness": 0.6, "metallic": 0.9, "emissive": [1.0, 0.25, 0.0]}],
+        "output": {"texture": "baked_{set}_{channel}.png", "glb": "out.glb", "report": "report.json"}
+    });
+    std::fs::write(dir.join("job.json"), job.to_string()).unwrap();
+    let (code, _, err) = common::cli(&["bake", dir.join("job.json").to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let input = read_model(&src);
+    let output = read_model(&dir.join("out.glb"));
+    let mut diff = Vec::new();
+    json_diff(&input.0, &output.0, "", &mut diff);
+    let allowed = [
+        "/buffers/",
+        "/bufferViews/",
+        "/images/",
+        "/textures/",
+        "/materials/0/pbrMetallicRoughness/",
+        "/materials/0/normalTexture",
+        "/materials/0/emissive",
+        "/materials/1/pbrMetallicRoughness/",
+        "/materials/1/normalTexture",
+        "/materials/1/emissive",
+    ];
+    let odd: Vec<&String> = diff
+        .iter()
+        .filter(|p| !allowed.iter().any(|a| p.starts_with(a)))
+        .collect();
+    assert!(odd.is_empty(), "the bake changed {odd:?}");
+    let image_of = |info: &serde_json::Value| {
+        let t = info["index"].as_u64().unwrap() as usize;
+        let i = output.0["textures"][t]["source"].as_u64().unwrap() as usize;
+        let v = output.0["images"][i]["bufferView"].as_u64().unwrap() as usize;
+        view(&output.0, &output.1, v).to_vec()
+    };
+    for (m, set) in [(0, "painted"), (1, "glossy")] {
+        let mat = &output.0["materials"][m];
+        let pbr = &mat["pbrMetallicRoughness"];
+        for (info, channel) in [
+            (&pbr["metallicRoughnessTexture"], "orm"),
+            (&mat["normalTexture"], "normal"),
+            (&mat["emissiveTexture"], "emissive"),
+        ] {
+            let file = std::fs::read(dir.join(format!("baked_{set}_{channel}.png"))).unwrap();
+            assert_eq!(image_of(info), file, "materials[{m}] {channel}");
+            assert!(info.get("extensions").is_none() && info.get("scale").is_none());
+        }
+        assert_eq!(pbr["roughnessFactor"], json!(1.0));
+        assert_eq!(pbr["metallicFactor"], json!(1.0));
+        assert_eq!(mat["emissiveFactor"], json!([1.0, 1.0, 1.0]));
+    }
+    // The glossy set's ORM outside the decal holds its factors (roughness 0.2, metallic 1),
+    // inside the decal's (0.6, 0.9); its emissive outside, the factor (1, 0.5, 0) in sRGB,
+    // inside the decal's (1, 0.25, 0). Texel 70 of row 64 is x = 1.1, y = 0.5.
+    let orm = image::open(dir.join("baked_glossy_orm.png"))
+        .unwrap()
+        .to_rgba8();
+    assert_eq!(orm.get_pixel(120, 8).0, [255, 51, 255, 255]);
+    let inside = orm.get_pixel(70, 64).0;
+    assert_eq!(&inside[..3], &[255, 153, 230]);
+    let emissive = image::open(dir.join("baked_glossy_emissive.png"))
+        .unwrap()
+        .to_rgba8();
+    assert_eq!(emissive.get_pixel(120, 8).0, [255, 188, 0, 255]);
+    assert_eq!(emissive.get_pixel(70, 64).0, [255, 137, 0, 255]);
+    validate(&dir.join("out.glb"));
+}
+
+/// An unlit material shows no channel: it keeps its material and the report says so; a `normal`
+/// image that is not a normal map (a colour photo's worth of short vectors) is named.
+#[test]
+fn unlit_materials_and_images_that_are_not_normal_maps_are_named() {
+    let dir = common::scratch("channels-warnings");
+    let src = common::rich::write_rich_gltf(&dir);
+    let mut doc: serde_json::Value = serde_json::from_slice(&std::fs::read(&src).unwrap()).unwrap();
+    doc["materials"][1]["extensions"]["KHR_materials_unlit"] = json!({});
+    doc["extensionsUsed"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!("KHR_materials_unlit"));
+    std::fs::write(&src, serde_json::to_vec(&doc).unwrap()).unwrap();
+    write_raw_png(&dir.join("white.png"), 8, |_, _| [1.0; 4]);
+    // Mid-grey: every decoded vector is (0, 0, 0).
+    write_raw_png(&dir.join("grey.png"), 16, |_, _| [0.5, 0.5, 0.5, 1.0]);
+    let job = json!({
+        "mesh": src,
+        "texture": {"width": 64, "height": 64, "base": "material"},
+        "layers": [{"image": "white.png", "at": [1.0, 0.5, 0.0], "size": [0.5, 0.5],
+                    "up": [0, 1, 0], "method": "planar", "normal": "grey.png"}],
+        "output": {"texture": "baked_{set}_{channel}.png", "glb": "out.glb", "report": "report.json"}
+    });
+    std::fs::write(dir.join("job.json"), job.to_string()).unwrap();
+    let (code, _, err) = common::cli(&["bake", dir.join("job.json").to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap();
+    let warnings = report["warnings"].to_string();
+    assert!(
+        warnings.contains("is unlit (KHR_materials_unlit)"),
+        "{warnings}"
+    );
+    assert!(
+        warnings.contains("layer 0")
+            && warnings.contains("grey.png does not look like a tangent-space normal map"),
+        "{warnings}"
+    );
+    let (out, _) = common::rich::read_model(&dir.join("out.glb"));
+    assert!(out["materials"][1].get("normalTexture").is_none());
+    assert!(out["materials"][0].get("normalTexture").is_some());
+}

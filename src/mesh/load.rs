@@ -504,7 +504,7 @@ pub(crate) fn material_info(doc: &SourceDocument, index: usize) -> Result<Materi
 /// A texture reference's `KHR_texture_transform` (the raw JSON of the reference): the affine map
 /// from UV to texture coordinates (offset · rotation · scale, as the extension defines it) and
 /// its `texCoord` override.
-fn texture_transform(info: &serde_json::Value) -> Option<(glam::Affine2, Option<u32>)> {
+pub(crate) fn texture_transform(info: &serde_json::Value) -> Option<(glam::Affine2, Option<u32>)> {
     let t = info.pointer("/extensions/KHR_texture_transform")?;
     let pair = |key: &str, default: Vec2| {
         t.get(key)
@@ -536,6 +536,12 @@ fn apply_texture_transform(mat: &mut MaterialInfo, (m, set): (glam::Affine2, Opt
     let Some(img) = &mat.base_color_texture else {
         return;
     };
+    mat.base_color_texture = Some(transformed(img, m));
+}
+
+/// `img` as laid out on its UV set under texture transform `m` (texture coordinates = m · uv):
+/// resampled at each texel's UV, wrapping as glTF's default sampler does.
+pub(crate) fn transformed(img: &LinearImage, m: glam::Affine2) -> LinearImage {
     let (w, h) = (img.width, img.height);
     let pixels = (0..h)
         .flat_map(|y| (0..w).map(move |x| (x, y)))
@@ -545,11 +551,11 @@ fn apply_texture_transform(mat: &mut MaterialInfo, (m, set): (glam::Affine2, Opt
             img.bilinear(t.x, t.y, true)
         })
         .collect();
-    mat.base_color_texture = Some(LinearImage {
+    LinearImage {
         width: w,
         height: h,
         pixels,
-    });
+    }
 }
 
 impl Mesh {

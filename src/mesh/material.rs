@@ -17,8 +17,6 @@ pub struct ChannelTexture {
     pub uv_set: u32,
     /// Its pixels: as stored (data and normals) or sRGB-decoded (emissive).
     pub pixels: LinearImage,
-    /// Whether the reference carries `KHR_texture_transform` (not applied to these channels).
-    pub transformed: bool,
 }
 
 /// A material's channels beside its base colour.
@@ -121,15 +119,21 @@ fn texture(
         .image(image as usize)
         .map_err(|e| format!("{what}: {e}"))?;
     let img = LinearImage::decode(&data.bytes).map_err(|e| format!("{what}: {e}"))?;
-    let pixels = match srgb {
+    let mut pixels = match srgb {
         true => img,
         false => as_stored(img),
     };
+    let mut uv_set = info["texCoord"].as_u64().unwrap_or(0) as u32;
+    // A `KHR_texture_transform` is applied (as the base colour's is): the channel's bake starts
+    // from the texture as laid out on its UVs, and the bake needs none.
+    if let Some((m, set)) = super::load::texture_transform(info) {
+        pixels = super::load::transformed(&pixels, m);
+        uv_set = set.unwrap_or(uv_set);
+    }
     Ok(Some(ChannelTexture {
         image: image as usize,
-        uv_set: info["texCoord"].as_u64().unwrap_or(0) as u32,
+        uv_set,
         pixels,
-        transformed: info.pointer("/extensions/KHR_texture_transform").is_some(),
     }))
 }
 
