@@ -355,3 +355,111 @@ fn unlit_materials_and_images_that_are_not_normal_maps_are_named() {
     assert!(out["materials"][1].get("normalTexture").is_none());
     assert!(out["materials"][0].get("normalTexture").is_some());
 }
+
+/// Half a cylinder of radius 1 about +y (θ in [-90°, 90°], y in [0, 1]), outward normals, UV
+/// (u, v) = ((θ + 90°) / 180°, 1 - y): the tangent is the circumference's direction, the
+/// bitangent +y.
+fn write_half_cylinder(path: &Path) {
+    let (n, m) = (96u32, 12u32);
+    let mut pos = Vec::new();
+    let mut uv = Vec::new();
+    for j in 0..=m {
+        for i in 0..=n {
+            let (s, y) = (i as f32 / n as f32, j as f32 / m as f32);
+            let th = (s - 0.5) * std::f32::consts::PI;
+            pos.push([th.sin(), y, th.cos()]);
+            uv.push([s, 1.0 - y]);
+        }
+    }
+    let mut idx = Vec::new();
+    for j in 0..m {
+        for i in 0..n {
+            let a = j * (n + 1) + i;
+            let (b, c, d) = (a + 1, a + n + 1, a + n + 2);
+            idx.extend([a, b, d, a, d, c]);
+        }
+    }
+    common::write_glb(path, &pos, Some(&uv), &idx);
+}
+
+/// A surface-following (expmap) normal decal wrapped round a cylinder, turned by 40°: its
+/// constant normal, tilted along the decal's x axis, lands in world space tilted along that axis
+/// as the surface carries it (on the developable cylinder the unrolled decal keeps its angle to
+/// the circumference), checked per texel against the analytic frame, and the CPU twin of the
+/// turn into tangent space agrees with the baked texels.
+#[test]
+fn a_curved_decals_normal_follows_the_surface_frame() {
+    use decalbake::bake::channels::to_tangent_space;
+    let dir = common::scratch("channels-cylinder");
+    write_half_cylinder(&dir.join("cyl.glb"));
+    write_raw_png(&dir.join("white.png"), 8, |_, _| [1.0; 4]);
+    let tilt = Vec3::new(0.5, 0.0, 1.0).normalize();
+    write_raw_png(&dir.join("tilt.png"), 8, |_, _| {
+        let e = tilt * 0.5 + 0.5;
+        [e.x, e.y, e.z, 1.0]
+    });
+    let (w, h, angle) = (1.6f32, 0.5f32, 40.0f32);
+    let job = json!({
+        "mesh": "cyl.glb",
+        "texture": {"width": 256, "height": 128, "base": [0.5, 0.5, 0.5, 1.0], "padding": 2},
+        "output": {"texture": "baked.png", "bit_depth": 16},
+        "layers": [{"image": "white.png", "normal": "tilt.png", "at": [0.0, 0.5, 1.0],
+                    "size": [w, h], "angle": angle, "up": [0.0, 1.0, 0.0], "method": "expmap"}]
+    });
+    std::fs::write(dir.join("job.json"), job.to_string()).unwrap();
+    let job = Job::load(&dir.join("job.json"), None).unwrap();
+    let engine = common::engine();
+    let (mesh, job) = engine.load_mesh_for(&job).unwrap();
+    let b = engine.bake(&mesh, &job).unwrap();
+    let (sn, cs) = angle.to_radians().sin_cos();
+    let (mut worst, mut twin_worst, mut count) = (0.0f32, 0.0f32, 0);
+    for y in 0..128u32 {
+        for x in 0..256u32 {
+            let (u, v) = ((x as f32 + 0.5) / 256.0, (y as f32 + 0.5) / 128.0);
+            let th = (u - 0.5) * std::f32::consts::PI;
+            // The unrolled decal's own coordinates of this texel (arc length, height).
+            let (arc, up) = (th, (1.0 - v) - 0.5);
+            let (lx, ly) = (arc * cs + up * sn, -arc * sn + up * cs);
+            if lx.abs() > 0.4 * w || ly.abs() > 0.35 * h {
+                continue;
+            }
+            let n = Vec3::new(th.sin(), 0.0, th.cos());
+            let t = Vec3::new(th.cos(), 0.0, -th.sin());
+            // The decal's axes on the surface: x turned by the angle from the circumference.
+            let ex = cs * t + sn * Vec3::Y;
+            let ey = -sn * t + cs * Vec3::Y;
+            let want = (tilt.x * ex + tilt.y * ey + tilt.z * n).normalize();
+            let e = texel(&b, ChannelKind::Normal, x, y);
+            let ts = Vec3::new(e[0], e[1], e[2]) * 2.0 - 1.0;
+            let got = (ts.x * t + ts.y * Vec3::Y + ts.z * n).normalize();
+            worst = worst.max(got.dot(want).clamp(-1.0, 1.0).acos().to_degrees());
+            // The twin, from the image coordinates' and the position's change along u and v.
+            let twin = to_tangent_space(
+                tilt,
+                (t * std::f32::consts::PI, -Vec3::Y),
+                (
+                    Vec2::new(std::f32::consts::PI * cs / w, std::f32::consts::PI * sn / h),
+                    Vec2::new(-sn / w, cs / h),
+                ),
+                n,
+                glam::Vec4::new(t.x, t.y, t.z, 1.0),
+            );
+            twin_worst = twin_worst.max(
+                twin.dot(ts.normalize())
+                    .clamp(-1.0, 1.0)
+                    .acos()
+                    .to_degrees(),
+            );
+            count += 1;
+        }
+    }
+    assert!(count > 2000, "{count} texels checked");
+    assert!(
+        worst < 1.5,
+        "worst texel {worst}° from the surface frame's normal"
+    );
+    assert!(
+        twin_worst < 1.5,
+        "worst texel {twin_worst}° from the CPU twin"
+    );
+}
