@@ -82,6 +82,9 @@ pub(crate) fn pass(
     warnings: &mut Vec<String>,
 ) -> Result<Pass> {
     let mut draws = Vec::with_capacity(job.layers.len());
+    // Layers with the same colour image and channels share one channel image (a job of many
+    // copies of a decal makes and uploads it once).
+    let mut made: std::collections::HashMap<String, Arc<GpuImage>> = Default::default();
     for (i, l) in job.layers.iter().enumerate() {
         let tool = l
             .stroke
@@ -95,10 +98,20 @@ pub(crate) fn pass(
             draws.push(Draw::Skip);
             continue;
         }
-        let (img, opacity, blend, chan, flags) = layer_channel(job, i, kind, warnings)?;
-        let label = format!("bake.channel.{}", kind.name());
+        let (opacity, blend, chan, flags) = draw_params(l, kind);
+        let key = format!("{:?} {:?}", l.image, l.channels);
+        let image = match made.get(&key) {
+            Some(m) => m.clone(),
+            None => {
+                let img = layer_image(job, i, kind, warnings)?;
+                let label = format!("bake.channel.{}", kind.name());
+                let m = Arc::new(upload_image(engine, &img, true, &label));
+                made.insert(key, m.clone());
+                m
+            }
+        };
         draws.push(Draw::Channel {
-            image: Arc::new(upload_image(engine, &img, true, &label)),
+            image,
             opacity,
             blend,
             chan,
@@ -136,13 +149,54 @@ fn material_channels(mesh: &LoadedMesh) -> Result<MaterialChannels> {
     })
 }
 
-/// Layer `i`'s image for `kind` and its draw's opacity, blend, data weights and flags.
-fn layer_channel(
+/// Layer `l`'s draw in the pass of `kind`: opacity, blend id, data weights and raster flags.
+fn draw_params(l: &crate::io::job::Layer, kind: ChannelKind) -> (f32, u32, [f32; 4], u32) {
+    let c = &l.channels;
+    match kind {
+        ChannelKind::Orm => {
+            let weight = |p: &Option<Channel>| p.as_ref().map_or(0.0, |c| c.opacity);
+            let chan = [
+                weight(&c.occlusion),
+                weight(&c.roughness),
+                weight(&c.metallic),
+                0.0,
+            ];
+            let blend = match c.data_blend {
+                DataBlend::Normal => BLEND_DATA_MIX,
+                DataBlend::Replace => BLEND_DATA_REPLACE,
+            };
+            (1.0, blend, chan, 0)
+        }
+        ChannelKind::Normal => {
+            let n = c
+                .normal
+                .as_ref()
+                .expect("a normal pass draws layers with normals");
+            let blend = match n.blend {
+                NormalBlend::Rnm => BLEND_NRM_RNM,
+                NormalBlend::Udn => BLEND_NRM_UDN,
+                NormalBlend::Replace => BLEND_NRM_REPLACE,
+            };
+            let flags = if n.y_down { FLAG_NORMAL_DX } else { 0 };
+            (n.opacity, blend, [0.0; 4], flags)
+        }
+        ChannelKind::Emissive => {
+            let e = c
+                .emissive
+                .as_ref()
+                .expect("an emissive pass draws layers with emissive");
+            (e.opacity, l.blend as u32, [0.0; 4], 0)
+        }
+    }
+}
+
+/// Layer `i`'s image for `kind`: the channel's values with the colour image's alpha.
+fn layer_image(
     job: &Job,
     i: usize,
     kind: ChannelKind,
     warnings: &mut Vec<String>,
-) -> Result<(LinearImage, f32, u32, [f32; 4], u32)> {
+) -> Result<LinearImage> {
     let l = &job.layers[i];
     let colour = LinearImage::load(&l.image)?;
     let c = &l.channels;
@@ -161,7 +215,7 @@ fn layer_channel(
             for p in parts {
                 sources.push(p.as_ref().map(|ch| source(ch, &mut next)));
             }
-            let img = compose_image(&colour, w, h, |u, v| {
+            compose_image(&colour, w, h, |u, v| {
                 let mut out = [0.0; 3];
                 for (k, s) in sources.iter().enumerate() {
                     if let Some(s) = s {
@@ -169,19 +223,7 @@ fn layer_channel(
                     }
                 }
                 (out, 1.0)
-            });
-            let weight = |p: &Option<Channel>| p.as_ref().map_or(0.0, |c| c.opacity);
-            let chan = [
-                weight(&c.occlusion),
-                weight(&c.roughness),
-                weight(&c.metallic),
-                0.0,
-            ];
-            let blend = match c.data_blend {
-                DataBlend::Normal => BLEND_DATA_MIX,
-                DataBlend::Replace => BLEND_DATA_REPLACE,
-            };
-            (img, 1.0, blend, chan, 0)
+            })
         }
         ChannelKind::Normal => {
             let n = c
@@ -191,17 +233,10 @@ fn layer_channel(
             let map = as_stored(LinearImage::load(&n.image)?);
             check_normal_map(&map, i, &n.image, warnings);
             let (w, h) = largest(&colour, std::iter::once(&map));
-            let img = compose_image(&colour, w, h, |u, v| {
+            compose_image(&colour, w, h, |u, v| {
                 let p = map.bilinear(u, v, false);
                 ([p[0], p[1], p[2]], p[3])
-            });
-            let blend = match n.blend {
-                NormalBlend::Rnm => BLEND_NRM_RNM,
-                NormalBlend::Udn => BLEND_NRM_UDN,
-                NormalBlend::Replace => BLEND_NRM_REPLACE,
-            };
-            let flags = if n.y_down { FLAG_NORMAL_DX } else { 0 };
-            (img, n.opacity, blend, [0.0; 4], flags)
+            })
         }
         ChannelKind::Emissive => {
             let e = c
@@ -213,15 +248,14 @@ fn layer_channel(
                 Value::Constant(_) => None,
             };
             let (w, h) = largest(&colour, loaded.iter());
-            let img = compose_image(&colour, w, h, |u, v| match (&e.value, &loaded) {
+            compose_image(&colour, w, h, |u, v| match (&e.value, &loaded) {
                 (Value::Constant(rgb), _) => (*rgb, 1.0),
                 (_, Some(m)) => {
                     let p = m.bilinear(u, v, false);
                     ([p[0], p[1], p[2]], 1.0)
                 }
                 _ => ([0.0; 3], 1.0),
-            });
-            (img, e.opacity, l.blend as u32, [0.0; 4], 0)
+            })
         }
     })
 }
