@@ -463,3 +463,59 @@ fn a_curved_decals_normal_follows_the_surface_frame() {
         "worst texel {twin_worst}° from the CPU twin"
     );
 }
+
+/// Strokes and ribbons carry channels as decals do: a stroke's roughness along its path, a
+/// ribbon's metallic and emissive along its curve, the rest of each texture untouched.
+#[test]
+fn strokes_and_ribbons_paint_channels() {
+    let dir = common::scratch("channels-kinds");
+    write_plane(&dir.join("plane.glb"), false);
+    write_raw_png(&dir.join("white.png"), 8, |_, _| [1.0; 4]);
+    let ribbon_path: Vec<[f32; 3]> = (0..=20)
+        .map(|k| [0.2 + 0.6 * k as f32 / 20.0, 0.7, 0.0])
+        .collect();
+    let job = json!({
+        "mesh": "plane.glb",
+        "texture": {"width": SIZE, "height": SIZE, "base": [0.5, 0.5, 0.5, 1.0], "padding": 2},
+        "output": {"texture": "baked.png", "bit_depth": 16},
+        "layers": [
+            {"kind": "stroke", "image": "white.png", "path": [[0.2, 0.3, 0.0], [0.8, 0.3, 0.0]],
+             "size": [0.1, 0.1], "spacing": 0.1, "method": "expmap", "roughness": 0.25},
+            {"kind": "ribbon", "image": "white.png", "path": ribbon_path, "width": 0.1,
+             "metallic": 0.0, "emissive": [0.0, 1.0, 0.0]}
+        ]
+    });
+    std::fs::write(dir.join("job.json"), job.to_string()).unwrap();
+    let job = Job::load(&dir.join("job.json"), None).unwrap();
+    let engine = common::engine();
+    let (mesh, job) = engine.load_mesh_for(&job).unwrap();
+    let b = engine.bake(&mesh, &job).unwrap();
+    let at = |x: f32, y: f32| ((x * SIZE as f32) as u32, ((1.0 - y) * SIZE as f32) as u32);
+    let (sx, sy) = at(0.5, 0.3);
+    let stroke = texel(&b, ChannelKind::Orm, sx, sy);
+    assert!(
+        (stroke[1] - 0.25).abs() < 2e-3,
+        "roughness on the stroke: {stroke:?}"
+    );
+    assert_eq!(
+        stroke[2], 1.0,
+        "metallic untouched on the stroke: {stroke:?}"
+    );
+    let (rx, ry) = at(0.5, 0.7);
+    let ribbon = texel(&b, ChannelKind::Orm, rx, ry);
+    assert!(ribbon[2] < 2e-3, "metallic on the ribbon: {ribbon:?}");
+    assert_eq!(
+        ribbon[1], 1.0,
+        "roughness untouched on the ribbon: {ribbon:?}"
+    );
+    let glow = texel(&b, ChannelKind::Emissive, rx, ry);
+    assert!(
+        glow[1] > 0.99 && glow[0] == 0.0,
+        "emissive on the ribbon: {glow:?}"
+    );
+    let (ox, oy) = at(0.5, 0.05);
+    assert_eq!(texel(&b, ChannelKind::Orm, ox, oy), [1.0; 4]);
+    assert_eq!(texel(&b, ChannelKind::Emissive, ox, oy)[..3], [0.0; 3]);
+    // Layers that paint no normal leave no normal texture.
+    assert!(b.channels.iter().all(|c| c.kind != ChannelKind::Normal));
+}
