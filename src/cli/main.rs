@@ -221,6 +221,11 @@ struct BenchArgs {
     /// row per model, baked or refused and why, seconds, and whether its document was kept.
     #[arg(long)]
     corpus: Option<PathBuf>,
+    /// What PBR channels add to a bake: the largest `--decals` value (default 256) on `--mesh`
+    /// (default the bundled bob) at each of `--sizes`, colour only against colour + normal +
+    /// roughness + metallic, median of `--reps`; JSON lines on stdout, a table on stderr.
+    #[arg(long)]
+    channels: bool,
 }
 
 fn main() {
@@ -341,8 +346,20 @@ fn bench_cmd(backend: Option<&str>, args: BenchArgs) -> Result<()> {
         tiles,
         ribbons,
         corpus,
+        channels,
     } = args;
     let mut engine = engine(backend)?;
+    if channels {
+        let opts = bench::channels::ChannelBenchOptions {
+            mesh: mesh
+                .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/bob.glb")),
+            sizes,
+            decals: decals.iter().copied().max().unwrap_or(256),
+            reps,
+        };
+        let table = |l: &str| eprintln!("{l}");
+        return bench::channels::run(&engine, &opts, |v| println!("{v}"), table);
+    }
     if let Some(dir) = corpus {
         return bench::corpus::run(&engine, &dir, |v| println!("{v}"));
     }

@@ -3,6 +3,7 @@
 //! ([`linalg`]), each printing JSON lines; [`common`] holds the workloads they share.
 pub mod bake;
 pub mod batch;
+pub mod channels;
 pub mod common;
 pub mod corpus;
 pub mod device;
