@@ -378,6 +378,7 @@ fn preview(engine: &Engine, mesh: Mesh, set: usize, path: &Path) -> Result<()> {
         uv_set: set,
         second: None,
         third: None,
+        channels: Default::default(),
     };
     let px = decalbake::output::preview::render_texture_preview(engine, &loaded, &tex)?;
     let n = 2 * decalbake::output::preview::VIEW_SIDE;

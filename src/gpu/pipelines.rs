@@ -852,7 +852,9 @@ fn extract_raster(device: &wgpu::Device, format: wgpu::TextureFormat) -> Raster 
     )
 }
 
-/// `preview`: the textured model, depth-tested, 4× MSAA.
+/// `preview`: the textured model, depth-tested, 4× MSAA; the colour textures (1, 3, 4), the
+/// normal map, ORM and emissive (5, 6, 7); vertex buffers position, normal, three UVs, the
+/// blend weights and the tangent (6, `vec4`).
 fn preview_raster(device: &wgpu::Device) -> Raster {
     use Bind::*;
     let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
@@ -865,6 +867,9 @@ fn preview_raster(device: &wgpu::Device) -> Raster {
             (2, Sampler),
             (3, Tex(true)),
             (4, Tex(true)),
+            (5, Tex(true)),
+            (6, Tex(true)),
+            (7, Tex(true)),
         ],
         vf,
     );
@@ -881,6 +886,7 @@ fn preview_raster(device: &wgpu::Device) -> Raster {
     let a3 = vb(3, wgpu::VertexFormat::Float32x2);
     let a4 = vb(4, wgpu::VertexFormat::Float32x2);
     let a5 = vb(5, wgpu::VertexFormat::Float32x2);
+    let a6 = vb(6, wgpu::VertexFormat::Float32x4);
     let buffers = [
         Some(wgpu::VertexBufferLayout {
             array_stride: 12,
@@ -911,6 +917,11 @@ fn preview_raster(device: &wgpu::Device) -> Raster {
             array_stride: 8,
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &a5,
+        }),
+        Some(wgpu::VertexBufferLayout {
+            array_stride: 16,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &a6,
         }),
     ];
     raster(

@@ -1,11 +1,14 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! A preview of the textured mesh from four sides (front, right, back, left, slightly from above),
-//! orthographic, with a headlight, 4× MSAA, in a 2×2 grid.
+//! orthographic, 4× MSAA, in a 2×2 grid, shaded with the bake's PBR channels where it has them
+//! (`wgsl/output/preview.wgsl`: Lambert diffuse from the key light and a constant ambient, as the
+//! preview always was, plus GGX specular from a key and a fill light): a normal decal shows.
 
 use crate::bake::{Baked, Engine, LoadedMesh};
 use crate::error::Result;
 use crate::gpu::pipelines::PREVIEW_FORMAT;
 use crate::gpu::BufferInit;
+use crate::io::channels::ChannelKind;
 use glam::{Mat4, Vec3};
 
 /// Side of one view in pixels.
@@ -15,7 +18,56 @@ pub const VIEW_SIDE: u32 = 512;
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct ViewUniform {
     view_proj: [[f32; 4]; 4],
+    /// Towards the key light (world space).
     light: [f32; 4],
+    /// Towards the fill light.
+    fill: [f32; 4],
+    /// Towards the camera.
+    eye: [f32; 4],
+    /// x: 1 where the normal texture is the bake's (else the geometric normal); y: the
+    /// specular's weight, 1 where the ORM texture is the bake's (else 0: the old Lambert look).
+    flags: [f32; 4],
+}
+
+/// A bake's PBR channels for the preview (`Baked::channels`): 8-bit RGBA at the colour's size, top
+/// row first, laid out on the colour's UV set. One left out is shaded with its default (flat
+/// normal; no specular, occlusion 1, metallic 0; no emission).
+#[derive(Debug, Clone, Default)]
+pub struct PreviewChannels {
+    /// Tangent-space normal map as stored (n * 0.5 + 0.5, glTF's: +Y up the image; 128 reads
+    /// as 0).
+    pub normal: Option<Vec<u8>>,
+    /// Occlusion, roughness, metallic (R, G, B) as stored.
+    pub orm: Option<Vec<u8>>,
+    /// Emissive colour, sRGB.
+    pub emissive: Option<Vec<u8>>,
+}
+
+impl PreviewChannels {
+    /// The channels `baked` painted.
+    pub fn of(baked: &Baked) -> Self {
+        let mut out = Self::default();
+        for c in &baked.channels {
+            let bytes = Some(rgba8(&c.texels, baked.bit_depth));
+            match c.kind {
+                ChannelKind::Normal => out.normal = bytes,
+                ChannelKind::Orm => out.orm = bytes,
+                ChannelKind::Emissive => out.emissive = bytes,
+            }
+        }
+        out
+    }
+}
+
+/// 8- or 16-bit samples to bytes (16-bit rounded, as `Baked::rgba8`).
+fn rgba8(texels: &[u16], bit_depth: u8) -> Vec<u8> {
+    match bit_depth {
+        16 => texels
+            .iter()
+            .map(|&v| ((v as u32 * 255 + 32767) / 65535) as u8)
+            .collect(),
+        _ => texels.iter().map(|&v| v as u8).collect(),
+    }
 }
 
 /// A texture to preview: sRGB RGBA8 texels, top row first, on a UV set of the mesh.
@@ -35,6 +87,9 @@ pub struct PreviewTexture {
     /// A third texture blended in, weighted by `mesh.bridge` (the bridges over the patch's seams,
     /// `crate::pelt::bridge`); needs a second and the mesh's `_PELT_BRIDGE` (`Mesh::bridge`).
     pub third: Option<Box<PreviewTexture>>,
+    /// The bake's PBR channels the preview shades with (blended: the first texture's); default:
+    /// none, the old Lambert look.
+    pub channels: PreviewChannels,
 }
 
 impl PreviewTexture {
@@ -47,11 +102,13 @@ impl PreviewTexture {
             uv_set: baked.report.uv_set as usize,
             second: None,
             third: None,
+            channels: PreviewChannels::of(baked),
         }
     }
 }
 
-/// Renders the preview of a bake and returns sRGB RGBA8 pixels (`2 * VIEW_SIDE` square).
+/// Renders the preview of a bake, shaded with its channels, and returns sRGB RGBA8 pixels
+/// (`2 * VIEW_SIDE` square).
 pub fn render_preview(engine: &Engine, mesh: &LoadedMesh, baked: &Baked) -> Result<Vec<u8>> {
     render_texture_preview(engine, mesh, &PreviewTexture::of(baked))
 }
@@ -89,18 +146,31 @@ pub fn write_set_preview(
     crate::io::image::write_atomic(path, &crate::io::image::png_bytes(n, n, 8, &samples))
 }
 
-/// Renders the preview of `mesh` wearing `baked` (for `decalbake unwrap`: a checker on the new UVs).
+/// Renders the preview of `mesh` wearing `baked`, shaded with its channels (for `decalbake
+/// unwrap`: a checker on the new UVs).
 pub fn render_texture_preview(
     engine: &Engine,
     mesh: &LoadedMesh,
     baked: &PreviewTexture,
 ) -> Result<Vec<u8>> {
+    render_material_preview(engine, mesh, baked, &baked.channels)
+}
+
+/// Renders the preview of `mesh` wearing `baked` shaded with `channels` (on `baked`'s UV set and
+/// size). Blending a second and third texture (`write_set_preview`), the channels are the first
+/// texture's, weighted as it is.
+pub fn render_material_preview(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    baked: &PreviewTexture,
+    channels: &PreviewChannels,
+) -> Result<Vec<u8>> {
     let ctx = &engine.ctx;
     ctx.scoped("preview", || {
-        let view = upload_texture(engine, baked);
+        let view = upload_colour(engine, baked);
         let sampler = preview_sampler(engine);
-        let second = baked.second.as_ref().map(|t| upload_texture(engine, t));
-        let third = baked.third.as_ref().map(|t| upload_texture(engine, t));
+        let second = baked.second.as_ref().map(|t| upload_colour(engine, t));
+        let third = baked.third.as_ref().map(|t| upload_colour(engine, t));
         let groups = view_groups(
             engine,
             mesh,
@@ -109,38 +179,56 @@ pub fn render_texture_preview(
                 second.as_ref().unwrap_or(&view),
                 third.as_ref().unwrap_or(&view),
             ],
+            &upload_channels(engine, baked, channels),
             &sampler,
         );
         let all = 0..mesh.mesh.triangles.len() as u32;
-        draw(engine, mesh, baked, &[(groups, vec![all])])
+        let tangents = channels.normal.is_some();
+        draw(engine, mesh, baked, tangents, &[(groups, vec![all])])
     })
     .and_then(|readback| ctx.map_and_read(&readback, "preview read-back"))
 }
 
 /// The preview of a bake into several texture sets: each set's triangles (`ranges`, triangle
-/// index ranges) drawn with its own texture, on the first texture's UV set.
+/// index ranges) drawn with its own texture and channels, on the first texture's UV set.
 pub fn render_sets_preview(
     engine: &Engine,
     mesh: &LoadedMesh,
     sets: &[(PreviewTexture, Vec<std::ops::Range<u32>>)],
 ) -> Result<Vec<u8>> {
+    let sets: Vec<_> = sets
+        .iter()
+        .map(|(t, r)| (t, &t.channels, r.as_slice()))
+        .collect();
+    render_sets_material_preview(engine, mesh, &sets)
+}
+
+/// [`render_sets_preview`] with each set shaded with its own channels (`PreviewChannels::of` its
+/// bake; a set whose bake painted none gets the defaults, the old look).
+pub fn render_sets_material_preview(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    sets: &[(&PreviewTexture, &PreviewChannels, &[std::ops::Range<u32>])],
+) -> Result<Vec<u8>> {
     let ctx = &engine.ctx;
-    let Some((first, _)) = sets.first() else {
+    let Some((first, _, _)) = sets.first() else {
         return Ok(Vec::new());
     };
     ctx.scoped("preview", || {
         let sampler = preview_sampler(engine);
         let draws: Vec<_> = sets
             .iter()
-            .map(|(t, ranges)| {
-                let view = upload_texture(engine, t);
+            .map(|(t, channels, ranges)| {
+                let view = upload_colour(engine, t);
+                let chans = upload_channels(engine, t, channels);
                 (
-                    view_groups(engine, mesh, [&view; 3], &sampler),
-                    ranges.clone(),
+                    view_groups(engine, mesh, [&view; 3], &chans, &sampler),
+                    ranges.to_vec(),
                 )
             })
             .collect();
-        draw(engine, mesh, first, &draws)
+        let tangents = sets.iter().any(|(_, c, _)| c.normal.is_some());
+        draw(engine, mesh, first, tangents, &draws)
     })
     .and_then(|readback| ctx.map_and_read(&readback, "preview read-back"))
 }
@@ -159,9 +247,10 @@ fn preview_sampler(engine: &Engine) -> wgpu::Sampler {
     })
 }
 
-/// The baked texture with a box-filtered mip chain (in sRGB bytes: good enough for a preview).
-fn mip_chain(baked: &PreviewTexture) -> Vec<(u32, u32, Vec<u8>)> {
-    let mut levels = vec![(baked.width, baked.height, baked.rgba8.clone())];
+/// An RGBA8 image (`width` × `height`) with a box-filtered mip chain (in stored bytes: good enough
+/// for a preview).
+fn mip_chain(width: u32, height: u32, rgba8: &[u8]) -> Vec<(u32, u32, Vec<u8>)> {
+    let mut levels = vec![(width, height, rgba8.to_vec())];
     while levels.last().is_some_and(|l| l.0 > 1 || l.1 > 1) {
         let (w, h, ref px) = *levels.last().expect("non-empty");
         let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
@@ -184,21 +273,68 @@ fn mip_chain(baked: &PreviewTexture) -> Vec<(u32, u32, Vec<u8>)> {
     levels
 }
 
-/// The baked texture and its mips on the GPU.
-fn upload_texture(engine: &Engine, baked: &PreviewTexture) -> wgpu::TextureView {
+/// A texture's views for one draw: the normal map, ORM and emissive (the bake's or 1 × 1
+/// defaults), and whether the normal map is the bake's.
+struct ChannelViews {
+    normal: wgpu::TextureView,
+    orm: wgpu::TextureView,
+    emissive: wgpu::TextureView,
+    has_normal: bool,
+    has_orm: bool,
+}
+
+/// `channels` on the GPU, at `baked`'s size; each one missing (or not of that size) a 1 × 1
+/// default: flat normal, (occlusion, roughness, metallic) = (1, 1, 0), no emission.
+fn upload_channels(
+    engine: &Engine,
+    baked: &PreviewTexture,
+    channels: &PreviewChannels,
+) -> ChannelViews {
+    use wgpu::TextureFormat::{Rgba8Unorm, Rgba8UnormSrgb};
+    let len = baked.width as usize * baked.height as usize * 4;
+    let given = |c: &Option<Vec<u8>>| c.as_ref().is_some_and(|px| px.len() == len);
+    let up = |c: &Option<Vec<u8>>, default: [u8; 4], format| match c {
+        Some(px) if px.len() == len => {
+            upload_texture(engine, baked.width, baked.height, px, format)
+        }
+        _ => upload_texture(engine, 1, 1, &default, format),
+    };
+    ChannelViews {
+        normal: up(&channels.normal, [128, 128, 255, 255], Rgba8Unorm),
+        orm: up(&channels.orm, [255, 255, 0, 255], Rgba8Unorm),
+        emissive: up(&channels.emissive, [0, 0, 0, 255], Rgba8UnormSrgb),
+        has_normal: given(&channels.normal),
+        has_orm: given(&channels.orm),
+    }
+}
+
+/// The baked colour texture and its mips on the GPU.
+fn upload_colour(engine: &Engine, baked: &PreviewTexture) -> wgpu::TextureView {
+    let format = wgpu::TextureFormat::Rgba8UnormSrgb;
+    upload_texture(engine, baked.width, baked.height, &baked.rgba8, format)
+}
+
+/// An RGBA8 image and its mips on the GPU in `format`.
+fn upload_texture(
+    engine: &Engine,
+    width: u32,
+    height: u32,
+    rgba8: &[u8],
+    format: wgpu::TextureFormat,
+) -> wgpu::TextureView {
     let (ctx, dev) = (&engine.ctx, &engine.ctx.device);
-    let levels = mip_chain(baked);
+    let levels = mip_chain(width, height, rgba8);
     let tex = dev.create_texture(&wgpu::TextureDescriptor {
         label: Some("preview.baked"),
         size: wgpu::Extent3d {
-            width: baked.width,
-            height: baked.height,
+            width,
+            height,
             depth_or_array_layers: 1,
         },
         mip_level_count: levels.len() as u32,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba8UnormSrgb,
+        format,
         usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         view_formats: &[],
     });
@@ -226,11 +362,14 @@ fn upload_texture(engine: &Engine, baked: &PreviewTexture) -> wgpu::TextureView 
     tex.create_view(&Default::default())
 }
 
-/// One view-uniform bind group per side: orthographic, from 20° above, at 90° steps.
+/// One view-uniform bind group per side: orthographic, from 20° above, at 90° steps; the key
+/// light above and right of the camera (as the preview's one light always was), the fill left
+/// of it and a little below.
 fn view_groups(
     engine: &Engine,
     mesh: &LoadedMesh,
     [view, second, third]: [&wgpu::TextureView; 3],
+    channels: &ChannelViews,
     sampler: &wgpu::Sampler,
 ) -> Vec<(wgpu::BindGroup, wgpu::Buffer)> {
     let dev = &engine.ctx.device;
@@ -249,9 +388,15 @@ fn view_groups(
         let vp = Mat4::orthographic_rh(-r, r, -r, r, 0.5 * r, 3.5 * r)
             * Mat4::look_at_rh(eye, center, Vec3::Y);
         let light = (dir + Vec3::new(0.3, 0.5, 0.0)).normalize();
+        let right = Vec3::Y.cross(dir).normalize();
+        let fill = (dir - 0.9 * right - 0.2 * Vec3::Y).normalize();
+        let flag = |b: bool| if b { 1.0 } else { 0.0 };
         let u = ViewUniform {
             view_proj: vp.to_cols_array_2d(),
             light: light.extend(0.0).to_array(),
+            fill: fill.extend(0.0).to_array(),
+            eye: dir.extend(0.0).to_array(),
+            flags: [flag(channels.has_normal), flag(channels.has_orm), 0.0, 0.0],
         };
         let buf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("preview.view"),
@@ -268,6 +413,9 @@ fn view_groups(
                 (2, wgpu::BindingResource::Sampler(sampler)),
                 (3, wgpu::BindingResource::TextureView(second)),
                 (4, wgpu::BindingResource::TextureView(third)),
+                (5, wgpu::BindingResource::TextureView(&channels.normal)),
+                (6, wgpu::BindingResource::TextureView(&channels.orm)),
+                (7, wgpu::BindingResource::TextureView(&channels.emissive)),
             ],
         );
         groups.push((bg, buf));
@@ -304,11 +452,29 @@ type ViewDraw = (
     Vec<std::ops::Range<u32>>,
 );
 
-/// Draws the four views (4× MSAA, resolved) and copies the result into a mappable buffer.
+/// Per split vertex, the tangent frame on `uv_set` (`crate::mesh::tangents`, xyz and the
+/// bitangent's sign) as a vertex buffer; without a normal map (`needed` false) zeros, unread.
+fn tangent_buffer(engine: &Engine, mesh: &LoadedMesh, uv_set: usize, needed: bool) -> wgpu::Buffer {
+    let dev = &engine.ctx.device;
+    let n = mesh.mesh.positions.len();
+    let tangents = match needed {
+        true => crate::mesh::tangents::tangents(&mesh.mesh, uv_set),
+        false => vec![[0.0; 4]; n],
+    };
+    dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("preview.tangent"),
+        contents: bytemuck::cast_slice(&tangents),
+        usage: wgpu::BufferUsages::VERTEX,
+    })
+}
+
+/// Draws the four views (4× MSAA, resolved) and copies the result into a mappable buffer;
+/// `tangents`: whether a draw has a normal map.
 fn draw(
     engine: &Engine,
     mesh: &LoadedMesh,
     baked: &PreviewTexture,
+    tangents: bool,
     draws: &[ViewDraw],
 ) -> wgpu::Buffer {
     let (ctx, dev) = (&engine.ctx, &engine.ctx.device);
@@ -317,6 +483,7 @@ fn draw(
     let uv2_buf = &mesh.gpu.uvs[baked.second.as_ref().map_or(baked.uv_set, |t| t.uv_set)];
     let uv3_buf = &mesh.gpu.uvs[baked.third.as_ref().map_or(baked.uv_set, |t| t.uv_set)];
     let weight_buf = weight_buffer(engine, mesh, baked);
+    let tangent_buf = tangent_buffer(engine, mesh, baked.uv_set, tangents);
     let mk = |label: &str, format, samples, usage| {
         dev.create_texture(&wgpu::TextureDescriptor {
             label: Some(label),
@@ -397,6 +564,7 @@ fn draw(
         pass.set_vertex_buffer(3, uv2_buf.slice(..));
         pass.set_vertex_buffer(4, weight_buf.slice(..));
         pass.set_vertex_buffer(5, uv3_buf.slice(..));
+        pass.set_vertex_buffer(6, tangent_buf.slice(..));
         pass.set_index_buffer(mesh.gpu.split_tris.slice(..), wgpu::IndexFormat::Uint32);
         for k in 0..4u32 {
             let (x, y) = ((k % 2) * VIEW_SIDE, (k / 2) * VIEW_SIDE);
