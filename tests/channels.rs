@@ -8,7 +8,6 @@ mod common;
 
 use decalbake::bake::channels::{combine_normals, ChannelKind};
 use decalbake::io::channels::NormalBlend;
-use decalbake::io::image::png_bytes;
 use decalbake::{Baked, Engine, Job};
 use glam::{Vec2, Vec3};
 use serde_json::json;
@@ -21,55 +20,17 @@ const SIZE: u32 = 128;
 /// The bump's slope: the normal at image point (s, t) is normalize(A (s - ½), A (½ - t), 1).
 const A: f32 = 1.2;
 
-/// The unit square at z = 0, normal +z, UV (x, 1 - y) or, `mirrored`, (1 - x, 1 - y).
-fn write_plane(path: &Path, mirrored: bool) {
-    let mut pos = Vec::new();
-    let mut uv = Vec::new();
-    for j in 0..=N {
-        for i in 0..=N {
-            let (x, y) = (i as f32 / N as f32, j as f32 / N as f32);
-            pos.push([x, y, 0.0]);
-            uv.push([if mirrored { 1.0 - x } else { x }, 1.0 - y]);
-        }
-    }
-    let mut idx = Vec::new();
-    for j in 0..N {
-        for i in 0..N {
-            let a = j * (N + 1) + i;
-            let (b, c, d) = (a + 1, a + N + 1, a + N + 2);
-            // Counter-clockwise seen from +z.
-            idx.extend([a, b, d, a, d, c]);
-        }
-    }
-    common::write_glb(path, &pos, Some(&uv), &idx);
-}
-
 /// The bump's normal in the decal's frame at image point (s, t) (t down the image).
 fn bump(s: f32, t: f32) -> Vec3 {
     Vec3::new(A * (s - 0.5), A * (0.5 - t), 1.0).normalize()
 }
 
-/// A 16-bit RGBA PNG of `f(s, t)` at `side`² texels, written as stored (no sRGB encoding).
-fn write_raw_png(path: &Path, side: u32, f: impl Fn(f32, f32) -> [f32; 4]) {
-    let mut samples = Vec::new();
-    for y in 0..side {
-        for x in 0..side {
-            let (s, t) = (
-                (x as f32 + 0.5) / side as f32,
-                (y as f32 + 0.5) / side as f32,
-            );
-            samples.extend(f(s, t).map(|v| (v.clamp(0.0, 1.0) * 65535.0).round() as u16));
-        }
-    }
-    std::fs::write(path, png_bytes(side, side, 16, &samples)).unwrap();
-}
-
 /// Writes the images (white colour, the bump's normal map) and bakes one normal decal of
 /// `size` at the plane's centre, turned by `angle`, with the extra layer fields `extra`.
 fn bake(dir: &Path, mirrored: bool, angle: f32, extra: serde_json::Value) -> (Baked, Job) {
-    write_plane(&dir.join("plane.glb"), mirrored);
-    write_raw_png(&dir.join("white.png"), 8, |_, _| [1.0; 4]);
-    write_raw_png(&dir.join("bump.png"), 256, |s, t| {
+    common::write_plane(&dir.join("plane.glb"), N, mirrored);
+    common::write_raw_png(&dir.join("white.png"), 8, |_, _| [1.0; 4]);
+    common::write_raw_png(&dir.join("bump.png"), 256, |s, t| {
         let n = bump(s, t) * 0.5 + 0.5;
         [n.x, n.y, n.z, 1.0]
     });
@@ -237,8 +198,8 @@ fn a_material_decal_writes_every_channel_into_each_set_it_touches() {
     use common::rich::{json_diff, read_model, validate, view, write_rich_gltf};
     let dir = common::scratch("channels-model");
     let src = write_rich_gltf(&dir);
-    write_raw_png(&dir.join("white.png"), 8, |_, _| [1.0; 4]);
-    write_raw_png(&dir.join("bump.png"), 64, |s, t| {
+    common::write_raw_png(&dir.join("white.png"), 8, |_, _| [1.0; 4]);
+    common::write_raw_png(&dir.join("bump.png"), 64, |s, t| {
         let n = bump(s, t) * 0.5 + 0.5;
         [n.x, n.y, n.z, 1.0]
     });
@@ -326,9 +287,9 @@ fn unlit_materials_and_images_that_are_not_normal_maps_are_named() {
         .unwrap()
         .push(json!("KHR_materials_unlit"));
     std::fs::write(&src, serde_json::to_vec(&doc).unwrap()).unwrap();
-    write_raw_png(&dir.join("white.png"), 8, |_, _| [1.0; 4]);
+    common::write_raw_png(&dir.join("white.png"), 8, |_, _| [1.0; 4]);
     // Mid-grey: every decoded vector is (0, 0, 0).
-    write_raw_png(&dir.join("grey.png"), 16, |_, _| [0.5, 0.5, 0.5, 1.0]);
+    common::write_raw_png(&dir.join("grey.png"), 16, |_, _| [0.5, 0.5, 0.5, 1.0]);
     let job = json!({
         "mesh": src,
         "texture": {"width": 64, "height": 64, "base": "material"},
@@ -392,9 +353,9 @@ fn a_curved_decals_normal_follows_the_surface_frame() {
     use decalbake::bake::channels::to_tangent_space;
     let dir = common::scratch("channels-cylinder");
     write_half_cylinder(&dir.join("cyl.glb"));
-    write_raw_png(&dir.join("white.png"), 8, |_, _| [1.0; 4]);
+    common::write_raw_png(&dir.join("white.png"), 8, |_, _| [1.0; 4]);
     let tilt = Vec3::new(0.5, 0.0, 1.0).normalize();
-    write_raw_png(&dir.join("tilt.png"), 8, |_, _| {
+    common::write_raw_png(&dir.join("tilt.png"), 8, |_, _| {
         let e = tilt * 0.5 + 0.5;
         [e.x, e.y, e.z, 1.0]
     });
@@ -469,8 +430,8 @@ fn a_curved_decals_normal_follows_the_surface_frame() {
 #[test]
 fn strokes_and_ribbons_paint_channels() {
     let dir = common::scratch("channels-kinds");
-    write_plane(&dir.join("plane.glb"), false);
-    write_raw_png(&dir.join("white.png"), 8, |_, _| [1.0; 4]);
+    common::write_plane(&dir.join("plane.glb"), N, false);
+    common::write_raw_png(&dir.join("white.png"), 8, |_, _| [1.0; 4]);
     let ribbon_path: Vec<[f32; 3]> = (0..=20)
         .map(|k| [0.2 + 0.6 * k as f32 / 20.0, 0.7, 0.0])
         .collect();

@@ -6,7 +6,6 @@
 
 mod common;
 
-use decalbake::io::image::png_bytes;
 use decalbake::output::preview::{
     render_preview, render_sets_material_preview, PreviewChannels, PreviewTexture, VIEW_SIDE,
 };
@@ -21,49 +20,12 @@ const N: u32 = 16;
 /// normalize(A (s - ½), A (½ - t), 1).
 const A: f32 = 1.2;
 
-/// The unit square at z = 0, normal +z, UV (x, 1 - y): image up is +y.
-fn write_plane(path: &Path) {
-    let mut pos = Vec::new();
-    let mut uv = Vec::new();
-    for j in 0..=N {
-        for i in 0..=N {
-            let (x, y) = (i as f32 / N as f32, j as f32 / N as f32);
-            pos.push([x, y, 0.0]);
-            uv.push([x, 1.0 - y]);
-        }
-    }
-    let mut idx = Vec::new();
-    for j in 0..N {
-        for i in 0..N {
-            let a = j * (N + 1) + i;
-            let (b, c, d) = (a + 1, a + N + 1, a + N + 2);
-            idx.extend([a, b, d, a, d, c]);
-        }
-    }
-    common::write_glb(path, &pos, Some(&uv), &idx);
-}
-
-/// A 16-bit RGBA PNG of `f(s, t)` at `side`² texels, as stored.
-fn write_raw_png(path: &Path, side: u32, f: impl Fn(f32, f32) -> [f32; 4]) {
-    let mut samples = Vec::new();
-    for y in 0..side {
-        for x in 0..side {
-            let (s, t) = (
-                (x as f32 + 0.5) / side as f32,
-                (y as f32 + 0.5) / side as f32,
-            );
-            samples.extend(f(s, t).map(|v| (v.clamp(0.0, 1.0) * 65535.0).round() as u16));
-        }
-    }
-    std::fs::write(path, png_bytes(side, side, 16, &samples)).unwrap();
-}
-
 /// Bakes a white decal of half the plane's side at its centre, with the dome's normal map when
 /// `normal`.
 fn bake(engine: &Engine, dir: &Path, normal: bool) -> (LoadedMesh, Baked) {
-    write_plane(&dir.join("plane.glb"));
-    write_raw_png(&dir.join("white.png"), 8, |_, _| [1.0; 4]);
-    write_raw_png(&dir.join("dome.png"), 128, |s, t| {
+    common::write_plane(&dir.join("plane.glb"), N, false);
+    common::write_raw_png(&dir.join("white.png"), 8, |_, _| [1.0; 4]);
+    common::write_raw_png(&dir.join("dome.png"), 128, |s, t| {
         let n = Vec3::new(A * (s - 0.5), A * (0.5 - t), 1.0).normalize() * 0.5 + 0.5;
         [n.x, n.y, n.z, 1.0]
     });

@@ -254,4 +254,47 @@ pub fn cylinder(n: u32, m: u32) -> decalbake::mesh::Mesh {
         ..Default::default()
     }
 }
+/// The unit square at z = 0 in `n` × `n` cells, normal +z, UV (x, 1 - y) (image up is +y) or,
+/// `mirrored`, (1 - x, 1 - y); counter-clockwise seen from +z.
+pub fn write_plane(path: &Path, n: u32, mirrored: bool) {
+    let mut pos = Vec::new();
+    let mut uv = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            let (x, y) = (i as f32 / n as f32, j as f32 / n as f32);
+            pos.push([x, y, 0.0]);
+            uv.push([if mirrored { 1.0 - x } else { x }, 1.0 - y]);
+        }
+    }
+    let mut idx = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            let a = j * (n + 1) + i;
+            let (b, c, d) = (a + 1, a + n + 1, a + n + 2);
+            idx.extend([a, b, d, a, d, c]);
+        }
+    }
+    write_glb(path, &pos, Some(&uv), &idx);
+}
+
+/// A 16-bit RGBA PNG of `f(s, t)` at `side`² texels (t down the image), written as stored (no
+/// sRGB encoding): data and normal maps.
+pub fn write_raw_png(path: &Path, side: u32, f: impl Fn(f32, f32) -> [f32; 4]) {
+    let mut samples = Vec::new();
+    for y in 0..side {
+        for x in 0..side {
+            let (s, t) = (
+                (x as f32 + 0.5) / side as f32,
+                (y as f32 + 0.5) / side as f32,
+            );
+            samples.extend(f(s, t).map(|v| (v.clamp(0.0, 1.0) * 65535.0).round() as u16));
+        }
+    }
+    std::fs::write(
+        path,
+        decalbake::io::image::png_bytes(side, side, 16, &samples),
+    )
+    .unwrap();
+}
+
 pub mod rich;
