@@ -61,17 +61,36 @@ pub(crate) fn parse(bytes: &[u8], name: &Path) -> Result<gltf::Gltf> {
     }
     let mut root = root;
     required_extensions(&mut root.extensions_required, name)?;
-    let document = gltf::Document::from_json(root).map_err(|e| gltf_err(name, e))?;
+    // Compressed geometry is validated once decoded (`super::decode`, [`validated`]): until then a
+    // Draco primitive's accessors have no data of their own, which the crate's validation refuses.
+    let compressed = root
+        .extensions_used
+        .iter()
+        .any(|e| DECODED_EXTENSIONS.contains(&e.as_str()));
+    let document = if compressed {
+        gltf::Document::from_json_without_validation(root)
+    } else {
+        gltf::Document::from_json(root).map_err(|e| gltf_err(name, e))?
+    };
     Ok(gltf::Gltf { document, blob })
 }
 
+/// `document` (parsed by [`parse`] without validation) validated by the `gltf` crate.
+pub(crate) fn validated(document: gltf::Document, name: &Path) -> Result<gltf::Document> {
+    gltf::Document::from_json(document.into_json()).map_err(|e| gltf_err(name, e))
+}
+
 /// Required extensions that change the geometry and that the loader cannot decode: a model that
-/// requires one is refused with its name.
-const GEOMETRY_EXTENSIONS: &[&str] = &[
+/// requires one is refused with its name. (`KHR_draco_mesh_compression`,
+/// `EXT_meshopt_compression` and `KHR_mesh_quantization` are decoded before the geometry is read,
+/// `super::decode`.)
+const GEOMETRY_EXTENSIONS: &[&str] = &["EXT_mesh_gpu_instancing"];
+
+/// Required extensions that `super::decode` turns into an uncompressed document.
+const DECODED_EXTENSIONS: &[&str] = &[
     "KHR_draco_mesh_compression",
     "EXT_meshopt_compression",
     "KHR_mesh_quantization",
-    "EXT_mesh_gpu_instancing",
 ];
 
 /// Prefixes of extensions that do not change the geometry (materials, textures, lights, metadata):
@@ -90,14 +109,18 @@ const HARMLESS_PREFIXES: &[&str] = &[
 
 /// Checks `extensionsRequired` (of the typed model the loader reads with; the document the writer
 /// keeps is untouched): one that changes the geometry and one the loader does not know refuse the
-/// model with its name; the rest are cleared, so that the `gltf` crate's validation, which refuses
-/// every extension it does not implement, reads the geometry as the extensions leave it.
+/// model with its name; the rest (the compression the loader decodes among them) are cleared, so
+/// that the `gltf` crate's validation, which refuses every extension it does not implement, reads
+/// the geometry as the extensions leave it.
 fn required_extensions(required: &mut Vec<String>, name: &Path) -> Result<()> {
     for ext in required.iter() {
+        if DECODED_EXTENSIONS.contains(&ext.as_str()) {
+            continue;
+        }
         if GEOMETRY_EXTENSIONS.contains(&ext.as_str()) {
             return Err(gltf_err(
                 name,
-                format!("extensionsRequired names {ext}, which changes how the geometry is stored, and decalbake cannot decode it; write an uncompressed copy first (for example `gltf-transform copy IN OUT` from npm's @gltf-transform/cli)"),
+                format!("extensionsRequired names {ext}, which changes how the geometry is stored, and decalbake cannot decode it; write a copy without it first (each instance as a node of its own)"),
             ));
         }
         if !HARMLESS_PREFIXES.iter().any(|p| ext.starts_with(p)) {

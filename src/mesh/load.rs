@@ -8,6 +8,7 @@
 //! rasterization needs; [`crate::mesh::Topology`] welds them for the surface.
 
 use super::checks::{self, gltf_err};
+use super::decode;
 use super::document::SourceDocument;
 use crate::error::{Error, Result};
 use crate::io::image::LinearImage;
@@ -198,12 +199,17 @@ impl Mesh {
                 b
             }
         });
-        let document = gltf.document;
-        checks::uris(&document, base_dir, name)?;
-        let buffers = gltf::import_buffers(&document, base_dir, gltf.blob)
-            .map_err(|e| gltf_err(name, format!("loading buffers: {e}")))?;
+        checks::uris(&gltf.document, base_dir, name)?;
+        // Compressed geometry decoded first: the crate reads the uncompressed document.
+        let (document, buffers, json) = match decode::decode(&gltf, bytes, name, base_dir)? {
+            Some(d) => (d.document, d.buffers, d.json),
+            None => {
+                let buffers = gltf::import_buffers(&gltf.document, base_dir, gltf.blob)
+                    .map_err(|e| gltf_err(name, format!("loading buffers: {e}")))?;
+                (gltf.document, buffers, checks::raw_json(bytes, name)?)
+            }
+        };
         checks::views(&document, &buffers, name)?;
-        let json = checks::raw_json(bytes, name)?;
 
         let scene = document
             .default_scene()

@@ -4,6 +4,7 @@
 //! upload ([`upload::GpuMesh`]).
 pub mod bvh;
 mod checks;
+mod decode;
 pub mod document;
 pub mod lbvh;
 mod load;
