@@ -111,15 +111,30 @@ fn demo_writes_decodable_outputs_and_a_glb_that_loads_back() {
         "glb texture differs from baked.png"
     );
     // The skinned knight goes out as it came in, its skin and five animations with it: only the
-    // bytes of its image (replaced by the bake) differ.
+    // bytes of its image (replaced by the bake) differ, and its material takes the badge's
+    // channels (new images and textures: metallic-roughness and normal).
     let (knight, _) = common::rich::read_model(&out.join("knight.glb"));
     let (baked_knight, _) = common::rich::read_model(&out.join("knight-baked.glb"));
     let mut diff = Vec::new();
     common::rich::json_diff(&knight, &baked_knight, "", &mut diff);
+    let allowed = [
+        "/buffers/",
+        "/bufferViews/",
+        "/images/",
+        "/textures/",
+        "/materials/0/pbrMetallicRoughness/",
+        "/materials/0/normalTexture",
+    ];
     assert!(
         diff.iter()
-            .all(|p| p.starts_with("/buffers/") || p.starts_with("/bufferViews/")),
+            .all(|p| allowed.iter().any(|a| p.starts_with(a))),
         "{diff:?}"
+    );
+    let m = &baked_knight["materials"][0];
+    assert!(m["normalTexture"]["index"].is_u64(), "{m}");
+    assert!(
+        m["pbrMetallicRoughness"]["metallicRoughnessTexture"]["index"].is_u64(),
+        "{m}"
     );
     assert_eq!(baked_knight["animations"].as_array().unwrap().len(), 5);
     assert!(stdout.contains("knight-preview.png"), "{stdout}");
