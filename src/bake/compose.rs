@@ -222,43 +222,7 @@ pub(crate) fn compose(
     }
     let (flush, flush_params) = flushes(placed, maps, &jobs, &canvas.global, pass);
     super::tools::check_window(canvas, maps, stats, placed, &job.source)?;
-    // One entry per (raster job, unit): the rectangle's fields with the unit's own.
-    // Tool stamps read their cell of the chunk's flat images (`bake/tools.rs`).
-    let start = maps.range.start;
-    let cells: HashMap<usize, u32> = super::tools::cells(maps, placed).1;
-    let cells = &cells;
-    let jp: Vec<Params> = jobs
-        .iter()
-        .flat_map(|j| {
-            j.units.clone().map(move |u| {
-                let p = maps.params[u - start];
-                let (mut flags, pad) = match cells.get(&u) {
-                    Some(&c) => (p.flags | FLAG_TOOL, [c, 0]),
-                    None => (p.flags, p.pad),
-                };
-                let warp = images.warp_at[u].map_or([0; 4], |w| {
-                    flags |= FLAG_WARP;
-                    [w, 0, 0, 0]
-                });
-                let (opacity, blend, chan) = unit_draw(pass, placed, u, &p, &mut flags);
-                Params {
-                    opacity,
-                    blend,
-                    chan,
-                    rect_origin: j.params.rect_origin,
-                    rect_size: j.params.rect_size,
-                    tile: j.params.tile,
-                    atlas_origin: j.params.atlas_origin,
-                    flags,
-                    pad,
-                    win: canvas.global.win,
-                    warp,
-                    ..p
-                }
-            })
-        })
-        .chain(flush_params)
-        .collect();
+    let jp = entry_params(&jobs, maps, placed, (images, canvas, pass), flush_params);
     let job_params = params_buffer(dev, "bake.raster_params", &jp);
     let n_chunk = maps.range.len() as u64;
     let partials_size = n_chunk * DIST_GROUPS as u64 * 32;
@@ -330,6 +294,52 @@ pub(crate) fn compose(
         .chunks_exact(per)
         .map(Distortion::from_partials)
         .collect())
+}
+
+/// The chunk's uniform entries: one per (raster job, unit), the rectangle's fields with the
+/// unit's own (tool stamps read their cell of the chunk's flat images, `bake/tools.rs`; a
+/// channel pass draws each unit as its layer's [`Draw`] says), then the strokes' flushes.
+fn entry_params(
+    jobs: &[RasterJob],
+    maps: &LayerMaps,
+    placed: &Placed,
+    (images, canvas, pass): (&Images, &Canvas, Option<&Pass>),
+    flush_params: Vec<Params>,
+) -> Vec<Params> {
+    let start = maps.range.start;
+    let cells: HashMap<usize, u32> = super::tools::cells(maps, placed).1;
+    let cells = &cells;
+    jobs.iter()
+        .flat_map(|j| {
+            j.units.clone().map(move |u| {
+                let p = maps.params[u - start];
+                let (mut flags, pad) = match cells.get(&u) {
+                    Some(&c) => (p.flags | FLAG_TOOL, [c, 0]),
+                    None => (p.flags, p.pad),
+                };
+                let warp = images.warp_at[u].map_or([0; 4], |w| {
+                    flags |= FLAG_WARP;
+                    [w, 0, 0, 0]
+                });
+                let (opacity, blend, chan) = unit_draw(pass, placed, u, &p, &mut flags);
+                Params {
+                    opacity,
+                    blend,
+                    chan,
+                    rect_origin: j.params.rect_origin,
+                    rect_size: j.params.rect_size,
+                    tile: j.params.tile,
+                    atlas_origin: j.params.atlas_origin,
+                    flags,
+                    pad,
+                    win: canvas.global.win,
+                    warp,
+                    ..p
+                }
+            })
+        })
+        .chain(flush_params)
+        .collect()
 }
 
 /// Unit `u`'s opacity, blend and data weights in `pass` (its `Params` `p` in the colour's), and

@@ -1048,6 +1048,76 @@ pub enum Accuracy {
     Smooth,
 }
 
+/// A layer's stroke or ribbon (at most one of the two), as its kind validates them.
+type KindFields = (
+    Option<Box<super::stroke::Stroke>>,
+    Option<Box<super::ribbon::Ribbon>>,
+);
+
+impl LayerSpec {
+    /// This layer's stroke or ribbon, validated by its kind (`i`, `src`: for messages;
+    /// `stamp`: the layer's width).
+    fn kind_fields(
+        &self,
+        kind: LayerKind,
+        (i, src): (usize, &Path),
+        stamp: f32,
+    ) -> Result<KindFields> {
+        let fields = super::stroke::Fields {
+            tool: &self.tool,
+            path: &self.path,
+            pressure: &self.pressure,
+            spacing: self.spacing,
+            flow: self.flow,
+            pressure_size: self.pressure_size,
+            pressure_flow: self.pressure_flow,
+            orient: &self.orient,
+            continuity: self.continuity,
+            radius: self.radius,
+            strength: self.strength,
+            source: &self.source,
+        };
+        let ribbon_fields = super::ribbon::Fields {
+            path: &self.path,
+            width: self.width,
+            repeat: &self.repeat,
+            align: &self.align,
+            flip: self.flip,
+            animate: &self.animate,
+            curved_threshold: self.curved_threshold,
+        };
+        kind_fields(
+            kind,
+            (&fields, &ribbon_fields),
+            (i, src),
+            (stamp, self.mask.is_some()),
+        )
+    }
+
+    /// The job file's PBR channel fields of this layer (`super::channels`).
+    fn channel_fields(&self) -> super::channels::Fields<'_> {
+        super::channels::Fields {
+            normal: &self.normal,
+            normal_y: &self.normal_y,
+            normal_blend: &self.normal_blend,
+            values: [
+                &self.roughness,
+                &self.metallic,
+                &self.occlusion,
+                &self.emissive,
+            ],
+            opacities: [
+                self.normal_opacity,
+                self.roughness_opacity,
+                self.metallic_opacity,
+                self.occlusion_opacity,
+                self.emissive_opacity,
+            ],
+            data_blend: &self.data_blend,
+        }
+    }
+}
+
 /// Validates layer `i` of a job file (`src`, for messages), resolving its paths against
 /// `input_dir`.
 fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Result<Layer> {
@@ -1056,35 +1126,7 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
     let kind = LayerKind::parse(&l.kind).map_err(|d| err(&field("kind"), d))?;
     let size = layer_size(kind, l.size, i, src)?;
     let finite3 = |v: &[f32; 3]| v.iter().all(|x| x.is_finite() && x.abs() <= 1e30);
-    let fields = super::stroke::Fields {
-        tool: &l.tool,
-        path: &l.path,
-        pressure: &l.pressure,
-        spacing: l.spacing,
-        flow: l.flow,
-        pressure_size: l.pressure_size,
-        pressure_flow: l.pressure_flow,
-        orient: &l.orient,
-        continuity: l.continuity,
-        radius: l.radius,
-        strength: l.strength,
-        source: &l.source,
-    };
-    let ribbon_fields = super::ribbon::Fields {
-        path: &l.path,
-        width: l.width,
-        repeat: &l.repeat,
-        align: &l.align,
-        flip: l.flip,
-        animate: &l.animate,
-        curved_threshold: l.curved_threshold,
-    };
-    let (stroke, ribbon) = kind_fields(
-        kind,
-        (&fields, &ribbon_fields),
-        (i, src),
-        (size[0], l.mask.is_some()),
-    )?;
+    let (stroke, ribbon) = l.kind_fields(kind, (i, src), size[0])?;
     let path = stroke
         .as_ref()
         .map(|s| &s.path)
@@ -1188,26 +1230,7 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
         stroke,
         ribbon,
         warp: super::warp::validate(&l.warp, i, src)?,
-        channels: super::channels::validate(
-            &super::channels::Fields {
-                normal: &l.normal,
-                normal_y: &l.normal_y,
-                normal_blend: &l.normal_blend,
-                values: [&l.roughness, &l.metallic, &l.occlusion, &l.emissive],
-                opacities: [
-                    l.normal_opacity,
-                    l.roughness_opacity,
-                    l.metallic_opacity,
-                    l.occlusion_opacity,
-                    l.emissive_opacity,
-                ],
-                data_blend: &l.data_blend,
-            },
-            i,
-            src,
-            input_dir,
-            l.opacity,
-        )?,
+        channels: super::channels::validate(&l.channel_fields(), i, src, input_dir, l.opacity)?,
     })
 }
 
