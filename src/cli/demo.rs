@@ -63,14 +63,7 @@ fn smooth_edge(d: f32, width: f32) -> f32 {
 pub fn badge(side: u32) -> LinearImage {
     let aa = 2.0 / side as f32;
     img(side, |u, v| {
-        let r = (u * u + v * v).sqrt();
-        let disc = smooth_edge(r - 0.95, aa);
-        let ring = smooth_edge((r - 0.84).abs() - 0.05, aa);
-        // Star: radius as a function of angle between inner 0.28 and outer 0.7.
-        let a = v.atan2(u) - PI / 2.0;
-        let sector = (a.rem_euclid(2.0 * PI / 5.0) - PI / 5.0).abs() / (PI / 5.0);
-        let star_r = 0.3 + 0.42 * (1.0 - sector).powf(1.6);
-        let star = smooth_edge(r - star_r, aa);
+        let (ring, star, disc) = badge_parts(u, v, aa);
         let base = [0.75, 0.08, 0.1];
         let gold = [1.0, 0.8, 0.2];
         let mix = |a: [f32; 3], b: [f32; 3], t: f32| {
@@ -85,8 +78,9 @@ pub fn badge(side: u32) -> LinearImage {
     })
 }
 
-/// The badge's gold (star and ring, 1) and enamel (0): `(gold, disc)` at centred (u, v).
-fn badge_parts(u: f32, v: f32, aa: f32) -> (f32, f32) {
+/// The badge's parts at centred (u, v), each in [0, 1] with edges `aa` wide: its ring, its
+/// five-pointed star (radius between 0.3 and 0.72 by angle) and its disc.
+fn badge_parts(u: f32, v: f32, aa: f32) -> (f32, f32, f32) {
     let r = (u * u + v * v).sqrt();
     let disc = smooth_edge(r - 0.95, aa);
     let ring = smooth_edge((r - 0.84).abs() - 0.05, aa);
@@ -94,7 +88,7 @@ fn badge_parts(u: f32, v: f32, aa: f32) -> (f32, f32) {
     let sector = (a.rem_euclid(2.0 * PI / 5.0) - PI / 5.0).abs() / (PI / 5.0);
     let star_r = 0.3 + 0.42 * (1.0 - sector).powf(1.6);
     let star = smooth_edge(r - star_r, aa);
-    (ring.max(star), disc)
+    (ring, star, disc)
 }
 
 /// The badge embossed: a tangent-space normal map (glTF's convention, green up) of its gold
@@ -103,8 +97,8 @@ pub fn badge_normal(side: u32) -> LinearImage {
     // Soft edges so the slopes span a few texels.
     let soft = 0.06;
     let height = |u: f32, v: f32| {
-        let (gold, disc) = badge_parts(u, v, soft);
-        0.5 * disc + 0.6 * gold
+        let (ring, star, disc) = badge_parts(u, v, soft);
+        0.5 * disc + 0.6 * ring.max(star)
     };
     let d = 2.0 / side as f32;
     let depth = 0.05;
@@ -120,7 +114,8 @@ pub fn badge_normal(side: u32) -> LinearImage {
 pub fn badge_metal(side: u32) -> LinearImage {
     let aa = 2.0 / side as f32;
     img(side, |u, v| {
-        let (gold, _) = badge_parts(u, v, aa);
+        let (ring, star, _) = badge_parts(u, v, aa);
+        let gold = ring.max(star);
         [gold, gold, gold, 1.0]
     })
 }
