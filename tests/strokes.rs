@@ -371,7 +371,7 @@ fn pressure_scales_the_width_and_spacing_barely_matters() {
 /// metric sees a discontinuous stamp: the same stamp snapped to the nearest vertex (a scheme that
 /// jumps where the nearest vertex changes) makes a step above 3× the continuous median. One chart
 /// per stamp (`false`) is measured too and printed: on Spot its charts, normalised at the stamp's
-/// point and grown from it, show no jump either (README, "Strokes").
+/// point and grown from it, show no jump either (docs/, "Strokes").
 #[test]
 fn a_moving_stamp_changes_continuously() {
     let dir = scratch("stroke-continuity");

@@ -166,7 +166,7 @@ pub(crate) struct Targets {
 
 /// Where [`Engine::prepare`] builds a mesh's BVH (placement's walk, planar decals' candidates).
 ///
-/// Measured (README, "Placement"): on lavapipe the median-split build on the CPU is the faster
+/// Measured (docs/, "Placement"): on lavapipe the median-split build on the CPU is the faster
 /// (the GPU build's sort runs on the same two cores at the device's load rate), on a GPU the GPU
 /// build; both trees answer every query alike (`tests/placement.rs`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]

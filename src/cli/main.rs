@@ -246,7 +246,7 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Bake { job, out } => {
             let job = Job::load(&job, out.as_deref())?;
             let engine = engine(cli.backend.as_deref())?;
-            // One plain bake in this process: nothing to pool its canvas for (README, "Peak
+            // One plain bake in this process: nothing to pool its canvas for (docs/, "Peak
             // memory"). Animations and several-set jobs bake more than once: they keep the pool.
             if job.uv_list.is_empty() && job.frames().is_none() {
                 engine.keep_buffers(0);

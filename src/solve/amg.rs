@@ -7,7 +7,7 @@
 //! Why: Jacobi-preconditioned CG needs iterations in proportion to the square root of the
 //! condition number, which for a mesh Laplacian or an LSCM system grows with the number of vertices
 //! (1,640 iterations on a 10k-vertex chart). A V-cycle removes the smooth error the Jacobi sweeps
-//! cannot, so the iterations hardly grow with the mesh (README, "Linear algebra").
+//! cannot, so the iterations hardly grow with the mesh (docs/, "Linear algebra").
 //!
 //! The cycle: on each level `NU` damped-Jacobi sweeps (weights ω / dᵢ with ω = 4 / (3 ρ(D⁻¹A))), the
 //! residual restricted by `R = Pᵀ`, the next level's cycle, the correction prolonged by `P`, and

@@ -27,7 +27,7 @@
 //! Large systems (from [`crate::solve::amg::AMG_MIN_ROWS`] rows) are preconditioned by a
 //! smoothed-aggregation V-cycle instead of Jacobi (`wgsl/solve/cg_amg.wgsl`, the hierarchy laid
 //! out by `src/solve/gpu_amg.rs`): 17-39× fewer iterations on LSCM charts of 10k-100k
-//! vertices, each costing about 1.7 Jacobi ones on complex blocks (README, "Linear algebra").
+//! vertices, each costing about 1.7 Jacobi ones on complex blocks (docs/, "Linear algebra").
 //!
 //! A batch of one such system of at least [`gpu_wide::wide_min_rows`] block rows is spread over
 //! many workgroups instead, a dispatch per pass of the iteration ([`gpu_wide`]), so that every core
@@ -71,7 +71,7 @@ pub const PACK_MIN_SYSTEMS: usize = 16;
 /// Whether a batch's small systems are solved one per invocation (`cg_packed`) or one per
 /// workgroup (`cg_batched`, `cg_amg`).
 ///
-/// The device probe (`decalbake bench --device`, `dense_small_systems`; README, "On a real GPU")
+/// The device probe (`decalbake bench --device`, `dense_small_systems`; docs/, "On a real GPU")
 /// decides the default: on lavapipe one small system per invocation is 2.6-3.7× faster than one
 /// per workgroup (no barriers, each SIMD lane its own system); on an NVIDIA H200 it is 5× slower
 /// (a warp's lanes each walking their own system). So [`Packing::Auto`] packs on a CPU adapter
@@ -180,7 +180,7 @@ struct CgState {
 /// A CSR matrix in storage buffers (values f32), each row's (first, end) entry in one load and each
 /// stored entry's column and value side by side ([`entries`]): on lavapipe every storage load is a
 /// loop over the SIMD lanes, so one load of both instead of two takes a third of the loads out of
-/// a row product (README, "Linear algebra").
+/// a row product (docs/, "Linear algebra").
 pub struct GpuCsr {
     /// Per row, (first entry, end) ([`spans`]).
     pub spans: wgpu::Buffer,

@@ -18,9 +18,9 @@ use crate::solve::sparse::{CgReport, CgStatus, PreconditionerKind};
 
 /// Block rows (vertices of an LSCM chart) from which a lone system is spread over workgroups on a
 /// CPU adapter. Below it the fixed price of a dispatch per pass outweighs the second core
-/// (README, "Linear algebra": measured on 1k and 10k charts).
+/// (docs/, "Linear algebra": measured on 1k and 10k charts).
 pub const WIDE_MIN_ROWS: usize = 4_096;
-/// The same on a GPU. On an NVIDIA H200 (README, "On a real GPU"; `bench --linalg`'s
+/// The same on a GPU. On an NVIDIA H200 (docs/, "On a real GPU"; `bench --linalg`'s
 /// `gpu_one_workgroup_ms` and `gpu_spread_forced_ms`) the 10k chart took, in one workgroup
 /// against spread, 147/175, 118/119, 181/76 and 124/92 ms in four runs (medians 136 against
 /// 106), the 20k chart 326/224, the 40k 945/518 and 746/418, the 100k 2.08/1.26 s: spread below

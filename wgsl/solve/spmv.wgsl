@@ -5,7 +5,7 @@
 // the row, so the result is reproducible. Why pairs: llvmpipe runs every
 // storage-buffer load as a loop over the SIMD lanes, one scalar load each, whatever the address
 // pattern, and a vector load fetches all its components in the same loop; a 16-byte load of two
-// entries replaces four 4-byte loads (README, "Linear algebra"). Dispatch: (min(groups, 65535),
+// entries replaces four 4-byte loads (docs/, "Linear algebra"). Dispatch: (min(groups, 65535),
 // ceil(groups / 65535), 1) with groups = ceil(rows / 64). CPU twin: `Csr::mul` in
 // src/solve/sparse.rs.
 #import dims

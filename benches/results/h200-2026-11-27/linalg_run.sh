@@ -1,5 +1,5 @@
 #!/bin/bash
-# Device runs 3-6 of session 21 (README in this folder says which arguments each had):
+# Device runs 3-6 of the H200 runs of 2026-11-27 (README in this folder says which arguments each had):
 #   bash linalg_run.sh NAME CHARTS BATCH REPS
 # runs `decalbake bench --linalg --charts CHARTS --batch BATCH --reps REPS` on the device's Vulkan
 # driver into $OUT/NAME.jsonl, with the loaders and meshes set up as in run.sh.

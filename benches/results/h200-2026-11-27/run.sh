@@ -1,5 +1,5 @@
 #!/bin/bash
-# Device run of issue 16's benches. SMOKE=1: a local dry run with tiny sizes (no system changes).
+# Device run of the speed benches (H200, 2026-11-27). SMOKE=1: a local dry run with tiny sizes (no system changes).
 OUT=${OUT:-/tmp/devout}
 mkdir -p "$OUT"
 LOG=$OUT/log.txt

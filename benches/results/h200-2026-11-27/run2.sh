@@ -1,5 +1,5 @@
 #!/bin/bash
-# Second device run (session 21): the GPU BVH build and the small-systems packing on the H200.
+# Second device run (H200, 2026-11-27): the GPU BVH build and the small-systems packing on the H200.
 OUT=${OUT:-/tmp/devout}
 mkdir -p "$OUT"
 exec > >(tee -a "$OUT/log2.txt") 2>&1
