@@ -403,3 +403,110 @@ fn a_rerun_task_keeps_its_shard_and_merging_counts_each_line_once() {
     assert!(err.contains("shard(s) [1]"), "{err}");
     assert_eq!(summary(&merged)["shard"]["missing"], serde_json::json!([1]));
 }
+
+/// Every file under `dir` but the batch's own (journal, summary), by path relative to `dir`.
+fn outputs_under(dir: &Path) -> std::collections::BTreeMap<String, Vec<u8>> {
+    let mut out = std::collections::BTreeMap::new();
+    for e in std::fs::read_dir(dir).unwrap().flatten() {
+        if e.path().is_dir() {
+            for f in std::fs::read_dir(e.path()).unwrap().flatten() {
+                let name = f.path().strip_prefix(dir).unwrap().display().to_string();
+                // A temporary file a kill left behind is not an output.
+                if !name.contains(".tmp") {
+                    out.insert(name, std::fs::read(f.path()).unwrap());
+                }
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn a_batch_killed_at_random_points_resumes_each_job_once_with_the_same_bytes() {
+    let dir = scratch("batch_kill");
+    write_plane(&dir.join("plane.glb"), 8, false);
+    std::fs::write(
+        dir.join("img.png"),
+        test_image(16, 16, 4, true).encode_png(8),
+    )
+    .unwrap();
+    // Eight small jobs that write no report: the journal alone tells what is done.
+    let lines: Vec<String> = (0..8)
+        .map(|k| {
+            let at = [0.2 + 0.08 * k as f32, 0.5, 0.0];
+            serde_json::json!({ "mesh": "plane.glb", "texture": { "width": 64, "height": 64 },
+                "layers": [{ "image": "img.png", "at": at, "size": [0.3, 0.3] }],
+                "output": { "texture": format!("t{k}.png"), "glb": format!("m{k}.glb"),
+                    "report": null } })
+            .to_string()
+        })
+        .collect();
+    let m = dir.join("manifest.jsonl");
+    std::fs::write(&m, lines.join("\n")).unwrap();
+    let exe = env!("CARGO_BIN_EXE_decalbake");
+    let batch = |out: &Path| {
+        let mut c = std::process::Command::new(exe);
+        c.args(["batch", m.to_str().unwrap(), "--out", out.to_str().unwrap()])
+            .args(["--resume", "--progress", "lines"])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped());
+        c
+    };
+    let (full, killed) = (dir.join("full"), dir.join("killed"));
+    assert!(batch(&full).status().unwrap().success());
+    // Kills spread over the jobs: after the k-th job's progress line (k from 0: before the
+    // first) and a random delay of up to 60 ms; a fixed sequence, so a failure can be replayed.
+    let mut seed = 0x9e37_79b9_u32;
+    let mut next = || {
+        seed ^= seed << 13;
+        seed ^= seed >> 17;
+        seed ^= seed << 5;
+        seed
+    };
+    for _ in 0..20 {
+        let (after, delay) = (next() % 8, next() % 60);
+        let mut child = batch(&killed).spawn().unwrap();
+        let stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+        let (tx, rx) = std::sync::mpsc::channel();
+        let reader = std::thread::spawn(move || {
+            use std::io::BufRead;
+            for line in stderr.lines().map_while(Result::ok) {
+                if line.starts_with('[') && tx.send(()).is_err() {
+                    break;
+                }
+            }
+        });
+        for _ in 0..after {
+            if rx.recv().is_err() {
+                break; // the batch ended (every job was done already)
+            }
+        }
+        std::thread::sleep(std::time::Duration::from_millis(delay as u64));
+        let _ = child.kill(); // SIGKILL (nothing to do for a process that has ended)
+        child.wait().unwrap();
+        drop(rx);
+        reader.join().unwrap();
+    }
+    assert!(batch(&killed).status().unwrap().success());
+    // Each job is recorded exactly once, and the outputs are the uninterrupted run's bytes.
+    let journal = std::fs::read_to_string(killed.join("journal.jsonl")).unwrap();
+    let mut done: Vec<u64> = journal
+        .lines()
+        .filter_map(|l| serde_json::from_str::<Value>(l).ok())
+        .map(|r| r["line"].as_u64().unwrap())
+        .collect();
+    done.sort();
+    assert_eq!(done, (1..=8).collect::<Vec<u64>>(), "{journal}");
+    let (a, b) = (outputs_under(&full), outputs_under(&killed));
+    assert_eq!(a.len(), 16, "a texture and a model a job: {:?}", a.keys());
+    assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
+    for (name, bytes) in &a {
+        assert!(
+            bytes == &b[name],
+            "{name} differs from the uninterrupted run's"
+        );
+    }
+    // The final run skipped what the journal holds: every job, now.
+    let s = summary(&killed.join("summary.json"));
+    assert!(s["jobs"].as_array().unwrap().len() == 8);
+}

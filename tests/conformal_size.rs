@@ -291,23 +291,29 @@ fn a_region_with_a_handle_is_cut_to_a_disc_without_folds() {
 /// the decal, where the cut's triangles (their corners on opposite sides of the chart) would be drawn
 /// flipped or stretched across it. The fold check finds them (before it looked only at the chart's
 /// own triangles and let them through), the re-solves on smaller regions cannot avoid them, and
-/// `decalbake param` (like the bake) refuses the layer with a message that names it and says what to
-/// do.
+/// `decalbake param` (like the bake) refuses an LSCM layer with a message that names it and says
+/// what to do. A hybrid there keeps its exponential map (which bakes wherever a hybrid is asked
+/// for): its coordinates are the expmap's, vertex for vertex.
 #[test]
-fn a_decal_wrapping_a_handle_is_refused() {
+fn a_decal_wrapping_a_handle_is_refused_as_lscm_and_kept_as_an_expmap_by_a_hybrid() {
     let engine = engine();
     let mesh = engine.prepare(torus(1.0, 0.25, 96, 32)).unwrap();
     let top = Vec3::new(1.0, 0.25, 0.0);
-    for method in ["lscm", "hybrid"] {
-        let job = decal_job(top, 2.0, method);
-        let err = engine.layer_param(&mesh, &job, 0).unwrap_err().to_string();
-        eprintln!("{method}: {err}");
-        assert!(
-            err.contains("layer 0")
-                && err.contains("folds inside the decal")
-                && err.contains("torn"),
-            "{method}: {err}"
-        );
+    let job = decal_job(top, 2.0, "lscm");
+    let err = engine.layer_param(&mesh, &job, 0).unwrap_err().to_string();
+    assert!(
+        err.contains("layer 0") && err.contains("folds inside the decal") && err.contains("torn"),
+        "lscm: {err}"
+    );
+    let hybrid = engine
+        .layer_param(&mesh, &decal_job(top, 2.0, "hybrid"), 0)
+        .unwrap();
+    let expmap = engine
+        .layer_param(&mesh, &decal_job(top, 2.0, "expmap"), 0)
+        .unwrap();
+    assert_eq!(hybrid.len(), expmap.len());
+    for (h, e) in hybrid.iter().zip(&expmap) {
+        assert_eq!((h.vertex, h.uv), (e.vertex, e.uv));
     }
 }
 

@@ -14,7 +14,8 @@ use std::path::Path;
 fn demo_writes_decodable_outputs_and_a_glb_that_loads_back() {
     let dir = scratch("demo");
     let out = dir.join("demo");
-    let (code, stdout, stderr) = cli(&["demo", "--out", out.to_str().unwrap()]);
+    // `--all`: the unwraps of Spot and bob too (the plain demo is the first part of this).
+    let (code, stdout, stderr) = cli(&["demo", "--all", "--out", out.to_str().unwrap()]);
     assert_eq!(code, 0, "demo failed:\n{stderr}");
     for f in ["baked.png", "baked.glb", "preview.png", "report.json"] {
         assert!(stdout.contains(f), "demo should list {f}: {stdout}");

@@ -15,16 +15,7 @@ pub fn check_job(
     window: Option<[u32; 4]>,
 ) -> Result<()> {
     let src = &job.source;
-    let max_side = engine.ctx.max_texture_side();
-    for (field, v) in [("texture.width", job.width), ("texture.height", job.height)] {
-        if v > max_side {
-            return Err(Error::job(
-                src,
-                field,
-                format!("{v} exceeds this adapter's texture limit of {max_side} texels"),
-            ));
-        }
-    }
+    sides(engine, job)?;
     let (max_binding, limit_name) = engine.ctx.storage_limit();
     // The canvas holds the window, or one tile of a tiled bake, or the whole texture.
     let [_, _, cw, ch] = window.unwrap_or_else(|| match super::tiles::tile_side(engine, job) {
@@ -84,6 +75,22 @@ pub fn check_job(
                 sets - 1
             ),
         ));
+    }
+    Ok(())
+}
+
+/// The texture's sides against the adapter's 2D texture limit (every bake, whole or by tiles,
+/// draws its layers into textures of the texture's side at most).
+pub fn sides(engine: &Engine, job: &Job) -> Result<()> {
+    let max_side = engine.ctx.max_texture_side();
+    for (field, v) in [("texture.width", job.width), ("texture.height", job.height)] {
+        if v > max_side {
+            return Err(Error::job(
+                &job.source,
+                field,
+                format!("{v} exceeds this adapter's texture limit of {max_side} texels; bake at most {max_side}x{max_side}"),
+            ));
+        }
     }
     Ok(())
 }

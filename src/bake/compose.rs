@@ -18,7 +18,7 @@ use super::stage::{Cx, Log};
 use crate::error::Result;
 use crate::gpu::pipelines::make_bind_group;
 use crate::io::job::Job;
-use crate::maps::distortion::{Distortion, DIST_GROUPS};
+use crate::maps::distortion::{Distortion, DIST_GROUPS, PARTIAL_VEC4S};
 use std::collections::HashMap;
 use std::ops::Range;
 
@@ -225,7 +225,7 @@ pub(crate) fn compose(
     let jp = entry_params(&jobs, maps, placed, (images, canvas, pass), flush_params);
     let job_params = params_buffer(dev, "bake.raster_params", &jp);
     let n_chunk = maps.range.len() as u64;
-    let partials_size = n_chunk * DIST_GROUPS as u64 * 32;
+    let partials_size = n_chunk * DIST_GROUPS as u64 * PARTIAL_VEC4S as u64 * 16;
     let partials = dev.create_buffer(&wgpu::BufferDescriptor {
         label: Some("bake.distortion"),
         size: partials_size,
@@ -289,7 +289,7 @@ pub(crate) fn compose(
         .ctx
         .read_buffer(&partials, partials_size, "distortion read-back")?;
     let pf: &[[f32; 4]] = bytemuck::cast_slice(&pb);
-    let per = 2 * DIST_GROUPS as usize;
+    let per = PARTIAL_VEC4S * DIST_GROUPS as usize;
     Ok(pf
         .chunks_exact(per)
         .map(Distortion::from_partials)

@@ -639,6 +639,7 @@ impl Engine {
         job: &Job,
         on_stage: &dyn Fn(&str),
     ) -> Result<Baked> {
+        super::limits(self, mesh, job)?;
         if let Some(tiled) = super::tiled(self, mesh, job, on_stage) {
             return tiled;
         }

@@ -611,6 +611,10 @@ fn check_chart(
         chart::Fallback::Lscm => log.warnings.push(format!(
             "layer {layer}: the hybrid re-solve folded inside the decal; it was re-solved as a free conformal chart"
         )),
+        chart::Fallback::Expmap => log.warnings.push(format!(
+            "layer {layer}: every conformal re-solve of the hybrid folded inside the decal ({} flipped, {} collapsed and {} torn of {} triangles); the layer keeps its exponential map",
+            r.footprint_flipped, r.footprint_collapsed, r.footprint_torn, r.footprint_triangles
+        )),
         _ => {}
     }
     if !r.settled {

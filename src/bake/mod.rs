@@ -38,6 +38,7 @@ pub(crate) use images::checked_image;
 mod islands;
 pub mod kinds;
 mod maps;
+pub mod memory;
 mod param;
 pub mod params;
 pub mod place;
@@ -69,6 +70,11 @@ pub(crate) struct Run {
     pub report: Report,
     /// The canvas, linear RGBA f32 (unpadded), for a float (EXR) output.
     pub linear: Option<Vec<f32>>,
+}
+
+/// The limits checked before any work ([`memory::check`]: sides, estimated memory).
+pub(crate) fn limits(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<()> {
+    memory::check(engine, mesh, job)
 }
 
 /// A bake by tiles ([`tiles`]) when `job` needs one (a canvas beyond one storage buffer,
@@ -169,7 +175,8 @@ pub(crate) fn run_in(
     let stats = canvas.read_stats(engine, "stats read-back")?;
     // Submitted work that reads the planes is queued ahead of any later user's.
     engine.return_buffers([canvas.acc_rg.clone(), canvas.acc_ba.clone()]);
-    let layers = fold_reports(&placed, units, |u| canvas.row(&stats, u));
+    let mut layers = fold_reports(&placed, units, |u| canvas.row(&stats, u));
+    footprints(&mut layers, &mut log.warnings);
     // A stroke's stamps can raise the same warning many times: keep each once, in order.
     let mut seen = std::collections::HashSet::new();
     log.warnings.retain(|w| seen.insert(w.clone()));
@@ -297,6 +304,22 @@ fn fold_reports<'a>(
     out
 }
 
+/// Each layer's footprint counts from its distortion, and a warning for a layer whose map folds
+/// (flipped, collapsed or torn triangles where the bake draws it).
+fn footprints(layers: &mut [LayerReport], warnings: &mut Vec<String>) {
+    for l in layers {
+        let d = l.distortion;
+        (l.footprint_flipped, l.footprint_collapsed, l.footprint_torn) =
+            (d.flipped, d.collapsed, d.torn);
+        if d.folds() > 0 {
+            warnings.push(format!(
+                "layer {}: its map folds where it is drawn: {} flipped, {} collapsed and {} torn of {} triangles (the image is mirrored, squeezed or smeared there); make the decal smaller, move it off the tip or saddle, or try another `method`",
+                l.index, d.flipped, d.collapsed, d.torn, l.triangles_covered
+            ));
+        }
+    }
+}
+
 /// Layer `i`'s report from its placement, map and selection (stats row `row`); the distortion and
 /// texels covered are filled in later. Warns when its exponential map did not converge.
 fn layer_report(
@@ -335,6 +358,9 @@ fn layer_report(
         texels_covered: 0,
         texel_box: [row[1], row[2], row[3], row[4]],
         distortion: Default::default(),
+        footprint_flipped: 0,
+        footprint_collapsed: 0,
+        footprint_torn: 0,
         expmap,
         chart: maps.chart[k],
         ribbon: maps.ribbon[k].clone(),

@@ -6,6 +6,7 @@ use super::engine::{Engine, LoadedMesh};
 use crate::error::{Error, Result};
 use crate::io::job::{Job, Method};
 use crate::maps::chart::cone::Cone;
+use crate::maps::distortion::Distortion;
 use crate::maps::Frame;
 use crate::mesh::Topology;
 use crate::place::{place_gpu, Query};
@@ -42,11 +43,55 @@ impl Engine {
 
     /// [`Engine::layer_param`] with the cone that opens the layer's chart at a tip, if any.
     pub fn layer_param_map(&self, mesh: &LoadedMesh, job: &Job, index: usize) -> Result<ParamMap> {
+        Ok(self.layer_param_framed(mesh, job, index)?.0)
+    }
+
+    /// A decal layer's `param` rows with the footprint counts the bake reports for it
+    /// (`footprint_flipped`, `footprint_collapsed`, `footprint_torn`, in a [`Distortion`]): the
+    /// triangles the bake's selection keeps (the CPU twin of `select_triangles` over the rows'
+    /// coordinates), measured by the twin of `distortion.wgsl`. `None` for a ribbon.
+    pub fn layer_param_footprint(
+        &self,
+        mesh: &LoadedMesh,
+        job: &Job,
+        index: usize,
+    ) -> Result<(Vec<ParamRow>, Option<Distortion>)> {
+        let ((rows, cone), frame) = self.layer_param_framed(mesh, job, index)?;
+        let Some(frame) = frame else {
+            return Ok((rows, None));
+        };
+        let mut coords = vec![[0.0f32, 0.0, 0.0, 0.0]; mesh.topo.positions.len()];
+        for r in &rows {
+            coords[r.vertex as usize] = [r.chart_uv[0], r.chart_uv[1], 0.0, 1.0];
+        }
+        let planar = job.layers[index].method == Method::Planar;
+        let no_uvs = vec![glam::Vec2::ZERO; mesh.mesh.positions.len()];
+        let tris = crate::bake::cpu::select_triangles(
+            &mesh.mesh,
+            &mesh.topo,
+            &no_uvs,
+            (&coords, cone.as_ref()),
+            &frame,
+            planar,
+            [1, 1],
+        )
+        .triangles;
+        let d = crate::maps::distortion::distortion(&mesh.topo, (&coords, cone.as_ref()), &tris);
+        Ok((rows, Some(d)))
+    }
+
+    /// [`Engine::layer_param_map`] with the decal's frame (`None` for a ribbon).
+    fn layer_param_framed(
+        &self,
+        mesh: &LoadedMesh,
+        job: &Job,
+        index: usize,
+    ) -> Result<(ParamMap, Option<Frame>)> {
         let layer = job.layer_at(index)?;
         match layer.kind {
             crate::io::job::LayerKind::Decal => {}
             crate::io::job::LayerKind::Ribbon => {
-                return Ok((self.ribbon_param(mesh, job, index)?, None))
+                return Ok(((self.ribbon_param(mesh, job, index)?, None), None))
             }
             crate::io::job::LayerKind::Stroke => {
                 return Err(Error::job(
@@ -152,7 +197,7 @@ impl Engine {
             Method::Ribbon => {}
             Method::Planar => rows = planar_rows(mesh, &frame),
         }
-        Ok((rows, cone))
+        Ok(((rows, cone), Some(frame)))
     }
 
     /// A ribbon layer's map as a bake computes it: its curve placed and joined, the extended

@@ -67,6 +67,14 @@ pub struct LayerReport {
     pub texel_box: [i32; 4],
     /// Distortion of the layer's map over the triangles it covers.
     pub distortion: crate::maps::distortion::Distortion,
+    /// Of the triangles the bake draws for the layer (every stamp of a stroke, summed), those
+    /// whose map is flipped (`distortion.flipped`): a warning names the layer when any of the
+    /// three footprint counts is not zero.
+    pub footprint_flipped: u32,
+    /// Of those, collapsed (`distortion.collapsed`).
+    pub footprint_collapsed: u32,
+    /// Of those, torn (`distortion.torn`).
+    pub footprint_torn: u32,
     /// Exponential-map layers (and lscm / hybrid, which start from one): relaxation sweeps,
     /// vertices and triangles reached, convergence.
     pub expmap: Option<crate::maps::expmap::gpu::GeoResult>,

@@ -4,8 +4,11 @@
 //! to the layer's triangle list, with its texel box and the 64×64-texel cells of the texture they
 //! touch in its stats row. Each layer tests only its candidate triangles (those with a vertex its
 //! map can reach: [`LayerMaps::candidate_triangles`]), so the work follows the decal's size, not the
-//! mesh's. Kernel `wgsl/bake/select_triangles.wgsl`; CPU twin
-//! [`crate::bake::cpu::select_triangles`] (over the whole mesh).
+//! mesh's. The list keeps the tested order (candidates sorted by triangle id, or the whole mesh in
+//! id order): `select_triangles` marks each tested triangle at its position and `compact_lists`
+//! gathers the marks, so overlapping triangles of one layer are drawn in the same order on every
+//! run. Kernels `wgsl/bake/select_triangles.wgsl`, `wgsl/bake/compact_lists.wgsl`; CPU twin
+//! [`crate::bake::cpu::select_triangles`] (over the whole mesh, in the same order).
 
 use super::canvas::Canvas;
 use super::maps::{LayerMaps, Slots};
@@ -57,6 +60,25 @@ pub(crate) fn select(
             engine
                 .ctx
                 .storage_init("bake.select_candidates", bytemuck::cast_slice(&cands), none);
+        // One layer's marks at a time (each layer's selection is compacted before the next is
+        // marked): as many entries as the most triangles a layer tests.
+        let most = ranges.iter().map(|r| r[1]).max().unwrap_or(0).max(1);
+        let marks = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("bake.select_marks"),
+            size: most as u64 * 4,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let compact = pipes.compact_lists.bind(
+            dev,
+            "bake.compact_lists",
+            &[
+                (0, pbind(&maps.buffer)),
+                (1, ranges_buf.as_entire_binding()),
+                (2, marks.as_entire_binding()),
+                (3, slots.lists.as_entire_binding()),
+            ],
+        );
         let bg = pipes.select_triangles.bind(
             dev,
             "bake.select_triangles",
@@ -67,7 +89,7 @@ pub(crate) fn select(
                 (3, g.split_tris.as_entire_binding()),
                 (4, uvs.as_entire_binding()),
                 (5, slots.coords.as_entire_binding()),
-                (6, slots.lists.as_entire_binding()),
+                (6, marks.as_entire_binding()),
                 (7, canvas.stats.as_entire_binding()),
                 (8, ranges_buf.as_entire_binding()),
                 (9, cands_buf.as_entire_binding()),
@@ -81,12 +103,16 @@ pub(crate) fn select(
                 label: Some("bake.select"),
                 timestamp_writes: None,
             });
-            pass.set_pipeline(&pipes.select_triangles.pipeline);
             let start = maps.range.start;
             for k in (0..maps.range.len()).filter(|&k| !placed.hidden[start + k]) {
-                pass.set_bind_group(0, &bg, &[(k as u64 * PARAMS_STRIDE) as u32]);
+                let offset = [(k as u64 * PARAMS_STRIDE) as u32];
+                pass.set_pipeline(&pipes.select_triangles.pipeline);
+                pass.set_bind_group(0, &bg, &offset);
                 pass.dispatch_workgroups(ranges[k][1].div_ceil(64).max(1), 1, 1);
-                log.commands += 1;
+                pass.set_pipeline(&pipes.compact_lists.pipeline);
+                pass.set_bind_group(0, &compact, &offset);
+                pass.dispatch_workgroups(1, 1, 1);
+                log.commands += 2;
             }
         }
         engine.ctx.queue.submit([enc.finish()]);

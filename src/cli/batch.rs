@@ -14,9 +14,12 @@
 //!   class: `input` for what exit code 2 means for `bake`, `engine` otherwise) and the batch goes on
 //!   (`--fail-fast` stops it). Exit 0 when every job succeeded, 3 when some failed, 2 for a bad
 //!   manifest or options.
-//! - **Resume**: each job's report carries `input_hash`, the SHA-256 of the engine version, the
-//!   job's text and the bytes of its mesh (with a `.gltf`'s external files) and images. `--resume` skips a job whose outputs all exist
-//!   and whose report has the same hash; a job without a report is always baked again.
+//! - **Resume**: each job's `input_hash` is the SHA-256 of the engine version, the job's text and
+//!   the bytes of its mesh (with a `.gltf`'s external files) and images (colour, mask, channel
+//!   images); its report carries it too. Each finished job appends a line to the batch's journal
+//!   (`journal.rs`: the hash, the output folder and every output's SHA-256, synced to the disk).
+//!   `--resume` skips a job whose journal line matches its hash and folder and whose outputs still
+//!   have those bytes, whether or not the job writes a report.
 //! - **Shards**: `--shard I/N` takes the jobs whose position in the manifest (0-based) is I modulo N;
 //!   `--shard auto` reads I and N from a Slurm job array (`SLURM_ARRAY_TASK_ID` minus
 //!   `SLURM_ARRAY_TASK_MIN`, `SLURM_ARRAY_TASK_COUNT`), a Kubernetes indexed job
@@ -33,6 +36,7 @@
 //! targets the engine pools are never shared between two bakes in flight), which `tests/batch.rs`
 //! checks byte for byte.
 
+use crate::journal::Journal;
 use anyhow::{bail, Context, Result};
 use decalbake::io::manifest::{Entry, EntryJob};
 use decalbake::{Engine, Job, LoadedMesh};
@@ -63,6 +67,8 @@ pub struct BatchOptions {
     pub progress: ProgressMode,
     /// Jobs baked at once, on threads sharing the engine (outputs do not depend on it).
     pub jobs: usize,
+    /// `--max-memory`: the most memory one bake may take (a job's `max_memory` lowers it).
+    pub max_memory: Option<u64>,
 }
 
 /// `--progress`: a bar on a terminal, log lines otherwise (`auto`), or JSON events on stdout.
@@ -228,8 +234,24 @@ pub fn run(devices: &Devices, opts: &BatchOptions) -> Result<i32> {
         .filter(|(k, _)| k % count == index)
         .map(|(_, e)| e)
         .collect();
+    let root = opts.out.clone().unwrap_or_else(|| {
+        opts.manifest
+            .parent()
+            .unwrap_or(Path::new(""))
+            .to_path_buf()
+    });
+    // Shards writing into one directory keep their own journals and summaries.
+    let (journal, summary_name) = if count > 1 {
+        (
+            format!("journal-{index}.jsonl"),
+            format!("summary-{index}.json"),
+        )
+    } else {
+        ("journal.jsonl".to_string(), "summary.json".to_string())
+    };
+    let journal = Journal::open(&root, &journal)?;
     let progress = Progress::new(opts.progress, mine.len());
-    let rows = bake_all(devices, opts, &mine, &progress);
+    let rows = bake_all(devices, (opts, &journal), &mine, &progress);
     let failed = rows.iter().filter(|r| r["status"] == "failed").count();
     let mut summary = summary_of(
         rows,
@@ -237,23 +259,11 @@ pub fn run(devices: &Devices, opts: &BatchOptions) -> Result<i32> {
         t0,
     );
     summary["device_resets"] = json!(devices.resets());
-    // Shards writing into one directory keep their own summaries (`--merge-summaries` joins them).
-    let name = if count > 1 {
-        format!("summary-{index}.json")
-    } else {
-        "summary.json".to_string()
-    };
-    let path = opts.summary.clone().unwrap_or_else(|| {
-        opts.out
-            .clone()
-            .unwrap_or_else(|| {
-                opts.manifest
-                    .parent()
-                    .unwrap_or(Path::new(""))
-                    .to_path_buf()
-            })
-            .join(name)
-    });
+    // `--merge-summaries` joins the shards' summaries.
+    let path = opts
+        .summary
+        .clone()
+        .unwrap_or_else(|| root.join(summary_name));
     write_json(&path, &summary)?;
     progress.finish(&summary, &path);
     Ok(if failed > 0 { 3 } else { 0 })
@@ -263,7 +273,7 @@ pub fn run(devices: &Devices, opts: &BatchOptions) -> Result<i32> {
 /// job in manifest order (`--fail-fast`: no new job after a failure); their summary rows.
 fn bake_all(
     devices: &Devices,
-    opts: &BatchOptions,
+    (opts, journal): (&BatchOptions, &Journal),
     mine: &[&Entry],
     progress: &Progress,
 ) -> Vec<Value> {
@@ -288,13 +298,13 @@ fn bake_all(
                 let (mut gen, mut engine) = devices.get();
                 let stage = |s: &str| progress.stage(entry.line, s);
                 let mut result = fault::lose_device_during(entry.line, &engine, || {
-                    bake_entry(&engine, gen, opts, entry, &shared, &stage)
+                    bake_entry(&engine, gen, (opts, journal), entry, &shared, &stage)
                 });
                 if result.as_ref().is_err_and(device_lost) {
                     retried = true;
                     result = devices.renew(gen).and_then(|(g, e)| {
                         (gen, engine) = (g, e);
-                        bake_entry(&engine, gen, opts, entry, &shared, &stage)
+                        bake_entry(&engine, gen, (opts, journal), entry, &shared, &stage)
                     });
                 }
                 let mut row = match result {
@@ -390,7 +400,7 @@ fn bad_option(msg: &str) -> decalbake::Error {
 fn bake_entry(
     engine: &Engine,
     generation: u32,
-    opts: &BatchOptions,
+    (opts, journal): (&BatchOptions, &Journal),
     entry: &Entry,
     shared: &Shared,
     on_stage: &dyn Fn(&str),
@@ -425,7 +435,8 @@ fn bake_entry(
             source,
         })?,
     };
-    let job = Job::parse(&text, &source, &input_dir, &out_dir)?;
+    let mut job = Job::parse(&text, &source, &input_dir, &out_dir)?;
+    job.max_memory = crate::lower_limit(job.max_memory, opts.max_memory);
     let hash = input_hash(&text, &job, shared)?;
     // A several-set job (`"uv_set": [..]`) bakes once per set and shares one (blended) preview.
     // An animated job bakes once per frame.
@@ -443,9 +454,10 @@ fn bake_entry(
         .cloned()
         .chain(set_preview.clone())
         .collect();
-    let names = || outputs.iter().map(|p| p.display().to_string()).collect();
-    if opts.resume && jobs.iter().all(|j| up_to_date(j, &outputs, &hash)) {
-        return Ok(("skipped", names(), hash));
+    if opts.resume {
+        if let Some(done) = journal.done(&hash, &out_dir) {
+            return Ok(("skipped", done, hash));
+        }
     }
     let cx = (engine, generation, shared, hash.as_str(), on_stage);
     let mut undo = Undo::default();
@@ -454,11 +466,14 @@ fn bake_entry(
     } else {
         write_sets(cx, jobs, (&outputs, set_preview.as_deref()), &mut undo)
     };
-    if let Err(e) = done {
+    let recorded = done
+        .and_then(|()| journal.record((entry.line, entry.file()), &hash, &out_dir, &undo.files));
+    if let Err(e) = recorded {
         undo.undo();
         return Err(e);
     }
-    Ok(("ok", names(), hash))
+    let names = outputs.iter().map(|p| p.display().to_string()).collect();
+    Ok(("ok", names, hash))
 }
 
 /// What [`write_sets`] and [`write_frames`] share: the engine, the device's generation, the run's
@@ -606,33 +621,6 @@ fn write_frames(
     Ok(())
 }
 
-/// Whether every output exists and the report's `input_hash` is `hash`.
-fn up_to_date(job: &Job, outputs: &[PathBuf], hash: &str) -> bool {
-    let Some(report) = &job.out_report else {
-        return false;
-    };
-    let Some(report) = report_json(report) else {
-        return false;
-    };
-    // A bake into several texture sets wrote a texture per set (its report's `texture_sets`)
-    // instead of the job's one texture.
-    let sets: Vec<PathBuf> = report["texture_sets"]
-        .as_array()
-        .into_iter()
-        .flatten()
-        .filter_map(|s| s["texture"].as_str().map(PathBuf::from))
-        .collect();
-    let one_texture = |p: &&PathBuf| sets.is_empty() || Some(*p) != job.out_texture.as_ref();
-    report["input_hash"].as_str() == Some(hash)
-        && outputs.iter().filter(one_texture).all(|p| p.exists())
-        && sets.iter().all(|p| p.exists())
-}
-
-/// A report's JSON (`None` when it cannot be read).
-fn report_json(path: &Path) -> Option<Value> {
-    serde_json::from_slice(&std::fs::read(path).ok()?).ok()
-}
-
 /// What the jobs of one run share: loaded meshes and the digests of the files they read.
 #[derive(Default)]
 struct Shared {
@@ -683,6 +671,16 @@ fn input_hash(text: &str, job: &Job, shared: &Shared) -> Result<String> {
     for l in &job.layers {
         files.push(l.image.clone());
         files.extend(l.mask.clone());
+        let c = &l.channels;
+        files.extend(c.normal.as_ref().map(|n| n.image.clone()));
+        for ch in [&c.roughness, &c.metallic, &c.occlusion, &c.emissive]
+            .into_iter()
+            .flatten()
+        {
+            if let decalbake::io::channels::Value::Image(p) = &ch.value {
+                files.push(p.clone());
+            }
+        }
     }
     for f in files {
         part(&shared.digest(&f));

@@ -10,6 +10,7 @@ mod batch;
 mod bench;
 mod demo;
 mod fuzz;
+mod journal;
 mod unwrap;
 use std::path::{Path, PathBuf};
 
@@ -28,6 +29,10 @@ struct Cli {
     /// GPU backend: vulkan or gl (default: WGPU_BACKEND, else Vulkan then GL).
     #[arg(long, global = true)]
     backend: Option<String>,
+    /// The most memory a bake may take (`bake`, `batch`): bytes or a size with a unit
+    /// ("512MiB", "2GB"); a job's own `max_memory` lowers it. Default: the memory available.
+    #[arg(long, global = true, value_parser = memory_size)]
+    max_memory: Option<u64>,
     #[command(subcommand)]
     cmd: Cmd,
 }
@@ -39,6 +44,10 @@ enum Cmd {
         /// Output directory.
         #[arg(long, default_value = "decalbake-demo")]
         out: PathBuf,
+        /// Also unwrap Spot and bob (new UV sets by pelting, bob with its patch) and bake bob's
+        /// three sets: about half a minute more on a 2-core software device.
+        #[arg(long)]
+        all: bool,
     },
     /// Bake the jobs of a manifest (JSON Lines: job file paths or job objects) in one process:
     /// failures isolated, `--resume` after a killed node, shards for job arrays.
@@ -242,9 +251,10 @@ fn main() {
 
 fn run(cli: Cli) -> Result<()> {
     match cli.cmd {
-        Cmd::Demo { out } => demo(&out, cli.backend.as_deref()),
+        Cmd::Demo { out, all } => demo(&out, all, cli.backend.as_deref()),
         Cmd::Bake { job, out } => {
-            let job = Job::load(&job, out.as_deref())?;
+            let mut job = Job::load(&job, out.as_deref())?;
+            job.max_memory = lower_limit(job.max_memory, cli.max_memory);
             let engine = engine(cli.backend.as_deref())?;
             // One plain bake in this process: nothing to pool its canvas for (docs/, "Peak
             // memory"). Animations and several-set jobs bake more than once: they keep the pool.
@@ -277,6 +287,7 @@ fn run(cli: Cli) -> Result<()> {
             jobs,
         } => {
             let opts = manifest.map(|manifest| batch::BatchOptions {
+                max_memory: cli.max_memory,
                 manifest,
                 out,
                 shard,
@@ -637,7 +648,27 @@ fn demo_ribbon_extras(engine: &Engine, out: &Path, job_path: &Path) -> Result<()
     Ok(())
 }
 
-fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
+/// Names a demo step on stderr as it starts and says how long it took when the next starts
+/// (every step of more than a moment shows it is running).
+struct Steps(Option<(String, std::time::Instant)>);
+
+impl Steps {
+    fn start(&mut self, name: &str) {
+        self.done();
+        eprintln!("demo: {name}...");
+        self.0 = Some((name.to_string(), std::time::Instant::now()));
+    }
+
+    fn done(&mut self) {
+        if let Some((name, t)) = self.0.take() {
+            eprintln!("demo: {name}: {:.1} s", t.elapsed().as_secs_f64());
+        }
+    }
+}
+
+fn demo(out: &Path, all: bool, backend: Option<&str>) -> Result<()> {
+    let mut steps = Steps(None);
+    steps.start("writing the scene");
     std::fs::create_dir_all(out.join("decals"))
         .with_context(|| format!("creating {}", out.display()))?;
     decalbake::io::image::write_atomic(&out.join("spot.glb"), demo::SPOT_GLB)?;
@@ -647,21 +678,48 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
     let job_path = out.join("job.json");
     decalbake::io::image::write_atomic(&job_path, demo::job_json().as_bytes())?;
     let job = Job::load(&job_path, None)?;
+    steps.start("starting the GPU");
     let engine = engine(backend)?;
+    steps.start("baking Spot's decals, stroke and ribbon");
     bake(&engine, &job)?;
     // The same texture as linear 32-bit floats (OpenEXR, padded like the PNG).
+    steps.start("baking the same as linear floats (baked.exr)");
     let mut exr = job.clone();
     exr.out_texture = Some(out.join("baked.exr"));
     (exr.out_glb, exr.out_report, exr.out_preview) = (None, None, None);
     bake(&engine, &exr)?;
+    steps.start("animating the ribbon and extracting the badge");
     demo_ribbon_extras(&engine, out, &job_path)?;
     // A skinned, animated character: the model goes out with its skin and animations.
+    steps.start("baking the knight's badge (colour, normal, roughness, metallic)");
     decalbake::io::image::write_atomic(&out.join("knight.glb"), demo::KNIGHT_GLB)?;
     let knight = out.join("knight.json");
     decalbake::io::image::write_atomic(&knight, demo::knight_json().as_bytes())?;
     bake(&engine, &Job::load(&knight, None)?)?;
-    // A new UV set by pelting: the crumpled sheet, whose pelt refines to its isometric flattening.
-    // Stood up (it lies in the xz plane), so the preview's side views see its face.
+    steps.start("unwrapping the crumpled sheet");
+    let args = demo_sheet_unwrap(out)?;
+    unwrap::run_with(&args, &engine)?;
+    if all {
+        demo_unwraps(&engine, out, args, &mut steps)?;
+    }
+    steps.done();
+    eprintln!(
+        "demo written to {} (edit job.json and run `decalbake bake {}` to re-bake; `decalbake unwrap` made unwrapped.glb{})",
+        out.display(),
+        job_path.display(),
+        if all {
+            ", spot-unwrapped.glb, bob-unwrapped.glb and bob-patched.glb"
+        } else {
+            "; `decalbake demo --all` also unwraps Spot and bob"
+        }
+    );
+    Ok(())
+}
+
+/// The crumpled sheet written stood up (it lies in the xz plane, so the preview's side views see
+/// its face) and the arguments that unwrap it: a new UV set by pelting, which refines to its
+/// isometric flattening.
+fn demo_sheet_unwrap(out: &Path) -> Result<unwrap::UnwrapArgs> {
     let sheet = out.join("crumpled.glb");
     let mut m = decalbake::mesh::Mesh::from_bytes(demo::CRUMPLED_GLB, &sheet, None)?;
     for p in m.positions.iter_mut().chain(m.normals.iter_mut()) {
@@ -671,7 +729,7 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
     m.document = None;
     let written = decalbake::output::gltf::write_model(&m, &[], &sheet)?;
     decalbake::io::image::write_atomic(&sheet, &written.files[0].1)?;
-    let args = unwrap::UnwrapArgs {
+    Ok(unwrap::UnwrapArgs {
         mesh: sheet,
         out: out.join("unwrapped.glb"),
         cut: "auto".into(),
@@ -687,10 +745,19 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
         preview: Some(out.join("unwrap-preview.png")),
         cpu: false,
         no_pack_splits: false,
-    };
-    unwrap::run_with(&args, &engine)?;
+    })
+}
+
+/// `decalbake demo --all`: Spot and bob unwrapped, and bob's three sets baked.
+fn demo_unwraps(
+    engine: &Engine,
+    out: &Path,
+    args: unwrap::UnwrapArgs,
+    steps: &mut Steps,
+) -> Result<()> {
     // Spot itself, cut automatically (through its tips, along hidden and creased edges), pelted,
     // refined, split where it folds and packed.
+    steps.start("unwrapping Spot");
     let spot = unwrap::UnwrapArgs {
         mesh: out.join("spot.glb"),
         out: out.join("spot-unwrapped.glb"),
@@ -698,12 +765,13 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
         preview: Some(out.join("spot-unwrap-preview.png")),
         ..args
     };
-    unwrap::run_with(&spot, &engine)?;
+    unwrap::run_with(&spot, engine)?;
     // bob has a handle: `--patch` cuts the band round its seams across and bridges the cuts with
     // a third set; two decals baked into the three sets over the crossings, previewed blended.
     decalbake::io::image::write_atomic(&out.join("bob.glb"), demo::BOB_GLB)?;
     // bob without the patch first: its long body is split in two so the packing fills the
     // texture (`pelt::repack`).
+    steps.start("unwrapping bob");
     let bob_plain = unwrap::UnwrapArgs {
         mesh: out.join("bob.glb"),
         out: out.join("bob-unwrapped.glb"),
@@ -711,7 +779,8 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
         preview: Some(out.join("bob-unwrap-preview.png")),
         ..spot
     };
-    unwrap::run_with(&bob_plain, &engine)?;
+    unwrap::run_with(&bob_plain, engine)?;
+    steps.start("unwrapping bob with a patch over its seams");
     let bob = unwrap::UnwrapArgs {
         out: out.join("bob-patched.glb"),
         patch: true,
@@ -719,16 +788,29 @@ fn demo(out: &Path, backend: Option<&str>) -> Result<()> {
         preview: None,
         ..bob_plain
     };
-    unwrap::run_with(&bob, &engine)?;
+    unwrap::run_with(&bob, engine)?;
+    steps.start("baking bob's three sets");
     let bob_job = out.join("bob-job.json");
     decalbake::io::image::write_atomic(&bob_job, demo::bob_job_json().as_bytes())?;
-    bake(&engine, &Job::load(&bob_job, None)?)?;
-    eprintln!(
-        "demo written to {} (edit job.json and run `decalbake bake {}` to re-bake; `decalbake unwrap` made unwrapped.glb, spot-unwrapped.glb, bob-unwrapped.glb and bob-patched.glb)",
-        out.display(),
-        job_path.display()
-    );
+    bake(engine, &Job::load(&bob_job, None)?)?;
     Ok(())
+}
+
+/// `--max-memory`: a size in bytes, with or without a unit.
+fn memory_size(text: &str) -> std::result::Result<u64, String> {
+    decalbake::io::job::parse_size(text).ok_or_else(|| {
+        format!(
+            "\"{text}\" is not a size: give bytes, or a number with a unit (\"512MiB\", \"2GB\")"
+        )
+    })
+}
+
+/// The lower of a job's memory limit and the command line's.
+pub(crate) fn lower_limit(job: Option<u64>, cli: Option<u64>) -> Option<u64> {
+    match (job, cli) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    }
 }
 
 /// `decalbake param`: a layer's local coordinates per reached vertex, as CSV.
@@ -736,7 +818,17 @@ fn param(backend: Option<&str>, job: &Path, layer: usize, out: &Path) -> Result<
     let job = Job::load(job, None)?;
     let engine = engine(backend)?;
     let mesh = engine.load_mesh(&job.mesh)?;
-    let rows = engine.layer_param(&mesh, &job, layer)?;
+    let (rows, footprint) = engine.layer_param_footprint(&mesh, &job, layer)?;
+    if let Some(d) = footprint {
+        // The counts the bake's report gives the layer (`footprint_*`).
+        eprintln!(
+            "footprint: {} flipped, {} collapsed, {} torn",
+            d.flipped, d.collapsed, d.torn
+        );
+        if d.folds() > 0 {
+            eprintln!("warning: layer {layer}: its map folds where it is drawn; make the decal smaller, move it off the tip or saddle, or try another `method`");
+        }
+    }
     let mut csv = String::from("x,y,z,distance,u,v\n");
     for r in &rows {
         let d = r.distance.map(|d| d.to_string()).unwrap_or_default();

@@ -177,6 +177,8 @@ pub struct Pipelines {
     pub pelt_check: Kernel,
     /// Triangle selection.
     pub select_triangles: Kernel,
+    /// A layer's selection marks into its triangle list, in the tested order.
+    pub compact_lists: Kernel,
     /// Layer raster.
     pub layer_raster: Raster,
     /// `layer_raster`'s normal variant (`shaders::normal_source`), same targets, three more
@@ -333,6 +335,11 @@ impl Pipelines {
             planar_coords: Kernel::new(device, "planar_coords", &[(0, Params), (1, Ro), (2, Rw)]),
             pelt_step,
             pelt_check,
+            compact_lists: Kernel::new(
+                device,
+                "compact_lists",
+                &[(0, Params), (1, Ro), (2, Ro), (3, Rw)],
+            ),
             select_triangles: Kernel::new(
                 device,
                 "select_triangles",

@@ -31,6 +31,10 @@ pub const KERNELS: &[(&str, &str)] = &[
         include_str!("../../wgsl/bake/select_triangles.wgsl"),
     ),
     (
+        "compact_lists",
+        include_str!("../../wgsl/bake/compact_lists.wgsl"),
+    ),
+    (
         "extract_raster",
         include_str!("../../wgsl/output/extract_raster.wgsl"),
     ),

@@ -51,6 +51,60 @@ pub struct JobFile {
     /// Output files.
     #[serde(default)]
     pub output: OutputSpec,
+    /// The most memory the bake may take (host, and device on a CPU adapter): bytes, or text
+    /// with a unit (`"512MiB"`, `"2GB"`); default: the memory the machine has available.
+    #[serde(default)]
+    pub max_memory: Option<MemorySpec>,
+}
+
+/// `max_memory` in bytes: 0 and text that is not a size are refused, naming the field.
+fn max_memory(spec: Option<&MemorySpec>, src: &Path) -> Result<Option<u64>> {
+    let err = |detail: String| Error::job(src, "max_memory", detail);
+    match spec {
+        None => Ok(None),
+        Some(MemorySpec::Bytes(0)) => Err(err("0 bytes leaves no room for any bake".into())),
+        Some(MemorySpec::Bytes(b)) => Ok(Some(*b)),
+        Some(MemorySpec::Text(t)) => parse_size(t).map(Some).ok_or_else(|| {
+            err(format!(
+                "\"{t}\" is not a size: give bytes, or a number with a unit (\"512MiB\", \"2GB\")"
+            ))
+        }),
+    }
+}
+
+/// Parses a memory size: a number of bytes, or a number with a unit (`k`, `M`, `G`, `T`, with
+/// or without `i` and `B`: powers of 1024; `"1.5GiB"`, `"512M"`, `"2GB"`).
+pub fn parse_size(text: &str) -> Option<u64> {
+    let t = text.trim();
+    let split = t
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(t.len());
+    let (num, unit) = t.split_at(split);
+    let value: f64 = num.parse().ok()?;
+    let unit = unit
+        .trim()
+        .trim_end_matches(['B', 'b'])
+        .trim_end_matches('i');
+    let scale: u64 = match unit.to_ascii_lowercase().as_str() {
+        "" => 1,
+        "k" => 1 << 10,
+        "m" => 1 << 20,
+        "g" => 1 << 30,
+        "t" => 1 << 40,
+        _ => return None,
+    };
+    let bytes = value * scale as f64;
+    (value.is_finite() && value > 0.0 && bytes < u64::MAX as f64).then_some(bytes as u64)
+}
+
+/// `max_memory`: bytes, or a number with a unit.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+pub enum MemorySpec {
+    /// Bytes.
+    Bytes(u64),
+    /// `"512MiB"`, `"2GB"`, `"1.5G"`.
+    Text(String),
 }
 
 /// `uv_set`: a set's number or `"auto"`.
@@ -595,6 +649,8 @@ pub struct Job {
     pub out_report: Option<PathBuf>,
     /// Output preview.
     pub out_preview: Option<PathBuf>,
+    /// `max_memory` in bytes (`crate::bake::memory`); `None`: the memory available.
+    pub max_memory: Option<u64>,
 }
 
 impl Job {
@@ -791,7 +847,7 @@ impl Job {
                 } else {
                     field
                 },
-                format!("{inner}; see the job-file section of the README for the schema"),
+                format!("{inner}; docs/job-file.md lists every field"),
             )
         })?;
         Self::validate(file, source, input_dir, output_dir)
@@ -885,6 +941,7 @@ impl Job {
                 format!("{t} is not a positive multiple of 64 texels (the bake's cell size)"),
             ));
         }
+        let max_memory = max_memory(f.max_memory.as_ref(), src)?;
         if f.output.bit_depth != 8 && f.output.bit_depth != 16 {
             return Err(err(
                 "output.bit_depth",
@@ -942,6 +999,7 @@ impl Job {
             out_glb: out(&f.output.glb),
             out_report: out(&f.output.report),
             out_preview: out(&f.output.preview),
+            max_memory,
         })
     }
 }
@@ -1358,4 +1416,21 @@ fn check_frames(layers: &[Layer], texture: Option<&Path>, src: &Path) -> Result<
         ));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod size_tests {
+    use super::parse_size;
+
+    #[test]
+    fn sizes_parse_with_and_without_units() {
+        assert_eq!(parse_size("1024"), Some(1024));
+        assert_eq!(parse_size("512M"), Some(512 << 20));
+        assert_eq!(parse_size("1.5GiB"), Some(3 << 29));
+        assert_eq!(parse_size("2 GB"), Some(2 << 30));
+        assert_eq!(parse_size("4k"), Some(4096));
+        for bad in ["", "-1", "0", "1X", "GiB", "nan"] {
+            assert_eq!(parse_size(bad), None, "{bad}");
+        }
+    }
 }

@@ -8,6 +8,14 @@ use glam::Vec2;
 /// Workgroups per layer in `distortion.wgsl`. Keep in sync with the WGSL constant.
 pub const DIST_GROUPS: u32 = 16;
 
+/// vec4s a workgroup of `distortion.wgsl` writes.
+pub const PARTIAL_VEC4S: usize = 3;
+
+/// A triangle drawn by a layer whose map's area ratio (model units in, model units out: 1 is an
+/// isometry) lies in [0, this) is collapsed; one whose |ratio| exceeds its inverse is torn
+/// (stretched across a cut or a fold of the map). Keep in sync with `COLLAPSED` in the kernel.
+pub const COLLAPSED_RATIO: f32 = 1e-3;
+
 /// Distortion of a layer's map over the triangles it covers (whole triangles, area-weighted), from
 /// the singular values s1 >= s2 of each triangle's Jacobian into the layer's (u, v).
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
@@ -24,20 +32,27 @@ pub struct Distortion {
     pub angle_distortion_max: f32,
     /// Triangles whose image is flipped.
     pub flipped: u32,
+    /// Triangles not flipped whose area ratio is below [`COLLAPSED_RATIO`].
+    pub collapsed: u32,
+    /// Triangles whose |area ratio| exceeds 1 / [`COLLAPSED_RATIO`].
+    pub torn: u32,
 }
 
 impl Distortion {
-    /// Adds up the GPU partials of one layer (`2 × DIST_GROUPS` vec4s).
+    /// Adds up the GPU partials of one layer (`PARTIAL_VEC4S × DIST_GROUPS` vec4s), in order.
     pub fn from_partials(p: &[[f32; 4]]) -> Self {
         let (mut a, mut ratio_max, mut ratio_min, mut angle_max) =
             ([0.0f64; 4], f32::MIN, f32::MAX, 0.0f32);
-        for pair in p.chunks_exact(2) {
+        let mut counts = [0.0f64; 2];
+        for group in p.chunks_exact(PARTIAL_VEC4S) {
             for k in 0..4 {
-                a[k] += pair[0][k] as f64;
+                a[k] += group[0][k] as f64;
             }
-            angle_max = angle_max.max(pair[1][0]);
-            ratio_max = ratio_max.max(pair[1][1]);
-            ratio_min = ratio_min.min(pair[1][2]);
+            angle_max = angle_max.max(group[1][0]);
+            ratio_max = ratio_max.max(group[1][1]);
+            ratio_min = ratio_min.min(group[1][2]);
+            counts[0] += group[2][0] as f64;
+            counts[1] += group[2][1] as f64;
         }
         let w = a[0].max(f64::MIN_POSITIVE);
         Self {
@@ -47,7 +62,14 @@ impl Distortion {
             angle_distortion_mean: (a[2] / w) as f32,
             angle_distortion_max: angle_max,
             flipped: a[3].round() as u32,
+            collapsed: counts[0].round() as u32,
+            torn: counts[1].round() as u32,
         }
+    }
+
+    /// Triangles flipped, collapsed or torn.
+    pub fn folds(&self) -> u32 {
+        self.flipped + self.collapsed + self.torn
     }
 }
 
@@ -70,6 +92,8 @@ impl Distortion {
             out.area_ratio_max = out.area_ratio_max.max(d.area_ratio_max);
             out.angle_distortion_max = out.angle_distortion_max.max(d.angle_distortion_max);
             out.flipped += d.flipped;
+            out.collapsed += d.collapsed;
+            out.torn += d.torn;
         }
         if w == 0.0 {
             return Distortion::default();
@@ -87,7 +111,7 @@ pub fn distortion(
     (coords, cone): (&[[f32; 4]], Option<&crate::maps::chart::cone::Cone>),
     triangles: &[u32],
 ) -> Distortion {
-    let mut partial = [[0.0f32; 4], [0.0, f32::MIN, f32::MAX, 0.0]];
+    let mut partial = [[0.0f32; 4], [0.0, f32::MIN, f32::MAX, 0.0], [0.0; 4]];
     partial[1][0] = 0.0;
     for &t in triangles {
         let tri = topo.triangles[t as usize];
@@ -132,6 +156,8 @@ pub fn distortion(
         partial[1][0] = partial[1][0].max(angle);
         partial[1][1] = partial[1][1].max(det);
         partial[1][2] = partial[1][2].min(det);
+        partial[2][0] += f32::from((0.0..COLLAPSED_RATIO).contains(&det));
+        partial[2][1] += f32::from(det.abs() > 1.0 / COLLAPSED_RATIO);
     }
     Distortion::from_partials(&partial)
 }

@@ -1,7 +1,9 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // Chooses the triangles a layer covers, for any placement method: all three vertices have valid layer
 // coordinates, the triangle's coordinate box overlaps the decal rectangle, and (planar projection only)
-// the triangle faces the projection. Appends them to the layer's list and grows the layer's texel
+// the triangle faces the projection. Marks them at their tested position in `marks` (id, or NONE),
+// which `compact_lists` turns into the layer's list in the tested order (an atomic only counts
+// them: the list's order never depends on the invocations' timing), and grows the layer's texel
 // bounding box in the output texture; marks the cells of the part the layer raster draws (the
 // triangle clipped to the image and margin, `drawn_box`: on bob at 4096² with 256 decals the
 // raster rectangles cover 28.6M texels instead of 37.9M). A cone chart (FLAG_CONE, shared/cone.wgsl) is tested by its
@@ -20,7 +22,7 @@
 @group(0) @binding(3) var<storage, read> split_tris: array<u32>;
 @group(0) @binding(4) var<storage, read> uvs: array<vec2<f32>>;
 @group(0) @binding(5) var<storage, read> coords: array<vec4<f32>>;
-@group(0) @binding(6) var<storage, read_write> lists: array<u32>;
+@group(0) @binding(6) var<storage, read_write> marks: array<u32>;
 // Per layer (params.aux), `stats_stride` words: count, min x, min y, max x, max y (texels), texels
 // composed, triangles with all three coordinates valid (reached by the layer's map), 1 unused, then
 // the cell mask: the texel blocks this layer's triangles touch, wrapped into
@@ -30,6 +32,7 @@
 @group(0) @binding(9) var<storage, read> cands: array<u32>;
 
 const NO_CANDIDATES: u32 = 0xffffffffu;
+const NONE: u32 = 0xffffffffu;
 
 // Polygon `inp` (n corners: texel xy, image zw) clipped to sgn * image[axis] + off >= 0, into
 // `out`; returns its corners.
@@ -91,6 +94,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         if (t >= range.y) { return; }
         t = cands[range.x + t];
     }
+    marks[gid.x] = NONE;
     let tri = tris[t];
     if ((tri.w & 1u) != 0u) { return; }
     let base = params.slot * params.vertex_count;
@@ -126,8 +130,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let n = cross(positions[tri.y].xyz - a, positions[tri.z].xyz - a);
         if (dot(n, params.normal.xyz) <= 0.0) { return; }
     }
-    let i = atomicAdd(&stats[s], 1);
-    lists[params.slot * params.triangle_count + u32(i)] = t;
+    atomicAdd(&stats[s], 1);
+    marks[gid.x] = t;
     let size = vec2<f32>(params.tex_size);
     let u0 = uvs[split_tris[3u * t]] * size;
     let u1 = uvs[split_tris[3u * t + 1u]] * size;

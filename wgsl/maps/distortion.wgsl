@@ -1,9 +1,10 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // Distortion of a layer's map over the triangles it covers: for each triangle, the singular values
 // s1 >= s2 of the Jacobian from the triangle's own plane to the layer's (u, v) coordinates. Area ratio
-// s1 s2 (signed: negative means the triangle is flipped), angle distortion s1 / s2. Each workgroup
-// reduces its triangles (area-weighted sums, extremes, flip count) into one partial; the host adds
-// the partials. Dispatch: (DIST_GROUPS, 1, 1) per layer. CPU twin: `distortion` in src/maps/distortion.rs.
+// s1 s2 (signed: negative means the triangle is flipped), angle distortion s1 / s2; a triangle not
+// flipped whose ratio is below COLLAPSED counts as collapsed, one whose |ratio| exceeds 1 / COLLAPSED
+// as torn (the maps are in model units: 1 is an isometry). Each workgroup reduces its triangles
+// (area-weighted sums, extremes, counts) into one partial; the host adds the partials in order. Dispatch: (DIST_GROUPS, 1, 1) per layer. CPU twin: `distortion` in src/maps/distortion.rs.
 #import params
 #import cone
 
@@ -17,18 +18,22 @@ const DIST_GROUPS: u32 = 16u;
 @group(0) @binding(3) var<storage, read> coords: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> lists: array<u32>;
 @group(0) @binding(5) var<storage, read> stats: array<i32>;
-// Per (slot, group), two vec4: (sum area, sum area * ratio, sum area * angle, flipped),
-// (max angle, max ratio, min ratio, unused).
+// Per (slot, group), three vec4: (sum area, sum area * ratio, sum area * angle, flipped),
+// (max angle, max ratio, min ratio, unused), (collapsed, torn, 0, 0).
 @group(0) @binding(6) var<storage, read_write> partials: array<vec4<f32>>;
+// Keep in sync with `COLLAPSED_RATIO` in src/maps/distortion.rs.
+const COLLAPSED: f32 = 1e-3;
 
 var<workgroup> sh_a: array<vec4<f32>, WG>;
 var<workgroup> sh_b: array<vec4<f32>, WG>;
+var<workgroup> sh_c: array<vec4<f32>, WG>;
 
 @compute @workgroup_size(64)
 fn main(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
     let count = u32(max(stats[params.aux * params.stats_stride], 0));
     var a = vec4<f32>(0.0);
     var b = vec4<f32>(0.0, 0.0, 3.0e38, 0.0);
+    var c = vec4<f32>(0.0);
     let base = params.slot * params.vertex_count;
     for (var i = wid.x * WG + lid.x; i < count; i += DIST_GROUPS * WG) {
         let t = tris[lists[params.slot * params.triangle_count + i]];
@@ -71,13 +76,17 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid
         let ratio = det;
         a += vec4<f32>(area, area * ratio, area * min(angle, 1.0e6), select(0.0, 1.0, det < 0.0));
         b = vec4<f32>(max(b.x, angle), max(b.y, ratio), min(b.z, ratio), 0.0);
+        c += vec4<f32>(select(0.0, 1.0, det >= 0.0 && det < COLLAPSED),
+                       select(0.0, 1.0, abs(det) > 1.0 / COLLAPSED), 0.0, 0.0);
     }
     sh_a[lid.x] = a;
     sh_b[lid.x] = b;
+    sh_c[lid.x] = c;
     workgroupBarrier();
     for (var s = WG / 2u; s > 0u; s >>= 1u) {
         if (lid.x < s) {
             sh_a[lid.x] += sh_a[lid.x + s];
+            sh_c[lid.x] += sh_c[lid.x + s];
             let o = sh_b[lid.x + s];
             let m = sh_b[lid.x];
             sh_b[lid.x] = vec4<f32>(max(m.x, o.x), max(m.y, o.y), min(m.z, o.z), 0.0);
@@ -85,8 +94,9 @@ fn main(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid
         workgroupBarrier();
     }
     if (lid.x == 0u) {
-        let k = 2u * (params.slot * DIST_GROUPS + wid.x);
+        let k = 3u * (params.slot * DIST_GROUPS + wid.x);
         partials[k] = sh_a[0];
         partials[k + 1u] = sh_b[0];
+        partials[k + 2u] = sh_c[0];
     }
 }

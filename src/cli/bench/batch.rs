@@ -137,6 +137,7 @@ pub fn run(
                 summary: None,
                 progress: ProgressMode::None,
                 jobs,
+                max_memory: None,
             },
         )?;
         Ok((t.elapsed().as_secs_f64(), code))

@@ -5,7 +5,8 @@
 //!   points and rays with each method and its own fields, every blend mode, masks, strokes with each
 //!   tool and every stroke field, `uv_set` as a number, `"auto"` and a list, every `texture.base`
 //!   form (material, image, colour, transfer from the material or an image), padding as texels and
-//!   `"full"`, the sample counts, outputs switched off and 16-bit.
+//!   `"full"`, the sample counts, outputs switched off and 16-bit; and sizes at the edges (empty,
+//!   huge and overflowing sides, odd tiles, `max_memory` as bytes and text).
 //! - **Manifests**: job paths, inline jobs, blank and `\r\n` lines.
 //! - **glTF**: three small scenes, each as a `.glb` and as a `.gltf` with data URIs: (1) a node tree
 //!   with TRS and matrix transforms over a quad with positions, normals, two UV sets, 16-bit indices
@@ -97,9 +98,34 @@ pub fn job_values() -> Vec<Value> {
     ]
 }
 
+/// Jobs at the edges of the sizes: empty, huge and overflowing sides, odd tiles, memory limits.
+fn size_values() -> Vec<Value> {
+    let decal = json!({"image": "logo.png", "at": [0.1, 0.5, 0.2], "size": [0.3, 0.3]});
+    let texture = |t: Value| json!({"mesh": "m.glb", "texture": t, "layers": [decal.clone()]});
+    let mut out: Vec<Value> = [
+        json!({"width": 0, "height": 1}),
+        json!({"width": 1_000_000, "height": 1_000_000}),
+        json!({"width": 4_294_967_295u64, "height": 4_294_967_295u64}),
+        json!({"width": 16384, "height": 16384, "tile": 64}),
+        json!({"width": 16384, "height": 1, "tile": 3}),
+    ]
+    .into_iter()
+    .map(texture)
+    .collect();
+    for limit in [json!(1), json!("1.5GiB"), json!("0.5k"), json!(u64::MAX)] {
+        let mut j = texture(json!({"width": 8192, "height": 8192}));
+        j["max_memory"] = limit;
+        out.push(j);
+    }
+    out
+}
+
 /// The seed jobs as text (pretty and compact).
 pub fn jobs() -> Vec<Vec<u8>> {
     job_values()
+        .into_iter()
+        .chain(size_values())
+        .collect::<Vec<_>>()
         .iter()
         .enumerate()
         .map(|(i, v)| {

@@ -3,7 +3,9 @@
 //! file access and no GPU.
 //!
 //! - `job`: `Job::parse` (with a made-up source path and directories), then `Job::for_uv_set`
-//!   for each set of a several-set job, as `decalbake bake` does.
+//!   for each set of a several-set job, as `decalbake bake` does, and the bake's memory estimate
+//!   of each (`bake::memory::estimate`, whole and by the job's tiles), which must not overflow
+//!   (`assert!`: it saturates) and must grow with the texture.
 //! - `manifest`: `io::manifest::parse`, then `Job::parse` of each inline job, as `decalbake batch`
 //!   does.
 //! - `glb`, `gltf`: what `decalbake info` does after reading the file: `Mesh::from_bytes` (with no
@@ -104,6 +106,7 @@ fn job(text: &str) -> String {
             for &set in &job.uv_list {
                 let _ = job.for_uv_set(set);
             }
+            check_estimate(&job);
             let kinds: Vec<String> = job
                 .layers
                 .iter()
@@ -113,6 +116,21 @@ fn job(text: &str) -> String {
             format!("ok {} {}", job.uv_list.len(), kinds.join(","))
         }
         Err(e) => sig(e),
+    }
+}
+
+/// The limits' estimate of a parsed job, whole and by its tiles: at least the fixed part, at
+/// least a byte a texel, and never wrapped round (a wrapped sum would let a huge bake through).
+fn check_estimate(job: &Job) {
+    use decalbake::bake::memory::{estimate, FIXED};
+    let texels = job.width as u64 * job.height as u64;
+    for tile in [None, job.tile] {
+        let e = estimate(job, 0, tile);
+        assert!(e.host >= FIXED, "{e:?}");
+        assert!(
+            e.host.saturating_add(e.device) >= texels,
+            "{e:?} for {texels} texels"
+        );
     }
 }
 

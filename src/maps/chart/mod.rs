@@ -178,7 +178,10 @@ pub enum Fallback {
     /// Hybrid: re-solved as a free LSCM chart from its exponential map (on a smaller region too
     /// where that still folded).
     Lscm,
-    /// Still folded on the smallest region; the bake refuses the layer.
+    /// Hybrid: every conformal re-solve still folded; the layer keeps its exponential map (the
+    /// report's footprint figures are the exponential map's).
+    Expmap,
+    /// LSCM: still folded on the smallest region; the bake refuses the layer.
     Refused,
 }
 
@@ -576,12 +579,35 @@ pub fn build(
             out[i] = c;
         }
     }
-    for chart in &mut out {
-        if chart.report.folded() {
+    for (i, chart) in out.iter_mut().enumerate() {
+        if !chart.report.folded() {
+            continue;
+        }
+        if hybrid(i) {
+            *chart = expmap_fallback(topo, &requests[i], &chart.report);
+        } else {
             chart.report.fallback = Fallback::Refused;
         }
     }
     Ok(out)
+}
+
+/// A hybrid whose conformal re-solves all fold keeps its exponential map (which bakes wherever
+/// the hybrid was asked for): a chart that moves no vertex, its footprint figures the
+/// exponential map's own.
+fn expmap_fallback(topo: &Topology, req: &ChartRequest, folded: &ChartReport) -> Chart {
+    let mut keep = Chart {
+        coords: Vec::new(),
+        triangles: Vec::new(),
+        report: ChartReport {
+            cone: None,
+            ..*folded
+        },
+        replaces_map: false,
+    };
+    assess(topo, req, &mut keep);
+    keep.report.fallback = Fallback::Expmap;
+    keep
 }
 
 impl ChartReport {

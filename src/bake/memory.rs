@@ -1,0 +1,134 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Limits before work: a bake's peak memory, estimated from its sizes before anything is
+//! allocated, against the job's limit (`"max_memory"`, `--max-memory`) or the memory this machine
+//! has available (`MemAvailable` in `/proc/meminfo`). A bake that would not fit is refused with
+//! the estimate, the limit and what to change (exit 2), instead of dying in an allocation.
+//!
+//! The estimate is a model of the engine's own buffers, fitted to peak resident sizes measured on
+//! lavapipe (2026-11-27, this 2-core machine: `decalbake bake` of one decal on Spot, 1024² to
+//! 8192², 8 and 16 bits, PNG and EXR, whole and by tiles), where device memory is host memory;
+//! it errs on the large side by up to about a fifth:
+//! - a fixed [`FIXED`] for the process, the driver and the compiled pipelines, plus the mesh;
+//! - a one-pass bake: [`DEVICE_PER_TEXEL`] on the device (canvas planes, islands, distance
+//!   transform, encoded texture, read-back) and [`HOST_PER_TEXEL`] on the host (texels, PNG),
+//!   once for the colour and once per PBR channel group;
+//! - a bake by tiles: [`TILE_DEVICE_PER_TEXEL`] for a tile on the device, [`TILED_HOST_PER_TEXEL`]
+//!   for the whole texture on the host (the assembled texels, the islands and the nearest-island
+//!   map for the padding, the PNG);
+//! - 16-bit outputs add [`WIDE_PER_TEXEL`], float (EXR) outputs [`FLOAT_PER_TEXEL`] (the linear
+//!   canvas and its encoding).
+//!
+//! On a CPU adapter the device's memory is the host's, so the two add up against the limit; on a
+//! GPU the host part is compared with the limit and the device part with the adapter's buffer
+//! limits (`check.rs`; wgpu does not say how much memory a GPU has).
+
+use super::engine::{Engine, LoadedMesh};
+use crate::error::{bytes_text, Error, Result};
+use crate::io::job::Job;
+
+/// Process, driver and pipelines.
+pub const FIXED: u64 = 256 << 20;
+/// Device bytes a texel of a one-pass bake.
+pub const DEVICE_PER_TEXEL: u64 = 24;
+/// Host bytes a texel of a one-pass bake.
+pub const HOST_PER_TEXEL: u64 = 8;
+/// Device bytes a texel of one tile.
+pub const TILE_DEVICE_PER_TEXEL: u64 = 16;
+/// Host bytes a texel of a texture baked by tiles.
+pub const TILED_HOST_PER_TEXEL: u64 = 15;
+/// Host bytes a texel more for a 16-bit output.
+pub const WIDE_PER_TEXEL: u64 = 6;
+/// Host bytes a texel more for a float (EXR) output.
+pub const FLOAT_PER_TEXEL: u64 = 32;
+
+/// A bake's estimated peak memory.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Estimate {
+    /// Host bytes (the fixed part and the mesh included).
+    pub host: u64,
+    /// Device bytes.
+    pub device: u64,
+    /// The tile side, for a bake by tiles.
+    pub tile: Option<u32>,
+}
+
+/// The estimate for `job` on `mesh`, baked whole or by tiles of `tile`.
+pub fn estimate(job: &Job, mesh_bytes: u64, tile: Option<u32>) -> Estimate {
+    let texels = job.width as u64 * job.height as u64;
+    let mut extra = 0;
+    if job.bit_depth == 16 {
+        extra += WIDE_PER_TEXEL;
+    }
+    if job.exr() {
+        extra += FLOAT_PER_TEXEL;
+    }
+    let textures = 1 + super::channels::passes(job).len() as u64;
+    let (device, host) = match tile {
+        Some(side) => {
+            let (w, h) = (side.min(job.width) as u64, side.min(job.height) as u64);
+            (
+                w * h * TILE_DEVICE_PER_TEXEL,
+                texels.saturating_mul(TILED_HOST_PER_TEXEL + extra),
+            )
+        }
+        None => (
+            texels.saturating_mul(DEVICE_PER_TEXEL * textures),
+            texels.saturating_mul(HOST_PER_TEXEL * textures + extra),
+        ),
+    };
+    Estimate {
+        host: host.saturating_add(FIXED + mesh_bytes),
+        device,
+        tile,
+    }
+}
+
+/// Bytes of a loaded mesh, host and device copies (positions, normals, UVs, topology, BVH).
+pub fn mesh_bytes(mesh: &LoadedMesh) -> u64 {
+    let (v, t) = (mesh.gpu.vertex_count as u64, mesh.gpu.triangle_count as u64);
+    v * 160 + t * 96
+}
+
+/// The memory this machine has available now (`MemAvailable`), where the system says.
+pub fn available() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Refuses `job` before any work when its sides exceed the adapter's texture limit, or its
+/// estimated memory exceeds its limit (`"max_memory"`, else the memory available).
+pub fn check(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<()> {
+    super::check::sides(engine, job)?;
+    let tile = super::tiles::tile_side(engine, job);
+    let e = estimate(job, mesh_bytes(mesh), tile);
+    let cpu = engine.ctx.device_type == Some(wgpu::DeviceType::Cpu);
+    let needed = if cpu { e.host + e.device } else { e.host };
+    let (limit, source) = match (job.max_memory, available()) {
+        (Some(m), _) => (m, "the job's `max_memory` (or `--max-memory`)"),
+        (None, Some(a)) => (a, "the memory this machine has available"),
+        (None, None) => return Ok(()),
+    };
+    if needed <= limit {
+        return Ok(());
+    }
+    let how = match tile {
+        Some(side) => format!("by tiles of {side}²"),
+        None => "in one pass".to_string(),
+    };
+    Err(Error::job(
+        &job.source,
+        "texture",
+        format!(
+            "a {}x{} bake {how} needs about {} ({} on the host, {} on the device{}), above {source}: {}; bake a smaller texture, use smaller tiles (`texture.tile`: the texture itself stays in host memory), or raise the limit",
+            job.width,
+            job.height,
+            bytes_text(needed),
+            bytes_text(e.host),
+            bytes_text(e.device),
+            if cpu { ", which is host memory on this CPU adapter" } else { "" },
+            bytes_text(limit),
+        ),
+    ))
+}
