@@ -260,6 +260,10 @@ pub struct LayerSpec {
     /// Stroke: surface points (like `at`), joined along the surface.
     #[serde(default)]
     pub path: Option<Vec<AtSpec>>,
+    /// Stroke, ribbon: `"catmull-rom"` (default; a smooth curve through the path's points) or
+    /// `"linear"` (the geodesics between them).
+    #[serde(default)]
+    pub interpolate: Option<String>,
     /// Stroke: pressure in [0, 1] per path point.
     #[serde(default)]
     pub pressure: Option<Vec<f32>>,
@@ -1066,6 +1070,7 @@ impl LayerSpec {
         let fields = super::stroke::Fields {
             tool: &self.tool,
             path: &self.path,
+            interpolate: &self.interpolate,
             pressure: &self.pressure,
             spacing: self.spacing,
             flow: self.flow,
@@ -1079,6 +1084,7 @@ impl LayerSpec {
         };
         let ribbon_fields = super::ribbon::Fields {
             path: &self.path,
+            interpolate: &self.interpolate,
             width: self.width,
             repeat: &self.repeat,
             align: &self.align,
@@ -1311,6 +1317,7 @@ fn kind_fields(
         LayerKind::Ribbon => {
             let others = super::stroke::Fields {
                 path: &None,
+                interpolate: &None,
                 ..*stroke
             };
             if let Some(name) = others.given() {
@@ -1322,6 +1329,7 @@ fn kind_fields(
             ))
         }
         LayerKind::Decal => match stroke.given() {
+            Some(name @ ("path" | "interpolate")) => Err(misplaced(name, "strokes and ribbons")),
             Some(name) => Err(misplaced(name, "strokes")),
             None => Ok((None, None)),
         },
