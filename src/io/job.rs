@@ -314,6 +314,10 @@ pub struct LayerSpec {
     /// Stroke: surface points (like `at`), joined along the surface.
     #[serde(default)]
     pub path: Option<Vec<AtSpec>>,
+    /// Stroke, ribbon: `"catmull-rom"` (default; a smooth curve through the path's points) or
+    /// `"linear"` (the geodesics between them).
+    #[serde(default)]
+    pub interpolate: Option<String>,
     /// Stroke: pressure in [0, 1] per path point.
     #[serde(default)]
     pub pressure: Option<Vec<f32>>,
@@ -1124,6 +1128,7 @@ impl LayerSpec {
         let fields = super::stroke::Fields {
             tool: &self.tool,
             path: &self.path,
+            interpolate: &self.interpolate,
             pressure: &self.pressure,
             spacing: self.spacing,
             flow: self.flow,
@@ -1137,6 +1142,7 @@ impl LayerSpec {
         };
         let ribbon_fields = super::ribbon::Fields {
             path: &self.path,
+            interpolate: &self.interpolate,
             width: self.width,
             repeat: &self.repeat,
             align: &self.align,
@@ -1369,6 +1375,7 @@ fn kind_fields(
         LayerKind::Ribbon => {
             let others = super::stroke::Fields {
                 path: &None,
+                interpolate: &None,
                 ..*stroke
             };
             if let Some(name) = others.given() {
@@ -1380,6 +1387,7 @@ fn kind_fields(
             ))
         }
         LayerKind::Decal => match stroke.given() {
+            Some(name @ ("path" | "interpolate")) => Err(misplaced(name, "strokes and ribbons")),
             Some(name) => Err(misplaced(name, "strokes")),
             None => Ok((None, None)),
         },

@@ -6,6 +6,7 @@
 //! | field | default |
 //! |---|---|
 //! | `path` | required: at least 2 surface points (points or rays, like `at`) |
+//! | `interpolate` | `"catmull-rom"`: the curve is the smooth spline through the points; `"linear"`: the geodesics between consecutive points ([`super::stroke::Interpolate`]) |
 //! | `width` | the image's height / width × the curve's length (the image spans the curve at its aspect) |
 //! | `repeat` | `"stretch"` (the image spans the curve); `"tile"`: repeated at its own aspect |
 //! | `align` | `"center"` (the strip straddles the curve); `"left"` or `"right"` of it, seen from outside |
@@ -50,6 +51,8 @@ pub enum Align {
 pub struct Ribbon {
     /// The curve's points, joined along the surface as a stroke's are.
     pub path: Vec<AtSpec>,
+    /// How the curve runs between its points (an animated ribbon's route too).
+    pub interpolate: super::stroke::Interpolate,
     /// Strip width in model units (`None`: from the image's aspect and the curve's length).
     pub width: Option<f32>,
     /// Stretch or tile.
@@ -116,6 +119,7 @@ pub struct AnimateSpec {
 /// The ribbon fields of a layer as written.
 pub(crate) struct Fields<'a> {
     pub path: &'a Option<Vec<AtSpec>>,
+    pub interpolate: &'a Option<String>,
     pub width: Option<f32>,
     pub repeat: &'a Option<String>,
     pub align: &'a Option<String>,
@@ -125,7 +129,8 @@ pub(crate) struct Fields<'a> {
 }
 
 impl Fields<'_> {
-    /// The first ribbon-only field given (`path` is shared with strokes and not counted).
+    /// The first ribbon-only field given (`path` and `interpolate` are shared with strokes and not
+    /// counted).
     pub fn given(&self) -> Option<&'static str> {
         [
             ("width", self.width.is_some()),
@@ -188,6 +193,8 @@ pub(crate) fn validate(l: &Fields<'_>, i: usize, src: &Path) -> Result<Ribbon> {
     for (k, at) in path.iter().enumerate() {
         check_at(at, &field(&format!("{points}[{k}]")), src)?;
     }
+    let interpolate = super::stroke::Interpolate::parse(l.interpolate.as_deref())
+        .map_err(|d| err("interpolate", d))?;
     let width = match l.width {
         Some(w) if !w.is_finite() || w <= 0.0 || w > super::at::MAX_SIZE_MODEL_UNITS => {
             return Err(err(
@@ -220,6 +227,7 @@ pub(crate) fn validate(l: &Fields<'_>, i: usize, src: &Path) -> Result<Ribbon> {
     };
     Ok(Ribbon {
         path,
+        interpolate,
         width,
         repeat,
         align,

@@ -13,6 +13,7 @@
 //! | `orient` | `"path"` |
 //! | `method` | `"lscm"` for strokes (Maillot) |
 //! | `continuity` | `true` (Maillot section 7; see [`crate::maps::stamp`]) |
+//! | `interpolate` | `"catmull-rom"`: the path is the smooth curve through its points; `"linear"`: the geodesics between consecutive points (also for ribbons; [`Interpolate`]) |
 
 use super::at::{check_at, AtSpec};
 use crate::error::{Error, Result};
@@ -58,6 +59,32 @@ pub enum Orient {
     Fixed,
 }
 
+/// How a path (a stroke's or a ribbon's) runs between its points (`"interpolate"`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+pub enum Interpolate {
+    /// `"catmull-rom"`: the centripetal Catmull-Rom spline through the points, laid on the surface
+    /// (`bake/kinds/stroke/spline.rs`): the path turns smoothly at its points.
+    #[default]
+    #[serde(rename = "catmull-rom")]
+    CatmullRom,
+    /// `"linear"`: the geodesic from each point to the next; the path has a corner at each point.
+    #[serde(rename = "linear")]
+    Linear,
+}
+
+impl Interpolate {
+    /// `"interpolate"` as given (`None`: the default); `Err` says what it may be.
+    pub(crate) fn parse(given: Option<&str>) -> std::result::Result<Self, String> {
+        match given {
+            None | Some("catmull-rom") => Ok(Interpolate::CatmullRom),
+            Some("linear") => Ok(Interpolate::Linear),
+            Some(other) => Err(format!(
+                "unknown interpolation \"{other}\"; use \"catmull-rom\" (a smooth curve through the points) or \"linear\" (geodesics between them)"
+            )),
+        }
+    }
+}
+
 /// A validated stroke.
 #[derive(Debug, Clone)]
 pub struct Stroke {
@@ -65,6 +92,8 @@ pub struct Stroke {
     pub tool: Tool,
     /// Surface points, joined along the surface.
     pub path: Vec<AtSpec>,
+    /// How the path runs between its points.
+    pub interpolate: Interpolate,
     /// Pressure per path point (1 everywhere when not given).
     pub pressure: Vec<f32>,
     /// Stamp distance as a fraction of the (pressure-scaled) stamp width.
@@ -86,6 +115,7 @@ pub struct Stroke {
 pub(crate) struct Fields<'a> {
     pub tool: &'a Option<String>,
     pub path: &'a Option<Vec<AtSpec>>,
+    pub interpolate: &'a Option<String>,
     pub pressure: &'a Option<Vec<f32>>,
     pub spacing: Option<f32>,
     pub flow: Option<f32>,
@@ -104,6 +134,7 @@ impl Fields<'_> {
         [
             ("tool", self.tool.is_some()),
             ("path", self.path.is_some()),
+            ("interpolate", self.interpolate.is_some()),
             ("pressure", self.pressure.is_some()),
             ("spacing", self.spacing.is_some()),
             ("flow", self.flow.is_some()),
@@ -150,6 +181,8 @@ pub(crate) fn validate(
     for (k, at) in path.iter().enumerate() {
         check_at(at, &field(&format!("path[{k}]")), src)?;
     }
+    let interpolate =
+        Interpolate::parse(l.interpolate.as_deref()).map_err(|d| err("interpolate", d))?;
     let pressure = match &l.pressure {
         None => vec![1.0; path.len()],
         Some(p) if p.len() != path.len() => {
@@ -219,6 +252,7 @@ pub(crate) fn validate(
     Ok(Stroke {
         tool,
         path,
+        interpolate,
         pressure,
         spacing,
         flow: unit("flow", l.flow, 1.0)?,

@@ -145,15 +145,36 @@ fn slide(k0: u32, s0: f32, off0: vec2<f32>) -> Foot {
     return Foot(k, s, off);
 }
 
+// Keep in sync with `MAX_BEND` in src/maps/ribbon/mod.rs.
+const MAX_BEND: f32 = 0.75;
+
+// The curvature a point at offset y across the curve reads its piece with: limited on the inside
+// of the turn so that y kappa stays within MAX_BEND (never at or beyond the arc's centre). Twin of
+// `reading_curvature`.
+fn reading_curvature(kappa: f32, y: f32) -> f32 {
+    if (y * kappa > 0.0) {
+        let most = MAX_BEND / abs(y);
+        return clamp(kappa, -most, most);
+    }
+    return kappa;
+}
+
 // (u, v) of the offset `off` from the foot at s on piece k, read against the arc the piece stands
 // for. Twin of `Framed::fermi`.
 fn fermi(k: u32, s: f32, off: vec2<f32>) -> vec2<f32> {
     let p = pieces[k];
     let len = p.t.w;
-    let kappa = p.n.w;
-    let last = job.piece_count - 1u;
-    let past_end = (k == 0u && s <= 0.0 && off.x < 0.0) || (k == last && s >= job.length && off.x > 0.0);
-    if (past_end || abs(kappa) * len < 1e-5) { return vec2<f32>(s + off.x, off.y); }
+    // Past the curve's ends: straight on along its tangent there, the end piece's chord turned by
+    // half the piece's turning. Twin of `Framed::past_end`.
+    let half = 0.5 * p.n.w * len;
+    let at_start = k == 0u && s <= 0.0;
+    let at_end = k == job.piece_count - 1u && s >= job.length;
+    if (at_start || at_end) {
+        let o = rotate2(off, select(-half, half, at_start));
+        if ((at_start && o.x < 0.0) || (at_end && o.x > 0.0)) { return vec2<f32>(s + o.x, o.y); }
+    }
+    let kappa = reading_curvature(p.n.w, off.y);
+    if (abs(kappa) * len < 1e-5) { return vec2<f32>(s + off.x, off.y); }
     let at = vec2<f32>(s - p.start.w + off.x, off.y);
     let r = 1.0 / abs(kappa);
     let h = sqrt(max(r * r - 0.25 * len * len, 0.0)) * sign(kappa);

@@ -277,7 +277,7 @@ pub fn run(
 ) -> Result<(RibbonStatus, Vec<u32>)> {
     let (topo, gpu) = (mesh.topo, mesh.gpu);
     let t = std::time::Instant::now();
-    let framed = Framed::new(topo, curve);
+    let framed = Framed::new(topo, curve, reach);
     if framed.pieces.is_empty() {
         return Ok((RibbonStatus::default(), Vec::new()));
     }

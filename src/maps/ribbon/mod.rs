@@ -24,11 +24,15 @@
 //!    γ's polyline; on curved surfaces it treats the strip between the two feet as flat, an error of
 //!    the order of the offset times the curvature that shrinks with the strip's width.
 //! 4. **Reading**: the offset is read against the smooth curve the polyline samples, each piece as
-//!    the circular arc its knots' turning stands for (`Framed::fermi`), not against the polyline,
-//!    whose corners would put an error of |v| times half the turning angle into u.
+//!    a circular arc with γ's mean curvature over the stretch the strip reaches (`Framed::fermi`,
+//!    `Turning::curvature`), not against the polyline, whose corners would put an error of |v|
+//!    times half the turning angle into u. Inside a turn no point is read at or beyond its arc's
+//!    centre (`reading_curvature`).
 //!
 //! Tested against analytic Fermi coordinates (`tests/ribbon.rs`): a circular arc on a plane (1.6e-5
-//! for chords of 0.01) and a helix on a cylinder (converging under refinement).
+//! for chords of 0.01), path points on circles on a plane, both sides of the curve (4.8e-5 × the
+//! radius along their spline, within the polyline's own error along the polyline), and a helix on
+//! a cylinder (converging under refinement).
 //!
 
 use crate::maps::expmap::cpu::{transfer, Item, Seed};
@@ -69,7 +73,7 @@ impl super::MapMethod for RibbonMethod {
 }
 
 /// One piece's frame: start point, unit tangent, unit normal (its triangle's), N × T, length, arc
-/// length at its start and the curvature it stands for ([`Framed::curvature`]).
+/// length at its start and the curvature it is read with ([`Turning::curvature`]).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Piece {
     start: Vec3,
@@ -120,7 +124,9 @@ pub(crate) struct SeedFoot {
 }
 
 impl Framed {
-    pub(crate) fn new(topo: &Topology, c: &Curve) -> Self {
+    /// The pieces of `c` with their frames, each with the curvature γ turns with over the stretch
+    /// within `reach` of its middle ([`Turning::curvature`]): the strip reaches that far from γ.
+    pub(crate) fn new(topo: &Topology, c: &Curve, reach: f32) -> Self {
         let mut pieces = Vec::new();
         let mut arc = 0.0;
         for (k, &tri) in c.triangles.iter().enumerate() {
@@ -143,14 +149,14 @@ impl Framed {
             });
             arc += len;
         }
-        let mut framed = Self {
+        let turning = Turning::new(&pieces);
+        for p in &mut pieces {
+            p.kappa = turning.curvature(p.arc + 0.5 * p.len, reach);
+        }
+        Self {
             pieces,
             length: arc,
-        };
-        for k in 0..framed.pieces.len() {
-            framed.pieces[k].kappa = framed.curvature(k);
         }
-        framed
     }
 
     /// The piece holding arc length `s` (the last one at the end).
@@ -171,18 +177,18 @@ impl Framed {
     /// The polyline samples a smooth curve; reading the offset against the polyline itself would
     /// leave an error of |v| times half the turning angle at each knot (beside a convex corner no
     /// perpendicular foot exists, beside a concave one two do: 2.5e-3 in the plane test's strip).
-    /// So the piece is read as the circular arc through its two ends with the curvature its knots
-    /// stand for (turning angle over the mean length of the two pieces there, averaged over its two
-    /// knots): v is the signed distance to that arc and u the arc length of the point's radial
-    /// foot on it, scaled so that the piece keeps its length (u stays continuous from piece to
-    /// piece). Past γ's ends the offset continues straight: u = s + x, v = y.
+    /// So the piece is read as the circular arc through its two ends with the curvature γ turns
+    /// with there ([`Turning::curvature`], limited by [`reading_curvature`]): v is the signed
+    /// distance to that arc and u the arc length of the point's radial foot on it, scaled so that
+    /// the piece keeps its length (u stays continuous from piece to piece). Past γ's ends the
+    /// offset continues straight ([`Framed::past_end`]).
     fn fermi(&self, k: usize, s: f32, off: Vec2) -> [f32; 2] {
+        if let Some(uv) = self.past_end(k, s, off) {
+            return uv;
+        }
         let p = &self.pieces[k];
-        let last = self.pieces.len() - 1;
-        let past_end =
-            (k == 0 && s <= 0.0 && off.x < 0.0) || (k == last && s >= self.length && off.x > 0.0);
-        let kappa = p.kappa;
-        if past_end || kappa.abs() * p.len < 1e-5 {
+        let kappa = reading_curvature(p.kappa, off.y);
+        if kappa.abs() * p.len < 1e-5 {
             return [s + off.x, off.y];
         }
         // In the piece's frame from its start: the point, the arc's centre.
@@ -197,19 +203,25 @@ impl Framed {
         [u, v]
     }
 
-    /// The signed curvature piece `k` stands for: the turning angles at its knots (towards B
-    /// positive) over the mean lengths of the pieces there, averaged.
-    fn curvature(&self, k: usize) -> f32 {
-        let turn =
-            |a: &Piece, b: &Piece| b.t.dot(a.b).atan2(b.t.dot(a.t)) / (0.5 * (a.len + b.len));
+    /// (u, v) of the offset `off` (piece `k`'s frame) from the foot at arc length `s` where that
+    /// foot is one of γ's ends and the point lies beyond it: u = s + x, v = y, read along γ's
+    /// tangent at the end, which is the end piece's arc's (its chord turned by half the piece's
+    /// turning; read along the chord, points level with the end would have u off by |v| times
+    /// that half-turn). `None` for a point within γ's span.
+    fn past_end(&self, k: usize, s: f32, off: Vec2) -> Option<[f32; 2]> {
         let p = &self.pieces[k];
-        let before = (k > 0).then(|| turn(&self.pieces[k - 1], p));
-        let after = self.pieces.get(k + 1).map(|q| turn(p, q));
-        match (before, after) {
-            (Some(a), Some(b)) => 0.5 * (a + b),
-            (Some(a), None) | (None, Some(a)) => a,
-            (None, None) => 0.0,
-        }
+        let half = 0.5 * p.kappa * p.len;
+        let (start, end) = (
+            k == 0 && s <= 0.0,
+            k == self.pieces.len() - 1 && s >= self.length,
+        );
+        let o = match (start, end) {
+            (true, _) => Vec2::from_angle(half).rotate(off),
+            (_, true) => Vec2::from_angle(-half).rotate(off),
+            _ => return None,
+        };
+        let beyond = (start && o.x < 0.0) || (end && o.x > 0.0);
+        beyond.then_some([s + o.x, o.y])
     }
 
     /// Foot of `x` on piece `k`: arc length and offset (along T, along B) in its frame.
@@ -218,6 +230,78 @@ impl Framed {
         let along = (x - p.start).dot(p.t).clamp(0.0, p.len);
         let d = x - (p.start + p.t * along);
         (p.arc + along, Vec2::new(d.dot(p.t), d.dot(p.b)))
+    }
+}
+
+/// The most a point's offset across γ, times the curvature its piece is read with, may be on the
+/// inside of a turn ([`reading_curvature`]).
+const MAX_BEND: f32 = 0.75;
+
+/// The curvature a point at offset `y` across γ (towards B) reads its piece with: the piece's
+/// `kappa`, limited on the inside of the turn (y κ > 0) so that y κ stays within [`MAX_BEND`].
+/// A point at the arc's centre (y κ = 1) has every foot on the arc at once and a point beyond it
+/// has its radial foot on the arc's far side, its u turned half way around the centre; near a
+/// smooth curve the strip stays well clear of its centres of curvature, and where it does not (a
+/// corner sharper than the strip is wide, a turn tighter than it) no nearest point of γ says what
+/// u is and the harmonic repair takes the part over ([`repair`]).
+fn reading_curvature(kappa: f32, y: f32) -> f32 {
+    if y * kappa > 0.0 {
+        kappa.clamp(-MAX_BEND / y.abs(), MAX_BEND / y.abs())
+    } else {
+        kappa
+    }
+}
+
+/// γ's cumulative turning Φ(s) (towards B positive): the turning at each knot spread evenly
+/// between the middles of the two pieces that meet there, so that Φ is linear in s along a
+/// polyline that samples a circle evenly, and grows by a knot's turning angle across it.
+struct Turning {
+    /// Arc length at each piece's middle.
+    mids: Vec<f32>,
+    /// Φ at each piece's middle.
+    phi: Vec<f32>,
+}
+
+impl Turning {
+    fn new(pieces: &[Piece]) -> Self {
+        let mids = pieces.iter().map(|p| p.arc + 0.5 * p.len).collect();
+        let mut phi = Vec::with_capacity(pieces.len());
+        let mut total = 0.0;
+        phi.push(total);
+        for w in pieces.windows(2) {
+            total += w[1].t.dot(w[0].b).atan2(w[1].t.dot(w[0].t));
+            phi.push(total);
+        }
+        Self { mids, phi }
+    }
+
+    /// Φ at arc length `s` (constant before the first piece's middle and past the last's).
+    fn at(&self, s: f32) -> f32 {
+        let i = self.mids.partition_point(|&m| m <= s);
+        if i == 0 {
+            return self.phi[0];
+        }
+        if i == self.mids.len() {
+            return self.phi[i - 1];
+        }
+        let (m0, m1) = (self.mids[i - 1], self.mids[i]);
+        let f = if m1 > m0 { (s - m0) / (m1 - m0) } else { 1.0 };
+        self.phi[i - 1] + f * (self.phi[i] - self.phi[i - 1])
+    }
+
+    /// γ's mean curvature over the stretch within `half` of arc length `s` (cut to the span of
+    /// the pieces' middles, where Φ is defined): a circle's curvature along any stretch of a
+    /// polyline that samples it evenly. The pieces beside a corner (a `"linear"` path's point,
+    /// where two joined geodesics meet at an angle) are a quarter of an edge long; divided by their
+    /// lengths alone the corner's angle is the curvature of an arc whose centre lies inside the
+    /// strip. Over the strip's reach it is the turning the strip beside the corner goes through.
+    fn curvature(&self, s: f32, half: f32) -> f32 {
+        let (first, last) = (self.mids[0], self.mids[self.mids.len() - 1]);
+        let (a, b) = ((s - half).max(first), (s + half).min(last));
+        if b - a <= 1e-6 * (last - first) || b <= a {
+            return 0.0;
+        }
+        (self.at(b) - self.at(a)) / (b - a)
     }
 }
 
@@ -273,7 +357,7 @@ fn slide(c: &Framed, mut k: usize, mut s: f32, mut off: Vec2) -> (usize, f32, Ve
 /// with no piece of positive length reaches nothing.
 pub fn ribbon_cpu(topo: &Topology, curve: &Curve, reach: f32) -> RibbonMap {
     let n = topo.positions.len();
-    let framed = Framed::new(topo, curve);
+    let framed = Framed::new(topo, curve, reach);
     let mut map = RibbonMap {
         dist: vec![f32::INFINITY; n],
         uv: vec![[0.0; 2]; n],

@@ -39,12 +39,12 @@ pub const DEFAULT_LAMBDA: f32 = 0.2;
 /// The parts of `curve` (arc-length ranges) the repair re-solves, for a strip reaching
 /// `sides` = [left, right] from γ and threshold `lambda`.
 pub fn curved_parts(topo: &Topology, curve: &Curve, sides: [f32; 2], lambda: f32) -> Vec<[f32; 2]> {
-    let framed = Framed::new(topo, curve);
+    let d = sides[0].max(sides[1]).max(1e-12);
+    let framed = Framed::new(topo, curve, d);
     let n = framed.pieces.len();
     if n < 2 {
         return Vec::new();
     }
-    let d = sides[0].max(sides[1]).max(1e-12);
     // Turning at each knot (towards B positive) and its arc length: the cumulative turning Φ(s).
     let knots: Vec<(f32, f32)> = framed
         .pieces

@@ -14,6 +14,7 @@
 pub mod clone;
 pub mod continuity;
 pub mod path;
+pub mod spline;
 pub mod stamps;
 
 use super::{placement_problem, query_of, Expansion, Kind};
@@ -21,6 +22,7 @@ pub use crate::bake::report::StrokeReport;
 use crate::bake::stage::Cx;
 use crate::error::{Error, Result};
 use crate::io::job::Layer;
+use crate::io::stroke::Interpolate;
 use crate::maps::expmap::cpu::{Options, Seed};
 use crate::place::{Placement, Query};
 use glam::Vec3;
@@ -77,7 +79,7 @@ impl Kind for StrokeKind {
                 )));
             }
         }
-        let surface_path = join_path(cx, placements, edge, &err)?;
+        let surface_path = join_path(cx, (placements, stroke.interpolate), edge, &err)?;
         let units = stamps::stamps(topo, layer, stroke, &surface_path, &placements[0], &err)?;
         let stamps = units.len();
         let (units, pairs) = match source.first() {
@@ -135,9 +137,28 @@ impl Kind for StrokeKind {
 /// a full-mesh slot when read back: the batch bounds the memory a long path holds).
 const SEGMENT_BATCH: usize = 16;
 
-/// The stroke's path on the surface: each segment's exponential map on the GPU (in batches of
-/// [`SEGMENT_BATCH`]), walked back to the surface ([`path::build`]).
+/// The path through `placements` on the surface: the geodesics between consecutive points
+/// ([`geodesic_path`]), and for `"catmull-rom"` the smooth curve through the points laid along
+/// them ([`spline::smooth`]).
 pub(crate) fn join_path(
+    cx: Cx<'_>,
+    (placements, interpolate): (&[Placement], Interpolate),
+    edge: f32,
+    err: &dyn Fn(String) -> Error,
+) -> Result<path::SurfacePath> {
+    let joined = geodesic_path(cx, placements, edge, err)?;
+    Ok(match interpolate {
+        Interpolate::Linear => joined,
+        Interpolate::CatmullRom => {
+            let points: Vec<Vec3> = placements.iter().map(|p| Vec3::from(p.point)).collect();
+            spline::smooth(&cx.mesh.topo, &joined, &points, 0.25 * edge)
+        }
+    })
+}
+
+/// The geodesics between consecutive placements: each segment's exponential map on the GPU (in
+/// batches of [`SEGMENT_BATCH`]), walked back to the surface ([`path::extend`]).
+fn geodesic_path(
     cx: Cx<'_>,
     placements: &[Placement],
     edge: f32,
