@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! The same job gives the same bytes: a job whose layers cover triangles that overlap in UV space
-//! (a folded strip whose two halves share one UV square) baked five times on one engine, and in
-//! separate processes with one and two llvmpipe threads, gives identical texels, and identical
-//! distortion figures in its report.
+//! (a folded strip whose two halves share one UV square), and Spot with 24 exponential-map decals,
+//! each baked five times on one engine and in separate processes with one and two llvmpipe
+//! threads, give identical texels and identical distortion figures in their reports.
 
 mod common;
 use common::*;
@@ -61,9 +61,19 @@ fn write_job(dir: &Path) -> std::path::PathBuf {
     path
 }
 
-fn distortion(report: &serde_json::Value) -> Vec<serde_json::Value> {
+/// Each layer's distortion figures as the f32s the engine computed (a report read from a file
+/// carries them printed shortest, one held in memory widened to f64).
+fn distortion(report: &serde_json::Value) -> Vec<Vec<(String, f32)>> {
     let layers = report["layers"].as_array().unwrap();
-    layers.iter().map(|l| l["distortion"].clone()).collect()
+    layers
+        .iter()
+        .map(|l| {
+            let d = l["distortion"].as_object().unwrap();
+            d.iter()
+                .map(|(k, v)| (k.clone(), v.as_f64().unwrap() as f32))
+                .collect()
+        })
+        .collect()
 }
 
 #[test]
@@ -112,4 +122,77 @@ fn overlapping_triangles_bake_the_same_bytes_every_time() {
     );
     let decoded = decalbake::io::image::LinearImage::load(&dir.join("out.png")).unwrap();
     assert_eq!((decoded.width, decoded.height), (256, 256));
+}
+
+/// Spot with 24 overlapping exponential-map decals round its body, at 512².
+fn write_spot_job(dir: &Path) -> std::path::PathBuf {
+    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
+    std::fs::write(
+        dir.join("img.png"),
+        test_image(32, 32, 5, true).encode_png(8),
+    )
+    .unwrap();
+    let layers: Vec<serde_json::Value> = (0..24)
+        .map(|i| {
+            let t = i as f32 * 0.26;
+            let origin = [
+                2.0 * t.cos(),
+                0.1 + 0.15 * (2.0 * t).sin(),
+                0.2 + 2.0 * t.sin(),
+            ];
+            let dir = [-origin[0], 0.0, 0.2 - origin[2]];
+            serde_json::json!({ "image": "img.png", "method": "expmap", "size": [0.3, 0.3],
+                "at": { "ray": { "origin": origin, "dir": dir } } })
+        })
+        .collect();
+    let job = serde_json::json!({ "mesh": spot, "texture": { "width": 512, "height": 512 },
+        "layers": layers, "output": { "texture": "spot.png", "report": "spot.json" } });
+    let path = dir.join("spot-job.json");
+    std::fs::write(&path, job.to_string()).unwrap();
+    path
+}
+
+#[test]
+fn twenty_four_decals_on_spot_bake_the_same_bytes_in_every_process() {
+    let dir = scratch("determinism_spot");
+    let path = write_spot_job(&dir);
+    let job = Job::load(&path, None).unwrap();
+    let engine = engine();
+    let mesh = engine.load_mesh(&job.mesh).unwrap();
+    let first = engine.bake(&mesh, &job).unwrap();
+    let first_report = serde_json::to_value(&first.report).unwrap();
+    for run in 1..5 {
+        let again = engine.bake(&mesh, &job).unwrap();
+        assert!(again.texels == first.texels, "run {run}: the texels differ");
+        let report = serde_json::to_value(&again.report).unwrap();
+        assert_eq!(distortion(&report), distortion(&first_report), "run {run}");
+    }
+    let mut files = Vec::new();
+    for threads in ["1", "2"] {
+        let (code, _, stderr) = cli_env(
+            &["bake", path.to_str().unwrap()],
+            &[("LP_NUM_THREADS", threads)],
+        );
+        assert_eq!(code, 0, "{stderr}");
+        files.push(std::fs::read(dir.join("spot.png")).unwrap());
+        let report: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.join("spot.json")).unwrap()).unwrap();
+        assert_eq!(
+            distortion(&report),
+            distortion(&first_report),
+            "{threads} threads"
+        );
+    }
+    assert!(
+        files[0] == files[1],
+        "1 and 2 threads wrote different files"
+    );
+    // The file is the library's bake, encoded.
+    let encoded = decalbake::io::image::png_bytes(512, 512, 8, &first.texels);
+    let decoded = decalbake::io::image::LinearImage::decode(&encoded).unwrap();
+    let written = decalbake::io::image::LinearImage::load(&dir.join("spot.png")).unwrap();
+    assert!(
+        decoded.pixels == written.pixels,
+        "the CLI's file differs from the library's bake"
+    );
 }

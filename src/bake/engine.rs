@@ -694,6 +694,7 @@ impl Engine {
     pub fn bake_to_texture(&self, mesh: &LoadedMesh, job: &Job) -> Result<(wgpu::Texture, Report)> {
         let mut job8 = job.clone();
         job8.bit_depth = 8;
+        super::limits(self, mesh, &job8)?;
         if let Some(tiled) = super::tiled(self, mesh, &job8, &|_| {}) {
             let baked = tiled?;
             let tex = self.ctx.scoped("texture output", || {

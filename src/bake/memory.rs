@@ -121,7 +121,7 @@ pub fn check(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<()> {
         &job.source,
         "texture",
         format!(
-            "a {}x{} bake {how} needs about {} ({} on the host, {} on the device{}), above {source}: {}; bake a smaller texture, use smaller tiles (`texture.tile`: the texture itself stays in host memory), or raise the limit",
+            "a {}x{} bake {how} needs about {} ({} on the host, {} on the device{}), above {source}: {}; bake a smaller texture, use smaller tiles (`texture.tile`: the texture itself stays in host memory), or, where the machine has the room (swap, memory other processes will free), give a larger `max_memory` or `--max-memory`",
             job.width,
             job.height,
             bytes_text(needed),
