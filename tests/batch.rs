@@ -497,6 +497,20 @@ fn a_batch_killed_at_random_points_resumes_each_job_once_with_the_same_bytes() {
         .collect();
     done.sort();
     assert_eq!(done, (1..=8).collect::<Vec<u64>>(), "{journal}");
+    // The temporaries the kills left are gone (the jobs baked again cleared them), and the jobs'
+    // folders hold only outputs.
+    for e in std::fs::read_dir(&killed).unwrap().flatten() {
+        if e.path().is_dir() {
+            for f in std::fs::read_dir(e.path()).unwrap().flatten() {
+                let name = f.file_name().to_string_lossy().into_owned();
+                assert!(
+                    !name.contains(".tmp-"),
+                    "left behind: {}",
+                    f.path().display()
+                );
+            }
+        }
+    }
     let (a, b) = (outputs_under(&full), outputs_under(&killed));
     assert_eq!(a.len(), 16, "a texture and a model a job: {:?}", a.keys());
     assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());

@@ -459,6 +459,7 @@ fn bake_entry(
             return Ok(("skipped", done, hash));
         }
     }
+    clear_stale_temporaries(&out_dir);
     let cx = (engine, generation, shared, hash.as_str(), on_stage);
     let mut undo = Undo::default();
     let done = if animated {
@@ -474,6 +475,28 @@ fn bake_entry(
     }
     let names = outputs.iter().map(|p| p.display().to_string()).collect();
     Ok(("ok", names, hash))
+}
+
+/// Removes the temporary files (`.NAME.tmp-PID`, `io::image::write_atomic`) that a process
+/// killed while writing left in `dir`: those whose process no longer runs (`/proc/PID`), so a
+/// resumed batch leaves only outputs behind. A file of a live process (another bake writing
+/// there now) is left alone.
+fn clear_stale_temporaries(dir: &Path) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let Some((_, pid)) = name.strip_prefix('.').and_then(|n| n.rsplit_once(".tmp-")) else {
+            continue;
+        };
+        let Ok(pid) = pid.parse::<u32>() else {
+            continue;
+        };
+        if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
 }
 
 /// What [`write_sets`] and [`write_frames`] share: the engine, the device's generation, the run's
@@ -920,5 +943,28 @@ mod fault {
             });
             bake()
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::clear_stale_temporaries;
+
+    #[test]
+    fn stale_temporaries_go_and_live_ones_and_outputs_stay() {
+        let dir = std::env::temp_dir().join(format!("decalbake-stale-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // No process has an id above the kernel's pid_max (at most 2^22).
+        let dead = ".a.png.tmp-99999999";
+        let live = format!(".b.png.tmp-{}", std::process::id());
+        for name in [dead, live.as_str(), "a.png", ".hidden.tmp-notapid"] {
+            std::fs::write(dir.join(name), b"x").unwrap();
+        }
+        clear_stale_temporaries(&dir);
+        assert!(!dir.join(dead).exists(), "a dead process's temporary stays");
+        for name in [live.as_str(), "a.png", ".hidden.tmp-notapid"] {
+            assert!(dir.join(name).exists(), "{name} was removed");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
