@@ -76,6 +76,51 @@ fn distortion(report: &serde_json::Value) -> Vec<Vec<(String, f32)>> {
         .collect()
 }
 
+/// Bakes `job` four more times on `engine` and checks each against `first`: every texel value
+/// and the distortion figures.
+fn bake_again_and_compare(
+    engine: &decalbake::Engine,
+    mesh: &decalbake::LoadedMesh,
+    job: &Job,
+    first: &decalbake::Baked,
+) {
+    let first_report = serde_json::to_value(&first.report).unwrap();
+    for run in 1..5 {
+        let again = engine.bake(mesh, job).unwrap();
+        let differ = first
+            .texels
+            .iter()
+            .zip(&again.texels)
+            .filter(|(a, b)| a != b)
+            .count();
+        assert_eq!(differ, 0, "run {run}: {differ} texel values differ");
+        let report = serde_json::to_value(&again.report).unwrap();
+        assert_eq!(distortion(&report), distortion(&first_report), "run {run}");
+    }
+}
+
+/// `decalbake bake JOB` in two processes, with one and two rasterizer threads: the texture file
+/// each wrote, and its report where the job writes one.
+fn bake_in_processes(
+    job: &Path,
+    texture: &Path,
+    report: Option<&Path>,
+) -> Vec<(Vec<u8>, Option<serde_json::Value>)> {
+    ["1", "2"]
+        .iter()
+        .map(|threads| {
+            let (code, _, stderr) = cli_env(
+                &["bake", job.to_str().unwrap()],
+                &[("LP_NUM_THREADS", threads)],
+            );
+            assert_eq!(code, 0, "{stderr}");
+            let report =
+                report.map(|r| serde_json::from_slice(&std::fs::read(r).unwrap()).unwrap());
+            (std::fs::read(texture).unwrap(), report)
+        })
+        .collect()
+}
+
 #[test]
 fn overlapping_triangles_bake_the_same_bytes_every_time() {
     let dir = scratch("determinism");
@@ -93,31 +138,12 @@ fn overlapping_triangles_bake_the_same_bytes_every_time() {
         .map(|l| l["triangles_covered"].as_u64().unwrap())
         .sum();
     assert!(covered > 400, "the layers cover too little: {covered}");
-    for run in 1..5 {
-        let again = engine.bake(&mesh, &job).unwrap();
-        let differ = first
-            .texels
-            .iter()
-            .zip(&again.texels)
-            .filter(|(a, b)| a != b)
-            .count();
-        assert_eq!(differ, 0, "run {run}: {differ} texel values differ");
-        let report = serde_json::to_value(&again.report).unwrap();
-        assert_eq!(distortion(&report), distortion(&first_report), "run {run}");
-    }
+    bake_again_and_compare(&engine, &mesh, &job, &first);
 
     // Separate processes, one and two rasterizer threads: the same file.
-    let mut files = Vec::new();
-    for threads in ["1", "2"] {
-        let (code, _, stderr) = cli_env(
-            &["bake", path.to_str().unwrap()],
-            &[("LP_NUM_THREADS", threads)],
-        );
-        assert_eq!(code, 0, "{stderr}");
-        files.push(std::fs::read(dir.join("out.png")).unwrap());
-    }
+    let files = bake_in_processes(&path, &dir.join("out.png"), None);
     assert!(
-        files[0] == files[1],
+        files[0].0 == files[1].0,
         "1 and 2 threads wrote different files"
     );
     let decoded = decalbake::io::image::LinearImage::load(&dir.join("out.png")).unwrap();
@@ -132,19 +158,7 @@ fn write_spot_job(dir: &Path) -> std::path::PathBuf {
         test_image(32, 32, 5, true).encode_png(8),
     )
     .unwrap();
-    let layers: Vec<serde_json::Value> = (0..24)
-        .map(|i| {
-            let t = i as f32 * 0.26;
-            let origin = [
-                2.0 * t.cos(),
-                0.1 + 0.15 * (2.0 * t).sin(),
-                0.2 + 2.0 * t.sin(),
-            ];
-            let dir = [-origin[0], 0.0, 0.2 - origin[2]];
-            serde_json::json!({ "image": "img.png", "method": "expmap", "size": [0.3, 0.3],
-                "at": { "ray": { "origin": origin, "dir": dir } } })
-        })
-        .collect();
+    let layers = spot_ring("img.png", 0.3);
     let job = serde_json::json!({ "mesh": spot, "texture": { "width": 512, "height": 512 },
         "layers": layers, "output": { "texture": "spot.png", "report": "spot.json" } });
     let path = dir.join("spot-job.json");
@@ -161,30 +175,18 @@ fn twenty_four_decals_on_spot_bake_the_same_bytes_in_every_process() {
     let mesh = engine.load_mesh(&job.mesh).unwrap();
     let first = engine.bake(&mesh, &job).unwrap();
     let first_report = serde_json::to_value(&first.report).unwrap();
-    for run in 1..5 {
-        let again = engine.bake(&mesh, &job).unwrap();
-        assert!(again.texels == first.texels, "run {run}: the texels differ");
-        let report = serde_json::to_value(&again.report).unwrap();
-        assert_eq!(distortion(&report), distortion(&first_report), "run {run}");
-    }
-    let mut files = Vec::new();
-    for threads in ["1", "2"] {
-        let (code, _, stderr) = cli_env(
-            &["bake", path.to_str().unwrap()],
-            &[("LP_NUM_THREADS", threads)],
-        );
-        assert_eq!(code, 0, "{stderr}");
-        files.push(std::fs::read(dir.join("spot.png")).unwrap());
-        let report: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(dir.join("spot.json")).unwrap()).unwrap();
+    bake_again_and_compare(&engine, &mesh, &job, &first);
+    let runs = bake_in_processes(&path, &dir.join("spot.png"), Some(&dir.join("spot.json")));
+    for ((_, report), threads) in runs.iter().zip([1, 2]) {
+        let report = report.as_ref().unwrap();
         assert_eq!(
-            distortion(&report),
+            distortion(report),
             distortion(&first_report),
             "{threads} threads"
         );
     }
     assert!(
-        files[0] == files[1],
+        runs[0].0 == runs[1].0,
         "1 and 2 threads wrote different files"
     );
     // The file is the library's bake, encoded.

@@ -19,16 +19,7 @@ fn heavy_job(dir: &Path) -> Job {
         test_image(32, 32, 5, true).encode_png(8),
     )
     .unwrap();
-    let layers: Vec<serde_json::Value> = (0..24)
-        .map(|i| {
-            let t = i as f32 * 0.26;
-            let y = 0.1 + 0.15 * (2.0 * t).sin();
-            let origin = [2.0 * t.cos(), y, 0.2 + 2.0 * t.sin()];
-            let dir = [-origin[0], 0.0, 0.2 - origin[2]];
-            serde_json::json!({ "image": "img.png", "method": "expmap", "size": [0.25, 0.25],
-                "at": { "ray": { "origin": origin, "dir": dir } } })
-        })
-        .collect();
+    let layers = spot_ring("img.png", 0.25);
     let text = serde_json::json!({ "mesh": spot, "texture": { "width": 512, "height": 512 },
         "layers": layers, "output": { "texture": "out.png" } });
     Job::parse(&text.to_string(), &dir.join("job.json"), dir, dir).unwrap()

@@ -304,7 +304,8 @@ impl Pipelines {
     /// Longer than a screen on purpose: it is the table of the engine's compute kernels, one entry
     /// per kernel with its bindings in binding order (the data the style guide asks for, as vello's
     /// `add_shader!` list). Adding a kernel adds an entry here; two families that share bindings
-    /// or an owner are built by [`linalg_kernels`] and [`slot_kernels`]. The render pipelines, which
+    /// or an owner are built by [`linalg_kernels`], [`slot_kernels`], [`place_kernels`],
+    /// [`pelt_kernels`] and [`select_kernels`]. The render pipelines, which
     /// need more than a binding list, are built by [`Rasters`].
     pub fn new(device: &wgpu::Device) -> Self {
         use Bind::*;
@@ -328,6 +329,7 @@ impl Pipelines {
         let [chart_scatter, chart_gather, stamp_blend] = slot_kernels(device);
         let [place_bvh, place_candidates, place_reduce] = place_kernels(device);
         let [pelt_step, pelt_check] = pelt_kernels(device);
+        let [select_triangles, compact_lists] = select_kernels(device);
         Self {
             place_bvh,
             place_candidates,
@@ -335,27 +337,8 @@ impl Pipelines {
             planar_coords: Kernel::new(device, "planar_coords", &[(0, Params), (1, Ro), (2, Rw)]),
             pelt_step,
             pelt_check,
-            compact_lists: Kernel::new(
-                device,
-                "compact_lists",
-                &[(0, Params), (1, Ro), (2, Ro), (3, Rw)],
-            ),
-            select_triangles: Kernel::new(
-                device,
-                "select_triangles",
-                &[
-                    (0, Params),
-                    (1, Ro),
-                    (2, Ro),
-                    (3, Ro),
-                    (4, Ro),
-                    (5, Ro),
-                    (6, Rw),
-                    (7, Rw),
-                    (8, Ro),
-                    (9, Ro),
-                ],
-            ),
+            select_triangles,
+            compact_lists,
             layer_raster: rasters.layer,
             layer_raster_normal: std::sync::OnceLock::new(),
             atlas_clear: rasters.clear,
@@ -1078,6 +1061,23 @@ pub const AMG_STORAGE_BUFFERS: u32 = 15;
 /// Storage buffers `cg_wide.wgsl` binds (`cg_amg`'s, its pass selector in binding 0 instead of a
 /// uniform, and the partial sums).
 pub const WIDE_STORAGE_BUFFERS: u32 = 17;
+
+/// The selection stage's kernels: `select_triangles` (marks a layer's covered triangles) and
+/// `compact_lists` (gathers the marks into its list in triangle order).
+fn select_kernels(device: &wgpu::Device) -> [Kernel; 2] {
+    use Bind::*;
+    let mut select = vec![(0, Params)];
+    select.extend((1..=5).map(|b| (b, Ro)));
+    select.extend([(6, Rw), (7, Rw), (8, Ro), (9, Ro)]);
+    [
+        Kernel::new(device, "select_triangles", &select),
+        Kernel::new(
+            device,
+            "compact_lists",
+            &[(0, Params), (1, Ro), (2, Ro), (3, Rw)],
+        ),
+    ]
+}
 
 /// The placement kernels (`src/place.rs`): `place_bvh`, `place_candidates`, `place_reduce`.
 fn place_kernels(device: &wgpu::Device) -> [Kernel; 3] {

@@ -297,4 +297,19 @@ pub fn write_raw_png(path: &Path, side: u32, f: impl Fn(f32, f32) -> [f32; 4]) {
     .unwrap();
 }
 
+/// 24 exponential-map decals of `image`, `size` square, aimed by rays round Spot's body in a
+/// wave (neighbours overlap): the many-layer job of the reliability and determinism tests.
+pub fn spot_ring(image: &str, size: f32) -> Vec<serde_json::Value> {
+    (0..24)
+        .map(|i| {
+            let t = i as f32 * 0.26;
+            let y = 0.1 + 0.15 * (2.0 * t).sin();
+            let origin = [2.0 * t.cos(), y, 0.2 + 2.0 * t.sin()];
+            let dir = [-origin[0], 0.0, 0.2 - origin[2]];
+            serde_json::json!({ "image": image, "method": "expmap", "size": [size, size],
+                "at": { "ray": { "origin": origin, "dir": dir } } })
+        })
+        .collect()
+}
+
 pub mod rich;

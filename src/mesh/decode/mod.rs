@@ -162,6 +162,16 @@ fn uint(value: &Value, key: &str) -> Option<usize> {
         .and_then(|x| usize::try_from(x).ok())
 }
 
+/// Every primitive of every mesh of the document.
+fn primitives(json: &Value) -> impl Iterator<Item = &Value> {
+    json.get("meshes")
+        .and_then(Value::as_array)
+        .into_iter()
+        .flatten()
+        .filter_map(|m| m.get("primitives").and_then(Value::as_array))
+        .flatten()
+}
+
 /// The document's array `key`, mutably (`None` when absent or not an array).
 fn array_mut<'v>(json: &'v mut Value, key: &str) -> Option<&'v mut Vec<Value>> {
     json.get_mut(key).and_then(Value::as_array_mut)
@@ -501,15 +511,8 @@ impl<'a> Work<'a> {
         }
         self.drop_released_views();
         self.drop_unread_buffers();
-        let draco = self
-            .json
-            .get("meshes")
-            .and_then(Value::as_array)
-            .into_iter()
-            .flatten()
-            .filter_map(|m| m.get("primitives").and_then(Value::as_array))
-            .flatten()
-            .any(|p| p.pointer(&format!("/extensions/{DRACO}")).is_some());
+        let draco =
+            primitives(&self.json).any(|p| p.pointer(&format!("/extensions/{DRACO}")).is_some());
         let meshopt = self
             .json
             .get("bufferViews")
@@ -542,15 +545,8 @@ impl<'a> Work<'a> {
     /// or `TEXCOORD_n` that core glTF does not allow (normalised `UNSIGNED_BYTE` and
     /// `UNSIGNED_SHORT` texture coordinates it does).
     fn quantized_left(&self) -> bool {
-        let prims = self
-            .json
-            .get("meshes")
-            .and_then(Value::as_array)
-            .into_iter()
-            .flatten()
-            .filter_map(|m| m.get("primitives").and_then(Value::as_array))
-            .flatten()
-            .filter(|p| p.pointer(&format!("/extensions/{DRACO}")).is_none());
+        let prims =
+            primitives(&self.json).filter(|p| p.pointer(&format!("/extensions/{DRACO}")).is_none());
         let attrs = prims.flat_map(|p| {
             let targets = p
                 .get("targets")
