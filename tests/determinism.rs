@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! The same job gives the same bytes: a job whose layers cover triangles that overlap in UV space
-//! (a folded strip whose two halves share one UV square), and Spot with 24 exponential-map decals,
-//! each baked five times on one engine and in separate processes with one and two llvmpipe
-//! threads, give identical texels and identical distortion figures in their reports.
+//! (a folded strip whose two halves share one UV square), the same strip under 1,000 layers, and
+//! Spot with 24 exponential-map decals, each baked five times on one engine and in five
+//! processes with one and two llvmpipe threads, give identical texels and identical distortion
+//! figures in their reports.
 
 mod common;
 use common::*;
@@ -99,14 +100,14 @@ fn bake_again_and_compare(
     }
 }
 
-/// `decalbake bake JOB` in two processes, with one and two rasterizer threads: the texture file
-/// each wrote, and its report where the job writes one.
+/// `decalbake bake JOB` in five processes, with one and two rasterizer threads in turn: the
+/// texture file each wrote, and its report where the job writes one.
 fn bake_in_processes(
     job: &Path,
     texture: &Path,
     report: Option<&Path>,
 ) -> Vec<(Vec<u8>, Option<serde_json::Value>)> {
-    ["1", "2"]
+    ["1", "2", "1", "2", "1"]
         .iter()
         .map(|threads| {
             let (code, _, stderr) = cli_env(
@@ -142,10 +143,9 @@ fn overlapping_triangles_bake_the_same_bytes_every_time() {
 
     // Separate processes, one and two rasterizer threads: the same file.
     let files = bake_in_processes(&path, &dir.join("out.png"), None);
-    assert!(
-        files[0].0 == files[1].0,
-        "1 and 2 threads wrote different files"
-    );
+    for (k, f) in files.iter().enumerate() {
+        assert!(f.0 == files[0].0, "process {k} wrote a different file");
+    }
     let decoded = decalbake::io::image::LinearImage::load(&dir.join("out.png")).unwrap();
     assert_eq!((decoded.width, decoded.height), (256, 256));
 }
@@ -177,18 +177,11 @@ fn twenty_four_decals_on_spot_bake_the_same_bytes_in_every_process() {
     let first_report = serde_json::to_value(&first.report).unwrap();
     bake_again_and_compare(&engine, &mesh, &job, &first);
     let runs = bake_in_processes(&path, &dir.join("spot.png"), Some(&dir.join("spot.json")));
-    for ((_, report), threads) in runs.iter().zip([1, 2]) {
+    for (k, (file, report)) in runs.iter().enumerate() {
         let report = report.as_ref().unwrap();
-        assert_eq!(
-            distortion(report),
-            distortion(&first_report),
-            "{threads} threads"
-        );
+        assert_eq!(distortion(report), distortion(&first_report), "process {k}");
+        assert!(*file == runs[0].0, "process {k} wrote a different file");
     }
-    assert!(
-        runs[0].0 == runs[1].0,
-        "1 and 2 threads wrote different files"
-    );
     // The file is the library's bake, encoded.
     let encoded = decalbake::io::image::png_bytes(512, 512, 8, &first.texels);
     let decoded = decalbake::io::image::LinearImage::decode(&encoded).unwrap();
@@ -196,5 +189,47 @@ fn twenty_four_decals_on_spot_bake_the_same_bytes_in_every_process() {
     assert!(
         decoded.pixels == written.pixels,
         "the CLI's file differs from the library's bake"
+    );
+}
+
+/// 1,000 small layers, planar and exponential-map in turn, scattered over the folded strip (both
+/// halves, so most of them overlap another in UV space), at 256².
+#[test]
+fn a_thousand_layers_bake_the_same_bytes_every_time() {
+    let dir = scratch("determinism_1000");
+    write_job(&dir);
+    let layers: Vec<serde_json::Value> = (0..1000u32)
+        .map(|k| {
+            // A low-discrepancy walk over the 2 × 1 strip (golden-ratio steps).
+            let (x, y) = (
+                (k as f32 * 0.618034).fract() * 1.9 + 0.05,
+                (k as f32 * 0.754878).fract() * 0.9 + 0.05,
+            );
+            let method = if k % 2 == 0 { "planar" } else { "expmap" };
+            serde_json::json!({ "image": "img.png", "method": method, "size": [0.12, 0.12],
+                "angle": (k * 37 % 360) as f32, "opacity": 0.6, "at": [x, y, 0.0] })
+        })
+        .collect();
+    let text = serde_json::json!({ "mesh": "strip.glb", "texture": { "width": 256, "height": 256 },
+        "layers": layers, "output": { "texture": "many.png", "report": "many.json" } });
+    let path = dir.join("many-job.json");
+    std::fs::write(&path, text.to_string()).unwrap();
+    let job = Job::load(&path, None).unwrap();
+    let engine = engine();
+    let mesh = engine.load_mesh(&job.mesh).unwrap();
+    let first = engine.bake(&mesh, &job).unwrap();
+    assert_eq!(first.report.layers.len(), 1000);
+    assert!(first.report.layers.iter().all(|l| l.texels_covered > 0));
+    bake_again_and_compare(&engine, &mesh, &job, &first);
+    let runs = bake_in_processes(&path, &dir.join("many.png"), Some(&dir.join("many.json")));
+    let first_report = serde_json::to_value(&first.report).unwrap();
+    for (k, (file, report)) in runs.iter().enumerate() {
+        let report = report.as_ref().unwrap();
+        assert_eq!(distortion(report), distortion(&first_report), "process {k}");
+        assert!(*file == runs[0].0, "process {k} wrote a different file");
+    }
+    assert!(
+        runs[0].0 == first.to_png(),
+        "the CLI's file is the library's bake, encoded"
     );
 }

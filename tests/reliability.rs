@@ -131,11 +131,11 @@ fn allocations_beyond_the_device_limits_are_typed_errors() {
     };
     // 1 MiB buffers: Spot's 24 coordinate slots (92 KiB each, with their triangle lists) go in chunks of 14; same bytes.
     assert_eq!(bake(1 << 20, 2 << 20, 128).unwrap().texels, reference);
-    // A 256² canvas plane (512 KiB) does not fit 256 KiB: the bake goes by tiles by itself
-    // (tests/tiles.rs checks the bytes), but tiles of 256 that the job asks for are refused.
+    // A 256² canvas plane (512 KiB) does not fit 256 KiB: the bake goes by bands of 128 rows by
+    // itself (tests/tiles.rs checks the bytes), but tiles of 256 that the job asks for are refused.
     assert_eq!(
-        bake(256 << 10, 1 << 20, 256).unwrap().report.tiles,
-        Some([128, 4])
+        bake(256 << 10, 1 << 20, 256).unwrap().report.tile_size,
+        Some([256, 128])
     );
     let mut tiled = job.clone();
     tiled.tile = Some(256);

@@ -52,6 +52,8 @@ fn tiled_bakes_are_the_untiled_bytes() {
             128,
             serde_json::json!({ "padding": 3, "samples": 9 }),
         ),
+        // A padding that reaches past the next band of rows (the halo spans two bands).
+        ([256, 256], 64, serde_json::json!({ "padding": 80 })),
     ];
     for (side, tile, extra) in cases {
         let mut j = job(&dir, side, extra.clone());
@@ -102,8 +104,8 @@ fn tiled_bakes_are_the_untiled_bytes() {
 }
 
 /// A device whose storage buffers hold 1 MiB: a 512² canvas plane (2 MiB) cannot be one buffer, so
-/// the bake goes by tiles of 256 by itself, and gives the bytes of the untiled bake on a device
-/// with room for it.
+/// the bake goes by tiles by itself (bands the width across, 256 rows each), and gives the bytes
+/// of the untiled bake on a device with room for it.
 #[test]
 fn a_texture_beyond_the_storage_limit_is_tiled_automatically() {
     let dir = scratch("tiles_auto");
@@ -135,7 +137,8 @@ fn a_texture_beyond_the_storage_limit_is_tiled_automatically() {
     let tight = Engine::from_adapter(&adapter, device, queue).unwrap();
     let mesh = tight.load_mesh(&j.mesh).unwrap();
     let baked = tight.bake(&mesh, &j).unwrap();
-    assert_eq!(baked.report.tiles, Some([256, 4]));
+    assert_eq!(baked.report.tiles, Some([512, 2]));
+    assert_eq!(baked.report.tile_size, Some([512, 256]));
     let differ: Vec<usize> = (0..baked.texels.len())
         .filter(|&k| baked.texels[k] != reference.texels[k])
         .collect();

@@ -18,8 +18,8 @@ pub fn check_job(
     sides(engine, job)?;
     let (max_binding, limit_name) = engine.ctx.storage_limit();
     // The canvas holds the window, or one tile of a tiled bake, or the whole texture.
-    let [_, _, cw, ch] = window.unwrap_or_else(|| match super::tiles::tile_side(engine, job) {
-        Some(s) => [0, 0, s.min(job.width), s.min(job.height)],
+    let [_, _, cw, ch] = window.unwrap_or_else(|| match super::tiles::tile_shape(engine, job) {
+        Some([tw, th]) => [0, 0, tw.min(job.width), th.min(job.height)],
         None => [0, 0, job.width, job.height],
     });
     let texels = cw as u64 * ch as u64;

@@ -591,87 +591,121 @@ pub fn nearest_island(island: &[bool], w: u32, h: u32) -> Vec<Option<(u64, Vec<u
 /// pointing at themselves, `u32::MAX` when there is no island. O(texels).
 pub fn nearest_island_map(island: &[bool], w: u32, h: u32) -> Vec<u32> {
     let (wi, hi) = (w as usize, h as usize);
-    // Pass 1: nearest island row in each column.
-    let mut col_near = vec![-1i64; wi * hi];
-    for x in 0..wi {
-        let mut last = -1i64;
-        for y in 0..hi {
-            if island[y * wi + x] {
-                last = y as i64;
-            }
-            col_near[y * wi + x] = last;
+    let col_near = nearest_island_rows(island, wi, hi);
+    // Pass 2, per row (rows are independent: split between the cores).
+    let mut out = vec![u32::MAX; wi * hi];
+    let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+    let band = hi.div_ceil(threads).max(1);
+    std::thread::scope(|s| {
+        for (b, chunk) in out.chunks_mut((band * wi).max(1)).enumerate() {
+            let col_near = &col_near;
+            s.spawn(move || {
+                let (mut v, mut z) = (vec![0i64; wi], vec![0f64; wi + 1]);
+                for (r, row) in chunk.chunks_exact_mut(wi).enumerate() {
+                    let y = b * band + r;
+                    envelope_row(island, col_near, (wi, y), (&mut v, &mut z), row);
+                }
+            });
         }
-        let mut next = -1i64;
-        for y in (0..hi).rev() {
+    });
+    out
+}
+
+/// Pass 1 of [`nearest_island_map`]: each texel's nearest island row in its column (`-1`: none),
+/// the upper of two at the same distance. Walked row by row (one state per column), so that a
+/// wide texture reads memory in order.
+fn nearest_island_rows(island: &[bool], wi: usize, hi: usize) -> Vec<i32> {
+    let mut col_near = vec![-1i32; wi * hi];
+    let mut last = vec![-1i32; wi];
+    for y in 0..hi {
+        let row = &mut col_near[y * wi..(y + 1) * wi];
+        for (x, c) in row.iter_mut().enumerate() {
             if island[y * wi + x] {
-                next = y as i64;
+                last[x] = y as i32;
             }
-            let prev = col_near[y * wi + x];
-            if next >= 0 && (prev < 0 || next - (y as i64) < (y as i64) - prev) {
-                col_near[y * wi + x] = next;
+            *c = last[x];
+        }
+    }
+    let next = &mut last;
+    next.fill(-1);
+    for y in (0..hi).rev() {
+        let row = &mut col_near[y * wi..(y + 1) * wi];
+        for (x, c) in row.iter_mut().enumerate() {
+            if island[y * wi + x] {
+                next[x] = y as i32;
+            }
+            let (n, prev, yi) = (next[x], *c, y as i32);
+            if n >= 0 && (prev < 0 || n - yi < yi - prev) {
+                *c = n;
             }
         }
     }
-    // Pass 2: lower envelope of parabolas per row.
-    let mut out = vec![u32::MAX; wi * hi];
-    let mut v = vec![0i64; wi];
-    let mut z = vec![0f64; wi + 1];
-    for y in 0..hi {
-        let f = |q: i64| -> Option<i64> {
-            let ny = col_near[y * wi + q as usize];
-            (ny >= 0).then(|| (ny - y as i64).pow(2))
-        };
-        let mut k: i64 = -1;
-        for q in 0..wi as i64 {
-            let Some(fq) = f(q) else { continue };
-            if k < 0 {
-                k = 0;
-                v[0] = q;
-                z[0] = f64::NEG_INFINITY;
-                z[1] = f64::INFINITY;
-                continue;
-            }
-            let mut s;
-            loop {
-                let vk = v[k as usize];
-                let fv = f(vk).expect("envelope holds island columns only");
-                s = ((fq + q * q) - (fv + vk * vk)) as f64 / (2 * (q - vk)) as f64;
-                if s <= z[k as usize] && k > 0 {
-                    k -= 1;
-                } else {
-                    break;
-                }
-            }
-            if s <= z[k as usize] {
-                v[0] = q;
-                z[0] = f64::NEG_INFINITY;
-                z[1] = f64::INFINITY;
-                k = 0;
-                continue;
-            }
-            k += 1;
-            v[k as usize] = q;
-            z[k as usize] = s;
-            z[k as usize + 1] = f64::INFINITY;
-        }
+    col_near
+}
+
+/// Pass 2 of [`nearest_island_map`] for row `y`: the lower envelope of the parabolas of the
+/// row's island columns (`v`, `z`: scratch of `wi` and `wi + 1`), each texel's nearest written
+/// to `out` (the row's `wi` entries).
+fn envelope_row(
+    island: &[bool],
+    col_near: &[i32],
+    (wi, y): (usize, usize),
+    (v, z): (&mut [i64], &mut [f64]),
+    out: &mut [u32],
+) {
+    let f = |q: i64| -> Option<i64> {
+        let ny = col_near[y * wi + q as usize] as i64;
+        (ny >= 0).then(|| (ny - y as i64).pow(2))
+    };
+    let mut k: i64 = -1;
+    for q in 0..wi as i64 {
+        let Some(fq) = f(q) else { continue };
         if k < 0 {
+            k = 0;
+            v[0] = q;
+            z[0] = f64::NEG_INFINITY;
+            z[1] = f64::INFINITY;
             continue;
         }
-        let mut j = 0usize;
-        for x in 0..wi {
-            while z[j + 1] < x as f64 {
-                j += 1;
-            }
-            let idx = y * wi + x;
-            if island[idx] {
-                out[idx] = idx as u32;
+        let mut s;
+        loop {
+            let vk = v[k as usize];
+            let fv = f(vk).expect("envelope holds island columns only");
+            s = ((fq + q * q) - (fv + vk * vk)) as f64 / (2 * (q - vk)) as f64;
+            if s <= z[k as usize] && k > 0 {
+                k -= 1;
             } else {
-                let vx = v[j] as usize;
-                out[idx] = (col_near[y * wi + vx] as usize * wi + vx) as u32;
+                break;
             }
         }
+        if s <= z[k as usize] {
+            v[0] = q;
+            z[0] = f64::NEG_INFINITY;
+            z[1] = f64::INFINITY;
+            k = 0;
+            continue;
+        }
+        k += 1;
+        v[k as usize] = q;
+        z[k as usize] = s;
+        z[k as usize + 1] = f64::INFINITY;
     }
-    out
+    if k < 0 {
+        return;
+    }
+    let mut j = 0usize;
+    for (x, o) in out.iter_mut().enumerate() {
+        while z[j + 1] < x as f64 {
+            j += 1;
+        }
+        let idx = y * wi + x;
+        if island[idx] {
+            *o = idx as u32;
+        } else {
+            let vx = v[j] as usize;
+            *o = (col_near[y * wi + vx] as usize * wi + vx) as u32;
+        }
+    }
 }
 
 /// What `select_triangles` produces for one layer.

@@ -16,6 +16,10 @@
 //! - a bake by tiles: [`TILE_DEVICE_PER_TEXEL`] for a tile on the device, [`TILED_HOST_PER_TEXEL`]
 //!   for the whole texture on the host (the assembled texels, the islands and the nearest-island
 //!   map for the padding, the PNG);
+//! - a bake by tiles streamed to its file (`output/stream.rs`, band by band, `bands.rs`): the
+//!   tile on the device, and on the host [`BAND_HOST_PER_TEXEL`] for each texel of a band and its
+//!   padding's halo (three bands queued, the halo's copy, its islands and distance transform),
+//!   plus [`STREAM_HOST`] for the preview's reduced copy and the encoder;
 //! - 16-bit outputs add [`WIDE_PER_TEXEL`], float (EXR) outputs [`FLOAT_PER_TEXEL`] (the linear
 //!   canvas and its encoding).
 //!
@@ -37,6 +41,10 @@ pub const HOST_PER_TEXEL: u64 = 8;
 pub const TILE_DEVICE_PER_TEXEL: u64 = 16;
 /// Host bytes a texel of a texture baked by tiles.
 pub const TILED_HOST_PER_TEXEL: u64 = 17;
+/// Host bytes a texel of a band (and its halo) of a streamed bake by tiles.
+pub const BAND_HOST_PER_TEXEL: u64 = 48;
+/// Host bytes of a streamed bake besides its bands: the preview's reduced copy, the encoder.
+pub const STREAM_HOST: u64 = 96 << 20;
 /// Host bytes a texel more for a 16-bit output.
 pub const WIDE_PER_TEXEL: u64 = 6;
 /// Host bytes a texel more for a float (EXR) output.
@@ -49,12 +57,15 @@ pub struct Estimate {
     pub host: u64,
     /// Device bytes.
     pub device: u64,
-    /// The tile side, for a bake by tiles.
-    pub tile: Option<u32>,
+    /// The tile (width, height), for a bake by tiles.
+    pub tile: Option<[u32; 2]>,
+    /// Whether the bake streams its texture to the file band by band.
+    pub streamed: bool,
 }
 
-/// The estimate for `job` on `mesh`, baked whole or by tiles of `tile`.
-pub fn estimate(job: &Job, mesh_bytes: u64, tile: Option<u32>) -> Estimate {
+/// The estimate for `job` on `mesh`, baked whole or by tiles of `tile` (width, height), the
+/// texture in memory or `streamed` band by band to its file (tiled bakes only).
+pub fn estimate(job: &Job, mesh_bytes: u64, tile: Option<[u32; 2]>, streamed: bool) -> Estimate {
     let texels = job.width as u64 * job.height as u64;
     let mut extra = 0;
     if job.bit_depth == 16 {
@@ -64,9 +75,23 @@ pub fn estimate(job: &Job, mesh_bytes: u64, tile: Option<u32>) -> Estimate {
         extra += FLOAT_PER_TEXEL;
     }
     let textures = 1 + super::channels::passes(job).len() as u64;
+    let streamed = streamed && tile.is_some();
     let (device, host) = match tile {
-        Some(side) => {
-            let (w, h) = (side.min(job.width) as u64, side.min(job.height) as u64);
+        Some([tw, th]) if streamed => {
+            let (w, h) = (tw.min(job.width) as u64, th.min(job.height) as u64);
+            let radius = super::finish::padding_radius(job.padding) as u64;
+            let halo = h
+                .saturating_add(radius.saturating_mul(2))
+                .min(job.height as u64);
+            let band = (job.width as u64).saturating_mul(halo);
+            (
+                w * h * TILE_DEVICE_PER_TEXEL,
+                band.saturating_mul(BAND_HOST_PER_TEXEL + extra)
+                    .saturating_add(STREAM_HOST),
+            )
+        }
+        Some([tw, th]) => {
+            let (w, h) = (tw.min(job.width) as u64, th.min(job.height) as u64);
             (
                 w * h * TILE_DEVICE_PER_TEXEL,
                 texels.saturating_mul(TILED_HOST_PER_TEXEL + extra),
@@ -81,6 +106,7 @@ pub fn estimate(job: &Job, mesh_bytes: u64, tile: Option<u32>) -> Estimate {
         host: host.saturating_add(FIXED + mesh_bytes),
         device,
         tile,
+        streamed,
     }
 }
 
@@ -100,10 +126,11 @@ pub fn available() -> Option<u64> {
 
 /// Refuses `job` before any work when its sides exceed the adapter's texture limit, or its
 /// estimated memory exceeds its limit (`"max_memory"`, else the memory available).
-pub fn check(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<()> {
+/// `streamed`: the bake streams its texture to its file when it goes by tiles.
+pub fn check(engine: &Engine, mesh: &LoadedMesh, job: &Job, streamed: bool) -> Result<()> {
     super::check::sides(engine, job)?;
-    let tile = super::tiles::tile_side(engine, job);
-    let e = estimate(job, mesh_bytes(mesh), tile);
+    let tile = super::tiles::tile_shape(engine, job);
+    let e = estimate(job, mesh_bytes(mesh), tile, streamed);
     let cpu = engine.ctx.device_type == Some(wgpu::DeviceType::Cpu);
     let needed = if cpu { e.host + e.device } else { e.host };
     let (limit, source) = match (job.max_memory, available()) {
@@ -115,14 +142,15 @@ pub fn check(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<()> {
         return Ok(());
     }
     let how = match tile {
-        Some(side) => format!("by tiles of {side}²"),
+        Some([tw, th]) if e.streamed => format!("by tiles of {tw}x{th}, streamed to its file"),
+        Some([tw, th]) => format!("by tiles of {tw}x{th}, the texture in memory"),
         None => "in one pass".to_string(),
     };
     Err(Error::job(
         &job.source,
         "texture",
         format!(
-            "a {}x{} bake {how} needs about {} ({} on the host, {} on the device{}), above {source}: {}; bake a smaller texture, use smaller tiles (`texture.tile`: the texture itself stays in host memory), or, where the machine has the room (swap, memory other processes will free), give a larger `max_memory` or `--max-memory`",
+            "a {}x{} bake {how} needs about {} ({} on the host, {} on the device{}), above {source}: {}; bake a smaller texture, use smaller tiles (`texture.tile`; a PNG output with a finite padding is streamed band by band, the texture never whole in memory), or, where the machine has the room (swap, memory other processes will free), give a larger `max_memory` or `--max-memory`",
             job.width,
             job.height,
             bytes_text(needed),

@@ -24,6 +24,7 @@
 //!
 //! The engine ([`Engine`]: device, pipelines, pooled targets) and the loaded mesh ([`LoadedMesh`]:
 //! GPU buffers and per-mesh caches) are in [`engine`]; [`cpu`] is the CPU twin of the whole bake.
+pub(crate) mod bands;
 pub mod blend;
 mod canvas;
 pub mod channels;
@@ -47,7 +48,7 @@ pub mod report;
 pub mod select;
 pub mod sets;
 mod stage;
-mod tiles;
+pub(crate) mod tiles;
 pub mod tools;
 mod transfer;
 
@@ -74,7 +75,34 @@ pub(crate) struct Run {
 
 /// The limits checked before any work ([`memory::check`]: sides, estimated memory).
 pub(crate) fn limits(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<()> {
-    memory::check(engine, mesh, job)
+    memory::check(engine, mesh, job, false)
+}
+
+/// [`limits`] for a bake streamed band by band ([`bake_bands`]), before its file is begun.
+pub(crate) fn streamed_limits(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<()> {
+    memory::check(engine, mesh, job, true)
+}
+
+/// The tile (width, height) of `job` when its bake goes by tiles with a finite padding, so that
+/// its bands can be streamed ([`bake_bands`]); `None`: one pass, or `"padding": "full"`.
+pub(crate) fn streamed_shape(engine: &Engine, job: &Job) -> Option<[u32; 2]> {
+    let shape = tiles::tile_shape(engine, job)?;
+    (finish::padding_radius(job.padding) != u32::MAX).then_some(shape)
+}
+
+/// Bakes `job` by tiles of `shape`, handing `sink` each band of rows as soon as it is padded
+/// ([`bands`]), after the limits for a streamed bake; returns the whole bake's report.
+pub(crate) fn bake_bands(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    job: &Job,
+    shape: [u32; 2],
+    on_stage: &dyn Fn(&str),
+    sink: &mut dyn FnMut(&bands::Band) -> Result<()>,
+) -> Result<Report> {
+    streamed_limits(engine, mesh, job)?;
+    tiles::refuse_channels(job, shape)?;
+    bands::bake(engine, mesh, job, shape, on_stage, sink)
 }
 
 /// A bake by tiles ([`tiles`]) when `job` needs one (a canvas beyond one storage buffer,
@@ -85,8 +113,45 @@ pub(crate) fn tiled(
     job: &Job,
     on_stage: &dyn Fn(&str),
 ) -> Option<Result<Baked>> {
-    let side = tiles::tile_side(engine, job)?;
-    Some(tiles::bake(engine, mesh, job, side, on_stage))
+    let shape = tiles::tile_shape(engine, job)?;
+    Some(tiled_in_memory(engine, mesh, job, shape, on_stage))
+}
+
+/// Bakes `job` tile by tile into one texture in memory ([`tiles`]): band by band ([`bands`]) for
+/// a finite padding, whole ([`tiles::bake_whole`]) for `"padding": "full"`.
+fn tiled_in_memory(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    job: &Job,
+    shape: [u32; 2],
+    on_stage: &dyn Fn(&str),
+) -> Result<Baked> {
+    tiles::refuse_channels(job, shape)?;
+    let (w, h) = (job.width as usize, job.height as usize);
+    let mut texels = vec![0u16; w * h * 4];
+    let mut linear = job.exr().then(|| vec![0f32; texels.len()]);
+    let report = if finish::padding_radius(job.padding) == u32::MAX {
+        let dest = (&mut texels[..], linear.as_mut());
+        tiles::bake_whole(engine, mesh, job, shape, on_stage, dest)?
+    } else {
+        bands::bake(engine, mesh, job, shape, on_stage, &mut |band| {
+            let at = band.y as usize * w * 4;
+            texels[at..at + band.texels.len()].copy_from_slice(&band.texels);
+            if let (Some(all), Some(rows)) = (linear.as_mut(), &band.linear) {
+                all[at..at + rows.len()].copy_from_slice(rows);
+            }
+            Ok(())
+        })?
+    };
+    Ok(Baked {
+        channels: Vec::new(),
+        width: job.width,
+        height: job.height,
+        bit_depth: job.bit_depth,
+        texels,
+        linear,
+        report,
+    })
 }
 
 /// Bakes `job` onto `mesh`, stage by stage, naming each stage to `on_stage` as it starts (a
@@ -197,6 +262,7 @@ pub(crate) fn run_in(
         input_hash: None,
         unwrap: mesh.unwrap.clone(),
         tiles: None,
+        tile_size: None,
         texture_sets: Vec::new(),
     };
     Ok(Run {

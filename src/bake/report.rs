@@ -152,9 +152,13 @@ pub struct Report {
     /// `"uv_set": "auto"` on a mesh without UVs: the pelting that made the set baked into.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub unwrap: Option<crate::pelt::UnwrapReport>,
-    /// A tiled bake (`bake/tiles.rs`): [tile side, tiles]. Its stage times add up the tiles'.
+    /// A tiled bake (`bake/tiles.rs`): [tile width, tiles]. Its stage times add up the tiles'.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tiles: Option<[u32; 2]>,
+    /// A tiled bake: the tile's [width, height] (squares for `texture.tile`, bands the texture's
+    /// width across when the texture is tiled because it does not fit one storage buffer).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tile_size: Option<[u32; 2]>,
     /// A bake into several texture sets (`crate::bake::sets`): one entry per set. The report's
     /// layers, timings and island texels are then the first set's, with each layer's
     /// `texels_covered` added up over the sets.

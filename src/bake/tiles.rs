@@ -4,101 +4,139 @@
 //! bake (up to the adapter's 2D texture limit) runs stages 2 to 7 once per tile window (`run_in`:
 //! the canvas holds the window's texels, every kernel indexes it through `wgsl/shared/window.wgsl`,
 //! raster rectangles are clipped to the window, which is cell-aligned), reads each tile back
-//! unpadded, and pads the assembled texture on the CPU.
+//! unpadded, and pads on the CPU: band by band (`bands.rs`) for a finite padding, the assembled
+//! texture for `"padding": "full"` ([`bake_whole`]).
 //!
 //! Why the result is the untiled bake's, byte for byte: every stage is per texel (a texel's colour
 //! depends on the layers drawn over it, not on its neighbours), except two:
 //! - **padding** copies each background texel's nearest island texel, which may lie in another
-//!   tile. The islands are rasterized per window on the GPU (the same kernels), assembled, and their
-//!   exact distance transform computed over the whole texture by the CPU twin
-//!   ([`crate::bake::cpu::nearest_island_map`], the same algorithm and tie order as the GPU's);
-//!   padding is a copy of an encoded texel, and encoding is per texel, so padding after encoding
-//!   gives the bytes the GPU's pad-then-encode does. Cached on the mesh per (set, size, sampling).
+//!   tile. The islands are rasterized per window on the GPU (the same kernels), and their exact
+//!   distance transform computed by the CPU twin ([`crate::bake::cpu::nearest_island_map`], the
+//!   same algorithm and tie order as the GPU's) over a band and the rows its padding reaches
+//!   (`bands.rs` says why that is exact), or over the whole texture for a full padding (cached on
+//!   the mesh per set, size and sampling); padding is a copy of an encoded texel, and encoding is
+//!   per texel, so padding after encoding gives the bytes the GPU's pad-then-encode does.
 //! - **blur, smear and clone stamps** read the canvas around them: a stamp that crosses a tile
 //!   border is refused with a message (`tools::check_window`) rather than read across the border.
 //!
 //! A float (EXR) output takes the same path with one tile when the texture fits, so that its
 //! linear canvas is padded by the same map. `tests/tiles.rs` compares tiled with untiled bakes.
 
-use super::engine::{unpack_rows, Baked, Engine, IslandKey, LoadedMesh, TiledIslands};
+use super::engine::{unpack_rows, Engine, IslandKey, LoadedMesh, TiledIslands};
 use super::report::Report;
 use crate::error::Result;
 use crate::io::job::Job;
 use std::sync::Arc;
 use std::time::Instant;
 
-/// The tile side a bake of `job` uses, if it is tiled: `texture.tile`; else, for a texture whose
-/// canvas plane does not fit one storage buffer, the largest power of two whose square does; else
-/// (a float output) the whole texture as one tile; else `None` (the GPU pads, one pass).
-pub(crate) fn tile_side(engine: &Engine, job: &Job) -> Option<u32> {
+/// The tile (width, height) a bake of `job` uses, if it is tiled: `texture.tile` squares; else,
+/// for a texture whose canvas plane does not fit one storage buffer, bands the texture's width
+/// across and as many rows (a multiple of 64) as fit one buffer, or where not even 64 rows fit,
+/// the largest power-of-two square that does; else (a float output) the whole texture as one
+/// tile; else `None` (the GPU pads, one pass). Bands keep what a streamed bake holds on the host
+/// small (a few bands of rows, `bands.rs`) for as many tile runs as squares would take.
+pub(crate) fn tile_shape(engine: &Engine, job: &Job) -> Option<[u32; 2]> {
     if let Some(t) = job.tile {
-        return Some(t);
+        return Some([t, t]);
     }
     let (limit, _) = engine.ctx.storage_limit();
-    if job.width as u64 * job.height as u64 * 8 > limit {
+    let (w, h) = (job.width as u64, job.height as u64);
+    if w.saturating_mul(h).saturating_mul(8) > limit {
         let texels = (limit / 8).max(64 * 64);
-        return Some(1 << (texels.ilog2() / 2));
+        let rows = (texels / w) / 64 * 64;
+        if rows >= 64 {
+            return Some([job.width, rows.min(h) as u32]);
+        }
+        let side = 1 << (texels.ilog2() / 2);
+        return Some([side, side]);
     }
-    job.exr()
-        .then(|| job.width.max(job.height).next_multiple_of(64))
+    job.exr().then(|| {
+        let side = job.width.max(job.height).next_multiple_of(64);
+        [side, side]
+    })
 }
 
-/// The tile windows (x, y, w, h) of a `w` × `h` texture in tiles of `side`, row by row.
-pub fn windows(w: u32, h: u32, side: u32) -> Vec<[u32; 4]> {
+/// The tile windows (x, y, w, h) of a `w` × `h` texture in tiles of `shape`, row by row.
+pub fn windows(w: u32, h: u32, shape: [u32; 2]) -> Vec<[u32; 4]> {
     let mut out = Vec::new();
-    for y in (0..h).step_by(side as usize) {
-        for x in (0..w).step_by(side as usize) {
-            out.push([x, y, side.min(w - x), side.min(h - y)]);
+    for y in (0..h).step_by(shape[1] as usize) {
+        for x in (0..w).step_by(shape[0] as usize) {
+            out.push([x, y, shape[0].min(w - x), shape[1].min(h - y)]);
         }
     }
     out
 }
 
-/// Bakes `job` tile by tile (see the module doc).
-pub(crate) fn bake(
-    engine: &Engine,
-    mesh: &LoadedMesh,
-    job: &Job,
-    side: u32,
-    on_stage: &dyn Fn(&str),
-) -> Result<Baked> {
-    if let Some(kind) = super::channels::passes(job).first() {
-        return Err(crate::error::Error::job(
+/// Tiles bake the colour only: a job whose layers paint a PBR channel is refused.
+pub(crate) fn refuse_channels(job: &Job, shape: [u32; 2]) -> Result<()> {
+    match super::channels::passes(job).first() {
+        None => Ok(()),
+        Some(kind) => Err(crate::error::Error::job(
             &job.source,
             "texture",
             format!(
-                "this bake goes by tiles (a texture beyond one storage buffer, `texture.tile` or an .exr output), which bake the colour only, and a layer paints the {} channel; bake PBR channels at a size that fits one pass ({side}² here) to a PNG, without `texture.tile`",
-                kind.name()
+                "this bake goes by tiles (a texture beyond one storage buffer, `texture.tile` or an .exr output), which bake the colour only, and a layer paints the {} channel; bake PBR channels at a size that fits one pass ({}x{} here) to a PNG, without `texture.tile`",
+                kind.name(),
+                shape[0],
+                shape[1]
             ),
-        ));
+        )),
     }
-    let (w, h) = (job.width, job.height);
-    let wins = windows(w, h, side);
+}
+
+/// Bakes tile `k` of `n`, window `win`, into rows of `w` texels starting at texture row `y0`
+/// (`texels`, and `linear` for a float output), unpadded; returns the tile's report.
+pub(crate) fn bake_window(
+    cx: (&Engine, &LoadedMesh, &Job),
+    (win, k, n): ([u32; 4], usize, usize),
+    on_stage: &dyn Fn(&str),
+    y0: u32,
+    (texels, linear): (&mut [u16], Option<&mut Vec<f32>>),
+) -> Result<Report> {
+    let (engine, mesh, job) = cx;
+    let w = job.width;
+    let stage = |s: &str| on_stage(&format!("tile {}/{n}: {s}", k + 1));
+    let run = super::run_in(engine, mesh, job, Some(win), &stage)?;
+    let t = Instant::now();
+    let e = &run.encoded;
+    let local = [win[0], win[1] - y0, win[2], win[3]];
+    engine
+        .ctx
+        .read_buffer_with(&e.packed, e.packed_size, "encode read-back", |bytes| {
+            let words = bytemuck::cast_slice(bytes);
+            unpack_rows(texels, w, local, words, e.stride, job.bit_depth)
+        })?;
+    engine.return_buffers([run.encoded.packed.clone()]);
+    if let (Some(all), Some(tile)) = (linear, &run.linear) {
+        for row in 0..win[3] as usize {
+            let src = &tile[row * win[2] as usize * 4..][..win[2] as usize * 4];
+            let at = ((local[1] as usize + row) * w as usize + win[0] as usize) * 4;
+            all[at..at + src.len()].copy_from_slice(src);
+        }
+    }
+    let mut r = run.report;
+    r.timings.encode_ms += t.elapsed().as_secs_f64() * 1000.0;
+    Ok(r)
+}
+
+/// Every tile, then the padding over the whole texture (`"padding": "full"`: a background texel
+/// may take an island texel anywhere).
+pub(crate) fn bake_whole(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    job: &Job,
+    shape: [u32; 2],
+    on_stage: &dyn Fn(&str),
+    (texels, mut linear): (&mut [u16], Option<&mut Vec<f32>>),
+) -> Result<Report> {
+    let w = job.width;
+    let wins = windows(w, job.height, shape);
     let islands = islands(engine, mesh, job, &wins)?;
-    let mut texels = vec![0u16; w as usize * h as usize * 4];
-    let mut linear = job.exr().then(|| vec![0f32; texels.len()]);
     let mut report: Option<Report> = None;
     for (k, &win) in wins.iter().enumerate() {
-        let stage = |s: &str| on_stage(&format!("tile {}/{}: {s}", k + 1, wins.len()));
-        let run = super::run_in(engine, mesh, job, Some(win), &stage)?;
-        let t = Instant::now();
-        let e = &run.encoded;
-        engine
-            .ctx
-            .read_buffer_with(&e.packed, e.packed_size, "encode read-back", |bytes| {
-                let words = bytemuck::cast_slice(bytes);
-                unpack_rows(&mut texels, w, win, words, e.stride, job.bit_depth)
-            })?;
-        engine.return_buffers([run.encoded.packed.clone()]);
-        if let (Some(all), Some(tile)) = (linear.as_mut(), &run.linear) {
-            for row in 0..win[3] as usize {
-                let src = &tile[row * win[2] as usize * 4..][..win[2] as usize * 4];
-                let at = ((win[1] as usize + row) * w as usize + win[0] as usize) * 4;
-                all[at..at + src.len()].copy_from_slice(src);
-            }
-        }
-        let mut r = run.report;
-        r.timings.encode_ms += t.elapsed().as_secs_f64() * 1000.0;
+        let cx = (engine, mesh, job);
+        let dest = (&mut *texels, linear.as_deref_mut());
+        let r = bake_window(cx, (win, k, wins.len()), on_stage, 0, dest)?;
         report = Some(match report {
             None => r,
             Some(acc) => merge(acc, r),
@@ -107,29 +145,22 @@ pub(crate) fn bake(
     on_stage("padding");
     let radius = super::finish::padding_radius(job.padding);
     let t = Instant::now();
-    pad(&islands, w, radius, &mut texels, 4);
-    if let Some(l) = linear.as_mut() {
+    pad(&islands, w, radius, texels, 4);
+    if let Some(l) = linear {
         pad(&islands, w, radius, l, 4);
     }
     let mut report = report.expect("a texture has at least one tile");
     report.timings.padding_ms += t.elapsed().as_secs_f64() * 1000.0;
     report.island_texels = islands.count;
     report.padding = Some(radius).filter(|&p| p != u32::MAX);
-    report.tiles = Some([side, wins.len() as u32]);
-    Ok(Baked {
-        channels: Vec::new(),
-        width: w,
-        height: h,
-        bit_depth: job.bit_depth,
-        texels,
-        linear,
-        report,
-    })
+    report.tiles = Some([shape[0], wins.len() as u32]);
+    report.tile_size = Some(shape);
+    Ok(report)
 }
 
 /// Two tiles' reports as one: the first's, with the texels each layer covered added up (the
 /// rest, placement, maps and triangles, is the same in every tile) and the stage times summed.
-fn merge(mut a: Report, b: Report) -> Report {
+pub(crate) fn merge(mut a: Report, b: Report) -> Report {
     for (la, lb) in a.layers.iter_mut().zip(&b.layers) {
         la.texels_covered += lb.texels_covered;
     }
@@ -146,7 +177,13 @@ fn merge(mut a: Report, b: Report) -> Report {
 /// Pads `values` (`n` per texel) in place: each background texel whose nearest island texel lies
 /// within `radius` (`u32::MAX`: any distance) takes that texel's values, as `encode.wgsl` does.
 /// Rows are split between the cores (an 8192² texture has 64M texels).
-fn pad<T: Copy + Send + Sync>(isl: &TiledIslands, w: u32, radius: u32, values: &mut [T], n: usize) {
+pub(crate) fn pad<T: Copy + Send + Sync>(
+    isl: &TiledIslands,
+    w: u32,
+    radius: u32,
+    values: &mut [T],
+    n: usize,
+) {
     let r2 = radius as u64 * radius as u64;
     // |src − i| = |dy·w + dx| with |dx| < w: beyond (radius + 1)·w − 1, |dy| > radius.
     let far = (radius as u64 + 1)

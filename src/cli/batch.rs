@@ -544,9 +544,10 @@ impl Undo {
     }
 }
 
-/// Bakes one job of a set (its mesh from the run's cache), the input hash in its report.
-fn bake_one(cx: WriteCx<'_>, mut j: Job) -> Result<(Arc<LoadedMesh>, Job, decalbake::Baked)> {
-    let (engine, generation, shared, hash, on_stage) = cx;
+/// One job of a set, ready to bake: its mesh from the run's cache, its UV set resolved and, on a
+/// mesh of one texture set, that set's size.
+fn prepare_one(cx: WriteCx<'_>, mut j: Job) -> Result<(Arc<LoadedMesh>, Job)> {
+    let (engine, generation, shared, _, _) = cx;
     let (mesh, uv_set) = shared
         .meshes
         .lock()
@@ -556,9 +557,27 @@ fn bake_one(cx: WriteCx<'_>, mut j: Job) -> Result<(Arc<LoadedMesh>, Job, decalb
     if let [set] = mesh.mesh.texture_sets(uv_set).as_slice() {
         (j.width, j.height) = decalbake::bake::sets::set_size(&j, &mesh.mesh, set);
     }
-    let mut baked = engine.bake_with_progress(&mesh, &j, on_stage)?;
-    baked.report.input_hash = Some(hash.to_string());
+    Ok((mesh, j))
+}
+
+/// Bakes one job of a set (its mesh from the run's cache), the input hash in its report.
+fn bake_one(cx: WriteCx<'_>, j: Job) -> Result<(Arc<LoadedMesh>, Job, decalbake::Baked)> {
+    let (mesh, j) = prepare_one(cx, j)?;
+    let mut baked = cx.0.bake_with_progress(&mesh, &j, cx.4)?;
+    baked.report.input_hash = Some(cx.3.to_string());
     Ok((mesh, j, baked))
+}
+
+/// Bakes one job and writes its files (streamed band by band where it goes by tiles,
+/// `decalbake::output::bake_and_write`), the input hash in its report; `undo` learns the files.
+fn write_one(cx: WriteCx<'_>, j: Job, outputs: &[PathBuf], undo: &mut Undo) -> Result<()> {
+    let (mesh, j) = prepare_one(cx, j)?;
+    undo.prepare(std::slice::from_ref(&j), outputs)?;
+    let hash = cx.3.to_string();
+    let amend = |r: &mut decalbake::bake::report::Report| r.input_hash = Some(hash.clone());
+    let (_, files) = decalbake::output::bake_and_write(cx.0, &mesh, &j, cx.4, &amend)?;
+    undo.files.extend(files);
+    Ok(())
 }
 
 /// A job's UV sets (or its one bake): every set baked before anything is written, then written,
@@ -572,6 +591,9 @@ fn write_sets(
     if let [job] = jobs.as_slice() {
         if write_texture_sets(cx, job, outputs, undo)? {
             return Ok(());
+        }
+        if set_preview.is_none() {
+            return write_one(cx, job.clone(), outputs, undo);
         }
     }
     let baked_sets = jobs
@@ -637,9 +659,7 @@ fn write_frames(
 ) -> Result<()> {
     undo.prepare(&jobs, outputs)?;
     for j in jobs {
-        let (mesh, j, mut baked) = bake_one(cx, j)?;
-        let files = decalbake::output::write_outputs(cx.0, &mesh, &j, &mut baked)?;
-        undo.files.extend(files);
+        write_one(cx, j, outputs, undo)?;
     }
     Ok(())
 }

@@ -564,8 +564,9 @@ fn bake(engine: &Engine, job: &Job) -> Result<()> {
     if let Some(set) = sets.first() {
         (job.width, job.height) = decalbake::bake::sets::set_size(&job, &mesh.mesh, set);
     }
-    let baked = engine.bake(&mesh, &job)?;
-    write_baked(engine, &mesh, &job, baked).map(|_| ())
+    let (report, files) = decalbake::output::bake_and_write(engine, &mesh, &job, &|_| {}, &|_| {})?;
+    print_bake(&report, files);
+    Ok(())
 }
 
 /// An animated job: one bake and one set of outputs per frame, written as each frame is baked
@@ -588,8 +589,7 @@ fn bake_frames(
     let write = |undo: &mut batch::Undo| -> Result<()> {
         undo.prepare(&jobs, &outputs)?;
         for j in &jobs {
-            let mut baked = engine.bake(mesh, j)?;
-            let files = decalbake::output::write_outputs(engine, mesh, j, &mut baked)?;
+            let (_, files) = decalbake::output::bake_and_write(engine, mesh, j, &|_| {}, &|_| {})?;
             undo.files.extend(files);
         }
         Ok(())

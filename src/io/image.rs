@@ -305,21 +305,94 @@ impl LinearImage {
     }
 }
 
-/// PNG bytes of RGBA samples already encoded at `bit_depth` (8: 0..=255, 16: 0..=65535).
+/// PNG bytes of RGBA samples already encoded at `bit_depth` (8: 0..=255, 16: 0..=65535), written
+/// through [`png_rows`], so that a texture streamed band by band and one encoded whole are the
+/// same bytes.
 pub fn png_bytes(width: u32, height: u32, bit_depth: u8, samples: &[u16]) -> Vec<u8> {
-    use image::ImageEncoder;
     let mut out = Vec::new();
-    let enc = image::codecs::png::PngEncoder::new(&mut out);
-    if bit_depth == 16 {
-        // The image crate takes 16-bit samples in native byte order.
-        let raw: Vec<u8> = samples.iter().flat_map(|v| v.to_ne_bytes()).collect();
-        enc.write_image(&raw, width, height, image::ExtendedColorType::Rgba16)
-    } else {
-        let raw: Vec<u8> = samples.iter().map(|v| *v as u8).collect();
-        enc.write_image(&raw, width, height, image::ExtendedColorType::Rgba8)
-    }
+    png_rows(
+        &mut out,
+        [width, height],
+        bit_depth,
+        Path::new("memory"),
+        |png| {
+            png.write_texels(samples).map_err(|source| Error::Io {
+                path: "memory".into(),
+                action: "writing",
+                source,
+            })
+        },
+    )
     .expect("PNG encoding into memory cannot fail for a well-formed buffer");
     out
+}
+
+/// Writes an RGBA PNG (8 or 16 bits) to `out` a few rows at a time: `fill` hands it every row, top
+/// first, through [`PngRows::write_texels`] (a tiled bake streams its texture this way,
+/// `output/stream.rs`). The `png` crate's stream writer, with fast deflate and adaptive filters
+/// (the `image` crate's defaults) and IDAT chunks of [`PNG_CHUNK`] bytes. `fill`'s error, or the
+/// first write's (as writing `path`), is returned; the image is complete only when this returns
+/// `Ok`.
+pub fn png_rows<W: std::io::Write, T>(
+    out: W,
+    [width, height]: [u32; 2],
+    depth: u8,
+    path: &Path,
+    fill: impl FnOnce(&mut PngRows<'_, W>) -> Result<T>,
+) -> Result<T> {
+    let io = |e: png::EncodingError| Error::Io {
+        path: path.to_path_buf(),
+        action: "writing",
+        source: std::io::Error::other(e),
+    };
+    let mut enc = png::Encoder::new(out, width, height);
+    enc.set_color(png::ColorType::Rgba);
+    enc.set_depth(match depth {
+        16 => png::BitDepth::Sixteen,
+        _ => png::BitDepth::Eight,
+    });
+    enc.set_compression(png::Compression::Fast);
+    enc.set_filter(png::Filter::Adaptive);
+    let mut writer = enc.write_header().map_err(io)?;
+    let t = {
+        let mut rows = PngRows {
+            writer: writer.stream_writer_with_size(PNG_CHUNK).map_err(io)?,
+            depth,
+            row: Vec::new(),
+        };
+        let t = fill(&mut rows)?;
+        rows.writer.finish().map_err(io)?;
+        t
+    };
+    writer.finish().map_err(io)?;
+    Ok(t)
+}
+
+/// The rows of a PNG being written ([`png_rows`]).
+pub struct PngRows<'a, W: std::io::Write> {
+    writer: png::StreamWriter<'a, W>,
+    depth: u8,
+    row: Vec<u8>,
+}
+
+/// The bytes of one IDAT chunk of the PNGs the engine writes.
+pub const PNG_CHUNK: usize = 1 << 20;
+
+impl<W: std::io::Write> PngRows<'_, W> {
+    /// Appends texels (4 samples each, whole rows or not), top row first.
+    pub fn write_texels(&mut self, samples: &[u16]) -> std::io::Result<()> {
+        use std::io::Write;
+        for part in samples.chunks(1 << 16) {
+            self.row.clear();
+            if self.depth == 16 {
+                self.row.extend(part.iter().flat_map(|v| v.to_be_bytes()));
+            } else {
+                self.row.extend(part.iter().map(|v| *v as u8));
+            }
+            self.writer.write_all(&self.row)?;
+        }
+        Ok(())
+    }
 }
 
 /// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so a reader

@@ -8,6 +8,7 @@ pub mod extract;
 pub mod gltf;
 pub mod matte;
 pub mod preview;
+pub mod stream;
 
 use crate::bake::{Baked, Engine, LoadedMesh};
 use crate::error::{Error, Result};
@@ -32,6 +33,26 @@ fn exr_bytes(w: u32, h: u32, linear: &[f32], path: &std::path::Path) -> Result<V
             detail: e.to_string(),
         })?;
     Ok(out.into_inner())
+}
+
+/// Bakes `job` and writes its files: streamed band by band where the bake goes by tiles to a PNG
+/// with a finite padding ([`stream`]), else baked whole ([`Engine::bake_with_progress`]) and
+/// written by [`write_outputs`]. `amend` sees the report before it is written. Returns the report
+/// and the files written, in order.
+pub fn bake_and_write(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    job: &Job,
+    on_stage: &dyn Fn(&str),
+    amend: &dyn Fn(&mut crate::bake::report::Report),
+) -> Result<(crate::bake::report::Report, Vec<PathBuf>)> {
+    if let Some(done) = stream::write_streamed(engine, mesh, job, on_stage, amend)? {
+        return Ok(done);
+    }
+    let mut baked = engine.bake_with_progress(mesh, job, on_stage)?;
+    amend(&mut baked.report);
+    let files = write_outputs(engine, mesh, job, &mut baked)?;
+    Ok((baked.report, files))
 }
 
 /// Files written, in order.
@@ -104,23 +125,28 @@ fn channel_list<'a>(
 /// Writes every file: each to a temporary file beside its target, then all renamed into place; a
 /// failure leaves none of them (output directories are made as needed).
 pub fn write_files(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
+    commit(files, Vec::new())
+}
+
+/// [`write_files`], after `staged`: files already written to their temporaries (temporary,
+/// target), renamed first; a failure removes them too.
+fn commit(files: &[(PathBuf, Vec<u8>)], mut staged: Vec<(PathBuf, PathBuf)>) -> Result<()> {
+    let drop_staged = |staged: &[(PathBuf, PathBuf)]| {
+        for (t, _) in staged {
+            let _ = std::fs::remove_file(t);
+        }
+    };
     for (p, _) in files {
-        if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|source| Error::Io {
-                path: dir.to_path_buf(),
-                action: "creating the output directory",
-                source,
-            })?;
+        if let Err(e) = make_parent(p) {
+            drop_staged(&staged);
+            return Err(e);
         }
     }
     // Stage everything, then rename.
-    let mut staged = Vec::new();
     for (p, bytes) in files {
         let tmp = tmp_path(p);
         if let Err(source) = std::fs::write(&tmp, bytes) {
-            for (t, _) in &staged {
-                let _ = std::fs::remove_file(t);
-            }
+            drop_staged(&staged);
             let _ = std::fs::remove_file(&tmp);
             return Err(Error::Io {
                 path: p.clone(),
@@ -137,9 +163,7 @@ pub fn write_files(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
                 let _ = std::fs::remove_file(q);
                 let _ = std::fs::remove_file(t);
             }
-            for (t, _) in &staged[k..] {
-                let _ = std::fs::remove_file(t);
-            }
+            drop_staged(&staged[k..]);
             return Err(Error::Io {
                 path: p.clone(),
                 action: "renaming into place",
@@ -148,6 +172,18 @@ pub fn write_files(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Makes the folder `p` goes in, if it has one.
+fn make_parent(p: &std::path::Path) -> Result<()> {
+    match p.parent().filter(|d| !d.as_os_str().is_empty()) {
+        Some(dir) => std::fs::create_dir_all(dir).map_err(|source| Error::Io {
+            path: dir.to_path_buf(),
+            action: "creating the output directory",
+            source,
+        }),
+        None => Ok(()),
+    }
 }
 
 /// Writes a bake into several texture sets (`Engine::bake_texture_sets`): the texture of every

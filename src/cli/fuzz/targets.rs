@@ -4,7 +4,7 @@
 //!
 //! - `job`: `Job::parse` (with a made-up source path and directories), then `Job::for_uv_set`
 //!   for each set of a several-set job, as `decalbake bake` does, and the bake's memory estimate
-//!   of each (`bake::memory::estimate`, whole and by the job's tiles), which must not overflow
+//!   of each (`bake::memory::estimate`, whole, by the job's tiles, and streamed), which must not overflow
 //!   (`assert!`: it saturates) and must grow with the texture.
 //! - `manifest`: `io::manifest::parse`, then `Job::parse` of each inline job, as `decalbake batch`
 //!   does.
@@ -124,12 +124,21 @@ fn job(text: &str) -> String {
 fn check_estimate(job: &Job) {
     use decalbake::bake::memory::{estimate, FIXED};
     let texels = job.width as u64 * job.height as u64;
-    for tile in [None, job.tile] {
-        let e = estimate(job, 0, tile);
+    for tile in [None, job.tile.map(|t| [t, t])] {
+        let e = estimate(job, 0, tile, false);
         assert!(e.host >= FIXED, "{e:?}");
         assert!(
             e.host.saturating_add(e.device) >= texels,
             "{e:?} for {texels} texels"
+        );
+    }
+    // Streamed by tiles, a band of the texture at a time: at least a byte a texel of a band.
+    if let Some(t) = job.tile {
+        let e = estimate(job, 0, Some([t, t]), true);
+        let band = job.width as u64 * t.min(job.height) as u64;
+        assert!(
+            e.host >= FIXED && e.host.saturating_add(e.device) >= band,
+            "{e:?}"
         );
     }
 }

@@ -1,0 +1,181 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Tiled bakes streamed to their files band by band (`bake/bands.rs`, `output/stream.rs`): the
+//! same bytes as the bake held whole (texture and model, 8 and 16 bits, a padding that spans
+//! bands), and a 16384² bake under a memory limit that the whole texture exceeds, its peak
+//! resident memory (`VmHWM`) measured by the test itself.
+
+mod common;
+use common::*;
+use decalbake::bake::memory;
+use decalbake::{Engine, Job};
+use std::path::Path;
+
+/// This process's peak resident memory in bytes (`VmHWM`).
+fn peak_resident() -> u64 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap();
+    let line = status.lines().find(|l| l.starts_with("VmHWM:")).unwrap();
+    line.split_whitespace()
+        .nth(1)
+        .unwrap()
+        .parse::<u64>()
+        .unwrap()
+        * 1024
+}
+
+/// Spot with decals by several methods, written to texture, model and report.
+fn spot_job(dir: &Path, texture: serde_json::Value) -> Job {
+    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
+    std::fs::write(dir.join("a.png"), test_image(32, 32, 5, true).encode_png(8)).unwrap();
+    let ray = |o: [f32; 3]| serde_json::json!({ "ray": { "origin": o, "dir": [-o[0], 0.0, 0.2 - o[2]] } });
+    let text = serde_json::json!({ "mesh": spot, "texture": texture,
+        "layers": [
+            { "image": "a.png", "at": ray([2.0, 0.1, 0.2]), "size": [0.3, 0.3], "method": "expmap" },
+            { "image": "a.png", "at": ray([-2.0, 0.2, 0.2]), "size": [0.35, 0.3], "method": "planar" },
+            { "image": "a.png", "at": ray([0.0, 0.0, 2.2]), "size": [0.3, 0.3], "method": "lscm", "angle": 30 }
+        ],
+        "output": { "texture": "out.png", "glb": "out.glb", "report": "report.json" } });
+    Job::parse(&text.to_string(), &dir.join("job.json"), dir, dir).unwrap()
+}
+
+#[test]
+fn a_streamed_bake_writes_the_bytes_of_the_bake_held_whole() {
+    let dir = scratch("streaming_bytes");
+    let engine = engine();
+    let cases = [
+        (
+            serde_json::json!({ "width": 320, "height": 256, "padding": 8 }),
+            8,
+        ),
+        (
+            serde_json::json!({ "width": 256, "height": 320, "padding": 100 }),
+            16,
+        ),
+    ];
+    for (texture, depth) in cases {
+        let mut job = spot_job(&dir, texture.clone());
+        job.bit_depth = depth;
+        let mesh = engine.load_mesh(&job.mesh).unwrap();
+        // Held whole: one pass, encoded and written by the engine's writer.
+        let mut whole = engine.bake(&mesh, &job).unwrap();
+        assert!(whole.report.tiles.is_none());
+        decalbake::output::write_outputs(&engine, &mesh, &job, &mut whole).unwrap();
+        let texture_whole = std::fs::read(dir.join("out.png")).unwrap();
+        let model_whole = std::fs::read(dir.join("out.glb")).unwrap();
+        std::fs::remove_file(dir.join("out.png")).unwrap();
+        // Streamed: tiles of 64, so 4 or 5 bands of rows.
+        job.tile = Some(64);
+        let (report, files) =
+            decalbake::output::bake_and_write(&engine, &mesh, &job, &|_| {}, &|r| {
+                r.input_hash = Some("amended".into())
+            })
+            .unwrap();
+        assert_eq!(report.tile_size, Some([64, 64]), "{texture}");
+        assert_eq!(files[0], dir.join("out.png"));
+        let streamed = std::fs::read(dir.join("out.png")).unwrap();
+        println!(
+            "{texture} {depth}-bit: {} bytes whole, {} streamed",
+            texture_whole.len(),
+            streamed.len()
+        );
+        assert!(streamed == texture_whole, "{texture}, {depth} bits");
+        assert!(
+            std::fs::read(dir.join("out.glb")).unwrap() == model_whole,
+            "the model embeds the same PNG"
+        );
+        let written: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap();
+        assert_eq!(written["input_hash"], "amended");
+        assert_eq!(written["island_texels"], whole.report.island_texels);
+        // No temporary file is left beside the outputs.
+        let left: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
+            .collect();
+        assert!(left.is_empty(), "{left:?}");
+    }
+}
+
+/// A quad whose UV island covers the middle tenth of the texture: the 16384² bake's cost is its
+/// texels, not its triangles.
+fn quad(dir: &Path) {
+    let pos = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0],
+    ];
+    let uv = [[0.45, 0.55], [0.55, 0.55], [0.55, 0.45], [0.45, 0.45]];
+    write_glb(&dir.join("quad.glb"), &pos, Some(&uv), &[0, 1, 2, 0, 2, 3]);
+    std::fs::write(
+        dir.join("img.png"),
+        test_image(16, 16, 3, false).encode_png(8),
+    )
+    .unwrap();
+}
+
+#[test]
+fn a_16384_bake_streams_under_a_limit_the_whole_texture_exceeds() {
+    let dir = scratch("streaming_16384");
+    quad(&dir);
+    let limit: u64 = 2_000_000_000;
+    let text = serde_json::json!({ "mesh": "quad.glb",
+        "texture": { "width": 16384, "height": 16384, "padding": 4, "samples": 1 },
+        "max_memory": limit,
+        "layers": [{ "image": "img.png", "at": [0.5, 0.5, 0.0], "size": [0.5, 0.5], "method": "planar" }],
+        "output": { "texture": "big.png", "glb": "big.glb", "preview": "big_preview.png", "report": null } });
+    let job = Job::parse(&text.to_string(), &dir.join("job.json"), &dir, &dir).unwrap();
+    let engine: Engine = engine();
+    let mesh = engine.load_mesh(&job.mesh).unwrap();
+    // The library's bake, which holds the texture, is refused under this limit.
+    match engine.bake(&mesh, &job) {
+        Err(e) => assert!(e.to_string().contains("needs about"), "{e}"),
+        Ok(_) => panic!("a 16384² texture held whole fits no 2 GB"),
+    }
+    let (report, files) =
+        decalbake::output::bake_and_write(&engine, &mesh, &job, &|_| {}, &|_| {}).unwrap();
+    let peak = peak_resident();
+    println!(
+        "peak {} MiB, report tiles {:?} of {:?}",
+        peak >> 20,
+        report.tiles,
+        report.tile_size
+    );
+    assert!(peak < limit, "peak resident {peak} bytes");
+    let tile = report
+        .tile_size
+        .expect("a 16384² bake goes by tiles on lavapipe");
+    // Held whole, in one pass or by the same tiles, the estimate is above the limit.
+    for tiles in [None, Some(tile)] {
+        let e = memory::estimate(&job, 0, tiles, false);
+        assert!(e.host > limit, "{e:?}");
+    }
+    assert_eq!(files.len(), 3, "{files:?}");
+    // The PNG decodes row by row to 16384²: its corner is the background beyond the padding, the
+    // base colour a small bake of the same job held whole has there, and its centre, under the
+    // decal, is not.
+    let mut small = job.clone();
+    (small.width, small.height, small.max_memory) = (256, 256, None);
+    let base = engine.bake(&mesh, &small).unwrap().rgba8()[..4].to_vec();
+    let file = std::fs::File::open(dir.join("big.png")).unwrap();
+    let mut reader = png::Decoder::new(std::io::BufReader::new(file))
+        .read_info()
+        .unwrap();
+    assert_eq!((reader.info().width, reader.info().height), (16384, 16384));
+    let (mut rows, mut centre, mut corner) = (0, [0u8; 4], [1u8; 4]);
+    while let Some(row) = reader.next_row().unwrap() {
+        let data = row.data();
+        if rows == 8192 {
+            centre.copy_from_slice(&data[8192 * 4..8192 * 4 + 4]);
+        }
+        if rows == 0 {
+            corner.copy_from_slice(&data[..4]);
+        }
+        rows += 1;
+    }
+    assert_eq!(rows, 16384);
+    assert_eq!(corner[..], base[..]);
+    assert!(centre[..] != base[..], "{centre:?}");
+    let preview = image::open(dir.join("big_preview.png")).unwrap();
+    assert!(preview.width() > 0);
+}
