@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! Tiled bakes streamed to their files band by band (`bake/bands.rs`, `output/stream.rs`): the
 //! same bytes as the bake held whole (texture and model, 8 and 16 bits, a padding that spans
-//! bands), and a 16384² bake under a memory limit that the whole texture exceeds, its peak
+//! bands), an EXR with the same floats, and a 16384² bake under a memory limit that the whole texture exceeds, its peak
 //! resident memory (`VmHWM`) measured by the test itself.
 
 mod common;
@@ -178,4 +178,39 @@ fn a_16384_bake_streams_under_a_limit_the_whole_texture_exceeds() {
     assert!(centre[..] != base[..], "{centre:?}");
     let preview = image::open(dir.join("big_preview.png")).unwrap();
     assert!(preview.width() > 0);
+}
+
+/// An EXR streamed band by band holds the floats of the bake held whole, and its model the same
+/// PNG.
+#[test]
+fn a_streamed_exr_holds_the_floats_of_the_bake_held_whole() {
+    let dir = scratch("streaming_exr");
+    let engine = engine();
+    let mut job = spot_job(
+        &dir,
+        serde_json::json!({ "width": 256, "height": 200, "padding": 8 }),
+    );
+    job.out_texture = Some(dir.join("out.exr"));
+    let mesh = engine.load_mesh(&job.mesh).unwrap();
+    // Held whole: an EXR goes as one tile when the texture fits.
+    let mut whole = engine.bake(&mesh, &job).unwrap();
+    assert_eq!(whole.report.tile_size, Some([256, 256]));
+    decalbake::output::write_outputs(&engine, &mesh, &job, &mut whole).unwrap();
+    let model_whole = std::fs::read(dir.join("out.glb")).unwrap();
+    std::fs::remove_file(dir.join("out.exr")).unwrap();
+    job.tile = Some(64);
+    let (report, _) =
+        decalbake::output::bake_and_write(&engine, &mesh, &job, &|_| {}, &|_| {}).unwrap();
+    assert_eq!(report.tiles, Some([64, 16]));
+    let decoded = image::open(dir.join("out.exr")).unwrap().into_rgba32f();
+    assert_eq!(decoded.dimensions(), (256, 200));
+    let linear = whole.linear.as_ref().unwrap();
+    let differ = decoded
+        .as_raw()
+        .iter()
+        .zip(linear)
+        .filter(|(a, b)| a.to_bits() != b.to_bits())
+        .count();
+    assert_eq!(differ, 0, "{differ} of {} floats differ", linear.len());
+    assert!(std::fs::read(dir.join("out.glb")).unwrap() == model_whole);
 }

@@ -19,7 +19,8 @@
 //! - a bake by tiles streamed to its file (`output/stream.rs`, band by band, `bands.rs`): the
 //!   tile on the device, and on the host [`BAND_HOST_PER_TEXEL`] for each texel of a band and its
 //!   padding's halo (three bands queued, the halo's copy, its islands and distance transform),
-//!   plus [`STREAM_HOST`] for the preview's reduced copy and the encoder;
+//!   [`FLOAT_BAND_PER_TEXEL`] more for an EXR, plus [`STREAM_HOST`] for the preview's reduced
+//!   copy and the encoders;
 //! - 16-bit outputs add [`WIDE_PER_TEXEL`], float (EXR) outputs [`FLOAT_PER_TEXEL`] (the linear
 //!   canvas and its encoding).
 //!
@@ -43,6 +44,9 @@ pub const TILE_DEVICE_PER_TEXEL: u64 = 16;
 pub const TILED_HOST_PER_TEXEL: u64 = 17;
 /// Host bytes a texel of a band (and its halo) of a streamed bake by tiles.
 pub const BAND_HOST_PER_TEXEL: u64 = 48;
+/// Host bytes a texel of a band more for a float (EXR) output: the linear rows of the three
+/// queued bands and of the halo's copy.
+pub const FLOAT_BAND_PER_TEXEL: u64 = 64;
 /// Host bytes of a streamed bake besides its bands: the preview's reduced copy, the encoder.
 pub const STREAM_HOST: u64 = 96 << 20;
 /// Host bytes a texel more for a 16-bit output.
@@ -76,6 +80,10 @@ pub fn estimate(job: &Job, mesh_bytes: u64, tile: Option<[u32; 2]>, streamed: bo
     }
     let textures = 1 + super::channels::passes(job).len() as u64;
     let streamed = streamed && tile.is_some();
+    let band_extra = match job.exr() {
+        true => FLOAT_BAND_PER_TEXEL,
+        false => 0,
+    };
     let (device, host) = match tile {
         Some([tw, th]) if streamed => {
             let (w, h) = (tw.min(job.width) as u64, th.min(job.height) as u64);
@@ -86,7 +94,7 @@ pub fn estimate(job: &Job, mesh_bytes: u64, tile: Option<[u32; 2]>, streamed: bo
             let band = (job.width as u64).saturating_mul(halo);
             (
                 w * h * TILE_DEVICE_PER_TEXEL,
-                band.saturating_mul(BAND_HOST_PER_TEXEL + extra)
+                band.saturating_mul(BAND_HOST_PER_TEXEL + band_extra)
                     .saturating_add(STREAM_HOST),
             )
         }
@@ -150,7 +158,7 @@ pub fn check(engine: &Engine, mesh: &LoadedMesh, job: &Job, streamed: bool) -> R
         &job.source,
         "texture",
         format!(
-            "a {}x{} bake {how} needs about {} ({} on the host, {} on the device{}), above {source}: {}; bake a smaller texture, use smaller tiles (`texture.tile`; a PNG output with a finite padding is streamed band by band, the texture never whole in memory), or, where the machine has the room (swap, memory other processes will free), give a larger `max_memory` or `--max-memory`",
+            "a {}x{} bake {how} needs about {} ({} on the host, {} on the device{}), above {source}: {}; bake a smaller texture, use smaller tiles (`texture.tile`; `decalbake bake` streams a tiled bake with a finite padding to its file band by band, the texture never whole in memory), or, where the machine has the room (swap, memory other processes will free), give a larger `max_memory` or `--max-memory`",
             job.width,
             job.height,
             bytes_text(needed),

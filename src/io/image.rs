@@ -395,6 +395,106 @@ impl<W: std::io::Write> PngRows<'_, W> {
     }
 }
 
+/// Writes an OpenEXR image (linear RGBA, 32-bit float channels; RLE-compressed 64 × 64 tiles, as
+/// the `image` crate's encoder writes it) to `out` a band of rows at a time: `fill` hands it every
+/// row, top first, through [`ExrRows::write_rows`], in bands whose first rows are multiples of 64
+/// (a tiled bake's bands, `output/stream.rs`). `fill`'s error, or the first write's (as writing
+/// `path`), is returned; the file is complete only when this returns `Ok`.
+pub fn exr_rows<W: std::io::Write + std::io::Seek, T>(
+    out: W,
+    [width, height]: [u32; 2],
+    path: &Path,
+    fill: impl FnOnce(&mut ExrRows<'_, W>) -> Result<T>,
+) -> Result<T> {
+    use exr::meta::attribute::{ChannelDescription, SampleType, Text};
+    use exr::prelude::SmallVec;
+    let channels: SmallVec<[ChannelDescription; 5]> = ["A", "B", "G", "R"]
+        .into_iter()
+        .map(|c| ChannelDescription::named(c, SampleType::F32))
+        .collect();
+    let size = (width as usize, height as usize);
+    let mut header = exr::meta::header::Header::new(Text::new_or_panic("rgba"), size, channels);
+    header.own_attributes = Default::default();
+    let headers: exr::meta::Headers = std::iter::once(header).collect();
+    let mut outcome: Option<Result<T>> = None;
+    let written = exr::block::write(out, headers, true, |meta, writer| {
+        let blocks = exr::block::enumerate_ordered_header_block_indices(&meta.headers).collect();
+        let mut rows = ExrRows {
+            writer,
+            headers: &meta.headers,
+            blocks,
+            next: 0,
+            width: width as usize,
+        };
+        let r = fill(&mut rows);
+        let done = rows.next == rows.blocks.len();
+        let failed = r.is_err();
+        outcome = Some(r);
+        match (failed, done) {
+            (false, true) => Ok(()),
+            _ => Err(exr::error::Error::Aborted),
+        }
+    });
+    let io = |e: exr::error::Error| Error::Io {
+        path: path.to_path_buf(),
+        action: "writing",
+        source: std::io::Error::other(e),
+    };
+    match (outcome, written) {
+        (Some(Err(e)), _) => Err(e),
+        (Some(Ok(t)), Ok(())) => Ok(t),
+        (_, Err(exr::error::Error::Aborted)) => Err(Error::Io {
+            path: path.to_path_buf(),
+            action: "writing",
+            source: std::io::Error::other(
+                "the bake handed the EXR writer fewer rows than the image has",
+            ),
+        }),
+        (_, Err(e)) => Err(io(e)),
+        (None, Ok(())) => unreachable!("the block writer runs its closure"),
+    }
+}
+
+/// The blocks of an OpenEXR image being written ([`exr_rows`]).
+pub struct ExrRows<'a, W> {
+    writer: &'a mut exr::block::writer::ChunkWriter<W>,
+    headers: &'a [exr::meta::header::Header],
+    blocks: Vec<(usize, exr::block::BlockIndex)>,
+    next: usize,
+    width: usize,
+}
+
+impl<W: std::io::Write + std::io::Seek> ExrRows<'_, W> {
+    /// Writes every block that lies within the rows `y0..` held by `linear` (RGBA f32, 4 values a
+    /// texel, whole rows of the image).
+    pub fn write_rows(&mut self, y0: u32, linear: &[f32]) -> exr::error::UnitResult {
+        use exr::block::writer::ChunksWriter;
+        let rows = linear.len() / 4 / self.width;
+        let end = y0 as usize + rows;
+        while let Some(&(index, block)) = self.blocks.get(self.next) {
+            let (p, s) = (block.pixel_position, block.pixel_size);
+            if p.y() + s.y() > end {
+                break;
+            }
+            let mut data = Vec::with_capacity(s.x() * s.y() * 16);
+            for y in p.y()..p.y() + s.y() {
+                let row = &linear[(y - y0 as usize) * self.width * 4..][..self.width * 4];
+                // Channels in the file's (alphabetical) order: A, B, G, R.
+                for c in [3, 2, 1, 0] {
+                    for x in p.x()..p.x() + s.x() {
+                        data.extend_from_slice(&row[x * 4 + c].to_ne_bytes());
+                    }
+                }
+            }
+            let chunk = exr::block::UncompressedBlock { index: block, data }
+                .compress_to_chunk(self.headers)?;
+            self.writer.write_chunk(index, chunk)?;
+            self.next += 1;
+        }
+        Ok(())
+    }
+}
+
 /// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so a reader
 /// never sees a half-written file and a failure leaves nothing behind.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {

@@ -1,15 +1,17 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! A bake by tiles written as it is baked: each band of rows (`bake/bands.rs`), padded, goes
-//! straight into the PNG (`io::image::PngRows`, the same bytes as a PNG encoded whole) in a
-//! temporary file beside the texture, so the texture is never whole in memory: a 16384² bake holds
-//! a few bands of rows, its tile on the device, and a reduced copy for the preview.
+//! straight into the PNG (`io::image::png_rows`, the same bytes as a PNG encoded whole) or the
+//! OpenEXR (`io::image::exr_rows`, the same floats as the linear canvas held whole) in a temporary
+//! file beside the texture, so the texture is never whole in memory: a 16384² bake holds a few
+//! bands of rows, its tile on the device, and a reduced copy for the preview.
 //!
-//! What streams: a bake that goes by tiles (`texture.tile`, or a texture whose canvas does not fit
-//! one storage buffer) to a PNG, with a finite padding. An EXR output, `"padding": "full"` (a
-//! texel may take its colour from anywhere in the texture) and the several-set bakes are baked
-//! whole in memory ([`super::write_outputs`]). Where the job asks for a model, the model embeds the
-//! written PNG's bytes (read back from the temporary file, or kept in memory when the job writes no
-//! texture), so a model of a huge texture holds its compressed bytes, not its texels.
+//! What streams: a bake that goes by tiles (`texture.tile`, a texture whose canvas does not fit
+//! one storage buffer, or an EXR output) with a finite padding. `"padding": "full"` (a texel may
+//! take its colour from anywhere in the texture) and the several-set bakes are baked whole in
+//! memory ([`super::write_outputs`]). Where the job asks for a model, the model embeds the PNG's
+//! bytes (read back from the temporary file, or, when the job writes no PNG texture, a PNG
+//! written to memory beside the bands), so a model of a huge texture holds its compressed bytes,
+//! not its texels.
 //! The preview is drawn from a copy of the texture reduced by box filtering to at most
 //! [`PREVIEW_MAX`] texels a side (a 512-pixel view samples far coarser mips anyway).
 //!
@@ -21,7 +23,7 @@ use crate::bake::bands::Band;
 use crate::bake::report::Report;
 use crate::bake::{Engine, LoadedMesh};
 use crate::error::{Error, Result};
-use crate::io::image::{png_rows, PngRows};
+use crate::io::image::{exr_rows, png_rows, ExrRows, PngRows};
 use crate::io::job::Job;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -43,9 +45,6 @@ pub fn write_streamed(
     let Some(shape) = crate::bake::streamed_shape(engine, job) else {
         return Ok(None);
     };
-    if job.exr() {
-        return Ok(None);
-    }
     // Sizes and memory before the file is begun.
     crate::bake::streamed_limits(engine, mesh, job)?;
     crate::bake::tiles::refuse_channels(job, shape)?;
@@ -54,14 +53,13 @@ pub fn write_streamed(
         None => None,
     };
     let mut memory = Vec::new();
-    let streamed = {
-        let out: Option<&mut dyn Write> = match texture.as_mut() {
-            Some(t) => Some(&mut t.out),
-            None if job.out_glb.is_some() => Some(&mut memory),
-            None => None,
-        };
-        stream(engine, mesh, (job, shape), on_stage, out)
-    };
+    let streamed = stream(
+        engine,
+        mesh,
+        (job, shape),
+        on_stage,
+        (texture.as_mut(), &mut memory),
+    );
     let (mut report, reduced) = match streamed.and_then(|r| {
         texture.as_mut().map_or(Ok(()), Staged::flush)?;
         Ok(r)
@@ -101,46 +99,84 @@ pub fn write_streamed(
     Ok(Some((report, written)))
 }
 
-/// Bakes the bands into `out` (a PNG) and a reduced copy for the preview, if the job has one.
+/// Bakes the bands into the texture's file (a PNG, or an EXR), a PNG in `memory` where the job
+/// asks for a model and the texture is not a PNG file, and a reduced copy for the preview, if the
+/// job has one.
 fn stream(
     engine: &Engine,
     mesh: &LoadedMesh,
     (job, shape): (&Job, [u32; 2]),
     on_stage: &dyn Fn(&str),
-    out: Option<&mut dyn Write>,
+    (texture, memory): (Option<&mut Staged>, &mut Vec<u8>),
 ) -> Result<(Report, Option<preview::PreviewTexture>)> {
     let path = job.out_texture.as_ref().or(job.out_glb.as_ref());
-    let io = |source: std::io::Error| Error::Io {
-        path: path.cloned().unwrap_or_default(),
-        action: "writing",
-        source,
-    };
+    let path = path.map_or(Path::new(""), |p| p.as_path());
     let mut reduce = job.out_preview.as_ref().map(|_| Reduction::new(job));
     let size = [job.width, job.height];
-    let mut bake = |png: Option<&mut PngRows<'_, &mut dyn Write>>| {
-        let mut png = png;
-        crate::bake::bake_bands(engine, mesh, job, shape, on_stage, &mut |band| {
-            if let Some(p) = png.as_mut() {
-                p.write_texels(&band.texels).map_err(io)?;
+    let depth = job.bit_depth;
+    let cx = (engine, mesh, job, shape, on_stage, path);
+    let glb = job.out_glb.is_some();
+    let report = match texture {
+        Some(t) if job.exr() => {
+            let file = &mut t.out;
+            match glb {
+                true => png_rows(memory as &mut dyn Write, size, depth, path, |png| {
+                    exr_rows(file, size, path, |exr| {
+                        bands(cx, Some(png), Some(exr), &mut reduce)
+                    })
+                })?,
+                false => exr_rows(file, size, path, |exr| {
+                    bands(cx, None, Some(exr), &mut reduce)
+                })?,
             }
-            if let Some(r) = reduce.as_mut() {
-                r.add(band);
-            }
-            Ok(())
-        })
-    };
-    let report = match out {
-        Some(o) => png_rows(
-            o,
-            size,
-            job.bit_depth,
-            path.map_or(Path::new(""), |p| p),
-            |png| bake(Some(png)),
-        )?,
-        None => bake(None)?,
+        }
+        Some(t) => png_rows(&mut t.out as &mut dyn Write, size, depth, path, |png| {
+            bands(cx, Some(png), None, &mut reduce)
+        })?,
+        None if glb => png_rows(memory as &mut dyn Write, size, depth, path, |png| {
+            bands(cx, Some(png), None, &mut reduce)
+        })?,
+        None => bands(cx, None, None, &mut reduce)?,
     };
     let uv_set = report.uv_set as usize;
     Ok((report, reduce.map(|r| r.finish(uv_set))))
+}
+
+/// What [`stream`] hands on to [`bands`]: the bake, and the path its write errors name.
+type StreamCx<'a> = (
+    &'a Engine,
+    &'a LoadedMesh,
+    &'a Job,
+    [u32; 2],
+    &'a dyn Fn(&str),
+    &'a Path,
+);
+
+/// The bake's bands, each into the PNG, the EXR and the reduced copy that are given.
+fn bands(
+    (engine, mesh, job, shape, on_stage, path): StreamCx<'_>,
+    mut png: Option<&mut PngRows<'_, &mut dyn Write>>,
+    mut exr: Option<&mut ExrRows<'_, &mut std::io::BufWriter<std::fs::File>>>,
+    reduce: &mut Option<Reduction>,
+) -> Result<Report> {
+    let io = |source: std::io::Error| Error::Io {
+        path: path.to_path_buf(),
+        action: "writing",
+        source,
+    };
+    crate::bake::bake_bands(engine, mesh, job, shape, on_stage, &mut |band| {
+        if let Some(p) = png.as_mut() {
+            p.write_texels(&band.texels).map_err(io)?;
+        }
+        if let (Some(e), Some(linear)) = (exr.as_mut(), &band.linear) {
+            e.write_rows(band.y, linear)
+                .map_err(|e| io(std::io::Error::other(e)))?;
+        }
+        if let Some(r) = reduce.as_mut() {
+            r.add(band);
+        }
+        Ok(())
+    })
 }
 
 /// The model and the preview of a streamed bake, from its PNG (`texture`'s file, or `memory`).
@@ -155,12 +191,12 @@ fn other_files(
     let mut files = Vec::new();
     if let Some(p) = &job.out_glb {
         let png = match texture {
-            Some(t) => std::fs::read(&t.tmp).map_err(|source| Error::Io {
+            Some(t) if !job.exr() => std::fs::read(&t.tmp).map_err(|source| Error::Io {
                 path: t.path.clone(),
                 action: "reading back for the model",
                 source,
             })?,
-            None => memory,
+            _ => memory,
         };
         let color = gltf::BakedColor {
             png: &png,
