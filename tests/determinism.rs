@@ -122,6 +122,19 @@ fn bake_in_processes(
         .collect()
 }
 
+/// Every process of [`bake_in_processes`] wrote the first one's file, and a report whose
+/// distortion figures are `first_report`'s.
+fn processes_agree(
+    runs: &[(Vec<u8>, Option<serde_json::Value>)],
+    first_report: &serde_json::Value,
+) {
+    for (k, (file, report)) in runs.iter().enumerate() {
+        let report = report.as_ref().unwrap();
+        assert_eq!(distortion(report), distortion(first_report), "process {k}");
+        assert!(*file == runs[0].0, "process {k} wrote a different file");
+    }
+}
+
 #[test]
 fn overlapping_triangles_bake_the_same_bytes_every_time() {
     let dir = scratch("determinism");
@@ -177,11 +190,7 @@ fn twenty_four_decals_on_spot_bake_the_same_bytes_in_every_process() {
     let first_report = serde_json::to_value(&first.report).unwrap();
     bake_again_and_compare(&engine, &mesh, &job, &first);
     let runs = bake_in_processes(&path, &dir.join("spot.png"), Some(&dir.join("spot.json")));
-    for (k, (file, report)) in runs.iter().enumerate() {
-        let report = report.as_ref().unwrap();
-        assert_eq!(distortion(report), distortion(&first_report), "process {k}");
-        assert!(*file == runs[0].0, "process {k} wrote a different file");
-    }
+    processes_agree(&runs, &first_report);
     // The file is the library's bake, encoded.
     let encoded = decalbake::io::image::png_bytes(512, 512, 8, &first.texels);
     let decoded = decalbake::io::image::LinearImage::decode(&encoded).unwrap();
@@ -222,12 +231,7 @@ fn a_thousand_layers_bake_the_same_bytes_every_time() {
     assert!(first.report.layers.iter().all(|l| l.texels_covered > 0));
     bake_again_and_compare(&engine, &mesh, &job, &first);
     let runs = bake_in_processes(&path, &dir.join("many.png"), Some(&dir.join("many.json")));
-    let first_report = serde_json::to_value(&first.report).unwrap();
-    for (k, (file, report)) in runs.iter().enumerate() {
-        let report = report.as_ref().unwrap();
-        assert_eq!(distortion(report), distortion(&first_report), "process {k}");
-        assert!(*file == runs[0].0, "process {k} wrote a different file");
-    }
+    processes_agree(&runs, &serde_json::to_value(&first.report).unwrap());
     assert!(
         runs[0].0 == first.to_png(),
         "the CLI's file is the library's bake, encoded"

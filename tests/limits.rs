@@ -73,18 +73,6 @@ fn impossible_sizes_exit_2_naming_the_field() {
     assert!(stderr.contains("max_memory"), "{stderr}");
 }
 
-/// Peak resident memory of this process (`VmHWM`), bytes.
-fn peak_resident() -> u64 {
-    let status = std::fs::read_to_string("/proc/self/status").unwrap();
-    let line = status.lines().find(|l| l.starts_with("VmHWM:")).unwrap();
-    line.split_whitespace()
-        .nth(1)
-        .unwrap()
-        .parse::<u64>()
-        .unwrap()
-        * 1024
-}
-
 #[test]
 fn a_bake_beyond_the_memory_limit_is_refused_before_it_allocates() {
     let dir = setup("limits_memory");

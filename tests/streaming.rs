@@ -10,18 +10,6 @@ use decalbake::bake::memory;
 use decalbake::{Engine, Job};
 use std::path::Path;
 
-/// This process's peak resident memory in bytes (`VmHWM`).
-fn peak_resident() -> u64 {
-    let status = std::fs::read_to_string("/proc/self/status").unwrap();
-    let line = status.lines().find(|l| l.starts_with("VmHWM:")).unwrap();
-    line.split_whitespace()
-        .nth(1)
-        .unwrap()
-        .parse::<u64>()
-        .unwrap()
-        * 1024
-}
-
 /// Spot with decals by several methods, written to texture, model and report.
 fn spot_job(dir: &Path, texture: serde_json::Value) -> Job {
     let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");

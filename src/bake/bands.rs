@@ -69,10 +69,7 @@ pub(crate) fn bake(
     for (i, row) in rows.iter().enumerate() {
         let (band, r) = bake_band(engine, mesh, job, (row, first, wins.len()), on_stage)?;
         first += row.len();
-        report = Some(match report {
-            None => r,
-            Some(acc) => tiles::merge(acc, r),
-        });
+        report = Some(tiles::merge(report, r));
         queue.push_back(band);
         let baked = queue.back().map_or(0, Band::end);
         let last = i + 1 == rows.len();
@@ -123,10 +120,7 @@ fn bake_band(
         let dest = (&mut band.texels[..], band.linear.as_mut());
         let cx = (engine, mesh, job);
         let r = tiles::bake_window(cx, (win, first + k, n), on_stage, y, dest)?;
-        report = Some(match report {
-            None => r,
-            Some(acc) => tiles::merge(acc, r),
-        });
+        report = Some(tiles::merge(report, r));
         let m = super::islands::window_mask(
             engine,
             mesh,

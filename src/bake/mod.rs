@@ -91,7 +91,8 @@ pub(crate) fn streamed_shape(engine: &Engine, job: &Job) -> Option<[u32; 2]> {
 }
 
 /// Bakes `job` by tiles of `shape`, handing `sink` each band of rows as soon as it is padded
-/// ([`bands`]), after the limits for a streamed bake; returns the whole bake's report.
+/// ([`bands`]); returns the whole bake's report. The caller has checked [`streamed_limits`] and
+/// [`tiles::refuse_channels`] before it began its files.
 pub(crate) fn bake_bands(
     engine: &Engine,
     mesh: &LoadedMesh,
@@ -100,8 +101,6 @@ pub(crate) fn bake_bands(
     on_stage: &dyn Fn(&str),
     sink: &mut dyn FnMut(&bands::Band) -> Result<()>,
 ) -> Result<Report> {
-    streamed_limits(engine, mesh, job)?;
-    tiles::refuse_channels(job, shape)?;
     bands::bake(engine, mesh, job, shape, on_stage, sink)
 }
 

@@ -137,10 +137,7 @@ pub(crate) fn bake_whole(
         let cx = (engine, mesh, job);
         let dest = (&mut *texels, linear.as_deref_mut());
         let r = bake_window(cx, (win, k, wins.len()), on_stage, 0, dest)?;
-        report = Some(match report {
-            None => r,
-            Some(acc) => merge(acc, r),
-        });
+        report = Some(merge(report, r));
     }
     on_stage("padding");
     let radius = super::finish::padding_radius(job.padding);
@@ -158,9 +155,13 @@ pub(crate) fn bake_whole(
     Ok(report)
 }
 
-/// Two tiles' reports as one: the first's, with the texels each layer covered added up (the
-/// rest, placement, maps and triangles, is the same in every tile) and the stage times summed.
-pub(crate) fn merge(mut a: Report, b: Report) -> Report {
+/// Two tiles' reports as one: the first's (`b` alone when there is none yet), with the texels each
+/// layer covered added up (the rest, placement, maps and triangles, is the same in every tile) and
+/// the stage times summed.
+pub(crate) fn merge(a: Option<Report>, b: Report) -> Report {
+    let Some(mut a) = a else {
+        return b;
+    };
     for (la, lb) in a.layers.iter_mut().zip(&b.layers) {
         la.texels_covered += lb.texels_covered;
     }

@@ -313,3 +313,15 @@ pub fn spot_ring(image: &str, size: f32) -> Vec<serde_json::Value> {
 }
 
 pub mod rich;
+
+/// Peak resident memory of this process (`VmHWM`), bytes.
+pub fn peak_resident() -> u64 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap();
+    let line = status.lines().find(|l| l.starts_with("VmHWM:")).unwrap();
+    line.split_whitespace()
+        .nth(1)
+        .unwrap()
+        .parse::<u64>()
+        .unwrap()
+        * 1024
+}
