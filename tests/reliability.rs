@@ -270,3 +270,128 @@ fn images_are_kept_between_bakes_and_read_again_when_rewritten() {
     assert_eq!(second.texels, fresh.texels);
     assert_eq!(engine.cached_images(), 1, "the old upload was replaced");
 }
+
+/// A one-decal job on Spot writing a texture and a report into `dir`.
+fn small_cli_job(dir: &Path) -> std::path::PathBuf {
+    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
+    std::fs::write(
+        dir.join("img.png"),
+        test_image(32, 32, 9, true).encode_png(8),
+    )
+    .unwrap();
+    let job = serde_json::json!({ "mesh": spot, "texture": { "width": 256, "height": 256 },
+        "layers": [{ "image": "img.png", "at": [0.0, 0.3, 0.4], "size": [0.3, 0.3] }],
+        "output": { "texture": "out.png", "report": "report.json" } });
+    let path = dir.join("job.json");
+    std::fs::write(&path, job.to_string()).unwrap();
+    path
+}
+
+/// Bakes `job` with the pipeline cache in `cache`: the report's `pipeline_cache`, its adapter and
+/// the texture's bytes.
+fn bake_cached(job: &Path, cache: &Path) -> (String, String, Vec<u8>) {
+    let (code, _, err) = cli_env(
+        &["bake", job.to_str().unwrap()],
+        &[("DECALBAKE_CACHE_DIR", cache.to_str().unwrap())],
+    );
+    assert_eq!(code, 0, "{err}");
+    let dir = job.parent().unwrap();
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap();
+    let state = report["pipeline_cache"].as_str().unwrap().to_string();
+    let adapter = report["adapter"].as_str().unwrap().to_string();
+    (state, adapter, std::fs::read(dir.join("out.png")).unwrap())
+}
+
+#[test]
+fn the_pipeline_cache_is_saved_read_and_replaced_when_corrupt_without_changing_a_byte() {
+    let dir = scratch("pipeline_cache");
+    let cache = dir.join("cache");
+    let job = small_cli_job(&dir);
+    let (cold, adapter, first) = bake_cached(&job, &cache);
+    if cold == "unsupported" {
+        assert!(
+            !adapter.contains("Vulkan"),
+            "Vulkan keeps a pipeline cache: {adapter}"
+        );
+        return;
+    }
+    assert_eq!(cold, "cold");
+    let files: Vec<_> = std::fs::read_dir(&cache).unwrap().flatten().collect();
+    assert_eq!(files.len(), 1, "one file, no temporary left: {files:?}");
+    let file = files[0].path();
+    let saved = std::fs::read(&file).unwrap();
+    assert!(saved.len() > 40, "the file holds data beyond its header");
+
+    let (warm, _, second) = bake_cached(&job, &cache);
+    assert_eq!(warm, "warm");
+    assert!(first == second, "a warm cache changes no byte");
+
+    // A truncated file, then one with a byte flipped: ignored, the bake unchanged, the file
+    // replaced by a good one.
+    for damage in [0, 1] {
+        let mut bad = saved.clone();
+        match damage {
+            0 => bad.truncate(saved.len() / 2),
+            _ => *bad.last_mut().unwrap() ^= 0x55,
+        }
+        std::fs::write(&file, &bad).unwrap();
+        let (state, _, third) = bake_cached(&job, &cache);
+        assert_eq!(state, "corrupt", "damage {damage}");
+        assert!(first == third, "a corrupt cache changes no byte");
+        assert_eq!(
+            bake_cached(&job, &cache).0,
+            "warm",
+            "replaced after damage {damage}"
+        );
+    }
+
+    let (code, _, err) = cli_env(
+        &["bake", job.to_str().unwrap()],
+        &[("DECALBAKE_CACHE_DIR", "off")],
+    );
+    assert_eq!(code, 0, "{err}");
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["pipeline_cache"], "off");
+}
+
+#[test]
+fn a_bake_builds_only_the_pipelines_it_runs_and_preparing_them_changes_no_byte() {
+    let dir = scratch("lazy_pipelines");
+    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
+    std::fs::write(
+        dir.join("img.png"),
+        test_image(32, 32, 3, true).encode_png(8),
+    )
+    .unwrap();
+    let text = serde_json::json!({ "mesh": spot, "texture": { "width": 256, "height": 256 },
+        "layers": [{ "image": "img.png", "at": [0.0, 0.3, 0.4], "size": [0.3, 0.3],
+                     "method": "planar" }],
+        "output": { "texture": "out.png" } });
+    let job = Job::parse(&text.to_string(), &dir.join("job.json"), &dir, &dir).unwrap();
+
+    let lazy = engine();
+    let p = lazy.pipelines();
+    assert_eq!(p.builder.spent().1, 0, "nothing is built before a bake");
+    let mesh = lazy.load_mesh(&job.mesh).unwrap();
+    let plain = lazy.bake(&mesh, &job).unwrap();
+    let built = p.builder.spent().1;
+    assert!(p.compose.is_built() && p.layer_raster.is_built() && p.planar_coords.is_built());
+    assert!(!p.preview.is_built(), "no preview asked");
+    assert!(
+        !p.expmap_relax.is_built() && !p.cg_batched.is_built(),
+        "no chart or map"
+    );
+    assert!(!p.ribbon_relax.is_built() && !p.pelt_step.is_built());
+    assert!(built < 20, "{built} pipelines built for one planar decal");
+    assert!(plain.report.timings.pipelines_ms > 0.0);
+
+    let eager = engine();
+    eager.prepare_for(&job);
+    let q = eager.pipelines();
+    assert!(q.compose.is_built() && q.encode.is_built() && q.planar_coords.is_built());
+    let mesh = eager.load_mesh(&job.mesh).unwrap();
+    let prepared = eager.bake(&mesh, &job).unwrap();
+    assert!(plain.texels == prepared.texels, "preparing changes no byte");
+}

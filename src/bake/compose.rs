@@ -480,9 +480,7 @@ impl Recording<'_> {
                 pass.draw(0..3, 0..1);
             }
             let raster = match self.pass.map(|p| p.kind) {
-                Some(super::channels::ChannelKind::Normal) => {
-                    pipes.layer_raster_normal(&engine.ctx.device)
-                }
+                Some(super::channels::ChannelKind::Normal) => &pipes.layer_raster_normal,
                 _ => &pipes.layer_raster,
             };
             pass.set_pipeline(&raster.pipeline);
@@ -625,7 +623,7 @@ impl Recording<'_> {
                 entries.push((11, g.split_positions.as_entire_binding()));
                 entries.push((12, g.split_normals.as_entire_binding()));
                 entries.push((13, t.as_entire_binding()));
-                &engine.pipes.layer_raster_normal(&engine.ctx.device).layout
+                &engine.pipes.layer_raster_normal.layout
             }
             None => &engine.pipes.layer_raster.layout,
         };

@@ -6,7 +6,7 @@
 
 use crate::bake::report::{MeshStats, Report};
 use crate::error::Result;
-use crate::gpu::pipelines::{Pipelines, COVERAGE_FORMAT};
+use crate::gpu::pipelines::{Builder, Pipelines, Prepare, COVERAGE_FORMAT};
 use crate::gpu::GpuContext;
 use crate::io::job::Job;
 use crate::mesh::upload::GpuMesh;
@@ -221,6 +221,8 @@ pub struct Engine {
     pub clip_min_texels: f32,
     /// Layer images and masks decoded and uploaded by earlier bakes (`bake/images.rs`).
     pub(crate) images: Mutex<ImageCache>,
+    /// Whether a bake's report has carried the engine's start-up time.
+    startup_reported: std::sync::atomic::AtomicBool,
     /// Canvas-sized buffers of finished bakes, for the next bake or tile ([`BufferPool`]).
     pub(crate) buffers: Mutex<BufferPool>,
 }
@@ -312,6 +314,12 @@ impl BufferPool {
     }
 }
 
+impl Drop for Engine {
+    fn drop(&mut self) {
+        self.save_pipeline_cache();
+    }
+}
+
 impl Engine {
     /// An engine on its own headless device (see [`GpuContext::new`]).
     pub fn new(backend: Option<&str>) -> Result<Self> {
@@ -339,7 +347,9 @@ impl Engine {
 
     /// An engine on an existing context.
     pub fn with_context(ctx: GpuContext) -> Result<Self> {
-        let pipes = ctx.scoped("pipeline creation", || Pipelines::new(&ctx.device))?;
+        let cache = ctx.pipeline_cache.0.as_ref().map(|c| c.cache.clone());
+        let builder = Builder::new(ctx.device.clone(), cache);
+        let pipes = ctx.scoped("pipeline creation", || Pipelines::new(builder))?;
         let linear_sampler = ctx.device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("decalbake.linear"),
             address_mode_u: wgpu::AddressMode::ClampToEdge,
@@ -363,6 +373,7 @@ impl Engine {
             bvh_build: BvhBuild::Auto,
             clip_min_texels: 128.0,
             images: Mutex::new(Default::default()),
+            startup_reported: Default::default(),
         })
     }
 
@@ -639,6 +650,57 @@ impl Engine {
         job: &Job,
         on_stage: &dyn Fn(&str),
     ) -> Result<Baked> {
+        let before = self.pipelines_spent();
+        let mut baked = self.bake_whole_or_tiled(mesh, job, on_stage)?;
+        self.note_start(&mut baked.report, before);
+        Ok(baked)
+    }
+
+    /// Milliseconds spent building pipelines on this engine so far.
+    pub(crate) fn pipelines_spent(&self) -> f64 {
+        self.pipes.builder.spent().0
+    }
+
+    /// Notes in a finished bake's report the pipelines it built (`before`: [`Self::pipelines_spent`]
+    /// when it began), the engine's start-up if no report has carried it yet, and the pipeline
+    /// cache's state; saves the cache if pipelines were built since its last save.
+    pub(crate) fn note_start(&self, report: &mut Report, before: f64) {
+        let (spent, built) = self.pipes.builder.spent();
+        let first = !self
+            .startup_reported
+            .swap(true, std::sync::atomic::Ordering::Relaxed);
+        // The first bake counts what was built before it too (`prepare_for`).
+        report.timings.pipelines_ms = if first { spent } else { spent - before };
+        report.timings.startup_ms = if first { self.ctx.startup_ms } else { 0.0 };
+        report.pipeline_cache = self.ctx.pipeline_cache.1.name();
+        if let Some(cache) = &self.ctx.pipeline_cache.0 {
+            cache.save(built);
+        }
+    }
+
+    /// Saves the pipeline cache (`gpu::cache`) if pipelines were built since its last save: the
+    /// bakes do, and so does dropping the engine; a command that builds pipelines after its bake
+    /// (the preview) calls this once its files are written.
+    pub fn save_pipeline_cache(&self) {
+        if let Some(cache) = &self.ctx.pipeline_cache.0 {
+            cache.save(self.pipes.builder.spent().1);
+        }
+    }
+
+    /// Builds, on every core, the pipelines `job` will run (those of every bake, and those its
+    /// layers' kinds and outputs need), so that a caller can overlap them with reading the mesh
+    /// and images (`decalbake bake` does). Pipelines are otherwise built when first used; this
+    /// changes no result.
+    pub fn prepare_for(&self, job: &Job) {
+        self.pipes.prepare(|p| pipelines_for(p, job));
+    }
+
+    fn bake_whole_or_tiled(
+        &self,
+        mesh: &LoadedMesh,
+        job: &Job,
+        on_stage: &dyn Fn(&str),
+    ) -> Result<Baked> {
         super::limits(self, mesh, job)?;
         if let Some(tiled) = super::tiled(self, mesh, job, on_stage) {
             return tiled;
@@ -692,6 +754,17 @@ impl Engine {
     /// A texture that is baked by tiles (beyond one storage buffer) is assembled on the CPU and
     /// uploaded.
     pub fn bake_to_texture(&self, mesh: &LoadedMesh, job: &Job) -> Result<(wgpu::Texture, Report)> {
+        let before = self.pipelines_spent();
+        let (texture, mut report) = self.bake_texture_unnoted(mesh, job)?;
+        self.note_start(&mut report, before);
+        Ok((texture, report))
+    }
+
+    fn bake_texture_unnoted(
+        &self,
+        mesh: &LoadedMesh,
+        job: &Job,
+    ) -> Result<(wgpu::Texture, Report)> {
         let mut job8 = job.clone();
         job8.bit_depth = 8;
         super::limits(self, mesh, &job8)?;
@@ -854,4 +927,59 @@ pub struct Islands {
     pub nearest: wgpu::Buffer,
     /// Island texels.
     pub count: u64,
+}
+
+/// The pipelines a bake of `job` will run, for [`Engine::prepare_for`]: those every bake runs
+/// (canvas, islands, selection, raster, compose, padding and encode), placement when it has
+/// layers, each layer kind's and method's, and the preview's when it writes one. A pipeline left
+/// out is built when first used; one put in needlessly costs its compile on a spare core.
+fn pipelines_for<'p>(p: &'p Pipelines, job: &Job) -> Vec<&'p dyn Prepare> {
+    use crate::io::job::{LayerKind, Method};
+    let mut list: Vec<&dyn Prepare> = vec![
+        &p.base_init,
+        &p.island_raster,
+        &p.island_mask,
+        &p.encode,
+        &p.edt_columns,
+        &p.edt_rows,
+    ];
+    if !job.layers.is_empty() {
+        list.extend([
+            &p.place_bvh as &dyn Prepare,
+            &p.place_reduce,
+            &p.select_triangles,
+            &p.compact_lists,
+            &p.layer_raster,
+            &p.atlas_clear,
+            &p.compose,
+            &p.distortion,
+        ]);
+    }
+    let any = |f: &dyn Fn(&crate::io::job::Layer) -> bool| job.layers.iter().any(f);
+    if any(&|l| l.method == Method::Planar) {
+        list.push(&p.planar_coords);
+    }
+    if any(&|l| matches!(l.method, Method::Expmap | Method::Lscm | Method::Hybrid)) {
+        list.extend([&p.expmap_relax as &dyn Prepare, &p.chart_gather]);
+    }
+    if any(&|l| matches!(l.method, Method::Lscm | Method::Hybrid)) {
+        list.extend([
+            &p.chart_scatter as &dyn Prepare,
+            &p.cg_batched,
+            &p.cg_packed_complex,
+        ]);
+    }
+    if any(&|l| l.kind == LayerKind::Stroke) {
+        list.extend([&p.stroke_apply as &dyn Prepare, &p.stamp_blend]);
+    }
+    if any(&|l| l.kind == LayerKind::Ribbon) {
+        list.push(&p.ribbon_relax);
+    }
+    if any(&|l| l.channels.normal.is_some()) {
+        list.push(&p.layer_raster_normal);
+    }
+    if job.out_preview.is_some() {
+        list.push(&p.preview);
+    }
+    list
 }

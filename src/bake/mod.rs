@@ -258,6 +258,7 @@ pub(crate) fn run_in(
         warnings: log.warnings,
         timings: log.timings,
         gpu_commands: log.commands,
+        pipeline_cache: engine.ctx.pipeline_cache.1.name(),
         input_hash: None,
         unwrap: mesh.unwrap.clone(),
         tiles: None,

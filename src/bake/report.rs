@@ -114,6 +114,13 @@ pub struct Timings {
     pub encode_ms: f64,
     /// PNG/GLB/preview writing.
     pub write_ms: f64,
+    /// The engine's start: instance, adapter, device and the pipeline cache's file (the first
+    /// bake of an engine only; 0 in later ones and on a host's device).
+    pub startup_ms: f64,
+    /// Building pipelines, summed over the threads that built them: those this bake used for the
+    /// first time, and for an engine's first bake those built before it (`Engine::prepare_for`,
+    /// overlapped with the mesh's load). Already counted in the stages that waited for them.
+    pub pipelines_ms: f64,
 }
 
 /// The whole report.
@@ -145,6 +152,10 @@ pub struct Report {
     pub timings: Timings,
     /// GPU dispatches and draws issued.
     pub gpu_commands: u32,
+    /// The compiled pipelines kept on disk (`gpu::cache`): `"warm"` (read from the file),
+    /// `"cold"` (no file yet; written after the bake), `"corrupt"` (ignored and replaced),
+    /// `"unsupported"` (the backend keeps none) or `"off"`.
+    pub pipeline_cache: &'static str,
     /// `decalbake batch`: SHA-256 of the job's inputs (engine version, job text, mesh and image
     /// bytes), which `--resume` compares before skipping a job whose outputs exist.
     #[serde(skip_serializing_if = "Option::is_none")]

@@ -548,7 +548,11 @@ fn bake(engine: &Engine, job: &Job) -> Result<()> {
         }
         return Ok(());
     }
-    let (mesh, job) = engine.load_mesh_for(job)?;
+    // The pipelines the job runs are built on the other cores while the mesh loads.
+    let (mesh, job) = std::thread::scope(|s| {
+        s.spawn(|| engine.prepare_for(job));
+        engine.load_mesh_for(job)
+    })?;
     if let Some(frames) = job.frames() {
         return bake_frames(engine, &mesh, &job, frames);
     }

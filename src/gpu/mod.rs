@@ -9,6 +9,7 @@
 //! errors into [`Error::Gpu`]; a lost device is reported as [`Error::DeviceLost`] at the next wait.
 
 use crate::error::{Error, Result};
+pub mod cache;
 pub mod pipelines;
 pub mod shaders;
 use std::sync::{Arc, Mutex};
@@ -25,6 +26,12 @@ pub struct GpuContext {
     pub backend: Option<wgpu::Backend>,
     /// The adapter's kind, when known (a software driver such as lavapipe is `Cpu`).
     pub device_type: Option<wgpu::DeviceType>,
+    /// The compiled pipelines kept on disk (a headless device on Vulkan; see [`cache`]), and what
+    /// it held when the device was made.
+    pub pipeline_cache: (Option<Arc<cache::DiskCache>>, cache::Start),
+    /// Milliseconds [`GpuContext::new`] took (instance, adapter, device, cache file); 0 for a
+    /// host's device.
+    pub startup_ms: f64,
     lost: Arc<Mutex<Option<String>>>,
 }
 
@@ -143,6 +150,7 @@ impl GpuContext {
     /// Creates a headless device. `backend` (e.g. `"vulkan"`, `"gl"`) overrides `WGPU_BACKEND`; with
     /// neither, Vulkan is tried first and GL second.
     pub fn new(backend: Option<&str>) -> Result<Self> {
+        let start = std::time::Instant::now();
         let requested = match backend {
             Some(name) => Some(parse_backends(name).ok_or_else(|| Error::NoAdapter {
                 backends: name.to_string(),
@@ -180,13 +188,19 @@ impl GpuContext {
                 last_err = format!("adapter {} has no compute shaders", info.name);
                 continue;
             }
+            let folder = cache::folder();
+            let cached = match folder {
+                Some(_) => wgpu::Features::PIPELINE_CACHE,
+                None => wgpu::Features::empty(),
+            };
             let (device, queue) =
                 pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
                     label: Some("decalbake"),
                     required_features: adapter.features()
                         & (wgpu::Features::FLOAT32_FILTERABLE
                             | wgpu::Features::FLOAT32_BLENDABLE
-                            | wgpu::Features::CLIP_DISTANCES),
+                            | wgpu::Features::CLIP_DISTANCES
+                            | cached),
                     required_limits: adapter.limits(),
                     experimental_features: wgpu::ExperimentalFeatures::disabled(),
                     memory_hints: wgpu::MemoryHints::Performance,
@@ -196,7 +210,20 @@ impl GpuContext {
                     adapter: info.name.clone(),
                     detail: e.to_string(),
                 })?;
-            return Ok(Self::from_device(device, queue, Some(info)));
+            let pipeline_cache = match folder {
+                None => (None, cache::Start::Off),
+                Some(_) if !device.features().contains(wgpu::Features::PIPELINE_CACHE) => {
+                    (None, cache::Start::Unsupported)
+                }
+                Some(f) => match cache::DiskCache::open(&device, &info, &f) {
+                    Some((c, start)) => (Some(Arc::new(c)), start),
+                    None => (None, cache::Start::Unsupported),
+                },
+            };
+            let mut ctx = Self::from_device(device, queue, Some(info));
+            ctx.pipeline_cache = pipeline_cache;
+            ctx.startup_ms = start.elapsed().as_secs_f64() * 1e3;
+            return Ok(ctx);
         }
         Err(Error::NoAdapter {
             backends: attempts
@@ -246,6 +273,8 @@ impl GpuContext {
             queue,
             adapter,
             backend,
+            pipeline_cache: (None, cache::Start::Off),
+            startup_ms: 0.0,
             lost,
         }
     }

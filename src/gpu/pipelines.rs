@@ -3,6 +3,8 @@
 //! bind-group layouts described as data (one [`Bind`] list per kernel, in WGSL binding order).
 
 use crate::gpu::shaders;
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
+use std::sync::{Arc, OnceLock};
 
 /// Preferred format of the supersampled layer colour target (premultiplied, linear). Devices that
 /// cannot render to it (wgpu's GL backend) use `Rgba16Float`; see [`Pipelines::layer_format`].
@@ -98,12 +100,12 @@ pub struct Kernel {
 }
 
 impl Kernel {
-    fn new(device: &wgpu::Device, name: &str, binds: &[(u32, Bind)]) -> Self {
+    fn new(device: &Builder, name: &str, binds: &[(u32, Bind)]) -> Self {
         Self::with_source(device, name, binds, None)
     }
 
     fn with_source(
-        device: &wgpu::Device,
+        device: &Builder,
         name: &str,
         binds: &[(u32, Bind)],
         text: Option<String>,
@@ -116,7 +118,7 @@ impl Kernel {
             module: &module,
             entry_point: Some("main"),
             compilation_options: Default::default(),
-            cache: None,
+            cache: device.cache(),
         });
         Self { pipeline, layout }
     }
@@ -161,108 +163,106 @@ pub struct Raster {
     pub layout: wgpu::BindGroupLayout,
 }
 
-/// All pipelines.
+/// All pipelines, each built when first used (a bake compiles only what its job runs; see
+/// [`Lazy`]).
 pub struct Pipelines {
     /// Placement through the mesh's BVH (stage 1).
-    pub place_bvh: Kernel,
+    pub place_bvh: Lazy<Kernel>,
     /// Placement stage 1, brute force (the queries the BVH walk flags, or all: the reference).
-    pub place_candidates: Kernel,
+    pub place_candidates: Lazy<Kernel>,
     /// Placement stage 2.
-    pub place_reduce: Kernel,
+    pub place_reduce: Lazy<Kernel>,
     /// Planar layer coordinates.
-    pub planar_coords: Kernel,
+    pub planar_coords: Lazy<Kernel>,
     /// One step of the pelting dynamics (`decalbake unwrap`).
-    pub pelt_step: Kernel,
+    pub pelt_step: Lazy<Kernel>,
     /// The pelting dynamics' steadiness check.
-    pub pelt_check: Kernel,
+    pub pelt_check: Lazy<Kernel>,
     /// Triangle selection.
-    pub select_triangles: Kernel,
+    pub select_triangles: Lazy<Kernel>,
     /// A layer's selection marks into its triangle list, in the tested order.
-    pub compact_lists: Kernel,
+    pub compact_lists: Lazy<Kernel>,
     /// Layer raster.
-    pub layer_raster: Raster,
+    pub layer_raster: Lazy<Raster>,
     /// `layer_raster`'s normal variant (`shaders::normal_source`), same targets, three more
-    /// bindings (split positions, normals, tangents); built on first use
-    /// ([`Pipelines::layer_raster_normal`]).
-    layer_raster_normal: std::sync::OnceLock<Raster>,
+    /// bindings (split positions, normals, tangents).
+    pub layer_raster_normal: Lazy<Raster>,
     /// Clears the layer raster's targets inside the scissor (a tile's raster rectangles).
-    pub atlas_clear: Raster,
+    pub atlas_clear: Lazy<Raster>,
     /// Inverse rendering of the canvas into tool stamps' flat space.
-    pub stamp_flatten: Raster,
+    pub stamp_flatten: Lazy<Raster>,
     /// The tools' filters on the flat atlas (blur, smear).
-    pub stamp_filter: Kernel,
+    pub stamp_filter: Lazy<Kernel>,
     /// Island raster.
-    pub island_raster: Raster,
+    pub island_raster: Lazy<Raster>,
     /// Texture transfer: the source texture drawn at the baked set's UVs.
-    pub transfer_raster: Raster,
+    pub transfer_raster: Lazy<Raster>,
     /// Texture transfer: samples averaged into the canvas.
-    pub transfer_resolve: Kernel,
+    pub transfer_resolve: Lazy<Kernel>,
     /// Island mask reduction.
-    pub island_mask: Kernel,
+    pub island_mask: Lazy<Kernel>,
     /// Layer composition.
-    pub compose: Kernel,
+    pub compose: Lazy<Kernel>,
     /// A finished stroke onto the canvas.
-    pub stroke_apply: Kernel,
+    pub stroke_apply: Lazy<Kernel>,
     /// Base fill.
-    pub base_init: Kernel,
+    pub base_init: Lazy<Kernel>,
     /// EDT pass 1.
-    pub edt_columns: Kernel,
+    pub edt_columns: Lazy<Kernel>,
     /// EDT pass 2: nearest island texel per texel.
-    pub edt_rows: Kernel,
+    pub edt_rows: Lazy<Kernel>,
     /// sRGB encode.
-    pub encode: Kernel,
+    pub encode: Lazy<Kernel>,
     /// Exponential-map relaxation, 64 invocations a map.
-    pub expmap_relax: Kernel,
+    pub expmap_relax: Lazy<Kernel>,
     /// The same, 256 invocations a map (`shaders::expmap_wide_source`): maps of many candidates.
-    pub expmap_relax_wide: Kernel,
+    pub expmap_relax_wide: Lazy<Kernel>,
     /// One large exponential map over many workgroups, a dispatch a sweep
     /// (`wgsl/maps/expmap_spread.wgsl`; on a GPU adapter for lone maps of many candidates, never
     /// on a CPU adapter: `maps::expmap::gpu::SPREAD_MIN_CANDIDATES_OVERRIDE`). `None` on GL (whose
     /// maps come from the CPU twin) and where a stage binds fewer than its 14 storage buffers.
-    /// Built on first use ([`Self::expmap_spread`]).
-    expmap_spread: std::sync::OnceLock<Option<ExpmapSpread>>,
-    /// The GPU build of the mesh's BVH (`wgsl/mesh/lbvh.wgsl`), built on first use
-    /// ([`Self::lbvh`]).
-    lbvh: std::sync::OnceLock<Lbvh>,
+    pub expmap_spread: Lazy<Option<ExpmapSpread>>,
+    /// The GPU build of the mesh's BVH (`wgsl/mesh/lbvh.wgsl`).
+    pub lbvh: Lazy<Lbvh>,
     /// The extended exponential map of a curve (`wgsl/maps/ribbon_relax.wgsl`).
-    pub ribbon_relax: Kernel,
+    pub ribbon_relax: Lazy<Kernel>,
     /// Per-layer distortion partials.
-    pub distortion: Kernel,
+    pub distortion: Lazy<Kernel>,
     /// Batched Jacobi-preconditioned conjugate gradient, 256 invocations per system.
-    pub cg_batched: Kernel,
+    pub cg_batched: Lazy<Kernel>,
     /// The same with 64 invocations per system (small systems).
-    pub cg_batched_narrow: Kernel,
+    pub cg_batched_narrow: Lazy<Kernel>,
     /// `wgsl/solve/cg_packed.wgsl`: many small systems, one per invocation.
-    pub cg_packed: Kernel,
+    pub cg_packed: Lazy<Kernel>,
     /// `cg_packed` on 2 × 2 complex blocks (`shaders::complex_source`): LSCM systems.
-    pub cg_packed_complex: Kernel,
+    pub cg_packed_complex: Lazy<Kernel>,
     /// `wgsl/solve/cg_amg.wgsl`: CG preconditioned by a multigrid V-cycle, 256 invocations per
     /// system (large systems).
-    pub cg_amg: Option<Kernel>,
+    pub cg_amg: Option<Lazy<Kernel>>,
     /// (`None` on a device with fewer than [`AMG_STORAGE_BUFFERS`] storage buffers a stage: the
     /// solver then uses Jacobi. wgpu's GL backend binds 16, enough.)
     /// `cg_amg` on 2 × 2 complex blocks (`shaders::complex_source`): LSCM systems.
-    pub cg_amg_complex: Option<Kernel>,
+    pub cg_amg_complex: Option<Lazy<Kernel>>,
     /// `wgsl/solve/cg_wide.wgsl` and `cg_wide_plain.wgsl` on 2 × 2 complex blocks: `cg_amg`'s
     /// solve of one large LSCM system spread over many workgroups, a dispatch per pass (`None` on
     /// a device with fewer than [`WIDE_STORAGE_BUFFERS`] storage buffers a stage).
-    pub cg_wide_complex: Option<[Kernel; 2]>,
+    pub cg_wide_complex: Option<[Lazy<Kernel>; 2]>,
     /// CSR sparse matrix-vector product.
-    pub spmv: Kernel,
+    pub spmv: Lazy<Kernel>,
     /// Batched dot products and norms.
-    pub dot_batched: Kernel,
+    pub dot_batched: Lazy<Kernel>,
     /// Streaming copy (bandwidth reference).
-    pub copy: Kernel,
+    pub copy: Lazy<Kernel>,
     /// Chart coordinates into coords slots.
-    pub chart_scatter: Kernel,
+    pub chart_scatter: Lazy<Kernel>,
     /// `wgsl/maps/chart_gather.wgsl`: the charts' exponential maps read where they can be valid.
-    pub chart_gather: Kernel,
+    pub chart_gather: Lazy<Kernel>,
     /// Continuous stamp charts from their corners' charts.
-    pub stamp_blend: Kernel,
+    pub stamp_blend: Lazy<Kernel>,
     /// Preview.
-    pub preview: Raster,
+    pub preview: Lazy<Raster>,
     /// `extract_raster` (`decalbake extract`), into the layer targets' format.
-    pub extract_raster: Raster,
+    pub extract_raster: Lazy<Raster>,
     /// Whether the layer target blends premultiplied source-over within a layer
     /// (needs `FLOAT32_BLENDABLE`; without it the last triangle drawn at a sample wins).
     pub layer_blending: bool,
@@ -273,78 +273,72 @@ pub struct Pipelines {
     pub layer_format: wgpu::TextureFormat,
     /// Format of decal/mask/base textures: `Rgba32Float` with `FLOAT32_FILTERABLE`, else `Rgba16Float`.
     pub image_format: wgpu::TextureFormat,
+    /// What builds them (the device, the pipeline cache, the time spent).
+    pub builder: Arc<Builder>,
 }
 
 impl Pipelines {
-    /// `layer_raster`'s normal variant, built on the first call (a bake without normal decals
-    /// never compiles it). Its targets are the layer raster's: the format that one got (the f16
-    /// fallback blends).
-    pub fn layer_raster_normal(&self, device: &wgpu::Device) -> &Raster {
-        self.layer_raster_normal.get_or_init(|| {
-            let blending = self.layer_blending;
-            layer_raster(device, blending, true).0
-        })
-    }
-
-    /// `expmap_spread`'s pipelines, built on the first call (`None` on GL and short storage
-    /// limits).
-    pub fn expmap_spread(&self, device: &wgpu::Device) -> Option<&ExpmapSpread> {
-        self.expmap_spread
-            .get_or_init(|| ExpmapSpread::new(device))
-            .as_ref()
-    }
-
-    /// The GPU BVH build's pipelines (`crate::mesh::lbvh`), built on the first call.
-    pub fn lbvh(&self, device: &wgpu::Device) -> &Lbvh {
-        self.lbvh.get_or_init(|| Lbvh::new(device))
-    }
-
-    /// Creates every pipeline on `device`.
+    /// Every pipeline of the engine on `builder`'s device, none of them built yet.
     ///
     /// Longer than a screen on purpose: it is the table of the engine's compute kernels, one entry
     /// per kernel with its bindings in binding order (the data the style guide asks for, as vello's
-    /// `add_shader!` list). Adding a kernel adds an entry here; two families that share bindings
-    /// or an owner are built by [`linalg_kernels`], [`slot_kernels`], [`place_kernels`],
-    /// [`pelt_kernels`] and [`select_kernels`]. The render pipelines, which
-    /// need more than a binding list, are built by [`Rasters`].
-    pub fn new(device: &wgpu::Device) -> Self {
+    /// `add_shader!` list). Adding a kernel adds an entry here; kernels whose bindings are built
+    /// rather than listed have a function of their own ([`linalg_kernels`], [`pelt_step`],
+    /// [`select_triangles`], [`ribbon_relax`]...), and so do the render pipelines, which need more
+    /// than a binding list.
+    pub fn new(builder: Arc<Builder>) -> Self {
         use Bind::*;
-        let features = device.features();
-        let layer_blending = features.contains(wgpu::Features::FLOAT32_BLENDABLE);
+        let b = &builder;
+        let features = b.features();
         let image_format = if features.contains(wgpu::Features::FLOAT32_FILTERABLE) {
             wgpu::TextureFormat::Rgba32Float
         } else {
             wgpu::TextureFormat::Rgba16Float
         };
-        let rasters = Rasters::new(device, layer_blending);
-        let (
-            [cg_batched, cg_batched_narrow, cg_packed, cg_packed_complex, spmv, dot_batched, copy],
-            amg,
-            cg_wide_complex,
-        ) = linalg_kernels(device);
-        let (cg_amg, cg_amg_complex) = match amg {
-            Some([real, complex]) => (Some(real), Some(complex)),
-            None => (None, None),
+        let f32_blends = features.contains(wgpu::Features::FLOAT32_BLENDABLE);
+        let (layer_format, layer_blending) = layer_target(b, f32_blends);
+        let clipped = features.contains(wgpu::Features::CLIP_DISTANCES);
+        let kernel = |name: &'static str, binds: &'static [(u32, Bind)]| {
+            Lazy::new(b, name, move |d| Kernel::new(d, name, binds))
         };
-        let [chart_scatter, chart_gather, stamp_blend] = slot_kernels(device);
-        let [place_bvh, place_candidates, place_reduce] = place_kernels(device);
-        let [pelt_step, pelt_check] = pelt_kernels(device);
-        let [select_triangles, compact_lists] = select_kernels(device);
+        let (linalg, cg_amg, cg_amg_complex, cg_wide_complex) = linalg_kernels(b);
+        let [cg_batched, cg_batched_narrow, cg_packed, cg_packed_complex, spmv, dot_batched, copy] =
+            linalg;
         Self {
-            place_bvh,
-            place_candidates,
-            place_reduce,
-            planar_coords: Kernel::new(device, "planar_coords", &[(0, Params), (1, Ro), (2, Rw)]),
-            pelt_step,
-            pelt_check,
-            select_triangles,
-            compact_lists,
-            layer_raster: rasters.layer,
-            layer_raster_normal: std::sync::OnceLock::new(),
-            atlas_clear: rasters.clear,
-            stamp_flatten: rasters.flatten,
-            stamp_filter: Kernel::new(
-                device,
+            place_bvh: kernel(
+                "place_bvh",
+                &[
+                    (0, Ro),
+                    (1, Ro),
+                    (2, Ro),
+                    (3, Rw),
+                    (4, Ro),
+                    (5, Ro),
+                    (6, Rw),
+                ],
+            ),
+            place_candidates: kernel(
+                "place_candidates",
+                &[(0, Ro), (1, Ro), (2, Ro), (3, Rw), (4, Ro)],
+            ),
+            place_reduce: kernel(
+                "place_reduce",
+                &[(0, Ro), (1, Ro), (2, Ro), (3, Ro), (4, Ro), (5, Rw)],
+            ),
+            planar_coords: kernel("planar_coords", &[(0, Params), (1, Ro), (2, Rw)]),
+            pelt_step: Lazy::new(b, "pelt_step", pelt_step),
+            pelt_check: kernel("pelt_check", &[(0, Uniform), (1, Rw), (2, Ro)]),
+            select_triangles: Lazy::new(b, "select_triangles", select_triangles),
+            compact_lists: kernel("compact_lists", &[(0, Params), (1, Ro), (2, Ro), (3, Rw)]),
+            layer_raster: Lazy::new(b, "layer_raster", move |d| {
+                layer_raster(d, layer_format, layer_blending, false)
+            }),
+            layer_raster_normal: Lazy::new(b, "layer_raster_normal", move |d| {
+                layer_raster(d, layer_format, layer_blending, true)
+            }),
+            atlas_clear: Lazy::new(b, "atlas_clear", move |d| atlas_clear(d, layer_format)),
+            stamp_flatten: Lazy::new(b, "stamp_flatten", move |d| flatten_raster(d, layer_format)),
+            stamp_filter: kernel(
                 "stamp_filter",
                 &[
                     (0, Uniform),
@@ -355,16 +349,25 @@ impl Pipelines {
                     (5, Rw),
                 ],
             ),
-            island_raster: rasters.island,
-            transfer_raster: rasters.transfer,
-            transfer_resolve: transfer_resolve(device),
-            island_mask: Kernel::new(
-                device,
+            island_raster: Lazy::new(b, "island_raster", island_raster),
+            transfer_raster: Lazy::new(b, "transfer_raster", move |d| {
+                transfer_raster(d, layer_format)
+            }),
+            transfer_resolve: kernel(
+                "transfer_resolve",
+                &[
+                    (0, Params),
+                    (1, Tex(false)),
+                    (2, Tex(false)),
+                    (10, Rw),
+                    (11, Rw),
+                ],
+            ),
+            island_mask: kernel(
                 "island_mask",
                 &[(0, Params), (1, Tex(false)), (2, Rw), (3, Rw)],
             ),
-            compose: Kernel::new(
-                device,
+            compose: kernel(
                 "compose",
                 &[
                     (0, Params),
@@ -375,13 +378,11 @@ impl Pipelines {
                     (11, Rw),
                 ],
             ),
-            stroke_apply: Kernel::new(
-                device,
+            stroke_apply: kernel(
                 "stroke_apply",
                 &[(0, Params), (3, Rw), (10, Rw), (11, Rw), (12, Rw), (13, Rw)],
             ),
-            base_init: Kernel::new(
-                device,
+            base_init: kernel(
                 "base_init",
                 &[
                     (0, Params),
@@ -391,19 +392,16 @@ impl Pipelines {
                     (11, Rw),
                 ],
             ),
-            edt_columns: Kernel::new(device, "edt_columns", &[(0, Params), (1, Ro), (2, Rw)]),
-            edt_rows: Kernel::new(
-                device,
+            edt_columns: kernel("edt_columns", &[(0, Params), (1, Ro), (2, Rw)]),
+            edt_rows: kernel(
                 "edt_rows",
                 &[(0, Params), (1, Ro), (2, Ro), (3, Rw), (4, Rw), (5, Rw)],
             ),
-            encode: Kernel::new(
-                device,
+            encode: kernel(
                 "encode",
                 &[(0, Params), (1, Rw), (2, Ro), (3, Ro), (10, Rw), (11, Rw)],
             ),
-            distortion: Kernel::new(
-                device,
+            distortion: kernel(
                 "distortion",
                 &[
                     (0, Params),
@@ -425,26 +423,175 @@ impl Pipelines {
             spmv,
             dot_batched,
             copy,
-            chart_scatter,
-            chart_gather,
-            stamp_blend,
-            expmap_relax: expmap_relax(device, None),
-            expmap_relax_wide: expmap_relax(device, Some(shaders::expmap_wide_source())),
-            expmap_spread: std::sync::OnceLock::new(),
-            lbvh: std::sync::OnceLock::new(),
-            ribbon_relax: ribbon_relax(device),
-            preview: rasters.preview,
-            extract_raster: rasters.extract,
-            layer_blending: rasters.layer_blending,
-            layer_clipped: device.features().contains(wgpu::Features::CLIP_DISTANCES),
-            layer_format: rasters.layer_format,
+            chart_scatter: kernel("chart_scatter", &[(0, Uniform), (1, Ro), (2, Rw)]),
+            chart_gather: kernel("chart_gather", &[(0, Uniform), (1, Ro), (2, Ro), (3, Rw)]),
+            stamp_blend: kernel("stamp_blend", &[(0, Uniform), (1, Ro), (2, Rw), (3, Ro)]),
+            expmap_relax: Lazy::new(b, "expmap_relax", |d| expmap_relax(d, None)),
+            expmap_relax_wide: Lazy::new(b, "expmap_relax_wide", |d| {
+                expmap_relax(d, Some(shaders::expmap_wide_source()))
+            }),
+            expmap_spread: Lazy::new(b, "expmap_spread", ExpmapSpread::new),
+            lbvh: Lazy::new(b, "lbvh", Lbvh::new),
+            ribbon_relax: Lazy::new(b, "ribbon_relax", ribbon_relax),
+            preview: Lazy::new(b, "preview", preview_raster),
+            extract_raster: Lazy::new(b, "extract_raster", move |d| {
+                extract_raster(d, layer_format)
+            }),
+            layer_blending,
+            layer_clipped: clipped,
+            layer_format,
             image_format,
+            builder,
         }
+    }
+
+    /// Builds the pipelines `which` selects now, on every core (each on a thread of its own; a
+    /// pipeline another thread is already building is waited for, never built twice). A bake
+    /// calls this with the pipelines its job will run while it reads the mesh and images.
+    pub fn prepare(&self, which: impl Fn(&Self) -> Vec<&dyn Prepare>) {
+        let list = which(self);
+        std::thread::scope(|s| {
+            for p in list {
+                s.spawn(move || p.prepare());
+            }
+        });
+    }
+}
+
+/// What builds the pipelines: the device and, where the backend keeps one, the pipeline cache
+/// the engine loaded from disk (`gpu::cache`); it counts the time spent building. Dereferences to
+/// the device.
+pub struct Builder {
+    device: wgpu::Device,
+    cache: Option<wgpu::PipelineCache>,
+    spent_us: AtomicU64,
+    built: AtomicU32,
+}
+
+impl Builder {
+    /// A builder on `device`, creating pipelines through `cache` when there is one.
+    pub fn new(device: wgpu::Device, cache: Option<wgpu::PipelineCache>) -> Arc<Self> {
+        Arc::new(Self {
+            device,
+            cache,
+            spent_us: AtomicU64::new(0),
+            built: AtomicU32::new(0),
+        })
+    }
+
+    /// The pipeline cache pipelines are created through.
+    pub fn cache(&self) -> Option<&wgpu::PipelineCache> {
+        self.cache.as_ref()
+    }
+
+    /// Milliseconds spent building pipelines so far (summed over threads), and how many
+    /// [`Lazy`] entries were built.
+    pub fn spent(&self) -> (f64, u32) {
+        (
+            self.spent_us.load(Ordering::Relaxed) as f64 / 1000.0,
+            self.built.load(Ordering::Relaxed),
+        )
+    }
+}
+
+impl std::ops::Deref for Builder {
+    type Target = wgpu::Device;
+    fn deref(&self) -> &wgpu::Device {
+        &self.device
+    }
+}
+
+type Make<T> = Box<dyn Fn(&Builder) -> T + Send + Sync>;
+
+/// A pipeline (or a family of them) built on first use: it dereferences to the built value.
+/// WGSL translation and the driver's compile happen then, not when the engine is created, so a
+/// process that bakes one decal compiles the dozen pipelines its bake runs, not all fifty.
+pub struct Lazy<T> {
+    name: &'static str,
+    cell: OnceLock<T>,
+    builder: Arc<Builder>,
+    make: Make<T>,
+}
+
+impl<T> Lazy<T> {
+    fn new(
+        builder: &Arc<Builder>,
+        name: &'static str,
+        make: impl Fn(&Builder) -> T + Send + Sync + 'static,
+    ) -> Self {
+        Self {
+            name,
+            cell: OnceLock::new(),
+            builder: builder.clone(),
+            make: Box::new(make),
+        }
+    }
+
+    /// Whether it has been built.
+    pub fn is_built(&self) -> bool {
+        self.cell.get().is_some()
+    }
+}
+
+impl<T> std::ops::Deref for Lazy<T> {
+    type Target = T;
+    fn deref(&self) -> &T {
+        self.cell.get_or_init(|| {
+            let start = std::time::Instant::now();
+            let value = (self.make)(&self.builder);
+            let us = start.elapsed().as_micros() as u64;
+            self.builder.spent_us.fetch_add(us, Ordering::Relaxed);
+            self.builder.built.fetch_add(1, Ordering::Relaxed);
+            if std::env::var_os("DECALBAKE_DEBUG_PIPELINES").is_some() {
+                eprintln!("pipeline {}: {:.1} ms", self.name, us as f64 / 1e3);
+            }
+            value
+        })
+    }
+}
+
+/// Something [`Pipelines::prepare`] can build ahead of its first use.
+pub trait Prepare: Sync {
+    /// Builds it if it is not built yet.
+    fn prepare(&self);
+}
+
+impl<T: Send + Sync> Prepare for Lazy<T> {
+    fn prepare(&self) {
+        let _ = &**self;
+    }
+}
+
+/// The layer targets' format and whether they blend: `Rgba32Float` where the device renders to it
+/// (16-bit output stays exact), blending where it has `FLOAT32_BLENDABLE`; else `Rgba16Float`,
+/// which blends (wgpu's GL backend). A 1 × 1 texture asks the device, so no pipeline is compiled
+/// to find out.
+fn layer_target(device: &wgpu::Device, f32_blends: bool) -> (wgpu::TextureFormat, bool) {
+    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let probe = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("decalbake.layer_format_probe"),
+        size: wgpu::Extent3d {
+            width: 1,
+            height: 1,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: LAYER_COLOR_FORMAT,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+        view_formats: &[],
+    });
+    let refused = pollster::block_on(scope.pop()).is_some();
+    probe.destroy();
+    match refused {
+        false => (LAYER_COLOR_FORMAT, f32_blends),
+        true => (wgpu::TextureFormat::Rgba16Float, true),
     }
 }
 
 /// `ribbon_relax`: one curve's extended exponential map, one workgroup.
-fn ribbon_relax(device: &wgpu::Device) -> Kernel {
+fn ribbon_relax(device: &Builder) -> Kernel {
     use Bind::*;
     let mut binds = vec![(0, Uniform)];
     binds.extend([(1, Ro), (2, Rw)]);
@@ -475,14 +622,14 @@ const EXPMAP_BINDS: [(u32, Bind); 14] = {
 };
 
 /// `expmap_relax`: all exponential maps of a chunk, one workgroup per map (`text`: a variant).
-fn expmap_relax(device: &wgpu::Device, text: Option<String>) -> Kernel {
+fn expmap_relax(device: &Builder, text: Option<String>) -> Kernel {
     Kernel::with_source(device, "expmap_relax", &EXPMAP_BINDS, text)
 }
 
 /// The bind-group layout of kernel file `name` (several entry points on one layout) and a maker
 /// of its entry points' pipelines.
 fn entry_points<'d>(
-    device: &'d wgpu::Device,
+    device: &'d Builder,
     name: &'d str,
     binds: &[(u32, Bind)],
 ) -> (
@@ -498,7 +645,7 @@ fn entry_points<'d>(
             module: &module,
             entry_point: Some(e),
             compilation_options: Default::default(),
-            cache: None,
+            cache: device.cache(),
         })
     };
     (layout, entry)
@@ -521,7 +668,7 @@ pub struct ExpmapSpread {
 }
 
 impl ExpmapSpread {
-    fn new(device: &wgpu::Device) -> Option<Self> {
+    fn new(device: &Builder) -> Option<Self> {
         let name = "expmap_spread";
         let mut binds: Vec<_> = EXPMAP_BINDS.into_iter().filter(|&(b, _)| b != 9).collect();
         binds.push((14, Bind::Rw));
@@ -562,7 +709,7 @@ pub struct Lbvh {
 }
 
 impl Lbvh {
-    fn new(device: &wgpu::Device) -> Self {
+    fn new(device: &Builder) -> Self {
         use Bind::*;
         let name = "lbvh";
         let binds = [
@@ -589,74 +736,29 @@ impl Lbvh {
     }
 }
 
-/// `transfer_resolve`: a texture transfer's samples averaged per texel into the canvas.
-fn transfer_resolve(device: &wgpu::Device) -> Kernel {
-    use Bind::*;
-    let binds = [
-        (0, Params),
-        (1, Tex(false)),
-        (2, Tex(false)),
-        (10, Rw),
-        (11, Rw),
-    ];
-    Kernel::new(device, "transfer_resolve", &binds)
-}
-
-/// The pelting kernels (`wgsl/pelt/`): one step of the dynamics, the steadiness check.
-fn pelt_kernels(device: &wgpu::Device) -> [Kernel; 2] {
+/// `pelt_step`: one step of the pelting dynamics (`wgsl/pelt/`).
+fn pelt_step(device: &Builder) -> Kernel {
     use Bind::*;
     let step: Vec<(u32, Bind)> = [(0, Uniform)]
         .into_iter()
         .chain((1..8).map(|b| (b, Ro)))
         .chain([(8, Rw), (9, Rw)])
         .collect();
-    [
-        Kernel::new(device, "pelt_step", &step),
-        Kernel::new(device, "pelt_check", &[(0, Uniform), (1, Rw), (2, Ro)]),
-    ]
+    Kernel::new(device, "pelt_step", &step)
 }
 
-/// The render pipelines: the layer raster (with the format and blending it got) and its targets'
-/// clear, the tools'
-/// inverse raster into the same format, the island raster, the transfer raster and the preview.
-struct Rasters {
-    layer: Raster,
-    clear: Raster,
-    flatten: Raster,
-    island: Raster,
-    transfer: Raster,
-    preview: Raster,
-    extract: Raster,
-    layer_format: wgpu::TextureFormat,
-    layer_blending: bool,
-}
-
-impl Rasters {
-    /// `layer_blending`: whether f32 targets blend on this device.
-    fn new(device: &wgpu::Device, layer_blending: bool) -> Self {
-        let (layer, layer_format, layer_blending) = layer_raster(device, layer_blending, false);
-        let clear = raster(
-            device,
-            "atlas_clear",
-            None,
-            layout(device, "atlas_clear", &[], wgpu::ShaderStages::VERTEX),
-            &[],
-            &[Some(layer_format.into()), Some(COVERAGE_FORMAT.into())],
-            None,
-            1,
-        );
-        Self {
-            layer,
-            clear,
-            flatten: flatten_raster(device, layer_format),
-            island: island_raster(device),
-            transfer: transfer_raster(device, layer_format),
-            preview: preview_raster(device),
-            extract: extract_raster(device, layer_format),
-            layer_format,
-            layer_blending,
-        }
-    }
+/// `atlas_clear`: clears the layer raster's targets inside the scissor.
+fn atlas_clear(device: &Builder, format: wgpu::TextureFormat) -> Raster {
+    raster(
+        device,
+        "atlas_clear",
+        None,
+        layout(device, "atlas_clear", &[], wgpu::ShaderStages::VERTEX),
+        &[],
+        &[Some(format.into()), Some(COVERAGE_FORMAT.into())],
+        None,
+        1,
+    )
 }
 
 /// Bindings the layer raster and the tools' inverse raster share: `Params`, triangle lists, split
@@ -670,14 +772,14 @@ const UNIT_BINDS: [(u32, Bind); 6] = [
     (5, Bind::Ro),
 ];
 
-/// `layer_raster` into f32 targets (blending premultiplied source-over where the device can), or
-/// into f16 targets with blending where f32 is not renderable (GL); returns the pipeline, its
-/// colour format and whether it blends. `normal`: its normal variant (`shaders::normal_source`).
+/// `layer_raster` into `format` targets (see [`layer_target`]), blending premultiplied
+/// source-over where `blending`. `normal`: its normal variant (`shaders::normal_source`).
 fn layer_raster(
-    device: &wgpu::Device,
+    device: &Builder,
+    format: wgpu::TextureFormat,
     blending: bool,
     normal: bool,
-) -> (Raster, wgpu::TextureFormat, bool) {
+) -> Raster {
     use Bind::*;
     let extra: &[(u32, Bind)] = if normal {
         &[(11, Ro), (12, Ro), (13, Ro)]
@@ -713,43 +815,31 @@ fn layer_raster(
     // Triangles clipped to their layer's image and a margin where the device clips
     // (`clip_planes` in the shader); GL without the extension draws them whole.
     let clipped = device.features().contains(wgpu::Features::CLIP_DISTANCES);
-    let make_layer = |format: wgpu::TextureFormat, blend: bool| {
-        let text = match normal {
-            true => Some(shaders::normal_source(clipped)),
-            false => clipped.then(|| shaders::clipped_source("layer_raster")),
-        };
-        raster(
-            device,
-            name,
-            text,
-            layer_layout.clone(),
-            &[],
-            &[
-                Some(wgpu::ColorTargetState {
-                    format,
-                    blend: blend.then_some(premult_over),
-                    write_mask: wgpu::ColorWrites::ALL,
-                }),
-                Some(COVERAGE_FORMAT.into()),
-            ],
-            None,
-            1,
-        )
+    let text = match normal {
+        true => Some(shaders::normal_source(clipped)),
+        false => clipped.then(|| shaders::clipped_source("layer_raster")),
     };
-    // f32 targets keep 16-bit output exact; where f32 is not renderable (GL), fall back to f16.
-    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let first = make_layer(LAYER_COLOR_FORMAT, blending);
-    match pollster::block_on(scope.pop()) {
-        None => (first, LAYER_COLOR_FORMAT, blending),
-        Some(_) => {
-            let f16 = wgpu::TextureFormat::Rgba16Float;
-            (make_layer(f16, true), f16, true)
-        }
-    }
+    raster(
+        device,
+        name,
+        text,
+        layer_layout,
+        &[],
+        &[
+            Some(wgpu::ColorTargetState {
+                format,
+                blend: blending.then_some(premult_over),
+                write_mask: wgpu::ColorWrites::ALL,
+            }),
+            Some(COVERAGE_FORMAT.into()),
+        ],
+        None,
+        1,
+    )
 }
 
 /// `stamp_flatten`: the canvas drawn into tool stamps' flat cells, in the layer targets' format.
-fn flatten_raster(device: &wgpu::Device, format: wgpu::TextureFormat) -> Raster {
+fn flatten_raster(device: &Builder, format: wgpu::TextureFormat) -> Raster {
     let binds: Vec<(u32, Bind)> = UNIT_BINDS
         .into_iter()
         .chain([(10, Bind::Ro), (11, Bind::Ro)])
@@ -769,7 +859,7 @@ fn flatten_raster(device: &wgpu::Device, format: wgpu::TextureFormat) -> Raster 
 }
 
 /// `island_raster`: island coverage at the texture's samples.
-fn island_raster(device: &wgpu::Device) -> Raster {
+fn island_raster(device: &Builder) -> Raster {
     use Bind::*;
     let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
     let island_layout = layout(
@@ -792,7 +882,7 @@ fn island_raster(device: &wgpu::Device) -> Raster {
 
 /// `transfer_raster`: the source texture at the baked set's samples, into the layer format
 /// (no blending: a valid layout covers each sample once) and the coverage format.
-fn transfer_raster(device: &wgpu::Device, format: wgpu::TextureFormat) -> Raster {
+fn transfer_raster(device: &Builder, format: wgpu::TextureFormat) -> Raster {
     use Bind::*;
     let binds = [
         (0, Params),
@@ -822,7 +912,7 @@ fn transfer_raster(device: &wgpu::Device, format: wgpu::TextureFormat) -> Raster
 }
 
 /// `extract_raster`: a texture drawn along a layer's map into a flat image (`decalbake extract`).
-fn extract_raster(device: &wgpu::Device, format: wgpu::TextureFormat) -> Raster {
+fn extract_raster(device: &Builder, format: wgpu::TextureFormat) -> Raster {
     use Bind::*;
     let l = layout(
         device,
@@ -845,7 +935,7 @@ fn extract_raster(device: &wgpu::Device, format: wgpu::TextureFormat) -> Raster 
 /// `preview`: the textured model, depth-tested, 4× MSAA; the colour textures (1, 3, 4), the
 /// normal map, ORM and emissive (5, 6, 7); vertex buffers position, normal, three UVs, the
 /// blend weights and the tangent (6, `vec4`).
-fn preview_raster(device: &wgpu::Device) -> Raster {
+fn preview_raster(device: &Builder) -> Raster {
     use Bind::*;
     let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
     let preview_layout = layout(
@@ -936,7 +1026,7 @@ fn preview_raster(device: &wgpu::Device) -> Raster {
 /// layout.
 #[allow(clippy::too_many_arguments)]
 fn raster(
-    device: &wgpu::Device,
+    device: &Builder,
     name: &str,
     text: Option<String>,
     layout: wgpu::BindGroupLayout,
@@ -971,22 +1061,15 @@ fn raster(
             targets,
         }),
         multiview_mask: None,
-        cache: None,
+        cache: device.cache(),
     });
     Raster { pipeline, layout }
 }
 
-/// The linear-algebra kernels (`wgsl/solve/`), in the order of their `Pipelines` fields: the
-/// conjugate gradient's four variants (one workgroup per system, 256 and 64 wide; one system per
-/// invocation, real and on complex blocks), which share one binding list, then SpMV, batched dot
-/// products and the streaming copy; and the multigrid-preconditioned one, real and on complex
-/// blocks (that list plus the hierarchy's), where the device binds that many storage buffers.
-#[allow(clippy::type_complexity)]
-fn linalg_kernels(
-    device: &wgpu::Device,
-) -> ([Kernel; 7], Option<[Kernel; 2]>, Option<[Kernel; 2]>) {
+/// The conjugate gradient's bindings, shared by its variants.
+const CG_BINDS: [(u32, Bind); 11] = {
     use Bind::*;
-    let cg = &[
+    [
         (0, Uniform),
         (1, Ro),
         (2, Ro),
@@ -998,61 +1081,92 @@ fn linalg_kernels(
         (9, Rw),
         (10, Rw),
         (11, Rw),
-    ];
-    let variant = |name: &str, text: String| Kernel::with_source(device, name, cg, Some(text));
-    let amg = [
-        cg.as_slice(),
+    ]
+};
+
+/// `cg_amg`'s bindings: the conjugate gradient's and the hierarchy's.
+fn amg_binds() -> Vec<(u32, Bind)> {
+    use Bind::*;
+    [
+        CG_BINDS.as_slice(),
         &[(12, Ro), (13, Ro), (15, Ro), (16, Ro), (17, Rw)],
     ]
-    .concat();
-    let wide: Vec<(u32, Bind)> = [amg.as_slice(), &[(18, Rw)]]
+    .concat()
+}
+
+/// `cg_wide`'s bindings: `cg_amg`'s, its pass selector in binding 0, and the partial sums.
+fn wide_binds() -> Vec<(u32, Bind)> {
+    [amg_binds().as_slice(), &[(18, Bind::Rw)]]
         .concat()
         .into_iter()
-        .map(|(i, b)| if i == 0 { (0, Ro) } else { (i, b) })
-        .collect();
-    let limit = device.limits().max_storage_buffers_per_shader_stage;
-    // 64 invocations a workgroup (`shaders::narrow_source`'s width): on lavapipe a workgroup's
-    // launch costs in proportion to its invocations.
-    let narrow_complex = |name: &str| {
-        let text = shaders::complex_source(name);
-        shaders::with_workgroup(name, text, shaders::LINALG_WG, shaders::LINALG_WG_NARROW)
+        .map(|(i, b)| if i == 0 { (0, Bind::Ro) } else { (i, b) })
+        .collect()
+}
+
+/// `name` on 2 × 2 complex blocks with 64 invocations a workgroup (`shaders::narrow_source`'s
+/// width): on lavapipe a workgroup's launch costs in proportion to its invocations.
+fn narrow_complex(name: &str) -> String {
+    let text = shaders::complex_source(name);
+    shaders::with_workgroup(name, text, shaders::LINALG_WG, shaders::LINALG_WG_NARROW)
+}
+
+/// The linear-algebra kernels (`wgsl/solve/`), in the order of their `Pipelines` fields: the
+/// conjugate gradient's four variants (one workgroup per system, 256 and 64 wide; one system per
+/// invocation, real and on complex blocks), which share one binding list, then SpMV, batched dot
+/// products and the streaming copy; the multigrid-preconditioned one, real and on complex blocks
+/// (that list plus the hierarchy's), and the wide one, where the device binds that many storage
+/// buffers.
+#[allow(clippy::type_complexity)]
+fn linalg_kernels(
+    b: &Arc<Builder>,
+) -> (
+    [Lazy<Kernel>; 7],
+    Option<Lazy<Kernel>>,
+    Option<Lazy<Kernel>>,
+    Option<[Lazy<Kernel>; 2]>,
+) {
+    use Bind::*;
+    let limit = b.limits().max_storage_buffers_per_shader_stage;
+    let amg = limit >= AMG_STORAGE_BUFFERS;
+    let wide = limit >= WIDE_STORAGE_BUFFERS;
+    let cg = |name: &'static str, text: Option<fn(&str) -> String>| {
+        Lazy::new(b, name, move |d| {
+            Kernel::with_source(d, name, &CG_BINDS, text.map(|t| t(name)))
+        })
     };
-    let cg_wide = (limit >= WIDE_STORAGE_BUFFERS).then(|| {
-        [
-            Kernel::with_source(device, "cg_wide", &wide, Some(narrow_complex("cg_wide"))),
-            Kernel::with_source(
-                device,
-                "cg_wide_plain",
-                &wide,
-                Some(narrow_complex("cg_wide_plain")),
-            ),
-        ]
-    });
-    let amg = (limit >= AMG_STORAGE_BUFFERS).then(|| {
-        [
-            Kernel::new(device, "cg_amg", &amg),
-            Kernel::with_source(
-                device,
-                "cg_amg",
-                &amg,
-                Some(shaders::complex_source("cg_amg")),
-            ),
-        ]
-    });
     let kernels = [
-        Kernel::new(device, "cg_batched", cg),
-        variant("cg_batched", shaders::narrow_source("cg_batched")),
-        Kernel::new(device, "cg_packed", cg),
-        variant("cg_packed", shaders::complex_source("cg_packed")),
-        Kernel::new(
-            device,
-            "spmv",
-            &[(0, Uniform), (1, Ro), (2, Ro), (4, Ro), (5, Rw)],
-        ),
-        Kernel::new(device, "dot_batched", &[(0, Ro), (1, Ro), (2, Ro), (3, Rw)]),
-        Kernel::new(device, "copy", &[(0, Uniform), (1, Ro), (2, Rw)]),
+        cg("cg_batched", None),
+        cg("cg_batched", Some(shaders::narrow_source)),
+        cg("cg_packed", None),
+        cg("cg_packed", Some(shaders::complex_source)),
+        Lazy::new(b, "spmv", |d| {
+            Kernel::new(
+                d,
+                "spmv",
+                &[(0, Uniform), (1, Ro), (2, Ro), (4, Ro), (5, Rw)],
+            )
+        }),
+        Lazy::new(b, "dot_batched", |d| {
+            Kernel::new(d, "dot_batched", &[(0, Ro), (1, Ro), (2, Ro), (3, Rw)])
+        }),
+        Lazy::new(b, "copy", |d| {
+            Kernel::new(d, "copy", &[(0, Uniform), (1, Ro), (2, Rw)])
+        }),
     ];
-    (kernels, amg, cg_wide)
+    let cg_amg = amg.then(|| Lazy::new(b, "cg_amg", |d| Kernel::new(d, "cg_amg", &amg_binds())));
+    let cg_amg_complex = amg.then(|| {
+        Lazy::new(b, "cg_amg_complex", |d| {
+            let text = shaders::complex_source("cg_amg");
+            Kernel::with_source(d, "cg_amg", &amg_binds(), Some(text))
+        })
+    });
+    let wide_kernel = |name: &'static str| {
+        Lazy::new(b, name, move |d| {
+            Kernel::with_source(d, name, &wide_binds(), Some(narrow_complex(name)))
+        })
+    };
+    let cg_wide = wide.then(|| [wide_kernel("cg_wide"), wide_kernel("cg_wide_plain")]);
+    (kernels, cg_amg, cg_amg_complex, cg_wide)
 }
 
 /// Storage buffers `cg_amg.wgsl` binds (the CG's 10 and the hierarchy's 5).
@@ -1062,69 +1176,12 @@ pub const AMG_STORAGE_BUFFERS: u32 = 15;
 /// uniform, and the partial sums).
 pub const WIDE_STORAGE_BUFFERS: u32 = 17;
 
-/// The selection stage's kernels: `select_triangles` (marks a layer's covered triangles) and
-/// `compact_lists` (gathers the marks into its list in triangle order).
-fn select_kernels(device: &wgpu::Device) -> [Kernel; 2] {
+/// `select_triangles`: marks a layer's covered triangles (`compact_lists` gathers the marks into
+/// its list in triangle order).
+fn select_triangles(device: &Builder) -> Kernel {
     use Bind::*;
     let mut select = vec![(0, Params)];
     select.extend((1..=5).map(|b| (b, Ro)));
     select.extend([(6, Rw), (7, Rw), (8, Ro), (9, Ro)]);
-    [
-        Kernel::new(device, "select_triangles", &select),
-        Kernel::new(
-            device,
-            "compact_lists",
-            &[(0, Params), (1, Ro), (2, Ro), (3, Rw)],
-        ),
-    ]
-}
-
-/// The placement kernels (`src/place.rs`): `place_bvh`, `place_candidates`, `place_reduce`.
-fn place_kernels(device: &wgpu::Device) -> [Kernel; 3] {
-    use Bind::*;
-    [
-        Kernel::new(
-            device,
-            "place_bvh",
-            &[
-                (0, Ro),
-                (1, Ro),
-                (2, Ro),
-                (3, Rw),
-                (4, Ro),
-                (5, Ro),
-                (6, Rw),
-            ],
-        ),
-        Kernel::new(
-            device,
-            "place_candidates",
-            &[(0, Ro), (1, Ro), (2, Ro), (3, Rw), (4, Ro)],
-        ),
-        Kernel::new(
-            device,
-            "place_reduce",
-            &[(0, Ro), (1, Ro), (2, Ro), (3, Ro), (4, Ro), (5, Rw)],
-        ),
-    ]
-}
-
-/// The kernels the bake's map stage runs on the coordinate slots it owns (`bake/maps.rs`): chart
-/// coordinates written in and the exponential maps read out over their discs, and the blended
-/// stamps of continuous strokes.
-fn slot_kernels(device: &wgpu::Device) -> [Kernel; 3] {
-    use Bind::*;
-    [
-        Kernel::new(device, "chart_scatter", &[(0, Uniform), (1, Ro), (2, Rw)]),
-        Kernel::new(
-            device,
-            "chart_gather",
-            &[(0, Uniform), (1, Ro), (2, Ro), (3, Rw)],
-        ),
-        Kernel::new(
-            device,
-            "stamp_blend",
-            &[(0, Uniform), (1, Ro), (2, Rw), (3, Ro)],
-        ),
-    ]
+    Kernel::new(device, "select_triangles", &select)
 }

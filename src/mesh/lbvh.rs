@@ -310,7 +310,7 @@ pub fn build_gpu(
         8 * n_pad as u64,
         "a smaller mesh",
     )?;
-    let k = pipes.lbvh(&ctx.device);
+    let k = &*pipes.lbvh;
     let dev = &ctx.device;
     let params = Params {
         n: n as u32,

@@ -47,11 +47,14 @@ pub fn bake_and_write(
     amend: &dyn Fn(&mut crate::bake::report::Report),
 ) -> Result<(crate::bake::report::Report, Vec<PathBuf>)> {
     if let Some(done) = stream::write_streamed(engine, mesh, job, on_stage, amend)? {
+        engine.save_pipeline_cache();
         return Ok(done);
     }
     let mut baked = engine.bake_with_progress(mesh, job, on_stage)?;
     amend(&mut baked.report);
     let files = write_outputs(engine, mesh, job, &mut baked)?;
+    // The preview's pipeline is built after the bake's report.
+    engine.save_pipeline_cache();
     Ok((baked.report, files))
 }
 

@@ -48,6 +48,7 @@ pub fn write_streamed(
     // Sizes and memory before the file is begun.
     crate::bake::streamed_limits(engine, mesh, job)?;
     crate::bake::tiles::refuse_channels(job, shape)?;
+    let before = engine.pipelines_spent();
     let mut texture = match &job.out_texture {
         Some(p) => Some(Staged::create(p)?),
         None => None,
@@ -82,8 +83,9 @@ pub fn write_streamed(
             return Err(e);
         }
     };
-    amend(&mut report);
     report.timings.write_ms += t.elapsed().as_secs_f64() * 1000.0;
+    engine.note_start(&mut report, before);
+    amend(&mut report);
     let mut files = files;
     if let Some(p) = &job.out_report {
         let json = serde_json::to_vec_pretty(&report).expect("the report serializes");

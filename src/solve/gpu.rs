@@ -595,7 +595,7 @@ pub fn cg_batched_with(
             .collect();
         let classes = [(
             PACKED,
-            &pipes.cg_packed_complex,
+            &*pipes.cg_packed_complex,
             iters_per_dispatch(per_iter),
         )];
         let solved = run(ctx, &gpu, &dinv, a.rows, b, x0, &halves, &classes, None)?;
@@ -797,7 +797,7 @@ fn multigrid(
         }
     }
     let gpu = GpuCsr::upload(ctx, &mg.a)?;
-    let amg = steps.map(|st| (st, amg_kernel(pipes.cg_amg.as_ref())));
+    let amg = steps.map(|st| (st, amg_kernel(pipes.cg_amg.as_deref())));
     let (systems, classes) = kernel_classes(pipes, (row_len, pack), &systems, amg)?;
     let vals = f32s(&mg.pr.vals);
     let bufs = ctx.scoped("conjugate gradient", || {
@@ -862,7 +862,7 @@ fn multigrid_complex(
     let spread = match (pipes.cg_wide_complex.as_ref(), &systems[..]) {
         (Some([k, plain]), [one]) => (one.n as usize >= gpu_wide::wide_min_rows(ctx)
             && lone_class != ONE_WORKGROUP)
-            .then_some((k, plain)),
+            .then_some((&**k, &**plain)),
         _ => None,
     };
     if let Some(kernels) = spread {
@@ -880,7 +880,7 @@ fn multigrid_complex(
     }
     let classes = [(
         MULTIGRID,
-        amg_kernel(pipes.cg_amg_complex.as_ref()),
+        amg_kernel(pipes.cg_amg_complex.as_deref()),
         iters_per_dispatch(steps.unwrap_or(0)),
     )];
     let solved = run(
@@ -1247,10 +1247,10 @@ fn kernel_classes<'p>(
         .collect();
     let mut classes = Vec::new();
     for (wide, kernel) in [
-        (0u32, Some(&pipes.cg_batched_narrow)),
-        (1u32, Some(&pipes.cg_batched)),
-        (PACKED, Some(&pipes.cg_packed)),
-        (MULTIGRID, amg.map(|a| a.1).or(pipes.cg_amg.as_ref())),
+        (0u32, Some(&*pipes.cg_batched_narrow)),
+        (1u32, Some(&*pipes.cg_batched)),
+        (PACKED, Some(&*pipes.cg_packed)),
+        (MULTIGRID, amg.map(|a| a.1).or(pipes.cg_amg.as_deref())),
     ] {
         let Some(max_n) = systems.iter().filter(|s| s.wide == wide).map(|s| s.n).max() else {
             continue;

@@ -321,7 +321,7 @@ pub fn run(
         n => n,
     };
     if jobs.len() == 1 && jobs[0].cand_count >= spread_min {
-        if let Some(k) = pipes.expmap_spread(&ctx.device) {
+        if let Some(k) = pipes.expmap_spread.as_ref() {
             return run_spread(ctx, k, mesh, &jobs[0], cands, coords);
         }
     }
