@@ -23,6 +23,6 @@ pub mod pelt;
 pub mod place;
 pub mod solve;
 
-pub use bake::{Baked, BvhBuild, Engine, LoadedMesh};
+pub use bake::{Baked, BvhBuild, Engine, LoadedMesh, StagePath, StagePaths};
 pub use error::{Error, Result};
 pub use io::job::Job;

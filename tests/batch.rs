@@ -524,3 +524,26 @@ fn a_batch_killed_at_random_points_resumes_each_job_once_with_the_same_bytes() {
     let s = summary(&killed.join("summary.json"));
     assert!(s["jobs"].as_array().unwrap().len() == 8);
 }
+
+/// A manifest named without a folder, run from its own folder: the journal and summary go beside
+/// it (its parent is the empty path, which cannot be listed; the current folder is meant).
+#[test]
+fn a_manifest_named_without_a_folder_is_read_from_the_current_one() {
+    let dir = setup("batch_bare_manifest");
+    let lines = std::fs::read_to_string(dir.join("manifest.jsonl")).unwrap();
+    let first_two: Vec<&str> = lines.lines().take(2).collect();
+    std::fs::write(dir.join("two.jsonl"), first_two.join("\n")).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_decalbake"))
+        .args(["batch", "two.jsonl"])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    let s = summary(&dir.join("summary.json"));
+    assert_eq!(
+        statuses(&s),
+        vec![(1, "ok".to_string()), (2, "ok".to_string())]
+    );
+    assert!(dir.join("journal.jsonl").exists() && dir.join("b.png").exists());
+}

@@ -464,3 +464,55 @@ fn gpu_lbvh_is_its_twin_and_places_as_brute_force() {
     assert_eq!(meshes[2].bvh.nodes.len(), 1, "three triangles: one leaf");
     assert_eq!(meshes[3].bvh.nodes.len(), 3, "five triangles: two leaves");
 }
+
+/// A bake places its layers with the CPU twin on a CPU adapter and with the kernels on a GPU
+/// (`StagePath::Auto`); forcing either gives the same placements within the twins' tolerance and
+/// the same texture but for texels on a decal's edge, and the report names the path taken.
+#[test]
+fn a_bake_places_on_the_faster_path_and_both_paths_agree() {
+    let dir = scratch("placement_paths");
+    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
+    std::fs::write(
+        dir.join("img.png"),
+        test_image(32, 32, 4, true).encode_png(8),
+    )
+    .unwrap();
+    let text = serde_json::json!({ "mesh": spot, "texture": { "width": 256, "height": 256 },
+        "layers": spot_ring("img.png", 0.2), "output": { "texture": "out.png" } });
+    let job = decalbake::Job::parse(&text.to_string(), &dir.join("job.json"), &dir, &dir).unwrap();
+    let mut engine = engine();
+    let mesh = engine.load_mesh(&spot).unwrap();
+    let auto = engine.bake(&mesh, &job).unwrap();
+    let cpu_adapter = engine.ctx.device_type == Some(wgpu::DeviceType::Cpu);
+    let expected = if cpu_adapter && !mesh.bvh.nodes.is_empty() {
+        "cpu"
+    } else {
+        "gpu"
+    };
+    assert_eq!(auto.report.paths.placement, expected);
+    let mut baked = Vec::new();
+    for path in [decalbake::StagePath::Cpu, decalbake::StagePath::Gpu] {
+        engine.stage_paths.placement = path;
+        baked.push(engine.bake(&mesh, &job).unwrap());
+    }
+    let [cpu, gpu] = [&baked[0], &baked[1]];
+    if !mesh.bvh.nodes.is_empty() {
+        assert_eq!(cpu.report.paths.placement, "cpu");
+    }
+    assert_eq!(gpu.report.paths.placement, "gpu");
+    for (c, g) in cpu.report.layers.iter().zip(&gpu.report.layers) {
+        let d = Vec3::from(c.placement.point).distance(Vec3::from(g.placement.point));
+        assert!(d < 2e-5, "layer {}: placements {d} apart", c.index);
+    }
+    let differ = cpu
+        .texels
+        .iter()
+        .zip(&gpu.texels)
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(
+        differ * 1000 <= cpu.texels.len(),
+        "{differ} of {} texel channels differ between the paths",
+        cpu.texels.len()
+    );
+}

@@ -182,6 +182,42 @@ pub enum BvhBuild {
     Gpu,
 }
 
+/// Where the bake runs the stages that have a CPU twin. `Auto` takes the faster on the adapter
+/// in use, measured: on a CPU adapter (lavapipe) the twin, on a GPU the kernels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum StagePath {
+    /// The twin on a CPU adapter, the GPU path elsewhere.
+    #[default]
+    Auto,
+    /// Always the CPU twin (where the stage's inputs allow).
+    Cpu,
+    /// Always the GPU path.
+    Gpu,
+}
+
+/// [`StagePath`] per stage that has a CPU twin in the bake ([`Engine::stage_paths`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct StagePaths {
+    /// Placement: the BVH walk on the CPU (`place::place_cpu_bvh`) against `place_bvh`. On
+    /// lavapipe the twin answers a one-decal job in microseconds where the kernels cost their
+    /// compile (about 0.2 s of a cold start, `startup.md`) and a submission; the answers agree
+    /// within 2e-5 (`tests/placement.rs`).
+    pub placement: StagePath,
+}
+
+impl StagePaths {
+    /// Whether placement runs on the CPU: the twin walks the CPU-built BVH, so a mesh whose
+    /// tree was built on the GPU places on the GPU.
+    pub(crate) fn placement_on_cpu(&self, engine: &Engine, mesh: &LoadedMesh) -> bool {
+        let cpu = match self.placement {
+            StagePath::Auto => engine.ctx.device_type == Some(wgpu::DeviceType::Cpu),
+            StagePath::Cpu => true,
+            StagePath::Gpu => false,
+        };
+        cpu && !mesh.bvh.nodes.is_empty()
+    }
+}
+
 /// The engine: a device, its pipelines and pooled targets. Load meshes once, bake many jobs.
 ///
 /// `Engine` and [`LoadedMesh`] are `Send` and `Sync`: several threads may bake with one engine
@@ -210,6 +246,8 @@ pub struct Engine {
     pub unclipped_raster: bool,
     /// Where a prepared mesh's BVH is built ([`BvhBuild`]). Default [`BvhBuild::Auto`].
     pub bvh_build: BvhBuild,
+    /// Where the stages with a CPU twin run ([`StagePaths`]). Default: the faster on the adapter.
+    pub stage_paths: StagePaths,
     /// The raster clips a layer's triangles only where the mesh's triangles cover at least this
     /// many texels on average at the bake's size (its UV area over its triangles): clipping
     /// costs each triangle three corners' reads and pays back through the fringe it drops, which
@@ -371,6 +409,7 @@ impl Engine {
             whole_mesh_selection: false,
             unclipped_raster: false,
             bvh_build: BvhBuild::Auto,
+            stage_paths: StagePaths::default(),
             clip_min_texels: 128.0,
             images: Mutex::new(Default::default()),
             startup_reported: Default::default(),
@@ -692,7 +731,7 @@ impl Engine {
     /// and images (`decalbake bake` does). Pipelines are otherwise built when first used; this
     /// changes no result.
     pub fn prepare_for(&self, job: &Job) {
-        self.pipes.prepare(|p| pipelines_for(p, job));
+        Pipelines::prepare(pipelines_for(self, job));
     }
 
     fn bake_whole_or_tiled(
@@ -933,8 +972,9 @@ pub struct Islands {
 /// (canvas, islands, selection, raster, compose, padding and encode), placement when it has
 /// layers, each layer kind's and method's, and the preview's when it writes one. A pipeline left
 /// out is built when first used; one put in needlessly costs its compile on a spare core.
-fn pipelines_for<'p>(p: &'p Pipelines, job: &Job) -> Vec<&'p dyn Prepare> {
+fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
     use crate::io::job::{LayerKind, Method};
+    let p = &engine.pipes;
     let mut list: Vec<&dyn Prepare> = vec![
         &p.base_init,
         &p.island_raster,
@@ -943,11 +983,26 @@ fn pipelines_for<'p>(p: &'p Pipelines, job: &Job) -> Vec<&'p dyn Prepare> {
         &p.edt_columns,
         &p.edt_rows,
     ];
+    let cpu_bvh = match engine.bvh_build {
+        BvhBuild::Auto => {
+            engine.ctx.device_type == Some(wgpu::DeviceType::Cpu)
+                || engine.ctx.backend == Some(wgpu::Backend::Gl)
+        }
+        BvhBuild::Cpu => true,
+        BvhBuild::Gpu => false,
+    };
+    let placed_on_cpu = cpu_bvh
+        && match engine.stage_paths.placement {
+            StagePath::Auto => engine.ctx.device_type == Some(wgpu::DeviceType::Cpu),
+            StagePath::Cpu => true,
+            StagePath::Gpu => false,
+        };
+    if !job.layers.is_empty() && !placed_on_cpu {
+        list.extend([&p.place_bvh as &dyn Prepare, &p.place_reduce]);
+    }
     if !job.layers.is_empty() {
         list.extend([
-            &p.place_bvh as &dyn Prepare,
-            &p.place_reduce,
-            &p.select_triangles,
+            &p.select_triangles as &dyn Prepare,
             &p.compact_lists,
             &p.layer_raster,
             &p.atlas_clear,

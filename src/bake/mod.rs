@@ -52,7 +52,7 @@ pub(crate) mod tiles;
 pub mod tools;
 mod transfer;
 
-pub use engine::{Baked, BakedChannel, BvhBuild, Engine, LoadedMesh};
+pub use engine::{Baked, BakedChannel, BvhBuild, Engine, LoadedMesh, StagePath, StagePaths};
 pub use images::{f32_to_f16, load_raw, upload_image};
 pub use param::{size_figures, ParamMap, ParamRow, SizeFigures};
 pub use place::Units;
@@ -184,6 +184,7 @@ pub(crate) fn run_in(
         },
         warnings: check::unpainted(mesh, job),
         commands: 0,
+        paths: Default::default(),
     };
     let cx = Cx { engine, mesh, job };
     let t = Instant::now();
@@ -258,6 +259,7 @@ pub(crate) fn run_in(
         warnings: log.warnings,
         timings: log.timings,
         gpu_commands: log.commands,
+        paths: log.paths,
         pipeline_cache: engine.ctx.pipeline_cache.1.name(),
         input_hash: None,
         unwrap: mesh.unwrap.clone(),

@@ -10,7 +10,7 @@ use super::stage::{Cx, Log};
 use crate::error::{Error, Result};
 use crate::io::job::{BlendMode, Job};
 use crate::maps::Frame;
-use crate::place::{place_gpu, Placement};
+use crate::place::{place_cpu_bvh, place_gpu, Placement};
 use std::ops::Range;
 
 /// Where every unit landed, and its frame there.
@@ -63,8 +63,16 @@ pub(crate) fn place(cx: Cx<'_>, log: &mut Log) -> Result<Placed> {
     let Cx { engine, mesh, job } = cx;
     let per_layer: Vec<_> = job.layers.iter().map(|l| kind(l.kind).queries(l)).collect();
     let queries: Vec<_> = per_layer.iter().flatten().copied().collect();
-    let all = place_gpu(&engine.ctx, &engine.pipes, &mesh.gpu, &queries)?;
-    log.commands += 2;
+    let all = if engine.stage_paths.placement_on_cpu(engine, mesh) {
+        log.paths.placement = "cpu";
+        queries
+            .iter()
+            .map(|&q| place_cpu_bvh(&mesh.topo, &mesh.bvh, q))
+            .collect()
+    } else {
+        log.commands += 2;
+        place_gpu(&engine.ctx, &engine.pipes, &mesh.gpu, &queries)?
+    };
     let mut placed = Placed {
         placements: Vec::new(),
         frames: Vec::new(),
@@ -206,6 +214,7 @@ impl crate::bake::Engine {
             timings: Default::default(),
             warnings: Vec::new(),
             commands: 0,
+            paths: Default::default(),
         };
         let p = place(
             Cx {

@@ -123,6 +123,20 @@ pub struct Timings {
     pub pipelines_ms: f64,
 }
 
+/// Where the stages that have a CPU twin ran: `"gpu"` or `"cpu"` (the twin, taken by default
+/// where it is the faster on the adapter in use; `Engine::stage_paths` forces either).
+#[derive(Debug, Clone, Serialize)]
+pub struct Paths {
+    /// Placement: the BVH walk of `place_bvh` on the GPU, or `place::place_cpu_bvh`.
+    pub placement: &'static str,
+}
+
+impl Default for Paths {
+    fn default() -> Self {
+        Self { placement: "gpu" }
+    }
+}
+
 /// The whole report.
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
@@ -152,6 +166,8 @@ pub struct Report {
     pub timings: Timings,
     /// GPU dispatches and draws issued.
     pub gpu_commands: u32,
+    /// Where the stages that have a CPU twin ran.
+    pub paths: Paths,
     /// The compiled pipelines kept on disk (`gpu::cache`): `"warm"` (read from the file),
     /// `"cold"` (no file yet; written after the bake), `"corrupt"` (ignored and replaced),
     /// `"unsupported"` (the backend keeps none) or `"off"`.

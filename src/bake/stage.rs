@@ -23,6 +23,8 @@ pub(crate) struct Log {
     pub warnings: Vec<String>,
     /// GPU dispatches and draws issued.
     pub commands: u32,
+    /// Where the stages that have a CPU twin ran.
+    pub paths: super::report::Paths,
 }
 
 /// Milliseconds since `t`.

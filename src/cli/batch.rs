@@ -234,11 +234,14 @@ pub fn run(devices: &Devices, opts: &BatchOptions) -> Result<i32> {
         .filter(|(k, _)| k % count == index)
         .map(|(_, e)| e)
         .collect();
+    // A manifest named without a folder (`m.jsonl`) has the empty path as its parent, which
+    // cannot be listed: its folder is the current one.
     let root = opts.out.clone().unwrap_or_else(|| {
-        opts.manifest
-            .parent()
-            .unwrap_or(Path::new(""))
-            .to_path_buf()
+        match opts.manifest.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        }
+        .to_path_buf()
     });
     // Shards writing into one directory keep their own journals and summaries.
     let (journal, summary_name) = if count > 1 {

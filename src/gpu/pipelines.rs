@@ -445,11 +445,10 @@ impl Pipelines {
         }
     }
 
-    /// Builds the pipelines `which` selects now, on every core (each on a thread of its own; a
-    /// pipeline another thread is already building is waited for, never built twice). A bake
-    /// calls this with the pipelines its job will run while it reads the mesh and images.
-    pub fn prepare(&self, which: impl Fn(&Self) -> Vec<&dyn Prepare>) {
-        let list = which(self);
+    /// Builds the pipelines of `list` now, on every core (each on a thread of its own; a
+    /// pipeline another thread is already building is waited for, never built twice).
+    /// `decalbake bake` calls this with the pipelines its job will run while it reads the mesh.
+    pub fn prepare(list: Vec<&dyn Prepare>) {
         std::thread::scope(|s| {
             for p in list {
                 s.spawn(move || p.prepare());
