@@ -181,6 +181,14 @@ fn bad_job_files() {
     j["output"]["bit_depth"] = serde_json::json!(12);
     let e = run_case("bit-depth", &j, |_| {});
     expect(&e, "bit depth", &["output.bit_depth"]);
+    let mut j = good_job();
+    j["output"]["compression"] = serde_json::json!("best");
+    let e = run_case("compression", &j, |_| {});
+    expect(
+        &e,
+        "compression",
+        &["output.compression", "\"fast\" or \"small\""],
+    );
 }
 
 #[test]

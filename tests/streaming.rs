@@ -202,3 +202,74 @@ fn a_streamed_exr_holds_the_floats_of_the_bake_held_whole() {
     assert_eq!(differ, 0, "{differ} of {} floats differ", linear.len());
     assert!(std::fs::read(dir.join("out.glb")).unwrap() == model_whole);
 }
+
+/// `output.compression: "small"` writes smaller PNGs holding the same samples as `"fast"`, held
+/// whole and streamed alike (the streamed texture the same bytes as the whole one).
+#[test]
+fn small_compression_writes_smaller_pngs_of_the_same_samples() {
+    let dir = scratch("streaming_compression");
+    let engine = engine();
+    let mut job = spot_job(&dir, serde_json::json!({ "width": 256, "height": 256 }));
+    let mesh = engine.load_mesh(&job.mesh).unwrap();
+    let mut files = Vec::new();
+    for (compression, tile) in [
+        (decalbake::io::image::PngCompression::Fast, None),
+        (decalbake::io::image::PngCompression::Small, None),
+        (decalbake::io::image::PngCompression::Small, Some(64)),
+    ] {
+        job.compression = compression;
+        job.tile = tile;
+        decalbake::output::bake_and_write(&engine, &mesh, &job, &|_| {}, &|_| {}).unwrap();
+        files.push(std::fs::read(dir.join("out.png")).unwrap());
+    }
+    let decode = |b: &[u8]| decalbake::io::image::LinearImage::decode(b).unwrap().pixels;
+    assert!(decode(&files[0]) == decode(&files[1]), "the same samples");
+    assert!(
+        decode(&files[0]) == decode(&files[2]),
+        "the same samples, streamed"
+    );
+    assert!(
+        files[1].len() <= files[0].len(),
+        "small {} bytes against fast {}",
+        files[1].len(),
+        files[0].len()
+    );
+}
+
+/// `"small"` keeps the smallest of its encodings, so it is never larger than `"fast"`, and on a
+/// texture with large flat areas (the kind the strongest deflate wins on) it is smaller.
+#[test]
+fn small_compression_is_never_larger_and_wins_on_flat_textures() {
+    use decalbake::io::image::{png_bytes_with, PngCompression};
+    let (w, h) = (256u32, 256u32);
+    let flat: Vec<u16> = (0..w * h)
+        .flat_map(|i| {
+            let (x, y) = (i % w, i / w);
+            let c = if (x / 32 + y / 32) % 2 == 0 { 200 } else { 40 };
+            [c, (x / 8) as u16, 90, 255]
+        })
+        .collect();
+    let noisy: Vec<u16> = (0..w * h * 4)
+        .map(|i| ((i as u64 * 2_654_435_761) >> 7) as u16 & 255)
+        .collect();
+    for (name, texels) in [("flat", &flat), ("noisy", &noisy)] {
+        let fast = png_bytes_with(w, h, 8, texels, PngCompression::Fast);
+        let small = png_bytes_with(w, h, 8, texels, PngCompression::Small);
+        assert!(
+            small.len() <= fast.len(),
+            "{name}: {} > {}",
+            small.len(),
+            fast.len()
+        );
+        let decode = |b: &[u8]| decalbake::io::image::LinearImage::decode(b).unwrap().pixels;
+        assert!(decode(&fast) == decode(&small), "{name}: the same samples");
+        if name == "flat" {
+            assert!(
+                small.len() < fast.len(),
+                "flat: {} against {}",
+                small.len(),
+                fast.len()
+            );
+        }
+    }
+}

@@ -130,16 +130,21 @@ impl Baked {
 
     /// PNG bytes at the bake's bit depth.
     pub fn to_png(&self) -> Vec<u8> {
-        crate::io::image::png_bytes(self.width, self.height, self.bit_depth, &self.texels)
+        self.to_png_with(Default::default())
+    }
+
+    /// [`Self::to_png`] at a chosen compression (a job's `output.compression`).
+    pub fn to_png_with(&self, compression: crate::io::image::PngCompression) -> Vec<u8> {
+        let (w, h, depth) = (self.width, self.height, self.bit_depth);
+        crate::io::image::png_bytes_with(w, h, depth, &self.texels, compression)
     }
 
     /// Each channel's PNG, in [`Self::channels`]' order.
-    pub fn channel_pngs(&self) -> Vec<Vec<u8>> {
+    pub fn channel_pngs(&self, compression: crate::io::image::PngCompression) -> Vec<Vec<u8>> {
+        let (w, h, depth) = (self.width, self.height, self.bit_depth);
         self.channels
             .iter()
-            .map(|c| {
-                crate::io::image::png_bytes(self.width, self.height, self.bit_depth, &c.texels)
-            })
+            .map(|c| crate::io::image::png_bytes_with(w, h, depth, &c.texels, compression))
             .collect()
     }
 

@@ -305,15 +305,83 @@ impl LinearImage {
     }
 }
 
+/// How hard a PNG is compressed (`output.compression`). Both keep every sample exactly.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PngCompression {
+    /// The `png` crate's fast deflate (`fdeflate`): the default.
+    #[default]
+    Fast,
+    /// The smallest file of a few encodings (the `png` crate's strongest deflate with adaptive,
+    /// no or up filters, and the fast one): never larger than `Fast`, 10-30 times its encoding
+    /// time. Which wins depends on the image (measured on the demo's textures: none for Spot's
+    /// colour and the knight's ORM, up for the knight's colour, fast for a small noisy bake). A
+    /// texture streamed band by band (`output/stream.rs`) is never held whole, so it gets one
+    /// encoding, the strongest deflate with adaptive filters.
+    Small,
+}
+
+impl PngCompression {
+    /// The one encoding of a PNG written row by row ([`png_rows`]).
+    fn level(self) -> (png::Compression, png::Filter) {
+        match self {
+            PngCompression::Fast => (png::Compression::Fast, png::Filter::Adaptive),
+            PngCompression::Small => (png::Compression::High, png::Filter::Adaptive),
+        }
+    }
+}
+
+/// The encodings `PngCompression::Small` tries on a PNG held whole, the fast one first.
+const SMALL_TRIES: [(png::Compression, png::Filter); 4] = [
+    (png::Compression::Fast, png::Filter::Adaptive),
+    (png::Compression::High, png::Filter::Adaptive),
+    (png::Compression::High, png::Filter::NoFilter),
+    (png::Compression::High, png::Filter::Up),
+];
+
 /// PNG bytes of RGBA samples already encoded at `bit_depth` (8: 0..=255, 16: 0..=65535), written
 /// through [`png_rows`], so that a texture streamed band by band and one encoded whole are the
 /// same bytes.
 pub fn png_bytes(width: u32, height: u32, bit_depth: u8, samples: &[u16]) -> Vec<u8> {
+    png_bytes_with(width, height, bit_depth, samples, PngCompression::Fast)
+}
+
+/// [`png_bytes`] at a chosen compression.
+pub fn png_bytes_with(
+    width: u32,
+    height: u32,
+    bit_depth: u8,
+    samples: &[u16],
+    compression: PngCompression,
+) -> Vec<u8> {
+    let tries = match compression {
+        PngCompression::Fast => &SMALL_TRIES[..1],
+        PngCompression::Small => &SMALL_TRIES[..],
+    };
+    use rayon::prelude::*;
+    let encoded: Vec<Vec<u8>> = tries
+        .par_iter()
+        .map(|&level| encode_png(width, height, (bit_depth, level), samples))
+        .collect();
+    // The first of the smallest, in the tries' order: the same file on every run, and the fast
+    // encoding where nothing beats it.
+    encoded
+        .into_iter()
+        .reduce(|best, e| if e.len() < best.len() { e } else { best })
+        .expect("at least one encoding")
+}
+
+/// One encoding of a PNG held whole, through [`png_rows_at`].
+fn encode_png(
+    width: u32,
+    height: u32,
+    (bit_depth, level): (u8, (png::Compression, png::Filter)),
+    samples: &[u16],
+) -> Vec<u8> {
     let mut out = Vec::new();
-    png_rows(
+    png_rows_at(
         &mut out,
         [width, height],
-        bit_depth,
+        (bit_depth, level),
         Path::new("memory"),
         |png| {
             png.write_texels(samples).map_err(|source| Error::Io {
@@ -329,14 +397,25 @@ pub fn png_bytes(width: u32, height: u32, bit_depth: u8, samples: &[u16]) -> Vec
 
 /// Writes an RGBA PNG (8 or 16 bits) to `out` a few rows at a time: `fill` hands it every row, top
 /// first, through [`PngRows::write_texels`] (a tiled bake streams its texture this way,
-/// `output/stream.rs`). The `png` crate's stream writer, with fast deflate and adaptive filters
+/// `output/stream.rs`). The `png` crate's stream writer, with `compression`'s deflate and adaptive filters
 /// (the `image` crate's defaults) and IDAT chunks of [`PNG_CHUNK`] bytes. `fill`'s error, or the
 /// first write's (as writing `path`), is returned; the image is complete only when this returns
 /// `Ok`.
 pub fn png_rows<W: std::io::Write, T>(
     out: W,
+    size: [u32; 2],
+    (depth, compression): (u8, PngCompression),
+    path: &Path,
+    fill: impl FnOnce(&mut PngRows<'_, W>) -> Result<T>,
+) -> Result<T> {
+    png_rows_at(out, size, (depth, compression.level()), path, fill)
+}
+
+/// [`png_rows`] at a given deflate level and filter.
+fn png_rows_at<W: std::io::Write, T>(
+    out: W,
     [width, height]: [u32; 2],
-    depth: u8,
+    (depth, (level, filter)): (u8, (png::Compression, png::Filter)),
     path: &Path,
     fill: impl FnOnce(&mut PngRows<'_, W>) -> Result<T>,
 ) -> Result<T> {
@@ -351,8 +430,8 @@ pub fn png_rows<W: std::io::Write, T>(
         16 => png::BitDepth::Sixteen,
         _ => png::BitDepth::Eight,
     });
-    enc.set_compression(png::Compression::Fast);
-    enc.set_filter(png::Filter::Adaptive);
+    enc.set_compression(level);
+    enc.set_filter(filter);
     let mut writer = enc.write_header().map_err(io)?;
     let t = {
         let mut rows = PngRows {

@@ -23,6 +23,7 @@
 //! | layer `depth` (planar) | half the larger of the two sizes |
 //! | `output.texture` | `"baked.png"` (`.exr`: OpenEXR, linear 32-bit float) |
 //! | `output.bit_depth` | `8` |
+//! | `output.compression` | `"fast"` (PNG: fast deflate; `"small"`: the smallest files, slower) |
 //! | `output.report` | `"report.json"` |
 //! | `output.glb`, `output.preview` | none |
 
@@ -443,6 +444,9 @@ pub struct OutputSpec {
     /// Preview PNG.
     #[serde(default)]
     pub preview: Option<PathBuf>,
+    /// `"fast"` (default) or `"small"`: how hard PNG outputs are compressed.
+    #[serde(default)]
+    pub compression: Option<String>,
 }
 
 fn default_texture_out() -> Option<PathBuf> {
@@ -463,6 +467,7 @@ impl Default for OutputSpec {
             glb: None,
             report: default_report(),
             preview: None,
+            compression: None,
         }
     }
 }
@@ -653,6 +658,8 @@ pub struct Job {
     pub out_report: Option<PathBuf>,
     /// Output preview.
     pub out_preview: Option<PathBuf>,
+    /// How hard the texture PNGs (and the model's embedded PNGs) are compressed.
+    pub compression: crate::io::image::PngCompression,
     /// `max_memory` in bytes (`crate::bake::memory`); `None`: the memory available.
     pub max_memory: Option<u64>,
 }
@@ -952,6 +959,16 @@ impl Job {
                 format!("{} is not 8 or 16", f.output.bit_depth),
             ));
         }
+        let compression = match f.output.compression.as_deref() {
+            None | Some("fast") => crate::io::image::PngCompression::Fast,
+            Some("small") => crate::io::image::PngCompression::Small,
+            Some(other) => {
+                return Err(err(
+                    "output.compression",
+                    format!("\"{other}\" is not a compression; use \"fast\" or \"small\""),
+                ))
+            }
+        };
         let layers = f
             .layers
             .iter()
@@ -1003,6 +1020,7 @@ impl Job {
             out_glb: out(&f.output.glb),
             out_report: out(&f.output.report),
             out_preview: out(&f.output.preview),
+            compression,
             max_memory,
         })
     }

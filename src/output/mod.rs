@@ -67,8 +67,8 @@ pub fn write_outputs(
 ) -> Result<Vec<PathBuf>> {
     let t = Instant::now();
     let mut files: Vec<(PathBuf, Vec<u8>)> = Vec::new();
-    let png = baked.to_png();
-    let channel_pngs = baked.channel_pngs();
+    let png = baked.to_png_with(job.compression);
+    let channel_pngs = baked.channel_pngs(job.compression);
     if let Some(p) = &job.out_glb {
         let color = gltf::BakedColor {
             png: &png,
@@ -202,8 +202,14 @@ pub fn write_set_outputs(
     let t = Instant::now();
     let any = bakes.iter().any(|b| b.touched());
     let written: Vec<bool> = bakes.iter().map(|b| b.touched() || !any).collect();
-    let pngs: Vec<Vec<u8>> = bakes.iter().map(|b| b.baked.to_png()).collect();
-    let channel_pngs: Vec<Vec<Vec<u8>>> = bakes.iter().map(|b| b.baked.channel_pngs()).collect();
+    let pngs: Vec<Vec<u8>> = bakes
+        .iter()
+        .map(|b| b.baked.to_png_with(b.job.compression))
+        .collect();
+    let channel_pngs: Vec<Vec<Vec<u8>>> = bakes
+        .iter()
+        .map(|b| b.baked.channel_pngs(b.job.compression))
+        .collect();
     let mut files: Vec<(PathBuf, Vec<u8>)> = Vec::new();
     let mut warnings = Vec::new();
     for (((b, png), &w), cpngs) in bakes.iter().zip(&pngs).zip(&written).zip(&channel_pngs) {

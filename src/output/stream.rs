@@ -115,7 +115,7 @@ fn stream(
     let path = path.map_or(Path::new(""), |p| p.as_path());
     let mut reduce = job.out_preview.as_ref().map(|_| Reduction::new(job));
     let size = [job.width, job.height];
-    let depth = job.bit_depth;
+    let depth = (job.bit_depth, job.compression);
     let cx = (engine, mesh, job, shape, on_stage, path);
     let glb = job.out_glb.is_some();
     let report = match texture {
