@@ -139,8 +139,8 @@ impl Baked {
         crate::io::image::png_bytes_with(w, h, depth, &self.texels, compression)
     }
 
-    /// Each channel's PNG, in [`Self::channels`]' order.
-    pub fn channel_pngs(&self, compression: crate::io::image::PngCompression) -> Vec<Vec<u8>> {
+    /// Each channel's PNG, in [`Self::channels`]' order, at a chosen compression.
+    pub fn channel_pngs_with(&self, compression: crate::io::image::PngCompression) -> Vec<Vec<u8>> {
         let (w, h, depth) = (self.width, self.height, self.bit_depth);
         self.channels
             .iter()
@@ -214,12 +214,16 @@ impl StagePaths {
     /// Whether placement runs on the CPU: the twin walks the CPU-built BVH, so a mesh whose
     /// tree was built on the GPU places on the GPU.
     pub(crate) fn placement_on_cpu(&self, engine: &Engine, mesh: &LoadedMesh) -> bool {
-        let cpu = match self.placement {
+        self.placement_prefers_cpu(engine) && !mesh.bvh.nodes.is_empty()
+    }
+
+    /// Whether placement asks for the twin, before the mesh's tree is known.
+    fn placement_prefers_cpu(&self, engine: &Engine) -> bool {
+        match self.placement {
             StagePath::Auto => engine.ctx.device_type == Some(wgpu::DeviceType::Cpu),
             StagePath::Cpu => true,
             StagePath::Gpu => false,
-        };
-        cpu && !mesh.bvh.nodes.is_empty()
+        }
     }
 }
 
@@ -526,6 +530,18 @@ impl Engine {
         Ok((loaded, job))
     }
 
+    /// Whether a prepared mesh's BVH is built on the GPU ([`Self::bvh_build`]).
+    fn bvh_on_gpu(&self) -> bool {
+        match self.bvh_build {
+            BvhBuild::Auto => {
+                self.ctx.device_type != Some(wgpu::DeviceType::Cpu)
+                    && self.ctx.backend != Some(wgpu::Backend::Gl)
+            }
+            BvhBuild::Cpu => false,
+            BvhBuild::Gpu => true,
+        }
+    }
+
     /// Welds and uploads a mesh already in memory.
     pub fn prepare(&self, mesh: Mesh) -> Result<LoadedMesh> {
         self.prepare_mesh(mesh, Instant::now())
@@ -536,14 +552,7 @@ impl Engine {
         let t1 = Instant::now();
         let topo = Topology::build(&mesh, crate::mesh::DEFAULT_WELD_TOLERANCE);
         let surface = crate::mesh::SurfaceData::new(&topo);
-        let on_gpu = match self.bvh_build {
-            BvhBuild::Auto => {
-                self.ctx.device_type != Some(wgpu::DeviceType::Cpu)
-                    && self.ctx.backend != Some(wgpu::Backend::Gl)
-            }
-            BvhBuild::Cpu => false,
-            BvhBuild::Gpu => true,
-        };
+        let on_gpu = self.bvh_on_gpu();
         let bvh = if on_gpu {
             crate::mesh::bvh::Bvh::default()
         } else {
@@ -988,20 +997,7 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
         &p.edt_columns,
         &p.edt_rows,
     ];
-    let cpu_bvh = match engine.bvh_build {
-        BvhBuild::Auto => {
-            engine.ctx.device_type == Some(wgpu::DeviceType::Cpu)
-                || engine.ctx.backend == Some(wgpu::Backend::Gl)
-        }
-        BvhBuild::Cpu => true,
-        BvhBuild::Gpu => false,
-    };
-    let placed_on_cpu = cpu_bvh
-        && match engine.stage_paths.placement {
-            StagePath::Auto => engine.ctx.device_type == Some(wgpu::DeviceType::Cpu),
-            StagePath::Cpu => true,
-            StagePath::Gpu => false,
-        };
+    let placed_on_cpu = !engine.bvh_on_gpu() && engine.stage_paths.placement_prefers_cpu(engine);
     if !job.layers.is_empty() && !placed_on_cpu {
         list.extend([&p.place_bvh as &dyn Prepare, &p.place_reduce]);
     }

@@ -73,6 +73,25 @@ fn max_memory(spec: Option<&MemorySpec>, src: &Path) -> Result<Option<u64>> {
     }
 }
 
+/// The output's PNG compression, once its bit depth is checked (8 or 16): any other depth or
+/// compression is refused, naming the field.
+fn output_encoding(o: &OutputSpec, src: &Path) -> Result<crate::io::image::PngCompression> {
+    use crate::io::image::PngCompression;
+    if o.bit_depth != 8 && o.bit_depth != 16 {
+        let detail = format!("{} is not 8 or 16", o.bit_depth);
+        return Err(Error::job(src, "output.bit_depth", detail));
+    }
+    match o.compression.as_deref() {
+        None | Some("fast") => Ok(PngCompression::Fast),
+        Some("small") => Ok(PngCompression::Small),
+        Some(other) => Err(Error::job(
+            src,
+            "output.compression",
+            format!("\"{other}\" is not a compression; use \"fast\" or \"small\""),
+        )),
+    }
+}
+
 /// Parses a memory size: a number of bytes, or a number with a unit (`k`, `M`, `G`, `T`, with
 /// or without `i` and `B`: powers of 1024; `"1.5GiB"`, `"512M"`, `"2GB"`).
 pub fn parse_size(text: &str) -> Option<u64> {
@@ -953,22 +972,7 @@ impl Job {
             ));
         }
         let max_memory = max_memory(f.max_memory.as_ref(), src)?;
-        if f.output.bit_depth != 8 && f.output.bit_depth != 16 {
-            return Err(err(
-                "output.bit_depth",
-                format!("{} is not 8 or 16", f.output.bit_depth),
-            ));
-        }
-        let compression = match f.output.compression.as_deref() {
-            None | Some("fast") => crate::io::image::PngCompression::Fast,
-            Some("small") => crate::io::image::PngCompression::Small,
-            Some(other) => {
-                return Err(err(
-                    "output.compression",
-                    format!("\"{other}\" is not a compression; use \"fast\" or \"small\""),
-                ))
-            }
-        };
+        let compression = output_encoding(&f.output, src)?;
         let layers = f
             .layers
             .iter()

@@ -68,7 +68,7 @@ pub fn write_outputs(
     let t = Instant::now();
     let mut files: Vec<(PathBuf, Vec<u8>)> = Vec::new();
     let png = baked.to_png_with(job.compression);
-    let channel_pngs = baked.channel_pngs(job.compression);
+    let channel_pngs = baked.channel_pngs_with(job.compression);
     if let Some(p) = &job.out_glb {
         let color = gltf::BakedColor {
             png: &png,
@@ -208,7 +208,7 @@ pub fn write_set_outputs(
         .collect();
     let channel_pngs: Vec<Vec<Vec<u8>>> = bakes
         .iter()
-        .map(|b| b.baked.channel_pngs(b.job.compression))
+        .map(|b| b.baked.channel_pngs_with(b.job.compression))
         .collect();
     let mut files: Vec<(PathBuf, Vec<u8>)> = Vec::new();
     let mut warnings = Vec::new();
