@@ -22,6 +22,7 @@ fn demo_writes_decodable_outputs_and_a_glb_that_loads_back() {
     }
     let baked = LinearImage::load(&out.join("baked.png")).unwrap();
     assert_eq!((baked.width, baked.height), (1024, 1024));
+    demo_jobs_follow_their_schema(&out);
     // The unwrapped sheet: its own flattening (TEXCOORD_0) and the pelt's (TEXCOORD_1).
     let sheet = decalbake::mesh::Mesh::load(&out.join("unwrapped.glb")).unwrap();
     assert_eq!(sheet.uv_sets.len(), 2);
@@ -432,4 +433,26 @@ fn clipped_raster_matches_whole_triangles(demo: &Path) {
         worst <= 32,
         "the clipped raster changed texels by {worst} of 65535"
     );
+}
+
+/// The demo writes its job's schema beside it, `job.json` names it in `$schema`, and every job
+/// file the demo writes validates against it.
+fn demo_jobs_follow_their_schema(out: &Path) {
+    let read = |name: &str| -> serde_json::Value {
+        serde_json::from_slice(&std::fs::read(out.join(name)).unwrap()).unwrap()
+    };
+    let schema = read("job.schema.json");
+    assert_eq!(
+        schema,
+        decalbake::io::schema::schema(decalbake::io::schema::Which::Job)
+    );
+    let validator = jsonschema::validator_for(&schema).unwrap();
+    assert_eq!(read("job.json")["$schema"], "job.schema.json");
+    for name in ["job.json", "bob-job.json", "frames.json", "knight.json"] {
+        let errors: Vec<String> = validator
+            .iter_errors(&read(name))
+            .map(|e| format!("{}: {e}", e.instance_path()))
+            .collect();
+        assert!(errors.is_empty(), "the demo's {name}: {errors:#?}");
+    }
 }

@@ -223,6 +223,7 @@ pub fn job_json() -> String {
         .map(|z| serde_json::json!({ "ray": { "origin": [1.5, 0.15, z], "dir": [-1, 0, 0] } }))
         .collect();
     serde_json::to_string_pretty(&serde_json::json!({
+        "$schema": "job.schema.json",
         "mesh": "spot.glb",
         "uv_set": 0,
         "texture": { "width": 1024, "height": 1024, "base": "material", "padding": 16, "samples": 4 },

@@ -10,25 +10,25 @@ use std::path::Path;
 pub const MAX_SIZE_MODEL_UNITS: f32 = 1.0e6;
 
 /// Where a layer goes.
-#[derive(Debug, Clone, Deserialize, serde::Serialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, serde::Serialize, PartialEq, schemars::JsonSchema)]
 #[serde(untagged)]
 pub enum AtSpec {
     /// A point, snapped to the closest surface point.
     Point([f32; 3]),
     /// A ray; the first hit is used.
     Ray {
-        /// The ray.
+        /// A ray, usually from outside the model; its first hit on the surface is used.
         ray: RaySpec,
     },
 }
 
 /// A ray.
-#[derive(Debug, Clone, Deserialize, serde::Serialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, serde::Serialize, PartialEq, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct RaySpec {
-    /// Origin.
+    /// The ray's origin, model units.
     pub origin: [f32; 3],
-    /// Direction (need not be unit length).
+    /// The ray's direction (need not be unit length).
     pub dir: [f32; 3],
 }
 

@@ -9,7 +9,7 @@ use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
 
 /// A channel's value as written in the job file: a number, an RGB triple or an image path.
-#[derive(Debug, Clone, serde::Deserialize)]
+#[derive(Debug, Clone, serde::Deserialize, schemars::JsonSchema)]
 #[serde(untagged)]
 pub enum ValueSpec {
     /// A number in [0, 1].

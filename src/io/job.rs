@@ -2,7 +2,7 @@
 //! The job file: what to bake, onto which mesh, and where the results go.
 //!
 //! JSON, with paths relative to the job file. Unknown fields are an error that names them. Defaults
-//! (documented in the README as well):
+//! (documented in docs/job-file.md as well):
 //!
 //! | field | default |
 //! |---|---|
@@ -35,12 +35,17 @@ use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
 /// The whole job.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
+#[schemars(title = "decalbake job")]
 pub struct JobFile {
+    /// The JSON Schema this file follows (`decalbake schema job` prints it); the bake ignores it.
+    #[serde(rename = "$schema", default)]
+    pub schema: Option<String>,
     /// The mesh (`.gltf` or `.glb`).
     pub mesh: PathBuf,
-    /// Which `TEXCOORD_n` set to bake into: a number or `"auto"`.
+    /// Which `TEXCOORD_n` set to bake into: a number, a list of numbers (one texture each), or
+    /// `"auto"` (the base-colour texture's set; on a mesh without UVs, one made by pelting).
     #[serde(default)]
     pub uv_set: UvSetField,
     /// The output texture.
@@ -118,7 +123,7 @@ pub fn parse_size(text: &str) -> Option<u64> {
 }
 
 /// `max_memory`: bytes, or a number with a unit.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(untagged)]
 pub enum MemorySpec {
     /// Bytes.
@@ -128,13 +133,13 @@ pub enum MemorySpec {
 }
 
 /// `uv_set`: a set's number or `"auto"`.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(untagged)]
 pub enum UvSetField {
     /// `TEXCOORD_n`.
     Index(u32),
     /// `"auto"` (any other text is an error).
-    Named(String),
+    Named(#[schemars(extend("enum" = ["auto"]))] String),
     /// Several sets at once (`[0, 1]`: a model with a pelt and its patch, `decalbake unwrap
     /// --patch`): one texture per set, `{uv}` in `output.texture` naming them.
     List(Vec<u32>),
@@ -147,7 +152,7 @@ impl Default for UvSetField {
 }
 
 /// Output texture settings.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TextureSpec {
     /// Width in texels.
@@ -156,10 +161,11 @@ pub struct TextureSpec {
     /// Height in texels.
     #[serde(default = "default_side")]
     pub height: u32,
-    /// What the layers are composed onto.
+    /// What the layers are composed onto: `"material"` (the model's base-colour texture), an
+    /// image path, a linear RGBA colour, or a texture transferred from another UV set.
     #[serde(default)]
     pub base: BaseSpec,
-    /// Island padding.
+    /// How far each UV island is grown into the background, in texels, or `"full"`.
     #[serde(default)]
     pub padding: PaddingSpec,
     /// Samples per texel (a square: 1, 4, 9, 16).
@@ -176,7 +182,7 @@ pub struct TextureSpec {
 }
 
 /// `texture.sets.<material>`: the size of that material's texture set.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SetSize {
     /// Width in texels (default: `texture.width`).
@@ -223,7 +229,7 @@ impl Default for TextureSpec {
 }
 
 /// The base the layers are composed onto.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, PartialEq, schemars::JsonSchema)]
 #[serde(untagged)]
 pub enum BaseSpec {
     /// A linear RGBA colour in [0, 1].
@@ -240,7 +246,7 @@ pub enum BaseSpec {
 /// `texture.base.transfer`: an existing texture laid out on another UV set, resampled into the set
 /// being baked (each texel's surface point looks the texture up at its UV in `from_uv_set`): the
 /// usual step after a new unwrap.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, PartialEq, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TransferSpec {
     /// The set the texture is laid out on.
@@ -261,13 +267,13 @@ impl Default for BaseSpec {
 }
 
 /// How far islands are grown.
-#[derive(Debug, Clone, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, PartialEq, schemars::JsonSchema)]
 #[serde(untagged)]
 pub enum PaddingSpec {
     /// Texels.
     Texels(u32),
     /// `"full"`.
-    Word(String),
+    Word(#[schemars(extend("enum" = ["full"]))] String),
 }
 
 impl Default for PaddingSpec {
@@ -277,13 +283,16 @@ impl Default for PaddingSpec {
 }
 
 /// One layer.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct LayerSpec {
-    /// `"decal"`.
+    /// What the layer is: a `"decal"` placed at one point, a `"stroke"` of stamps along a path, or
+    /// a `"ribbon"` laid along a curve.
     #[serde(default = "default_kind")]
+    #[schemars(extend("enum" = ["decal", "stroke", "ribbon"]))]
     pub kind: String,
-    /// The decal image.
+    /// The layer's colour image (PNG or JPEG, 8 or 16 bits, sRGB; a stroke's stamp, a ribbon's
+    /// strip).
     pub image: PathBuf,
     /// Optional mask image (red × alpha, read without sRGB decoding).
     #[serde(default)]
@@ -303,9 +312,12 @@ pub struct LayerSpec {
     pub up: [f32; 3],
     /// Placement method (default: `"expmap"` for decals, `"lscm"` for strokes).
     #[serde(default)]
+    #[schemars(extend("enum" = ["planar", "expmap", "lscm", "hybrid", null]))]
     pub method: Option<String>,
-    /// Blend mode name.
+    /// Blend mode name: `normal`, `multiply`, `screen`, `overlay`, `add`, `darken`, `lighten`,
+    /// `color_dodge` or `color_burn` (any case; spaces or hyphens for the underscore).
     #[serde(default = "default_blend")]
+    #[schemars(extend("examples" = ["normal", "multiply", "screen", "overlay", "add", "darken", "lighten", "color_dodge", "color_burn"]))]
     pub blend: String,
     /// Opacity in [0, 1].
     #[serde(default = "default_opacity")]
@@ -316,9 +328,10 @@ pub struct LayerSpec {
     /// Expmap: halt propagation at vertices whose |Gaussian curvature| exceeds this (partial decals).
     #[serde(default)]
     pub curvature_stop: Option<f32>,
-    /// Expmap: `"smooth"` (default; second order, see `Accuracy::Smooth`) or `"fast"`
-    /// (the paper's update).
+    /// Expmap: `"smooth"` (default; a second-order update along the paper's upwind paths) or
+    /// `"fast"` (the paper's update).
     #[serde(default)]
+    #[schemars(extend("enum" = ["smooth", "fast", null]))]
     pub accuracy: Option<String>,
     /// Hybrid: triangles of the exponential map whose angle distortion (s1 / s2) exceeds this are
     /// re-solved conformally (default 1.1).
@@ -330,6 +343,7 @@ pub struct LayerSpec {
     pub cg_max_iterations: Option<u32>,
     /// Stroke: `"paint"` (default), `"blur"`, `"smear"` or `"clone"`.
     #[serde(default)]
+    #[schemars(extend("enum" = ["paint", "blur", "smear", "clone", null]))]
     pub tool: Option<String>,
     /// Stroke: surface points (like `at`), joined along the surface.
     #[serde(default)]
@@ -337,6 +351,7 @@ pub struct LayerSpec {
     /// Stroke, ribbon: `"catmull-rom"` (default; a smooth curve through the path's points) or
     /// `"linear"` (the geodesics between them).
     #[serde(default)]
+    #[schemars(extend("enum" = ["catmull-rom", "linear", null]))]
     pub interpolate: Option<String>,
     /// Stroke: pressure in [0, 1] per path point.
     #[serde(default)]
@@ -355,6 +370,7 @@ pub struct LayerSpec {
     pub pressure_flow: Option<f32>,
     /// Stroke: `"path"` (default) or `"fixed"`.
     #[serde(default)]
+    #[schemars(extend("enum" = ["path", "fixed", null]))]
     pub orient: Option<String>,
     /// Stroke: per-vertex charts interpolated (Maillot section 7).
     #[serde(default)]
@@ -373,31 +389,36 @@ pub struct LayerSpec {
     pub width: Option<f32>,
     /// Ribbon: `"stretch"` (default) or `"tile"`.
     #[serde(default)]
+    #[schemars(extend("enum" = ["stretch", "tile", null]))]
     pub repeat: Option<String>,
     /// Ribbon: `"center"` (default), `"left"` or `"right"`.
     #[serde(default)]
+    #[schemars(extend("enum" = ["center", "left", "right", null]))]
     pub align: Option<String>,
     /// Ribbon: mirror the image across the curve.
     #[serde(default)]
     pub flip: Option<bool>,
-    /// Ribbon: the image moving along a route over frames (`super::ribbon::AnimateSpec`).
+    /// Ribbon: the image moving along a route over frames (one bake per frame).
     #[serde(default)]
     pub animate: Option<super::ribbon::AnimateSpec>,
     /// Ribbon: λ of the curved parts' harmonic repair (default 0.2).
     #[serde(default)]
     pub curved_threshold: Option<f32>,
-    /// Decal, stroke, ribbon: `[from, to]` image-point pairs of a thin-plate-spline warp
-    /// (`super::warp`).
+    /// Decal, stroke, ribbon: `[from, to]` image-point pairs (in [0, 1]²) of a thin-plate-spline
+    /// warp: the image content at each `from` moves to its `to`.
     #[serde(default)]
     pub warp: Option<Vec<[[f32; 2]; 2]>>,
-    /// A tangent-space normal map (`super::channels`).
+    /// A tangent-space normal map baked into the model's normal texture.
     #[serde(default)]
     pub normal: Option<PathBuf>,
-    /// `"gl"` (default) or `"dx"`.
+    /// The normal map's green axis: `"gl"` (default, +Y up, as glTF) or `"dx"` (+Y down).
     #[serde(default)]
+    #[schemars(extend("enum" = ["gl", "dx", null]))]
     pub normal_y: Option<String>,
-    /// `"rnm"` (default), `"udn"` or `"replace"`.
+    /// How the normal map combines with the model's: `"rnm"` (default, reoriented normal
+    /// mapping), `"udn"` or `"replace"`.
     #[serde(default)]
+    #[schemars(extend("enum" = ["rnm", "udn", "replace", null]))]
     pub normal_blend: Option<String>,
     /// Roughness: a number in [0, 1] or an image (its red channel).
     #[serde(default)]
@@ -428,6 +449,7 @@ pub struct LayerSpec {
     pub emissive_opacity: Option<f32>,
     /// How roughness, metallic and occlusion blend: `"normal"` (default) or `"replace"`.
     #[serde(default)]
+    #[schemars(extend("enum" = ["normal", "replace", null]))]
     pub data_blend: Option<String>,
 }
 
@@ -445,26 +467,28 @@ fn default_opacity() -> f32 {
 }
 
 /// Output files; `None` skips one.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct OutputSpec {
-    /// Baked texture PNG.
+    /// The baked texture: a PNG, or a name ending in `.exr` (linear 32-bit floats); `{set}`,
+    /// `{channel}`, `{uv}` and `{frame}` name a model's several textures and an animation's frames.
     #[serde(default = "default_texture_out")]
     pub texture: Option<PathBuf>,
-    /// 8 or 16.
+    /// Bits per PNG sample: 8 or 16.
     #[serde(default = "default_bit_depth")]
     pub bit_depth: u8,
     /// A `.glb` copy of the model with the baked texture.
     #[serde(default)]
     pub glb: Option<PathBuf>,
-    /// JSON report.
+    /// The JSON report: placements, coverage, distortion, warnings, timings.
     #[serde(default = "default_report")]
     pub report: Option<PathBuf>,
-    /// Preview PNG.
+    /// A PNG of the textured model from four sides.
     #[serde(default)]
     pub preview: Option<PathBuf>,
     /// `"fast"` (default) or `"small"`: how hard PNG outputs are compressed.
     #[serde(default)]
+    #[schemars(extend("enum" = ["fast", "small", null]))]
     pub compression: Option<String>,
 }
 
@@ -638,6 +662,22 @@ pub enum Padding {
 }
 
 /// A validated job: everything checked that can be checked without the mesh and the GPU.
+///
+/// [`Job::load`] reads a job file; [`Job::parse`] takes its text. A mistake is an
+/// [`Error::Job`] that names the file and the field:
+///
+/// ```
+/// use decalbake::Job;
+/// use std::path::Path;
+///
+/// let here = Path::new(".");
+/// let job = Job::parse(r#"{ "mesh": "model.glb" }"#, Path::new("job.json"), here, here).unwrap();
+/// assert_eq!((job.width, job.height), (2048, 2048));
+///
+/// let typo = r#"{ "mesh": "model.glb", "texture": { "widht": 512 } }"#;
+/// let e = Job::parse(typo, Path::new("job.json"), here, here).unwrap_err();
+/// assert!(e.to_string().starts_with("job.json: field `texture.widht`: unknown field"), "{e}");
+/// ```
 #[derive(Debug, Clone)]
 pub struct Job {
     /// The job file (or a name for in-memory jobs), for messages.
@@ -669,7 +709,7 @@ pub struct Job {
     pub layers: Vec<Layer>,
     /// Output texture path.
     pub out_texture: Option<PathBuf>,
-    /// 8 or 16.
+    /// Bits per PNG sample: 8 or 16.
     pub bit_depth: u8,
     /// Output glb.
     pub out_glb: Option<PathBuf>,

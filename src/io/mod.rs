@@ -1,12 +1,13 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! Inputs: the job file ([`job`], whose types are the schema the rest of the engine reads), the
 //! batch manifest ([`manifest`]) and image decoding and encoding ([`image`], also the atomic file
-//! writer every output goes through).
+//! writer every output goes through), and the JSON Schemas of job files and manifests ([`schema`]).
 pub mod at;
 pub mod channels;
 pub mod image;
 pub mod job;
 pub mod manifest;
 pub mod ribbon;
+pub mod schema;
 pub mod stroke;
 pub mod warp;

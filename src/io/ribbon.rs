@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! The ribbon fields of a job layer (`"kind": "ribbon"`, Sun et al. 2013): an image laid along a
 //! surface curve by the curve's extended exponential map ([`crate::maps::ribbon`]). Validated here;
-//! defaults (also in the README):
+//! defaults (also in docs/ribbons.md):
 //!
 //! | field | default |
 //! |---|---|
@@ -102,12 +102,12 @@ impl Animate {
 }
 
 /// `"animate"` as written.
-#[derive(Debug, Clone, serde::Deserialize)]
+#[derive(Debug, Clone, serde::Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct AnimateSpec {
     /// The route: surface points like `path`'s.
     pub route: Vec<AtSpec>,
-    /// Frames.
+    /// How many frames (one texture each).
     pub frames: u32,
     /// The image's length along the route, model units.
     pub length: f32,
