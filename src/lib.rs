@@ -12,6 +12,7 @@
 //! - [`pelt`]: new UV sets by pelting (cut, spring dynamics on the GPU, packing);
 //! - [`bake`]: the engine and the bake's stages, from images to the encoded texture;
 //! - [`output`]: the files a bake writes (PNG, GLB, preview, report).
+#![warn(missing_docs)]
 pub mod bake;
 pub mod error;
 pub mod gpu;

@@ -40,10 +40,15 @@ pub enum Draw {
     Colour,
     /// Its channel image, opacity, blend id, data weights (`Params::chan`) and raster flags.
     Channel {
+        /// The channel's image (a constant is a 1×1 image).
         image: Arc<GpuImage>,
+        /// The channel's opacity.
         opacity: f32,
+        /// The blend's id in the compose shader.
         blend: u32,
+        /// The data channels' weights (`Params::chan`).
         chan: [f32; 4],
+        /// The raster's flags for this channel.
         flags: u32,
     },
 }

@@ -18,6 +18,21 @@ use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 /// A mesh loaded, welded and resident on the GPU.
+///
+/// Load it once with [`Engine::load_mesh`] and bake any number of jobs against it, from any
+/// number of threads:
+///
+/// ```
+/// # fn main() -> decalbake::Result<()> {
+/// let engine = decalbake::Engine::new(None)?;
+/// let spot = engine.load_mesh(std::path::Path::new("assets/spot.glb"))?;
+/// // Its welded surface, the weld having joined glTF's vertices split along UV seams.
+/// assert!(spot.stats.welded_vertices < spot.stats.vertices);
+/// assert_eq!(spot.stats.triangles, spot.topo.triangles.len());
+/// println!("{} triangles, {} UV sets", spot.stats.triangles, spot.stats.uv_sets);
+/// # Ok(())
+/// # }
+/// ```
 pub struct LoadedMesh {
     /// The mesh as loaded.
     pub mesh: Mesh,
@@ -236,6 +251,35 @@ impl StagePaths {
 /// are behind a lock. Results are the same bytes as baking one after another
 /// (`tests/demo_and_api.rs`). Settings such as [`Engine::whole_mesh_selection`] are fields: set
 /// them before sharing the engine.
+///
+/// A host renderer hands over its own device and keeps the result on the GPU:
+///
+/// ```
+/// # fn main() -> Result<(), Box<dyn std::error::Error>> {
+/// use decalbake::{Engine, Job};
+/// use std::path::Path;
+///
+/// # let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+/// #     backends: wgpu::Backends::from_env().unwrap_or(wgpu::Backends::VULKAN | wgpu::Backends::GL),
+/// #     ..wgpu::InstanceDescriptor::new_without_display_handle()
+/// # });
+/// # let adapter = pollster::block_on(instance.request_adapter(&Default::default()))?;
+/// # let (device, queue) = pollster::block_on(adapter.request_device(&Default::default()))?;
+/// // `device` and `queue`: the host's own.
+/// let engine = Engine::from_device(device, queue)?;
+/// let mesh = engine.load_mesh(Path::new("assets/spot.glb"))?;
+/// let job = Job::parse(
+///     r#"{ "mesh": "spot.glb", "texture": { "width": 128, "height": 128 } }"#,
+///     Path::new("job.json"),
+///     Path::new("assets"),
+///     Path::new("."),
+/// )?;
+/// let (texture, report) = engine.bake_to_texture(&mesh, &job)?;
+/// assert_eq!(texture.format(), wgpu::TextureFormat::Rgba8UnormSrgb);
+/// assert_eq!((texture.width(), report.texture), (128, [128, 128]));
+/// # Ok(())
+/// # }
+/// ```
 pub struct Engine {
     /// The GPU context.
     pub ctx: GpuContext,
@@ -638,10 +682,10 @@ impl Engine {
         }
     }
 
-    /// Keeps at most `bytes` of canvas-sized buffers between bakes ([`BufferPool::BYTES`], 768 MiB,
+    /// Keeps at most `bytes` of canvas-sized buffers between bakes (`BufferPool::BYTES`, 768 MiB,
     /// by default). 0 keeps none: a bake's canvas planes are then freed before its read-back, which
     /// lowers the peak memory of a process that bakes once (`decalbake bake` of one job; 256
-    /// decals at 4096² on bob, `/usr/bin/time -v`: 1.23 GB resident, 0.95 GB without, README) at
+    /// decals at 4096² on bob, `/usr/bin/time -v`: 1.23 GB resident, 0.95 GB without, docs/performance.md) at
     /// the price of a fresh canvas for every later bake.
     pub fn keep_buffers(&self, bytes: u64) {
         let mut pool = self.buffers.lock().expect("buffer pool poisoned");
@@ -690,6 +734,28 @@ impl Engine {
             .clone()
     }
 
+    /// Bakes `job` onto `mesh` and reads the texture back: the bytes are the same on every run
+    /// and every thread (a bake holds no state between jobs that changes its output).
+    ///
+    /// ```
+    /// # fn main() -> decalbake::Result<()> {
+    /// use decalbake::{Engine, Job};
+    /// use std::path::Path;
+    ///
+    /// let engine = Engine::new(None)?;
+    /// let mesh = engine.load_mesh(Path::new("assets/spot.glb"))?;
+    /// // A job without layers bakes the model's own texture, padded.
+    /// let job = Job::parse(
+    ///     r#"{ "mesh": "spot.glb", "texture": { "width": 64, "height": 64 } }"#,
+    ///     Path::new("job.json"),
+    ///     Path::new("assets"),
+    ///     Path::new("."),
+    /// )?;
+    /// let baked = engine.bake(&mesh, &job)?;
+    /// assert_eq!(baked.rgba8().len(), 64 * 64 * 4);
+    /// # Ok(())
+    /// # }
+    /// ```
     pub fn bake(&self, mesh: &LoadedMesh, job: &Job) -> Result<Baked> {
         self.bake_with_progress(mesh, job, &|_| {})
     }

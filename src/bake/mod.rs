@@ -1,29 +1,29 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! The bake: layers placed, mapped, rasterized at their global UVs and composed into the texture,
-//! then padding and encoding, all on the GPU. [`run`] names the stages in order; each is a module:
+//! then padding and encoding, all on the GPU. `run` names the stages in order; each is a module:
 //!
-//! 0. [`check`]: the job against the mesh and the device's limits;
-//! 1. [`images`]: base, layer images and masks decoded and uploaded;
+//! 0. `check`: the job against the mesh and the device's limits;
+//! 1. `images`: base, layer images and masks decoded and uploaded;
 //! 2. [`place`]: every layer placed in one submission, its kind ([`kinds`]) makes its frame;
-//! 3. [`canvas`]: the accumulation image filled with the base, the mesh's islands ([`islands`]);
+//! 3. `canvas`: the accumulation image filled with the base, the mesh's islands (`islands`);
 //!
-//! then, per chunk of layers that fits the memory budget ([`maps::Slots`]):
+//! then, per chunk of layers that fits the memory budget (`maps::Slots`):
 //!
-//! 4. [`maps`]: each layer's local coordinates, by its method's plug-in;
+//! 4. `maps`: each layer's local coordinates, by its method's plug-in;
 //! 5. [`select`]: the triangles each layer covers and the texture cells they touch;
-//! 6. [`compose`]: raster jobs planned ([`plan`]), drawn into atlas targets and composed in job
+//! 6. `compose`: raster jobs planned ([`plan`]), drawn into atlas targets and composed in job
 //!    order;
 //!
 //! and last:
 //!
-//! 7. [`finish`]: padding from the islands' distance transform and sRGB encoding, in one pass.
+//! 7. `finish`: padding from the islands' distance transform and sRGB encoding, in one pass.
 //!
 //! A texture whose canvas does not fit one storage buffer (8192² and up on lavapipe), a job that
-//! asks for tiles (`texture.tile`) and a float (EXR) output are baked by [`tiles`]: stages 2 to 7
+//! asks for tiles (`texture.tile`) and a float (EXR) output are baked by `tiles`: stages 2 to 7
 //! per tile window, padding on the CPU over the assembled texture.
 //!
 //! The engine ([`Engine`]: device, pipelines, pooled targets) and the loaded mesh ([`LoadedMesh`]:
-//! GPU buffers and per-mesh caches) are in [`engine`]; [`cpu`] is the CPU twin of the whole bake.
+//! GPU buffers and per-mesh caches) are in `engine`; [`cpu`] is the CPU twin of the whole bake.
 pub(crate) mod bands;
 pub mod blend;
 mod canvas;

@@ -3,7 +3,7 @@
 //! valid in its map, coordinate box meeting the decal rectangle, facing it for projections), appended
 //! to the layer's triangle list, with its texel box and the 64×64-texel cells of the texture they
 //! touch in its stats row. Each layer tests only its candidate triangles (those with a vertex its
-//! map can reach: [`LayerMaps::candidate_triangles`]), so the work follows the decal's size, not the
+//! map can reach: `LayerMaps::candidate_triangles`), so the work follows the decal's size, not the
 //! mesh's. The list keeps the tested order (candidates sorted by triangle id, or the whole mesh in
 //! id order): `select_triangles` marks each tested triangle at its position and `compact_lists`
 //! gathers the marks, so overlapping triangles of one layer are drawn in the same order on every

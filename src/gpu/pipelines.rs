@@ -283,8 +283,8 @@ impl Pipelines {
     /// Longer than a screen on purpose: it is the table of the engine's compute kernels, one entry
     /// per kernel with its bindings in binding order (the data the style guide asks for, as vello's
     /// `add_shader!` list). Adding a kernel adds an entry here; kernels whose bindings are built
-    /// rather than listed have a function of their own ([`linalg_kernels`], [`pelt_step`],
-    /// [`select_triangles`], [`ribbon_relax`]...), and so do the render pipelines, which need more
+    /// rather than listed have a function of their own (`linalg_kernels`, `pelt_step`,
+    /// `select_triangles`, `ribbon_relax`...), and so do the render pipelines, which need more
     /// than a binding list.
     pub fn new(builder: Arc<Builder>) -> Self {
         use Bind::*;

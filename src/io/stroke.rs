@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! The stroke fields of a job layer (`"kind": "stroke"`): the path, pressure, spacing, flow and the
-//! tool, validated. Defaults (also in the README):
+//! tool, validated. Defaults (also in docs/strokes.md):
 //!
 //! | field | default |
 //! |---|---|

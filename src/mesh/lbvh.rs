@@ -12,7 +12,7 @@
 //!
 //! The CPU does the set-up (one pass over the triangles: the non-degenerate ones, the bounds, the
 //! grid, the box padding: [`Setup`]); the GPU the codes, the sort (bitonic: log₂ N (log₂ N + 1) / 2
-//! dispatches over N padded keys, chosen for its size in code, not its work: see README,
+//! dispatches over N padded keys, chosen for its size in code, not its work: see docs/performance.md,
 //! "Placement"), the tree, the leaves' boxes and the inner boxes level by level from the deepest
 //! (one read-back of the depth between). The leaves are four consecutive sorted triangles, keyed
 //! for the tree by the first one's code; the leaf index breaks ties between equal codes (§4).

@@ -487,7 +487,7 @@ pub const REST_SCALES: [f32; 3] = [1.0, 0.5, 0.0];
 /// was thrown away, and the layouts from the two starts are the same to the last printed digit
 /// of that command's quality, pelts and splits. The
 /// pelt of eq. 1 (the paper's) is still the layout wherever the refinement is not kept
-/// ([`one_level`]) and with `--refine none`.
+/// (`one_level`) and with `--refine none`.
 pub const START_SCALES: [f32; 1] = [0.0];
 
 /// Pelts the pieces of `sel` (each with its net): all at the first of `scales` at once, then the

@@ -3,7 +3,7 @@
 //! given texture size"): by their boxes with `etagere`'s shelf allocator ([`pack`]), then by their
 //! shapes on a grid ([`pack_shapes`], which `pelt::unwrap` uses). `decalbake bench --unwrap`
 //! reports the texture used (`quality.texel_utilisation`): 53-62 % where there are several pelts,
-//! against 41-47 % with the shelf packing alone (commit d77dedc, the README's table).
+//! against 41-47 % with the shelf packing alone (commit d77dedc, docs/unwrap.md's history).
 //!
 //! Every pelt is first scaled so its UV area equals its 3D area (the same texel density on every
 //! piece), then one global scale, the largest for which every pelt's box plus `margin` texels on each

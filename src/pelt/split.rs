@@ -150,10 +150,10 @@ fn smooth_sides(nbr: &[Vec<u32>], side: &mut [bool]) {
     }
 }
 
-/// How far (in edges) from the Voronoi border its straightened path may stray ([`straighten`]).
+/// How far (in edges) from the Voronoi border its straightened path may stray (`straighten`).
 pub const BAND: u32 = 4;
 /// The straightened path's cost per edge grows by this share per edge of distance from the old
-/// border ([`straighten`]).
+/// border (`straighten`).
 pub const NEAR: f64 = 0.05;
 
 /// The border between the sides replaced by the shortest edge path between its two ends on the

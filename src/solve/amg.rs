@@ -20,7 +20,7 @@
 //! an aggregate and the coarse matrices keep that structure; single rows otherwise.
 //!
 //! The set-up's cost: on a GPU a large chart's solve waits for it (a 100k-vertex chart: 451 ms
-//! of 1.0 s on an H200's host, README "On a real GPU"). Its sparse products, the power
+//! of 1.0 s on an H200's host, docs/performance.md, "On a real GPU"). Its sparse products, the power
 //! iteration's products and the strong-connection graph run on every core (rayon, rows or nodes
 //! in tasks), the transpose is a counting
 //! sort and the prolongator a merge of sorted rows, not triplets sorted again; each row's sums
@@ -85,7 +85,7 @@ pub struct Hierarchy {
 impl Hierarchy {
     /// The hierarchy of the SPD matrix `a`, or `None` when it has a diagonal entry that is not
     /// positive, no coarse level, or a coarsest level that is not positive definite or stays above
-    /// [`COARSE_MAX`] rows (the caller then uses Jacobi). The solvers ask for one only from
+    /// `COARSE_MAX` rows (the caller then uses Jacobi). The solvers ask for one only from
     /// [`AMG_MIN_ROWS`] rows on.
     pub fn build(a: &Csr) -> Option<Self> {
         let block = if a.rows.is_multiple_of(2) && ComplexCsr::from_real(a).is_some() {
@@ -348,7 +348,7 @@ fn prolongator(a: &Csr, d: &[f64], omega: f64, agg: &[u32], count: usize, block:
 const ROWS_PER_TASK: usize = 2048;
 
 /// `a b`, where `b` has `cols` columns (a dense accumulator per row; columns sorted). Rows are
-/// computed in tasks of [`ROWS_PER_TASK`] on every core (rayon); each row's sums run in the same
+/// computed in tasks of `ROWS_PER_TASK` on every core (rayon); each row's sums run in the same
 /// order whatever the split, so the product is the same bit for bit as one thread's.
 pub fn multiply(a: &Csr, b: &Csr, cols: usize) -> Csr {
     multiply_in_tasks(a, b, cols, ROWS_PER_TASK)

@@ -65,7 +65,7 @@ const ONE_WORKGROUP: u32 = 5;
 const PACK_WG: u32 = 64;
 /// Batches with at least this many systems pack the small ones one per invocation (where
 /// [`Packing`] says so): enough to fill both cores' SIMD lanes of lavapipe (2 × 8), see
-/// [`kernel_classes`].
+/// `kernel_classes`.
 pub const PACK_MIN_SYSTEMS: usize = 16;
 
 /// Whether a batch's small systems are solved one per invocation (`cg_packed`) or one per
@@ -550,7 +550,7 @@ pub struct Solved {
 /// A batch that [`Packing::Auto`] packs (at least [`PACK_MIN_SYSTEMS`] systems, on a CPU adapter)
 /// whose matrix has the complex 2 × 2 block structure of LSCM systems ([`ComplexCsr`], every
 /// system on whole blocks) is solved by the packed kernel on the blocks; otherwise see
-/// [`kernel_classes`].
+/// `kernel_classes`.
 pub fn cg_batched(
     ctx: &GpuContext,
     pipes: &Pipelines,

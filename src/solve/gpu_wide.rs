@@ -3,7 +3,7 @@
 //! (`wgsl/solve/cg_wide.wgsl`): the same iteration as `cg_amg.wgsl`, whose single workgroup runs
 //! on one CPU thread of lavapipe (and one SM of a GPU), cut into its passes, each a dispatch over
 //! as many workgroups as the rows need. What it costs and why (`decalbake bench --device`,
-//! README): a dispatch costs about 9 µs on this machine's lavapipe and a workgroup barrier about
+//! docs/performance.md): a dispatch costs about 9 µs on this machine's lavapipe and a workgroup barrier about
 //! 65 ns, so an iteration of about 20 dispatches costs some 0.2 ms of fixed price against the
 //! 20 ms one iteration of a 10k-vertex chart takes in one workgroup; spreading it lets both cores
 //! work and takes the barriers between passes out of the loop (the dispatch boundary is the
@@ -107,9 +107,11 @@ pub struct WideInputs<'a> {
     pub max_iter: u32,
     /// The matrix: row spans, entries ([`crate::solve::gpu::GpuCsr`]).
     pub matrix: [&'a wgpu::Buffer; 2],
-    /// Right-hand side, weights (`dinv`), start.
+    /// Right-hand side.
     pub b: &'a wgpu::Buffer,
+    /// The Jacobi weights (the diagonal's inverse).
     pub dinv: &'a wgpu::Buffer,
+    /// The start, overwritten by the solution.
     pub x: &'a wgpu::Buffer,
     /// Bytes of one vector (r, p, Ap).
     pub vector_bytes: u64,
@@ -123,8 +125,11 @@ pub struct WideInputs<'a> {
 
 /// The solve's outcome: the report, dispatches and submissions.
 pub struct WideSolved {
+    /// Iterations, residual and status.
     pub report: CgReport,
+    /// Compute dispatches recorded.
     pub dispatches: u32,
+    /// Queue submissions.
     pub submits: u32,
 }
 

@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! Layer kinds: what each kind of job layer (`"kind"` in the job) contributes to the bake's stages,
-//! one module per kind behind [`Kind`], dispatched in one place ([`kind`]).
+//! one module per kind behind `Kind`, dispatched in one place (`kind`).
 //!
-//! A kind names the surface points its layer needs placed ([`Kind::queries`]: a decal one, a stroke
-//! one per path point) and turns their placements into **units** ([`Kind::expand`]): each unit is
+//! A kind names the surface points its layer needs placed (`Kind::queries`: a decal one, a stroke
+//! one per path point) and turns their placements into **units** (`Kind::expand`): each unit is
 //! one map, one image and one blend, which the map, selection, raster and compose stages treat
 //! alike. A decal is one unit; a stroke is one unit per stamp, composed through the stroke's own
 //! buffer ([`Expansion::stroke`], `bake/compose.rs`). See `ARCHITECTURE.md`, "Layer kinds".
@@ -63,7 +63,7 @@ pub struct Expansion {
     /// A stroke's report block (and the sign that its units compose through the stroke buffer).
     pub stroke: Option<stroke::StrokeReport>,
     /// Ranges of `units` the map stage must keep in one chunk (a blended stamp with its charts);
-    /// units outside them are blocks of their own. Each at most [`crate::bake::stage::unit_capacity`].
+    /// units outside them are blocks of their own. Each at most `crate::bake::stage::unit_capacity`.
     pub blocks: Vec<std::ops::Range<usize>>,
 }
 

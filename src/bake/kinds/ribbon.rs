@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! `"kind": "ribbon"`: an image laid along a surface curve (Sun et al. 2013, "Texture Brush",
 //! section 3). The path's points are joined along the surface as a stroke's are
-//! ([`super::stroke::join_path`]: by default the smooth curve through them), and the strip around the curve is mapped by the curve's
+//! (`super::stroke::join_path`: by default the smooth curve through them), and the strip around the curve is mapped by the curve's
 //! extended exponential map ([`crate::maps::ribbon`], computed in the map stage's ribbon pass,
 //! `bake/maps.rs`): u along the curve, v across it. The layer is one unit whose image rectangle is
 //! the curve's length × `width`; `"repeat": "tile"` repeats the image along the curve at its own

@@ -277,7 +277,7 @@ fn bench_charts(
             Ok((o.reports[0], ms(t)))
         };
         // Preconditioned by Jacobi (the baseline of the multigrid row), below 50k unknowns (the
-        // 100k chart's took 106 s: README).
+        // 100k chart's took 106 s: docs/performance.md).
         let jacobi = (!large)
             .then(|| baseline(desc[0].jacobi_only()))
             .transpose()?;

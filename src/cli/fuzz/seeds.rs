@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! The fuzzer's seeds, made in code so that it needs no files: small valid inputs for each target.
 //!
-//! - **Jobs**: every layer kind and field of the README's job-file and stroke sections: decals at
+//! - **Jobs**: every layer kind and field of the job-file and stroke chapters (docs/): decals at
 //!   points and rays with each method and its own fields, every blend mode, masks, strokes with each
 //!   tool and every stroke field, `uv_set` as a number, `"auto"` and a list, every `texture.base`
 //!   form (material, image, colour, transfer from the material or an image), padding as texels and
@@ -29,7 +29,7 @@ pub fn job_values() -> Vec<Value> {
         .collect();
     vec![
         json!({"mesh": "model.glb", "layers": [decal]}),
-        // The README's example: every top-level field.
+        // The job-file chapter's example: every top-level field.
         json!({
             "mesh": "model.glb", "uv_set": 0,
             "texture": {"width": 2048, "height": 2048, "base": "material", "padding": 16, "samples": 4},

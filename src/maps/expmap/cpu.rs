@@ -170,7 +170,7 @@ pub fn smooth_seed_state(d: f32) -> SmoothState {
 
 /// One step of the smooth mode from upwind vertex y (coordinates `cy`, state `sy`, curvature `ky`) to
 /// x (curvature `kx`) along an edge of length `len`, whose intrinsic angle is `ty` at y and `tx` at x
-/// ([`edge_angles`]); `orient` is +1 when the seed frame turns the same way as the mesh's winding, -1
+/// (`edge_angles`); `orient` is +1 when the seed frame turns the same way as the mesh's winding, -1
 /// when mirrored. A tangent vector of intrinsic angle t at a vertex with frame angle α has the chart
 /// direction orient·(t - α); carrying the frame across the edge adds tx + π - ty (exact parallel
 /// transport on a flat mesh, creases included), and the wedge's holonomy turns it back to the
@@ -264,7 +264,7 @@ pub fn smooth_seed(
 }
 
 /// The paper's Dijkstra-based discrete exponential map (f32, the CPU twin of the GPU relaxation).
-/// `curvature` is the signed Gaussian curvature per welded vertex (see [`gaussian_curvature`]):
+/// `curvature` is the signed Gaussian curvature per welded vertex (see `gaussian_curvature`):
 /// the stop compares |K|, the smooth mode integrates K.
 pub fn dem_cpu(topo: &Topology, seed: &Seed, opts: Options, surface: &SurfaceData) -> ExpMap {
     let curvature = &surface.curvature[..];

@@ -178,7 +178,7 @@ const ROUNDS_PER_SUBMIT: u32 = 4;
 /// paths on any adapter: `gpu_ms`, `gpu_spread_ms`): on lavapipe a dispatch that wakes the second
 /// core costs more than the sweep it carries (lavapipe on this 2-core machine: the 12k disc on bob × 2 21-24 ms spread
 /// against 8.5-8.6 ms in one workgroup, 10.2 ms spread with `LP_NUM_THREADS=1`; the 120k disc
-/// 123-134 against 115-116); on an NVIDIA H200 (2026-11-27, README "On a real GPU") the spread
+/// 123-134 against 115-116); on an NVIDIA H200 (2026-11-27, docs/performance.md, "On a real GPU") the spread
 /// path is slower at 1k vertices (1.2 against 0.7 ms), even at 12k on bob × 2 (6.8 against 6.5),
 /// ahead at 11k on bob × 3 (10.0 against 13.8) and 2.4× at 121k (42 against 103). Tests compare
 /// the two paths; results do not depend on it (the same fixed point).
@@ -293,10 +293,10 @@ fn plain(ctx: &crate::gpu::GpuContext, label: &str, size: u64) -> wgpu::Buffer {
 /// candidate lists, then runs the relaxation to convergence: seeds the maps (clearing their coords
 /// slots), then dispatches rounds of sweeps, `ROUNDS_PER_SUBMIT` per submission, reading back only
 /// the per-map status between submissions. A map alone in its chunk with enough candidates runs
-/// spread over many workgroups instead ([`run_spread`]: on a GPU from
+/// spread over many workgroups instead (`run_spread`: on a GPU from
 /// [`GPU_SPREAD_MIN_CANDIDATES`], or as [`SPREAD_MIN_CANDIDATES_OVERRIDE`] says). Returns the per-map results and the dispatches issued.
 ///
-/// On wgpu's GL backend the maps come from the CPU twin instead (see [`run_cpu_twin`]).
+/// On wgpu's GL backend the maps come from the CPU twin instead (see `run_cpu_twin`).
 pub fn run(
     ctx: &crate::gpu::GpuContext,
     pipes: &Pipelines,

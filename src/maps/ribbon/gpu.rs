@@ -266,7 +266,7 @@ fn strip_and_seeds(
 /// Computes the map of `curve` within `reach` into slot `out.slot` of `coords` (one vec4 per
 /// welded vertex: x, y (the map's u, v through `out.xform`), graph distance, 1 where reached; the
 /// candidates' and their ring's entries are overwritten, others left as they are), on the GPU, in
-/// the strip's own numbering ([`Strip`]). Returns the status and the candidate vertices (the only
+/// the strip's own numbering (`Strip`). Returns the status and the candidate vertices (the only
 /// ones the map can reach).
 pub fn run(
     ctx: &GpuContext,

@@ -19,7 +19,7 @@
 //!    and r's offset plus the edge r→q laid into r's tangent plane and turned into the foot's plane
 //!    (the paper's update, [`crate::maps::expmap::cpu::transfer`]).
 //! 3. **Sliding**: the foot then slides along γ by the offset's tangential part, the offset re-read
-//!    in the new foot's frame ([`slide`]), so that the foot is the nearest point of γ and not the
+//!    in the new foot's frame (`slide`), so that the foot is the nearest point of γ and not the
 //!    root of q's Dijkstra path (which wanders along γ by a few edges). On a plane this is exact for
 //!    γ's polyline; on curved surfaces it treats the strip between the two feet as flat, an error of
 //!    the order of the offset times the curvature that shrinks with the strip's width.

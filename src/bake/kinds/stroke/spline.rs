@@ -89,7 +89,7 @@ impl Segment {
 
 /// The segments of the centripetal Catmull-Rom spline through `points` (consecutive points
 /// distinct, at least two), one per consecutive pair; the outer neighbours of an open path's
-/// ends are [`beyond`] them, a closed path's (last point equal to the first, at least three
+/// ends are `beyond` them, a closed path's (last point equal to the first, at least three
 /// segments) are its points around the loop.
 pub fn segments(points: &[Vec3]) -> Vec<Segment> {
     let n = points.len();
