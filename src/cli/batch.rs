@@ -336,8 +336,12 @@ fn bake_all(
 
 /// The manifest's jobs; any line that is neither a string nor an object stops the batch.
 fn read_manifest(path: &Path) -> Result<Vec<Entry>> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("reading the manifest {}", path.display()))?;
+    // A manifest that cannot be read is the user's input, like a job file: exit 2.
+    let text = std::fs::read_to_string(path).map_err(|source| decalbake::Error::Io {
+        path: path.to_path_buf(),
+        action: "reading the manifest",
+        source,
+    })?;
     Ok(decalbake::io::manifest::parse(&text, path)?)
 }
 

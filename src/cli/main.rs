@@ -39,7 +39,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Cmd {
-    /// Bake the built-in demo scene (Spot with four decals).
+    /// Bake the built-in demo scene (Spot with five decals, two strokes and a ribbon; the knight
+    /// with a material decal; an unwrapped sheet) into a folder, with its job files.
     Demo {
         /// Output directory.
         #[arg(long, default_value = "decalbake-demo")]
@@ -133,6 +134,20 @@ enum Cmd {
     },
     /// Benchmark the bake and print JSON figures.
     Bench(BenchArgs),
+    /// Print the JSON Schema (draft 2020-12) of a job file or of one line of a batch manifest,
+    /// for editors and for checking job files before a bake.
+    Schema {
+        /// `job` or `manifest`.
+        #[arg(default_value = "job", value_parser = ["job", "manifest"])]
+        which: String,
+        /// Write it to this file instead of standard output.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Print the job file's fields as a markdown table instead (the index of
+        /// docs/job-file.md).
+        #[arg(long)]
+        fields: bool,
+    },
 }
 
 /// `decalbake bench`'s options.
@@ -237,16 +252,70 @@ struct BenchArgs {
     channels: bool,
 }
 
+/// The engine's diagnostics (`log`) on stderr: its warnings and errors by default; with
+/// `DECALBAKE_LOG=error|warn|info|debug|trace` that level, wgpu's and the other crates' records
+/// included (`off` silences them all).
+struct StderrLog {
+    /// Only the engine's own records (no `DECALBAKE_LOG`).
+    own_only: std::sync::atomic::AtomicBool,
+}
+
+impl log::Log for StderrLog {
+    fn enabled(&self, metadata: &log::Metadata) -> bool {
+        let own = metadata.target().starts_with("decalbake");
+        metadata.level() <= log::max_level()
+            && (own || !self.own_only.load(std::sync::atomic::Ordering::Relaxed))
+    }
+    fn log(&self, record: &log::Record) {
+        if self.enabled(record.metadata()) {
+            let level = match record.level() {
+                log::Level::Warn => "warning".to_string(),
+                other => other.as_str().to_ascii_lowercase(),
+            };
+            eprintln!("{level}: {}", record.args());
+        }
+    }
+    fn flush(&self) {}
+}
+
 fn main() {
+    static LOG: StderrLog = StderrLog {
+        own_only: std::sync::atomic::AtomicBool::new(true),
+    };
+    let chosen = std::env::var("DECALBAKE_LOG")
+        .ok()
+        .and_then(|l| l.parse::<log::LevelFilter>().ok());
+    LOG.own_only
+        .store(chosen.is_none(), std::sync::atomic::Ordering::Relaxed);
+    let level = chosen.unwrap_or(log::LevelFilter::Warn);
+    if log::set_logger(&LOG).is_ok() {
+        log::set_max_level(level);
+    }
     let cli = Cli::parse();
     if let Err(e) = run(cli) {
-        eprintln!("error: {e:#}");
+        eprintln!("error: {}", message(&e));
         let input = e.chain().any(|c| {
             c.downcast_ref::<decalbake::Error>()
                 .is_some_and(|d| d.is_input_error())
         });
         std::process::exit(if input { 2 } else { 1 });
     }
+}
+
+/// The error and its causes, joined by ": ", each cause left out when the message before it
+/// already says it (`decalbake::Error::Io` names its OS error, which is also its cause).
+fn message(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if !out.ends_with(&text) {
+            if !out.is_empty() {
+                out.push_str(": ");
+            }
+            out.push_str(&text);
+        }
+    }
+    out
 }
 
 fn run(cli: Cli) -> Result<()> {
@@ -327,6 +396,20 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Cmd::Bench(args) => bench_cmd(cli.backend.as_deref(), args),
+        Cmd::Schema { which, out, fields } => {
+            use decalbake::io::schema::{fields_markdown, schema_text, Which};
+            let which = Which::parse(&which).context("clap checks the schema's name")?;
+            let text = if fields {
+                fields_markdown()
+            } else {
+                schema_text(which)
+            };
+            match out {
+                Some(path) => decalbake::io::image::write_atomic(&path, text.as_bytes())?,
+                None => print!("{text}"),
+            }
+            Ok(())
+        }
     }
 }
 
@@ -681,6 +764,9 @@ fn demo(out: &Path, all: bool, backend: Option<&str>) -> Result<()> {
     }
     let job_path = out.join("job.json");
     decalbake::io::image::write_atomic(&job_path, demo::job_json().as_bytes())?;
+    // The schema beside the job, which names it in `$schema`: editors check and complete it.
+    let schema = decalbake::io::schema::schema_text(decalbake::io::schema::Which::Job);
+    decalbake::io::image::write_atomic(&out.join("job.schema.json"), schema.as_bytes())?;
     let job = Job::load(&job_path, None)?;
     steps.start("starting the GPU");
     let engine = engine(backend)?;

@@ -543,6 +543,8 @@ pass "merged summary: $NJOBS jobs, all ok, the same input hashes and outputs as 
 #   - "gpu_commands": counts the island raster/EDT dispatches, which the engine caches per
 #     (mesh, UV set, size, samples) within a process, so a job pays them only if it is the first of
 #     its kind in its process: it depends on which jobs ran before it in the same shard;
+#   - "pipeline_cache": whether the process found compiled pipelines on disk (`cold` in the run
+#     that fills the cache, `warm` in the runs after it);
 # Everything else, the distortion means included, must be equal exactly: a layer's triangles are
 # selected and summed in triangle order, whatever ran before it (ARCHITECTURE.md, "What is
 # reproducible"). The journals (one per shard) are the batches' own records, not outputs; between
@@ -564,7 +566,7 @@ nreports="$(grep -c '/report\.json$' "$W/files.serial" || true)"
 python3 - "$W" <<'PY' || ndiff=$((ndiff + $?))
 import json, sys
 work = sys.argv[1]
-DROP = {"timings", "gpu_commands"}
+DROP = {"timings", "gpu_commands", "pipeline_cache"}
 def diffs(a, b, path):
     if isinstance(a, dict) and isinstance(b, dict):
         keys = {k for k in set(a) | set(b) if k not in DROP and not k.endswith("_ms")}
