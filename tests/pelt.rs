@@ -457,14 +457,38 @@ fn unwrap_command_writes_a_valid_glb() {
         report.to_str().unwrap(),
         "--preview",
         preview.to_str().unwrap(),
+        "--gpu",
     ]);
     assert_eq!(code, 0, "{err}");
     let m = Mesh::load(&out).unwrap();
     assert_eq!(m.uv_sets.len(), 1);
-    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let read = |p: &Path| -> serde_json::Value {
+        serde_json::from_slice(&std::fs::read(p).unwrap()).unwrap()
+    };
+    let r = read(&report);
     assert_eq!(r["uv_set"], 0);
     assert_eq!(r["quality"]["flipped"], 0);
     assert_eq!(r["device"], "gpu");
+    // Without `--gpu` or `--cpu`: the CPU twin on a CPU adapter (lavapipe), the kernels on a GPU.
+    let (code, _, err) = common::cli(&[
+        "unwrap",
+        src.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let cpu_adapter = common::engine().ctx.device_type == Some(wgpu::DeviceType::Cpu);
+    let r = read(&report);
+    assert_eq!(r["device"], if cpu_adapter { "cpu" } else { "gpu" });
+    assert_eq!(
+        (
+            r["quality"]["flipped"].as_u64(),
+            r["quality"]["overlaps"].as_u64()
+        ),
+        (Some(0), Some(0))
+    );
     let img = image::open(&preview).unwrap();
     assert_eq!((img.width(), img.height()), (1024, 1024));
     validate(&out);

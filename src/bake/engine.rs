@@ -223,9 +223,23 @@ pub struct StagePaths {
     /// compile (about 0.2 s of a cold start, `startup.md`) and a submission; the answers agree
     /// within 2e-5 (`tests/placement.rs`).
     pub placement: StagePath,
+    /// Unwrapping (`"uv_set": "auto"` on a mesh without UVs, `decalbake unwrap`): the spring
+    /// dynamics' CPU twin (`pelt::relax`) against `pelt_step`. On lavapipe the twin unwraps Spot
+    /// about 7× faster, since the kernels pay a dispatch and a read-back per batch of steps
+    /// (docs/unwrap.md); both give layouts without flips or overlaps (`tests/pelt.rs`).
+    pub unwrap: StagePath,
 }
 
 impl StagePaths {
+    /// Whether unwrapping runs the dynamics on the CPU twin.
+    pub(crate) fn unwrap_on_cpu(&self, engine: &Engine) -> bool {
+        match self.unwrap {
+            StagePath::Auto => engine.ctx.device_type == Some(wgpu::DeviceType::Cpu),
+            StagePath::Cpu => true,
+            StagePath::Gpu => false,
+        }
+    }
+
     /// Whether placement runs on the CPU: the twin walks the CPU-built BVH, so a mesh whose
     /// tree was built on the GPU places on the GPU.
     pub(crate) fn placement_on_cpu(&self, engine: &Engine, mesh: &LoadedMesh) -> bool {
@@ -554,7 +568,7 @@ impl Engine {
         if mesh.uv_sets.is_empty() {
             let topo = Topology::build(&mesh, crate::mesh::DEFAULT_WELD_TOLERANCE);
             topo.fill_normals(&mut mesh);
-            let dev = crate::pelt::Device::Gpu(&self.ctx, &self.pipes);
+            let dev = self.pelt_device();
             // Non-manifold edges (a body whose parts meet at shared edges) become chart
             // boundaries, as xatlas and Blender do, instead of refusing the model.
             let opts = crate::pelt::Options {
@@ -758,6 +772,16 @@ impl Engine {
     /// ```
     pub fn bake(&self, mesh: &LoadedMesh, job: &Job) -> Result<Baked> {
         self.bake_with_progress(mesh, job, &|_| {})
+    }
+
+    /// Where this engine runs the pelting's dynamics: its GPU, or the CPU twin where
+    /// [`StagePaths::unwrap`] says so (by default on a CPU adapter such as lavapipe).
+    pub fn pelt_device(&self) -> crate::pelt::Device<'_> {
+        if self.stage_paths.unwrap_on_cpu(self) {
+            crate::pelt::Device::Cpu
+        } else {
+            crate::pelt::Device::Gpu(&self.ctx, &self.pipes)
+        }
     }
 
     /// [`Self::bake`], naming each stage to `on_stage` as it starts (`"images"`, `"placement"`,

@@ -834,6 +834,7 @@ fn demo_sheet_unwrap(out: &Path) -> Result<unwrap::UnwrapArgs> {
         report: Some(out.join("unwrap-report.json")),
         preview: Some(out.join("unwrap-preview.png")),
         cpu: false,
+        gpu: false,
         no_pack_splits: false,
     })
 }

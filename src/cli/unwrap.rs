@@ -58,9 +58,13 @@ pub struct UnwrapArgs {
     /// Open non-manifold edges (each triangle fan round them ends there) instead of refusing them.
     #[arg(long)]
     pub split_non_manifold: bool,
-    /// Run the dynamics on the CPU twin instead of the GPU.
+    /// Run the dynamics on the CPU twin (no GPU device is made unless `--preview` needs one).
+    /// Default: the twin on a CPU adapter such as lavapipe, where it is faster, else the GPU.
     #[arg(long)]
     pub cpu: bool,
+    /// Run the dynamics on the GPU kernels even on a CPU adapter.
+    #[arg(long, conflicts_with = "cpu")]
+    pub gpu: bool,
     /// Keep elongated pelts whole even where the packing would use less than 45 % of the texture
     /// (by default the largest such pelt is split in two across its length: `pelt::repack`).
     #[arg(long)]
@@ -189,8 +193,9 @@ fn run_on(
     opts: Options,
     engine: Option<&Engine>,
 ) -> Result<()> {
-    let device = match (engine, args.cpu) {
-        (Some(e), false) => Device::Gpu(&e.ctx, e.pipelines()),
+    let device = match engine {
+        Some(e) if args.gpu => Device::Gpu(&e.ctx, e.pipelines()),
+        Some(e) if !args.cpu => e.pelt_device(),
         _ => Device::Cpu,
     };
     let un = pelt::unwrap(device, &mesh, topo, &opts, &args.mesh)?;
