@@ -17,12 +17,12 @@ use decalbake::{Engine, Job, LoadedMesh};
 use glam::{Vec2, Vec3};
 use std::path::Path;
 
-/// Scale bound at the placed point (the issue's): 10 %.
+/// Scale bound at the placed point (the engine's target): 10 %.
 const SCALE_TOL: f64 = 0.10;
-/// Painted-area bound against the exponential map's (the issue's): 15 %.
+/// Painted-area bound against the exponential map's (the engine's target): 15 %.
 const AREA_TOL: f64 = 0.15;
 
-/// The size figures of a decal's `param` rows (`bake::size_figures`: the measure of the issue and of
+/// The size figures of a decal's `param` rows (`bake::size_figures`: the measure of this test and of
 /// `decalbake bench --scale`, computed from the exported coordinates, not from the chart report).
 fn measure(topo: &Topology, map: &ParamMap, p: Vec3, size: f64) -> SizeFigures {
     size_figures(topo, map, p.as_dvec3(), size)

@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! The base by texture transfer (`"texture.base": {"transfer": {"from_uv_set": N, "image": ...}}`):
 //! the source texture, laid out on UV set N, resampled into the set being baked, so each texel's
-//! surface point takes the colour the source has there (issue 14: "the usual step after a new
-//! unwrap"). Per raster job (the islands' tiling: `TILE_TARGET / ss` texels a side, every UV tile
+//! surface point takes the colour the source has there (the usual step after a new
+//! unwrap). Per raster job (the islands' tiling: `TILE_TARGET / ss` texels a side, every UV tile
 //! the baked set reaches), `transfer_raster` draws every triangle at its baked UV carrying its
 //! source UV into the pooled colour and coverage targets at the bake's supersampling, and
 //! `transfer_resolve` writes each texel the mean of its drawn samples into the canvas (the others

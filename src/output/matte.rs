@@ -2,7 +2,7 @@
 //! The automatic matte of `decalbake extract --matte` (Sun et al. 2013, section 4.2): which part of
 //! an extracted strip is the feature to clone and which is the surface around it.
 //!
-//! Sun et al. take the initial alpha from GrabCut's colour models; here (issue 13's choice, no
+//! Sun et al. take the initial alpha from GrabCut's colour models; here (the engine's choice: no
 //! segmentation model to train) it comes from the colour distance to the strip's border: the
 //! pixels within [`BORDER`] of the image's frame are background (alpha 0, fixed), and every other
 //! covered pixel starts at α̂ = min(1, d / s), d its linear-RGB distance to the nearest border

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-//! Packing pelts into [0, 1]² (issue 14: "packing of several pelts with a margin in texels for a
-//! given texture size"): by their boxes with `etagere`'s shelf allocator ([`pack`]), then by their
+//! Packing pelts into [0, 1]² (several pelts, with a margin in texels for a
+//! given texture size): by their boxes with `etagere`'s shelf allocator ([`pack`]), then by their
 //! shapes on a grid ([`pack_shapes`], which `pelt::unwrap` uses). `decalbake bench --unwrap`
 //! reports the texture used (`quality.texel_utilisation`): 53-62 % where there are several pelts,
 //! against 41-47 % with the shelf packing alone (commit d77dedc, docs/unwrap.md's history).

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: MIT OR Apache-2.0
 #
-# `decalbake batch` under a real single-node Slurm (issue 15).
+# `decalbake batch` under a real single-node Slurm.
 #
 # What it does, in order:
 #   1. finds the slurm-wlm and munge programs, or installs them with apt-get (Debian); when that is

@@ -4,7 +4,7 @@
 //! along the mesh's edges, a strip 2 % of the mesh's bounding-box diagonal wide (1 % each side);
 //! time of the GPU map (set-up, relaxation, status read-back; the coordinates stay on the GPU, as
 //! in a bake) and of the twin, the strip's vertices,
-//! sweeps and the cost per strip vertex. Issue 13's target: the cost follows the strip, not the
+//! sweeps and the cost per strip vertex. The target: the cost follows the strip, not the
 //! mesh (per strip vertex within 1.2× between bob subdivided twice, 171k triangles, and the bunny
 //! subdivided twice, 1.1M).
 //!

@@ -13,7 +13,7 @@ use decalbake::{Engine, LoadedMesh};
 use glam::DVec3;
 use std::path::{Path, PathBuf};
 
-/// The meshes of the table: the four from the shared folder, else the bundled Spot.
+/// The meshes of the table: spot, fandisk, bob and Duck from the shared folder, else the bundled Spot.
 pub fn default_meshes(shared: &Path) -> Vec<PathBuf> {
     let named: Vec<PathBuf> = ["spot.glb", "fandisk.glb", "bob.glb", "Duck.glb"]
         .iter()

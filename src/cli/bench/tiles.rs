@@ -3,7 +3,7 @@
 //! above the device's storage binding, 8192² on lavapipe, the bake goes by tiles, `bake/tiles.rs`),
 //! one JSON line per size: wall time of a warm bake (median of `--reps`; the first, cold bake also
 //! rasterizes and distance-transforms the islands), its stages, and the cost per texel against the
-//! first size's in the same run. Issue 15's target: tiled 8K within 1.2× the per-texel cost of 4K.
+//! first size's in the same run. The target: tiled 8K within 1.2× the per-texel cost of 4K.
 
 use super::common::{median, random_job};
 use decalbake::Engine;

@@ -46,7 +46,7 @@ use glam::DVec2;
 use rustc_hash::FxHashSet as HashSet;
 
 /// A chart gets a cone when its scale over the vertices within [`CONE_CHECK`] × the decal's larger
-/// side exceeds this (the size the issue of conformal decals asks to hold within 10 %).
+/// side exceeds this (the size conformal decals hold within 10 %, `tests/conformal_size.rs`).
 pub const CONE_TRIGGER: f64 = 1.1;
 /// Radius (fraction of the decal's larger side) over which the scale is checked and the curvature
 /// gathered: half the size, the decal's edge.

@@ -3,7 +3,7 @@
 //! surface point near a curve γ gets u, the arc length of its foot point on γ (plus the tangential
 //! offset past γ's ends), and v, its signed geodesic distance to γ (positive on the left of γ seen
 //! from outside the surface, that is along N × T). Strips along γ are then laid out like the plane
-//! along a straight line: the coordinates of a ribbon layer (issue 13).
+//! along a straight line: the coordinates of a ribbon layer.
 //!
 //! [`ribbon_cpu`] is the CPU twin; [`gpu`] computes the same fixed point by parallel relaxation
 //! (`wgsl/maps/ribbon_relax.wgsl`), which ribbon layers bake with (`bake/maps.rs`, the ribbon
