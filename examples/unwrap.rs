@@ -4,8 +4,8 @@
 //! `decalbake unwrap` does).
 //!
 //! ```text
-//! cargo run --example unwrap            # the relaxation on the GPU
-//! cargo run --example unwrap -- --cpu   # its CPU twin (faster on a software device)
+//! cargo run --example unwrap            # the engine's choice: the CPU twin on a CPU adapter
+//! cargo run --example unwrap -- --cpu   # the CPU twin, no GPU device made
 //! ```
 
 use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
@@ -22,7 +22,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     let engine = if cpu { None } else { Some(Engine::new(None)?) };
     let device = match &engine {
-        Some(e) => Device::Gpu(&e.ctx, e.pipelines()),
+        Some(e) => e.pelt_device(),
         None => Device::Cpu,
     };
     let opts = Options {

@@ -445,3 +445,19 @@ fn bad_strokes() {
     let e = run_case("decal-without-at", &j, |_| {});
     expect(&e, "decal-without-at", &["layers[0].at", "missing"]);
 }
+
+#[test]
+fn files_that_cannot_be_read_exit_2_naming_the_os_error_once() {
+    let dir = common::scratch("unreadable");
+    let missing_job = dir.join("nope.json");
+    let missing_manifest = dir.join("nope.jsonl");
+    for args in [
+        vec!["bake", missing_job.to_str().unwrap()],
+        vec!["batch", missing_manifest.to_str().unwrap()],
+    ] {
+        let (code, _, stderr) = common::cli(&args);
+        assert_eq!(code, 2, "{args:?}: {stderr}");
+        assert_eq!(stderr.matches("os error").count(), 1, "{args:?}: {stderr}");
+        assert!(stderr.contains("nope.json"), "{args:?}: {stderr}");
+    }
+}

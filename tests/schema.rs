@@ -62,8 +62,9 @@ fn markdown_files() -> Vec<PathBuf> {
     files
 }
 
-/// Tracked job files: `*.json` files outside `target/`, `.git/` and `node_modules/` whose top
-/// level names a `mesh`.
+/// Job files in the repository: `*.json` files outside `target/`, `.git/` and `node_modules/`
+/// whose top level names a `mesh`. Today the jobs live in the docs (checked above) and in code;
+/// a job file added to the repository is checked here.
 fn job_files(dir: &Path, out: &mut Vec<PathBuf>) {
     for entry in std::fs::read_dir(dir).unwrap() {
         let path = entry.unwrap().path();
@@ -155,7 +156,7 @@ fn the_schema_and_the_loader_refuse_the_same_mistakes() {
 
     // (what changes, the field the loader names)
     type Mutation = fn(&mut Value);
-    let mistakes: [(Mutation, &str); 9] = [
+    let mistakes: [(Mutation, &str); 11] = [
         (|j| j["colour"] = json!(1), "colour"),
         (|j| j["texture"]["widht"] = json!(64), "widht"),
         (|j| j["layers"][0]["sise"] = json!([1, 1]), "sise"),
@@ -171,6 +172,15 @@ fn the_schema_and_the_loader_refuse_the_same_mistakes() {
         ),
         (|j| j["texture"]["width"] = json!("wide"), "texture.width"),
         (|j| j["layers"][2]["animate"]["loop"] = json!(true), "loop"),
+        // Inside the object forms of untagged fields: a ray's placement, a transferred base.
+        (
+            |j| j["layers"][0]["at"]["sise"] = json!([1, 1]),
+            "layers[0].at",
+        ),
+        (
+            |j| j["texture"]["base"] = json!({ "transfer": { "from_uv_set": 0 }, "uv": 1 }),
+            "texture.base",
+        ),
     ];
     for (mutate, field) in mistakes {
         let mut job = base.clone();
@@ -244,4 +254,11 @@ fn the_command_prints_the_schema_the_library_generates() {
     }
     let (code, _, stderr) = cli(&["schema", "layer"]);
     assert_eq!(code, 2, "an unknown schema is a usage error: {stderr}");
+    let (code, stdout, _) = cli(&["schema", "job", "--fields"]);
+    assert_eq!((code, stdout), (0, fields_markdown()));
+    let (code, _, stderr) = cli(&["schema", "manifest", "--fields"]);
+    assert!(
+        code != 0 && stderr.contains("schema job --fields"),
+        "{stderr}"
+    );
 }

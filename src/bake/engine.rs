@@ -225,8 +225,8 @@ pub struct StagePaths {
     pub placement: StagePath,
     /// Unwrapping (`"uv_set": "auto"` on a mesh without UVs, `decalbake unwrap`): the spring
     /// dynamics' CPU twin (`pelt::relax`) against `pelt_step`. On lavapipe the twin unwraps Spot
-    /// about 7× faster, since the kernels pay a dispatch and a read-back per batch of steps
-    /// (docs/unwrap.md); both give layouts without flips or overlaps (`tests/pelt.rs`).
+    /// about 10× faster as a whole process (2026-11-28: 0.9-1.2 s against 11-12 s, most of it the
+    /// conformal refinement's batched solves; benches/results/2026-11-28-lavapipe); both give layouts without flips or overlaps (`tests/pelt.rs`).
     pub unwrap: StagePath,
 }
 
@@ -278,8 +278,12 @@ impl StagePaths {
 /// #     ..wgpu::InstanceDescriptor::new_without_display_handle()
 /// # });
 /// # let adapter = pollster::block_on(instance.request_adapter(&Default::default()))?;
-/// # let (device, queue) = pollster::block_on(adapter.request_device(&Default::default()))?;
-/// // `device` and `queue`: the host's own.
+/// # let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+/// #     required_limits: adapter.limits(),
+/// #     ..Default::default()
+/// # }))?;
+/// // `device` and `queue`: the host's own, made with the adapter's limits (wgpu's defaults
+/// // allow 8 storage buffers a stage; the map and solver kernels bind up to 13).
 /// let engine = Engine::from_device(device, queue)?;
 /// let mesh = engine.load_mesh(Path::new("assets/spot.glb"))?;
 /// let job = Job::parse(
@@ -431,7 +435,10 @@ impl Engine {
         Self::with_context(GpuContext::new(backend)?)
     }
 
-    /// An engine on the host's device and queue. The device must support compute shaders.
+    /// An engine on the host's device and queue. The device must support compute shaders and be
+    /// made with the adapter's limits (`required_limits: adapter.limits()`): wgpu's default
+    /// limits allow 8 storage buffers a shader stage, and the map and solver kernels bind up to
+    /// 13, so an exponential-map or conformal decal would fail with `Error::Gpu`.
     pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> Result<Self> {
         Self::with_context(GpuContext::from_device(device, queue, None))
     }

@@ -46,7 +46,7 @@ enum Cmd {
         #[arg(long, default_value = "decalbake-demo")]
         out: PathBuf,
         /// Also unwrap Spot and bob (new UV sets by pelting, bob with its patch) and bake bob's
-        /// three sets: about half a minute more on a 2-core software device.
+        /// three sets: about 9 s more on a 2-core software device.
         #[arg(long)]
         all: bool,
     },
@@ -399,6 +399,11 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Schema { which, out, fields } => {
             use decalbake::io::schema::{fields_markdown, schema_text, Which};
             let which = Which::parse(&which).context("clap checks the schema's name")?;
+            if fields && which != Which::Job {
+                anyhow::bail!(
+                    "--fields lists a job file's fields: use `decalbake schema job --fields`"
+                );
+            }
             let text = if fields {
                 fields_markdown()
             } else {

@@ -11,7 +11,7 @@ pub const MAX_SIZE_MODEL_UNITS: f32 = 1.0e6;
 
 /// Where a layer goes.
 #[derive(Debug, Clone, Deserialize, serde::Serialize, PartialEq, schemars::JsonSchema)]
-#[serde(untagged)]
+#[serde(untagged, deny_unknown_fields)]
 pub enum AtSpec {
     /// A point, snapped to the closest surface point.
     Point([f32; 3]),

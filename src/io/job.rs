@@ -230,7 +230,7 @@ impl Default for TextureSpec {
 
 /// The base the layers are composed onto.
 #[derive(Debug, Clone, Deserialize, PartialEq, schemars::JsonSchema)]
-#[serde(untagged)]
+#[serde(untagged, deny_unknown_fields)]
 pub enum BaseSpec {
     /// A linear RGBA colour in [0, 1].
     Color([f32; 4]),

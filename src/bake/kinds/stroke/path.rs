@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! A stroke's path on the surface: consecutive placed points joined by the straight segment in the
-//! first point's exponential map, mapped back to the surface (issue: "the straightest path", never
+//! first point's exponential map, mapped back to the surface (the straightest path, never
 //! the 3D chord). Radial lines of an exponential map are geodesics (Schmidt et al. 2006, section 3:
 //! the map is normal coordinates), so the segment from the origin to the next point's coordinates
 //! is the geodesic between the two points as far as the discrete map resolves it.
