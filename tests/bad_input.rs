@@ -459,5 +459,9 @@ fn files_that_cannot_be_read_exit_2_naming_the_os_error_once() {
         assert_eq!(code, 2, "{args:?}: {stderr}");
         assert_eq!(stderr.matches("os error").count(), 1, "{args:?}: {stderr}");
         assert!(stderr.contains("nope.json"), "{args:?}: {stderr}");
+        assert!(
+            !stderr.contains("adapter:"),
+            "no device is made first: {stderr}"
+        );
     }
 }

@@ -258,7 +258,7 @@ fn the_command_prints_the_schema_the_library_generates() {
     assert_eq!((code, stdout), (0, fields_markdown()));
     let (code, _, stderr) = cli(&["schema", "manifest", "--fields"]);
     assert!(
-        code != 0 && stderr.contains("schema job --fields"),
+        code == 2 && stderr.contains("schema job --fields"),
         "{stderr}"
     );
 }

@@ -400,9 +400,11 @@ fn run(cli: Cli) -> Result<()> {
             use decalbake::io::schema::{fields_markdown, schema_text, Which};
             let which = Which::parse(&which).context("clap checks the schema's name")?;
             if fields && which != Which::Job {
-                anyhow::bail!(
-                    "--fields lists a job file's fields: use `decalbake schema job --fields`"
-                );
+                anyhow::bail!(decalbake::Error::Job {
+                    path: PathBuf::from("decalbake schema"),
+                    field: "--fields".into(),
+                    detail: "lists a job file's fields: use `decalbake schema job --fields`".into(),
+                });
             }
             let text = if fields {
                 fields_markdown()
@@ -592,6 +594,14 @@ fn batch_cmd(
         let Some(opts) = opts else {
             anyhow::bail!(bad_usage("give a manifest (or --merge-summaries)"));
         };
+        // A manifest that cannot be opened fails before a device is made (exit 2).
+        if let Err(source) = std::fs::File::open(&opts.manifest) {
+            anyhow::bail!(decalbake::Error::Io {
+                path: opts.manifest.clone(),
+                action: "reading the manifest",
+                source,
+            });
+        }
         batch::run(&batch::Devices::new(engine(backend)?, backend), &opts)?
     };
     if code != 0 {

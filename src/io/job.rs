@@ -170,6 +170,7 @@ pub struct TextureSpec {
     pub padding: PaddingSpec,
     /// Samples per texel (a square: 1, 4, 9, 16).
     #[serde(default = "default_samples")]
+    #[schemars(extend("enum" = [1, 4, 9, 16]))]
     pub samples: u32,
     /// Bake by tiles of this many texels a side (a multiple of 64); default: tiles only when the
     /// texture does not fit one storage buffer of the device.
@@ -476,6 +477,7 @@ pub struct OutputSpec {
     pub texture: Option<PathBuf>,
     /// Bits per PNG sample: 8 or 16.
     #[serde(default = "default_bit_depth")]
+    #[schemars(extend("enum" = [8, 16]))]
     pub bit_depth: u8,
     /// A `.glb` copy of the model with the baked texture.
     #[serde(default)]
