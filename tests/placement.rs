@@ -471,17 +471,11 @@ fn gpu_lbvh_is_its_twin_and_places_as_brute_force() {
 #[test]
 fn a_bake_places_on_the_faster_path_and_both_paths_agree() {
     let dir = scratch("placement_paths");
-    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
-    std::fs::write(
-        dir.join("img.png"),
-        test_image(32, 32, 4, true).encode_png(8),
-    )
-    .unwrap();
-    let text = serde_json::json!({ "mesh": spot, "texture": { "width": 256, "height": 256 },
-        "layers": spot_ring("img.png", 0.2), "output": { "texture": "out.png" } });
+    let layers = serde_json::Value::from(spot_ring("img.png", 0.2));
+    let text = spot_job_json(&dir, 4, layers, serde_json::json!({ "texture": "out.png" }));
     let job = decalbake::Job::parse(&text.to_string(), &dir.join("job.json"), &dir, &dir).unwrap();
     let mut engine = engine();
-    let mesh = engine.load_mesh(&spot).unwrap();
+    let mesh = engine.load_mesh(&spot_asset()).unwrap();
     let auto = engine.bake(&mesh, &job).unwrap();
     let cpu_adapter = engine.ctx.device_type == Some(wgpu::DeviceType::Cpu);
     let expected = if cpu_adapter && !mesh.bvh.nodes.is_empty() {

@@ -273,15 +273,12 @@ fn images_are_kept_between_bakes_and_read_again_when_rewritten() {
 
 /// A one-decal job on Spot writing a texture and a report into `dir`.
 fn small_cli_job(dir: &Path) -> std::path::PathBuf {
-    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
-    std::fs::write(
-        dir.join("img.png"),
-        test_image(32, 32, 9, true).encode_png(8),
-    )
-    .unwrap();
-    let job = serde_json::json!({ "mesh": spot, "texture": { "width": 256, "height": 256 },
-        "layers": [{ "image": "img.png", "at": [0.0, 0.3, 0.4], "size": [0.3, 0.3] }],
-        "output": { "texture": "out.png", "report": "report.json" } });
+    let job = spot_job_json(
+        dir,
+        9,
+        serde_json::json!([{ "image": "img.png", "at": [0.0, 0.3, 0.4], "size": [0.3, 0.3] }]),
+        serde_json::json!({ "texture": "out.png", "report": "report.json" }),
+    );
     let path = dir.join("job.json");
     std::fs::write(&path, job.to_string()).unwrap();
     path
@@ -359,16 +356,9 @@ fn the_pipeline_cache_is_saved_read_and_replaced_when_corrupt_without_changing_a
 #[test]
 fn a_bake_builds_only_the_pipelines_it_runs_and_preparing_them_changes_no_byte() {
     let dir = scratch("lazy_pipelines");
-    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
-    std::fs::write(
-        dir.join("img.png"),
-        test_image(32, 32, 3, true).encode_png(8),
-    )
-    .unwrap();
-    let text = serde_json::json!({ "mesh": spot, "texture": { "width": 256, "height": 256 },
-        "layers": [{ "image": "img.png", "at": [0.0, 0.3, 0.4], "size": [0.3, 0.3],
-                     "method": "planar" }],
-        "output": { "texture": "out.png" } });
+    let layers = serde_json::json!([{ "image": "img.png", "at": [0.0, 0.3, 0.4],
+                                      "size": [0.3, 0.3], "method": "planar" }]);
+    let text = spot_job_json(&dir, 3, layers, serde_json::json!({ "texture": "out.png" }));
     let job = Job::parse(&text.to_string(), &dir.join("job.json"), &dir, &dir).unwrap();
 
     let lazy = engine();

@@ -154,6 +154,25 @@ pub fn book_mesh() -> (Vec<[f32; 3]>, Vec<[f32; 2]>, Vec<u32>) {
     (pos, uv, idx)
 }
 
+/// The bundled Spot.
+pub fn spot_asset() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb")
+}
+
+/// A 256² job on the bundled Spot with `layers` and `output`, its layers' `img.png` (a 32×32
+/// `test_image` of `seed`, with alpha) written into `dir`.
+pub fn spot_job_json(
+    dir: &Path,
+    seed: u32,
+    layers: serde_json::Value,
+    output: serde_json::Value,
+) -> serde_json::Value {
+    let image = test_image(32, 32, seed, true).encode_png(8);
+    std::fs::write(dir.join("img.png"), image).unwrap();
+    serde_json::json!({ "mesh": spot_asset(), "texture": { "width": 256, "height": 256 },
+        "layers": layers, "output": output })
+}
+
 /// A deterministic pseudo-random image (xorshift), with smooth structure plus noise, alpha varying
 /// when `alpha` is set.
 pub fn test_image(w: u32, h: u32, seed: u32, alpha: bool) -> LinearImage {
