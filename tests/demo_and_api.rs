@@ -75,7 +75,16 @@ fn demo_writes_decodable_outputs_and_a_glb_that_loads_back() {
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
     let layers = report["layers"].as_array().unwrap();
-    assert_eq!(layers.len(), 8);
+    assert_eq!(layers.len(), 10);
+    // The SVG logo and the text along the flank, rendered at the density where they landed.
+    assert!(layers[8]["image"].as_str().unwrap().ends_with("logo.svg"));
+    assert_eq!(layers[9]["kind"], "ribbon");
+    for l in &layers[8..] {
+        let px = l["raster_px"]
+            .as_array()
+            .expect("a vector layer's raster size");
+        assert!(px[0].as_u64().unwrap() >= 64, "{l}");
+    }
     // The ribbon along the flank painted a strip.
     assert_eq!(layers[7]["kind"], "ribbon");
     assert!(

@@ -43,6 +43,8 @@ fn frame_at(topo: &Topology, at: Vec3, up: [f32; 3], size: [f32; 2]) -> (Frame, 
         ribbon: None,
         warp: Vec::new(),
         channels: Default::default(),
+        text: None,
+        raster: None,
     };
     (Frame::new(&p, &job_layer), p.triangle)
 }

@@ -230,7 +230,7 @@ fn a_bake_names_its_stages_as_it_goes() {
         .unwrap();
     let seen = seen.into_inner().unwrap();
     println!("{seen:#?}");
-    assert_eq!(seen[..3], ["images", "placement", "canvas"]);
+    assert_eq!(seen[..3], ["placement", "images", "canvas"]);
     assert_eq!(seen[seen.len() - 2..], ["padding and encode", "read-back"]);
     let chunks = &seen[3..seen.len() - 2];
     assert!(chunks.len() >= 2, "{chunks:?}");

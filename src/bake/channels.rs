@@ -18,6 +18,7 @@ use crate::error::{Error, Result};
 use crate::io::channels::{Channel, DataBlend, NormalBlend, Value};
 use crate::io::image::LinearImage;
 use crate::io::job::Job;
+use crate::io::vector::load_image;
 use crate::mesh::material::{as_stored, MaterialChannels};
 use std::sync::Arc;
 
@@ -203,7 +204,7 @@ fn layer_image(
     warnings: &mut Vec<String>,
 ) -> Result<LinearImage> {
     let l = &job.layers[i];
-    let colour = LinearImage::load(&l.image)?;
+    let colour = l.colour_image()?;
     let c = &l.channels;
     Ok(match kind {
         ChannelKind::Orm => {
@@ -211,7 +212,7 @@ fn layer_image(
             let mut loaded = Vec::new();
             for p in parts.iter().copied().flatten() {
                 if let Value::Image(path) = &p.value {
-                    loaded.push(as_stored(LinearImage::load(path)?));
+                    loaded.push(as_stored(load_image(path, l.raster, false)?));
                 }
             }
             let (w, h) = largest(&colour, loaded.iter());
@@ -235,7 +236,7 @@ fn layer_image(
                 .normal
                 .as_ref()
                 .expect("a normal pass draws layers with normals");
-            let map = as_stored(LinearImage::load(&n.image)?);
+            let map = as_stored(load_image(&n.image, l.raster, false)?);
             check_normal_map(&map, i, &n.image, warnings);
             let (w, h) = largest(&colour, std::iter::once(&map));
             compose_image(&colour, w, h, |u, v| {
@@ -249,7 +250,7 @@ fn layer_image(
                 .as_ref()
                 .expect("an emissive pass draws layers with emissive");
             let loaded = match &e.value {
-                Value::Image(p) => Some(LinearImage::load(p)?),
+                Value::Image(p) => Some(load_image(p, l.raster, false)?),
                 Value::Constant(_) => None,
             };
             let (w, h) = largest(&colour, loaded.iter());

@@ -495,6 +495,14 @@ impl Engine {
         self.images.lock().map_or(0, |c| c.len())
     }
 
+    /// Drops the layer images and masks kept between bakes: the next bake decodes (or renders)
+    /// them again, as a one-off bake does.
+    pub fn clear_image_cache(&self) {
+        if let Ok(mut c) = self.images.lock() {
+            c.clear();
+        }
+    }
+
     /// The engine's compiled pipelines (for the linear-algebra entry points).
     pub fn pipelines(&self) -> &Pipelines {
         &self.pipes
@@ -791,7 +799,7 @@ impl Engine {
         }
     }
 
-    /// [`Self::bake`], naming each stage to `on_stage` as it starts (`"images"`, `"placement"`,
+    /// [`Self::bake`], naming each stage to `on_stage` as it starts (`"placement"`, `"images"`,
     /// `"canvas"`, `"maps, selection and compose: units a-b of n"` per chunk, `"padding and
     /// encode"`, `"read-back"`): what a progress display shows during a long bake.
     pub fn bake_with_progress(
@@ -1032,7 +1040,15 @@ pub const IMAGE_BUDGET: u64 = 512 << 20;
 
 /// A file as it was when it was read: path, whether read raw (a mask), length and modification
 /// time, so that a file rewritten between bakes is read again.
-pub(crate) type ImageKey = (std::path::PathBuf, bool, u64, Option<std::time::SystemTime>);
+/// A layer image's key: its path (a text's: its SVG's hash), whether it is a mask, the file's
+/// length and modification time, and the size a vector image is rendered at.
+pub(crate) type ImageKey = (
+    std::path::PathBuf,
+    bool,
+    u64,
+    Option<std::time::SystemTime>,
+    Option<[u32; 2]>,
+);
 
 /// Uploaded layer images and masks by [`ImageKey`], least recently used first.
 #[derive(Default)]
@@ -1041,6 +1057,10 @@ pub struct ImageCache {
 }
 
 impl ImageCache {
+    pub(crate) fn clear(&mut self) {
+        self.entries.clear();
+    }
+
     pub(crate) fn get(&mut self, key: &ImageKey) -> Option<Arc<GpuImage>> {
         let i = self.entries.iter().position(|e| &e.0 == key)?;
         let e = self.entries.remove(i);

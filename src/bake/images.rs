@@ -5,7 +5,7 @@
 //! [`super::engine::ImageCache`]: a batch of jobs sharing a logo decodes it once); the
 //! material's texture once per mesh.
 
-use super::engine::{Engine, GpuImage, LoadedMesh};
+use super::engine::{Engine, GpuImage, ImageKey, LoadedMesh};
 use crate::error::{Error, Result};
 use crate::io::image::LinearImage;
 use crate::io::job::{Base, Job};
@@ -42,44 +42,56 @@ impl Images {
     }
 }
 
-/// Loads and uploads the base and every layer's image and mask.
+/// Loads and uploads the base and every layer's image and mask (vector images at each layer's
+/// [`Layer::raster`]).
 pub fn load(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Images> {
     let base = load_base(engine, mesh, job)?;
-    let mut cache: HashMap<(PathBuf, bool), Arc<GpuImage>> = HashMap::new();
-    let mut get = |path: &Path, field: String, raw: bool| -> Result<Arc<GpuImage>> {
-        if let Some(x) = cache.get(&(path.to_path_buf(), raw)) {
-            return Ok(x.clone());
-        }
-        let meta = std::fs::metadata(path).ok();
-        let key: super::engine::ImageKey = (
-            path.to_path_buf(),
-            raw,
-            meta.as_ref().map_or(0, |m| m.len()),
-            meta.and_then(|m| m.modified().ok()),
-        );
-        let kept = engine.images.lock().expect("image cache").get(&key);
-        let gi = match kept {
-            Some(gi) => gi,
-            None => {
-                let im = checked_image(engine, path, job, &field, raw)?;
-                let label = if raw { "layer.mask" } else { "layer.image" };
-                let gi = Arc::new(upload_image(engine, &im, true, label));
-                // f32 or f16 texels and a third more for the mipmaps.
-                let bytes = im.width as u64 * im.height as u64 * 16 * 4 / 3;
-                let mut kept = engine.images.lock().expect("image cache");
-                kept.put(key, gi.clone(), bytes);
-                gi
+    let mut cache: HashMap<ImageKey, Arc<GpuImage>> = HashMap::new();
+    let mut get =
+        |key: ImageKey, make: &dyn Fn() -> Result<LinearImage>| -> Result<Arc<GpuImage>> {
+            if let Some(x) = cache.get(&key) {
+                return Ok(x.clone());
             }
+            let kept = engine.images.lock().expect("image cache").get(&key);
+            let gi = match kept {
+                Some(gi) => gi,
+                None => {
+                    let im = make()?;
+                    let label = if key.1 { "layer.mask" } else { "layer.image" };
+                    let gi = Arc::new(upload_image(engine, &im, true, label));
+                    // f32 or f16 texels and a third more for the mipmaps.
+                    let bytes = im.width as u64 * im.height as u64 * 16 * 4 / 3;
+                    let mut kept = engine.images.lock().expect("image cache");
+                    kept.put(key.clone(), gi.clone(), bytes);
+                    gi
+                }
+            };
+            cache.insert(key, gi.clone());
+            Ok(gi)
         };
-        cache.insert((path.to_path_buf(), raw), gi.clone());
-        Ok(gi)
-    };
     let mut layers = Vec::with_capacity(job.layers.len());
     for (i, l) in job.layers.iter().enumerate() {
-        let img = get(&l.image, format!("layers[{i}].image"), false)?;
+        let field = format!("layers[{i}].image");
+        let img = match &l.text {
+            Some(t) => {
+                let curve = l.ribbon.as_ref().map(|_| l.size[0]);
+                let key = (text_key(&t.svg(curve)), false, 0, None, l.raster);
+                get(key, &|| {
+                    checked(engine, l.colour_image()?, &l.image, job, &field)
+                })?
+            }
+            None => get(file_key(&l.image, false, l.raster), &|| {
+                checked_image(engine, &l.image, l.raster, job, &field, false)
+            })?,
+        };
         let mask = match &l.mask {
             None => None,
-            Some(p) => Some(get(p, format!("layers[{i}].mask"), true)?),
+            Some(p) => {
+                let field = format!("layers[{i}].mask");
+                Some(get(file_key(p, true, l.raster), &|| {
+                    checked_image(engine, p, l.raster, job, &field, true)
+                })?)
+            }
         };
         layers.push((img, mask));
     }
@@ -200,7 +212,14 @@ fn load_base_of(
         Base::Transfer { source, .. } => return load_base_of(engine, mesh, job, source),
         Base::Color(c) => solid(*c),
         Base::Image(p) => {
-            let img = checked_image(engine, p, job, "texture.base", false)?;
+            let img = checked_image(
+                engine,
+                p,
+                Some([job.width, job.height]),
+                job,
+                "texture.base",
+                false,
+            )?;
             Arc::new(upload_image(engine, &img, false, "bake.base"))
         }
         Base::Material => match &mesh.mesh.material {
@@ -216,19 +235,51 @@ fn load_base_of(
     })
 }
 
-/// An image file, refused (naming `field`) when it is larger than the adapter's textures.
+/// The cache key of an image file: its path, length and modification time, and the size a
+/// vector image is rendered at.
+fn file_key(path: &Path, raw: bool, raster: Option<[u32; 2]>) -> ImageKey {
+    let meta = std::fs::metadata(path).ok();
+    let raster = raster.filter(|_| crate::io::vector::is_svg(path));
+    (
+        path.to_path_buf(),
+        raw,
+        meta.as_ref().map_or(0, |m| m.len()),
+        meta.and_then(|m| m.modified().ok()),
+        raster,
+    )
+}
+
+/// The path part of a text's cache key: its SVG's hash (the text, font, colour, layout).
+fn text_key(svg: &str) -> PathBuf {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    svg.hash(&mut h);
+    PathBuf::from(format!("<text {:016x} {}>", h.finish(), svg.len()))
+}
+
+/// An image file (an SVG at `raster`), refused (naming `field`) when it is larger than the
+/// adapter's textures.
 pub(crate) fn checked_image(
     engine: &Engine,
     path: &Path,
+    raster: Option<[u32; 2]>,
     job: &Job,
     field: &str,
     raw: bool,
 ) -> Result<LinearImage> {
-    let img = if raw {
-        load_raw(path)?
-    } else {
-        LinearImage::load(path)?
-    };
+    let img = crate::io::vector::load_image(path, raster, raw)?;
+    checked(engine, img, path, job, field)
+}
+
+/// `img` (read from `path`), refused (naming `field`) when it is larger than the adapter's
+/// textures.
+fn checked(
+    engine: &Engine,
+    img: LinearImage,
+    path: &Path,
+    job: &Job,
+    field: &str,
+) -> Result<LinearImage> {
     let max = engine.ctx.max_texture_side();
     if img.width > max || img.height > max {
         return Err(Error::job(
@@ -245,25 +296,9 @@ pub(crate) fn checked_image(
     Ok(img)
 }
 
-/// A mask image: its stored values, not sRGB-decoded.
+/// A mask image: its stored values, not sRGB-decoded (an SVG at its own size).
 pub fn load_raw(path: &Path) -> Result<LinearImage> {
-    let img = LinearImage::load(path)?;
-    // Masks are data, not colour: undo the sRGB decode so a mid-grey mask value means 50 %.
-    Ok(LinearImage {
-        pixels: img
-            .pixels
-            .iter()
-            .map(|p| {
-                [
-                    crate::io::image::linear_to_srgb(p[0]),
-                    crate::io::image::linear_to_srgb(p[1]),
-                    crate::io::image::linear_to_srgb(p[2]),
-                    p[3],
-                ]
-            })
-            .collect(),
-        ..img
-    })
+    crate::io::vector::load_image(path, None, true)
 }
 
 /// f32 → IEEE half bits, round to nearest even (for devices without filterable f32 textures).

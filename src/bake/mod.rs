@@ -51,6 +51,7 @@ mod stage;
 pub(crate) mod tiles;
 pub mod tools;
 mod transfer;
+mod vector;
 
 pub use engine::{Baked, BakedChannel, BvhBuild, Engine, LoadedMesh, StagePath, StagePaths};
 pub use images::{f32_to_f16, load_raw, upload_image};
@@ -188,13 +189,15 @@ pub(crate) fn run_in(
     };
     let cx = Cx { engine, mesh, job };
     let t = Instant::now();
+    on_stage("placement");
+    let mut placed = place::place(cx, &mut log)?;
+    log.timings.placement_ms = ms(t);
+    // Images after placement: vector images are rendered at the texel density where they land.
+    let t = Instant::now();
     on_stage("images");
+    let job = &*vector::set_rasters(engine, mesh, job, &mut placed, &mut log.warnings);
     let images = images::load(engine, mesh, job)?;
     log.timings.images_ms = ms(t);
-    let t = Instant::now();
-    on_stage("placement");
-    let placed = place::place(cx, &mut log)?;
-    log.timings.placement_ms = ms(t);
     // From here on the stages work on units (a decal is one, a stroke one per stamp).
     let images = images.for_units(&placed.origin);
     let ucx = Cx {
@@ -432,6 +435,7 @@ fn layer_report(
         expmap,
         chart: maps.chart[k],
         ribbon: maps.ribbon[k].clone(),
+        raster_px: l.raster,
         stroke: None,
     }
 }

@@ -84,6 +84,10 @@ pub struct LayerReport {
     /// `repaired` and `skipped` arc-length ranges along the curve, `vertices`, `cg_iterations`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ribbon: Option<crate::maps::ribbon::repair::RepairReport>,
+    /// The pixel size its vector images (SVG, text) were rendered at, from the texel density
+    /// where it landed; absent for a layer of bitmaps.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub raster_px: Option<[u32; 2]>,
     /// Strokes: the path, stamps and charts (the fields above then add up the stamps: the
     /// placement and frame are the first stamp's; `triangles_covered` counts a triangle once per
     /// stamp; `texels_covered` counts the texels the whole stroke changed).

@@ -2,13 +2,28 @@
 //! The built-in demo scene: Keenan Crane's "Spot" (public domain, bundled in `assets/`) with four
 //! decals generated in code, one per blend style, a conformal decal on a horn tip (a cone chart), a painted stroke over the UV seam along its back,
 //! a blur stroke across the edges of the badge and a black patch beside it, and a ribbon of
-//! stripes tiled along a wave on the other flank. The badge is warped by a thin-plate spline; the
+//! stripes tiled along a wave on the other flank, an SVG logo on the rump and a line of text
+//! along a flank (rendered from vectors at the texel density where they land). The badge is warped by a thin-plate spline; the
 //! ribbon is also animated along its wave (`frames.json`), and the badge extracted back from the
 //! baked texture (`decalbake extract`). `decalbake demo` writes the scene's files (mesh,
 //! decal PNGs, job file) next to its outputs, so the job can be edited and re-run with `decalbake bake`.
 
 use decalbake::io::image::{srgb_to_linear, LinearImage};
 use std::f32::consts::PI;
+
+/// The demo's vector logo (`decals/logo.svg`): a gradient disc with a tick and a ring, drawn by
+/// the bake at the texel density where it lands, not from a bitmap.
+pub const LOGO_SVG: &str = r##"<svg xmlns="http://www.w3.org/2000/svg" width="100" height="100" viewBox="0 0 100 100">
+  <defs>
+    <linearGradient id="disc" x1="0" y1="0" x2="1" y2="1">
+      <stop offset="0" stop-color="#ff7a18"/><stop offset="1" stop-color="#c2185b"/>
+    </linearGradient>
+  </defs>
+  <circle cx="50" cy="50" r="46" fill="url(#disc)"/>
+  <circle cx="50" cy="50" r="38" fill="none" stroke="#ffffff" stroke-width="2.5" stroke-dasharray="6 4"/>
+  <path d="M29 52 L44 67 L72 35" fill="none" stroke="#ffffff" stroke-width="9" stroke-linecap="round" stroke-linejoin="round"/>
+</svg>
+"##;
 
 /// The bundled mesh.
 pub const SPOT_GLB: &[u8] = include_bytes!("../../assets/spot.glb");
@@ -196,6 +211,19 @@ fn ribbon_path() -> Vec<serde_json::Value> {
         .collect()
 }
 
+/// The demo text's curve: rays from Spot's left (+x), along its flank below the badge, from the
+/// head back (so the text reads from the viewer's left to right).
+fn text_path() -> Vec<serde_json::Value> {
+    (0..9)
+        .map(|k| {
+            let t = k as f32 / 8.0;
+            let z = 0.72 - 0.62 * t;
+            let y = -0.2 + 0.03 * (t * PI).sin();
+            serde_json::json!({ "ray": { "origin": [1.5, y, z], "dir": [-1, 0, 0] } })
+        })
+        .collect()
+}
+
 /// The job that bakes two decals into bob's pelt, patch and bridges (`decalbake unwrap --patch`
 /// made `bob-patched.glb`: its seams have cycles, so the patch is cut across twice and bridged,
 /// `pelt::bridge`), over the two places where the patch's cuts cross the pelt's seam (found once
@@ -251,7 +279,15 @@ pub fn job_json() -> String {
             // Stripes tiled along a wave on the right flank: a ribbon (the curve's extended
             // exponential map).
             { "kind": "ribbon", "image": "decals/stripes.png", "path": ribbon_path(),
-              "width": 0.09, "repeat": "tile" }
+              "width": 0.09, "repeat": "tile" },
+            // A vector logo on the rump: the SVG is rendered where it lands, at the texel
+            // density there, so it stays sharp at any size.
+            { "kind": "decal", "image": "decals/logo.svg", "at": { "ray": { "origin": [0.0, 1.5, 0.12], "dir": [0, -1, 0] } },
+              "size": [0.22, 0.22], "up": [0, 0, 1], "method": "expmap" },
+            // A line of text along the left flank, below the badge: shaped by rustybuzz,
+            // its baseline on the curve.
+            { "kind": "text", "text": "Spot · decalbake", "size": 0.075, "color": [0.08, 0.16, 0.45, 1.0],
+              "path": text_path() }
         ],
         "output": { "texture": "baked.png", "bit_depth": 8, "glb": "baked.glb", "report": "report.json", "preview": "preview.png" }
     }))

@@ -39,8 +39,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Cmd {
-    /// Bake the built-in demo scene (Spot with five decals, two strokes and a ribbon; the knight
-    /// with a material decal; an unwrapped sheet) into a folder, with its job files.
+    /// Bake the built-in demo scene (Spot with five decals, two strokes, a ribbon, an SVG logo and
+    /// a line of text along its flank; the knight with a material decal; an unwrapped sheet) into
+    /// a folder, with its job files.
     Demo {
         /// Output directory.
         #[arg(long, default_value = "decalbake-demo")]
@@ -250,6 +251,11 @@ struct BenchArgs {
     /// roughness + metallic, median of `--reps`; JSON lines on stdout, a table on stderr.
     #[arg(long)]
     channels: bool,
+    /// What vector images cost: `--decals` SVG decals (its first value; 64 when not given) on `--mesh`
+    /// (default the bundled bob) and 1,000 glyphs along curves on a plane, against the same
+    /// layers as PNGs at the same pixel sizes, at each of `--sizes`; JSON lines on stdout.
+    #[arg(long)]
+    vector: bool,
 }
 
 /// The engine's diagnostics (`log`) on stderr: its warnings and errors by default; with
@@ -448,8 +454,24 @@ fn bench_cmd(backend: Option<&str>, args: BenchArgs) -> Result<()> {
         ribbons,
         corpus,
         channels,
+        vector,
     } = args;
     let mut engine = engine(backend)?;
+    if vector {
+        let opts = bench::vector::VectorBenchOptions {
+            mesh: mesh
+                .clone()
+                .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/bob.glb")),
+            sizes: sizes.clone(),
+            // The default `--decals` list is the bake bench's; this one's default is 64.
+            decals: match decals.as_slice() {
+                [1, 16, 256] | [] => 64,
+                d => d[0],
+            },
+            reps,
+        };
+        return bench::vector::run(&engine, &opts, |v| println!("{v}"));
+    }
     if channels {
         let opts = bench::channels::ChannelBenchOptions {
             mesh: mesh
@@ -777,6 +799,8 @@ fn demo(out: &Path, all: bool, backend: Option<&str>) -> Result<()> {
     for (name, img) in demo::decals() {
         decalbake::io::image::write_atomic(&out.join("decals").join(name), &img.encode_png(8))?;
     }
+    let logo = out.join("decals").join("logo.svg");
+    decalbake::io::image::write_atomic(&logo, demo::LOGO_SVG.as_bytes())?;
     let job_path = out.join("job.json");
     decalbake::io::image::write_atomic(&job_path, demo::job_json().as_bytes())?;
     // The schema beside the job, which names it in `$schema`: editors check and complete it.

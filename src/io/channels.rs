@@ -118,6 +118,24 @@ impl Channels {
     pub fn any_data(&self) -> bool {
         self.roughness.is_some() || self.metallic.is_some() || self.occlusion.is_some()
     }
+
+    /// Every channel image's path (the normal map's and each image-valued channel's).
+    pub fn image_paths(&self) -> impl Iterator<Item = &std::path::Path> {
+        let values = [
+            &self.roughness,
+            &self.metallic,
+            &self.occlusion,
+            &self.emissive,
+        ];
+        self.normal
+            .as_ref()
+            .map(|n| n.image.as_path())
+            .into_iter()
+            .chain(values.into_iter().flatten().filter_map(|c| match &c.value {
+                Value::Image(p) => Some(p.as_path()),
+                Value::Constant(_) => None,
+            }))
+    }
 }
 
 /// A texture a bake writes besides the colour.

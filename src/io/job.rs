@@ -287,14 +287,15 @@ impl Default for PaddingSpec {
 #[derive(Debug, Clone, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct LayerSpec {
-    /// What the layer is: a `"decal"` placed at one point, a `"stroke"` of stamps along a path, or
-    /// a `"ribbon"` laid along a curve.
+    /// What the layer is: a `"decal"` placed at one point, a `"stroke"` of stamps along a path, a
+    /// `"ribbon"` laid along a curve, or `"text"` (at a point or along a curve).
     #[serde(default = "default_kind")]
-    #[schemars(extend("enum" = ["decal", "stroke", "ribbon"]))]
+    #[schemars(extend("enum" = ["decal", "stroke", "ribbon", "text"]))]
     pub kind: String,
-    /// The layer's colour image (PNG or JPEG, 8 or 16 bits, sRGB; a stroke's stamp, a ribbon's
-    /// strip).
-    pub image: PathBuf,
+    /// The layer's colour image (PNG or JPEG, 8 or 16 bits, sRGB, or SVG, rendered at the
+    /// surface's texel density; a stroke's stamp, a ribbon's strip). Required, except for text.
+    #[serde(default)]
+    pub image: Option<PathBuf>,
     /// Optional mask image (red × alpha, read without sRGB decoding).
     #[serde(default)]
     pub mask: Option<PathBuf>,
@@ -302,9 +303,10 @@ pub struct LayerSpec {
     #[serde(default)]
     pub at: Option<AtSpec>,
     /// Width and height on the surface, model units (a stroke's stamp at full pressure); not for
-    /// ribbons, whose length is their curve's and whose width is `width`.
+    /// ribbons, whose length is their curve's and whose width is `width`. Text: one number, the
+    /// em size.
     #[serde(default)]
-    pub size: Option<[f32; 2]>,
+    pub size: Option<SizeSpec>,
     /// Degrees, counter-clockwise seen from outside.
     #[serde(default)]
     pub angle: f32,
@@ -392,9 +394,10 @@ pub struct LayerSpec {
     #[serde(default)]
     #[schemars(extend("enum" = ["stretch", "tile", null]))]
     pub repeat: Option<String>,
-    /// Ribbon: `"center"` (default), `"left"` or `"right"`.
+    /// Ribbon: `"center"` (default), `"left"` or `"right"`. Text: `"start"`, `"center"`
+    /// (default) or `"end"`.
     #[serde(default)]
-    #[schemars(extend("enum" = ["center", "left", "right", null]))]
+    #[schemars(extend("enum" = ["center", "left", "right", "start", "end", null]))]
     pub align: Option<String>,
     /// Ribbon: mirror the image across the curve.
     #[serde(default)]
@@ -452,6 +455,37 @@ pub struct LayerSpec {
     #[serde(default)]
     #[schemars(extend("enum" = ["normal", "replace", null]))]
     pub data_blend: Option<String>,
+    /// Text: the string (UTF-8, one line).
+    #[serde(default)]
+    pub text: Option<String>,
+    /// Text: a TrueType or OpenType font file (default: the bundled DejaVu Sans).
+    #[serde(default)]
+    pub font: Option<PathBuf>,
+    /// Text: sRGB RGBA in [0, 1] (default opaque black).
+    #[serde(default)]
+    pub color: Option<[f32; 4]>,
+    /// Text: extra space after each glyph, em units (default 0).
+    #[serde(default)]
+    pub letter_spacing: Option<f32>,
+    /// Text along a curve: the glyphs' up is the curve's `"left"` (default) or `"right"`, seen
+    /// from outside.
+    #[serde(default)]
+    #[schemars(extend("enum" = ["left", "right", null]))]
+    pub side: Option<String>,
+    /// Text along a curve longer than the text: `"clip"` (default; a warning) or `"shrink"`.
+    #[serde(default)]
+    #[schemars(extend("enum" = ["clip", "shrink", null]))]
+    pub fit: Option<String>,
+}
+
+/// A layer's `size`: `[width, height]`, or a text layer's em size.
+#[derive(Debug, Clone, Copy, Deserialize, schemars::JsonSchema)]
+#[serde(untagged)]
+pub enum SizeSpec {
+    /// Width and height, model units.
+    Pair([f32; 2]),
+    /// A text layer's em size, model units.
+    Em(f32),
 }
 
 fn default_kind() -> String {
@@ -619,13 +653,52 @@ pub struct Layer {
     pub warp: Vec<[[f32; 2]; 2]>,
     /// The PBR channels it paints beside its colour (none by default).
     pub channels: super::channels::Channels,
+    /// A text layer's text (its `kind` is then a decal's, placed by `at`, or a ribbon's, along
+    /// `path`; its image is the text's, [`super::text`]).
+    pub text: Option<std::sync::Arc<super::text::Text>>,
+    /// The pixel size its vector images (SVG files, text) are rendered at, set by the bake after
+    /// placement from the texel density where it lands; `None` before (their own size).
+    pub raster: Option<[u32; 2]>,
 }
 
 impl Layer {
-    /// The width and height of the layer's image (read from its header), or an error naming
-    /// `layers[index].image` of job file `src`.
+    /// Whether any of its images is drawn from vectors: text, or an SVG image, mask or channel
+    /// image.
+    pub fn has_vectors(&self) -> bool {
+        use super::vector::is_svg;
+        self.text.is_some()
+            || is_svg(&self.image)
+            || self.mask.as_deref().is_some_and(is_svg)
+            || self.channels.image_paths().any(is_svg)
+    }
+
+    /// The layer's colour image: its text or its file, vector images at [`Layer::raster`].
+    pub fn colour_image(&self) -> Result<super::image::LinearImage> {
+        match &self.text {
+            Some(t) => {
+                let curve = self.ribbon.as_ref().map(|_| self.size[0]);
+                let svg = super::vector::Svg::parse(t.svg(curve).as_bytes())
+                    .expect("the text's own SVG parses");
+                let px = self.raster.unwrap_or_else(|| svg.default_px());
+                Ok(svg.render(px, false))
+            }
+            None => super::vector::load_image(&self.image, self.raster, false),
+        }
+    }
+
+    /// The width and height of the layer's image (read from its header; an SVG's or a text
+    /// block's own size), or an error naming `layers[index].image` of job file `src`.
     pub fn image_dimensions(&self, src: &Path, index: usize) -> Result<(u32, u32)> {
-        image::image_dimensions(&self.image).map_err(|e| {
+        if let Some(t) = &self.text {
+            let b = &t.block;
+            let h = if self.ribbon.is_some() {
+                b.strip_height()
+            } else {
+                b.line_height()
+            };
+            return Ok(((b.advance.round() as u32).max(1), (h.round() as u32).max(1)));
+        }
+        super::vector::dimensions(&self.image).map_err(|e| {
             Error::job(
                 src,
                 format!("layers[{index}].image"),
@@ -1188,6 +1261,7 @@ impl LayerSpec {
         kind: LayerKind,
         (i, src): (usize, &Path),
         stamp: f32,
+        text_strip: Option<f32>,
     ) -> Result<KindFields> {
         let fields = super::stroke::Fields {
             tool: &self.tool,
@@ -1207,9 +1281,13 @@ impl LayerSpec {
         let ribbon_fields = super::ribbon::Fields {
             path: &self.path,
             interpolate: &self.interpolate,
-            width: self.width,
+            width: text_strip.or(self.width),
             repeat: &self.repeat,
-            align: &self.align,
+            align: if self.kind == "text" {
+                &None
+            } else {
+                &self.align
+            },
             flip: self.flip,
             animate: &self.animate,
             curved_threshold: self.curved_threshold,
@@ -1251,10 +1329,38 @@ impl LayerSpec {
 fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Result<Layer> {
     let err = |field: &str, detail: String| Error::job(src, field, detail);
     let field = |name: &str| format!("layers[{i}].{name}");
-    let kind = LayerKind::parse(&l.kind).map_err(|d| err(&field("kind"), d))?;
-    let size = layer_size(kind, l.size, i, src)?;
+    let text = text_of(l, i, src, input_dir)?;
+    let kind = match &text {
+        Some(_) if l.path.is_some() => LayerKind::Ribbon,
+        Some(_) => LayerKind::Decal,
+        None => LayerKind::parse(&l.kind).map_err(|d| err(&field("kind"), d))?,
+    };
+    let size = match &text {
+        Some(t) => t.block_size(),
+        None => layer_size(kind, l.size, i, src)?,
+    };
     let finite3 = |v: &[f32; 3]| v.iter().all(|x| x.is_finite() && x.abs() <= 1e30);
-    let (stroke, ribbon) = l.kind_fields(kind, (i, src), size[0])?;
+    let strip = text
+        .as_ref()
+        .filter(|_| l.path.is_some())
+        .map(|t| t.strip_width());
+    let (stroke, ribbon) = l.kind_fields(kind, (i, src), size[0], strip)?;
+    let image = match (&text, &l.image) {
+        (Some(_), Some(_)) => {
+            return Err(err(
+                &field("image"),
+                "a text layer draws its glyphs in `color`; remove `image`".into(),
+            ))
+        }
+        (Some(_), None) => PathBuf::from(format!("<text of layers[{i}]>")),
+        (None, Some(p)) => input_dir.join(p),
+        (None, None) => {
+            return Err(err(
+                &field("image"),
+                "missing: the layer's image (PNG, JPEG or SVG)".into(),
+            ))
+        }
+    };
     let path = stroke
         .as_ref()
         .map(|s| &s.path)
@@ -1341,7 +1447,7 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
     }
     Ok(Layer {
         kind,
-        image: input_dir.join(&l.image),
+        image,
         mask: l.mask.as_ref().map(|m| input_dir.join(m)),
         at,
         size,
@@ -1359,7 +1465,70 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
         ribbon,
         warp: super::warp::validate(&l.warp, i, src)?,
         channels: super::channels::validate(&l.channel_fields(), i, src, input_dir, l.opacity)?,
+        text: text.map(std::sync::Arc::new),
+        raster: None,
     })
+}
+
+/// Layer `i`'s text, shaped, when its kind is `"text"`; a text field on another kind is an error
+/// naming it.
+fn text_of(
+    l: &LayerSpec,
+    i: usize,
+    src: &Path,
+    input_dir: &Path,
+) -> Result<Option<super::text::Text>> {
+    let fields = super::text::Fields {
+        text: &l.text,
+        font: &l.font,
+        size: match l.size {
+            Some(SizeSpec::Em(s)) => Some(s),
+            _ => None,
+        },
+        color: l.color,
+        align: &l.align,
+        letter_spacing: l.letter_spacing,
+        side: &l.side,
+        fit: &l.fit,
+    };
+    if l.kind != "text" {
+        return match fields.given() {
+            Some(name) => Err(Error::job(
+                src,
+                format!("layers[{i}].{name}"),
+                "applies to text layers only; set \"kind\": \"text\" or remove it",
+            )),
+            None => Ok(None),
+        };
+    }
+    if let Some(SizeSpec::Pair(_)) = l.size {
+        return Err(Error::job(
+            src,
+            format!("layers[{i}].size"),
+            "a text layer's size is one number, its em size in model units",
+        ));
+    }
+    if l.path.is_some() {
+        if let Some(name) = [
+            ("width", l.width.is_some()),
+            ("repeat", l.repeat.is_some()),
+            ("flip", l.flip.is_some()),
+            ("animate", l.animate.is_some()),
+            ("method", l.method.is_some()),
+        ]
+        .into_iter()
+        .find(|x| x.1)
+        .map(|x| x.0)
+        {
+            return Err(Error::job(
+                src,
+                format!("layers[{i}].{name}"),
+                "text along a curve takes its strip from the font (the baseline on the curve); remove it",
+            ));
+        }
+    }
+    let along = l.path.is_some();
+    super::text::validate(&fields, i, src, input_dir, along).map(Some)
 }
 
 /// A layer's method (`field` names it in messages): a ribbon is mapped by its curve and takes
@@ -1382,8 +1551,17 @@ fn layer_method(given: Option<&str>, kind: LayerKind, field: &str, src: &Path) -
 
 /// Layer `i`'s size: a decal's or stroke's, checked; a ribbon has none (its length is its curve's,
 /// its width `width`: a placeholder until it is placed).
-fn layer_size(kind: LayerKind, given: Option<[f32; 2]>, i: usize, src: &Path) -> Result<[f32; 2]> {
+fn layer_size(kind: LayerKind, given: Option<SizeSpec>, i: usize, src: &Path) -> Result<[f32; 2]> {
     let err = |detail: String| Error::job(src, format!("layers[{i}].size"), detail);
+    let given = match given {
+        Some(SizeSpec::Em(_)) if kind != LayerKind::Ribbon => return Err(err(
+            "one number is a text layer's em size; a decal's or stamp's size is [width, height]"
+                .into(),
+        )),
+        Some(SizeSpec::Em(_)) => Some([1.0, 1.0]),
+        Some(SizeSpec::Pair(p)) => Some(p),
+        None => None,
+    };
     let size = match (kind, given) {
         (LayerKind::Ribbon, Some(_)) => {
             return Err(err(

@@ -10,4 +10,6 @@ pub mod manifest;
 pub mod ribbon;
 pub mod schema;
 pub mod stroke;
+pub mod text;
+pub mod vector;
 pub mod warp;

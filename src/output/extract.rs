@@ -175,7 +175,7 @@ pub fn flat_triangles(engine: &Engine, mesh: &LoadedMesh, job: &Job, index: usiz
 /// adapter's texture limit, as a bake's base).
 pub fn source_texture(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<LinearImage> {
     Ok(match &job.base {
-        Base::Image(p) => crate::bake::checked_image(engine, p, job, "texture.base", false)?,
+        Base::Image(p) => crate::bake::checked_image(engine, p, None, job, "texture.base", false)?,
         Base::Color(c) => LinearImage::solid(1, 1, *c),
         Base::Material => match &mesh.mesh.material {
             Some(m) => match &m.base_color_texture {

@@ -15,3 +15,4 @@ pub mod soak;
 pub mod strokes;
 pub mod tiles;
 pub mod unwrap;
+pub mod vector;

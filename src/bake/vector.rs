@@ -1,0 +1,143 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The pixel size each layer's vector images (SVG files, text, `crate::io::vector`) are rendered
+//! at, decided after placement from the texel density of the triangle each unit landed on
+//! ([`set_rasters`]), and a text layer's warnings (missing glyphs, text cut at its curve's end).
+//! The images stage ([`super::images`]) then renders them at that size.
+
+use super::engine::{Engine, LoadedMesh};
+use super::place::Placed;
+use crate::io::job::{Job, Layer};
+
+/// How many image pixels a vector image gets per texel it covers, along each side: its samples
+/// then read the first mipmap level, a box over 2 × 2 pixels, and edges keep the bake's own
+/// anti-aliasing.
+pub const VECTOR_OVERSAMPLE: f32 = 2.0;
+
+/// The longest side a vector image is rendered at (the adapter's texture limit may be lower).
+pub const VECTOR_MAX_SIDE: u32 = 8192;
+
+/// The most pixels a vector image is rendered with (4096², 256 MiB as f32 RGBA before mipmaps):
+/// a layer that would need more is rendered at this size, with its aspect.
+pub const VECTOR_MAX_PIXELS: u64 = 1 << 24;
+
+/// Texels of the bake per model unit at triangle `t`: the square root of its UV area in texels
+/// over its area on the surface; `None` where either is degenerate.
+fn texel_density(mesh: &LoadedMesh, job: &Job, t: u32) -> Option<f32> {
+    let m = &mesh.mesh;
+    let tri = m.triangles.get(t as usize)?;
+    let uv = m.uv_sets.get(job.uv_set as usize)?;
+    let scale = glam::Vec2::new(job.width as f32, job.height as f32);
+    let p = tri.map(|v| m.positions[v as usize]);
+    let q = tri.map(|v| uv[v as usize] * scale);
+    let surface = (p[1] - p[0]).cross(p[2] - p[0]).length();
+    let texels = (q[1] - q[0]).perp_dot(q[2] - q[0]).abs();
+    (surface > 0.0 && texels > 0.0 && surface.is_finite() && texels.is_finite())
+        .then(|| (texels / surface).sqrt())
+}
+
+/// The mesh's mean texel density over the UV set: where a layer's own triangle has none.
+fn mean_density(mesh: &LoadedMesh, job: &Job) -> f32 {
+    let (mut surface, mut texels) = (0.0f64, 0.0f64);
+    let m = &mesh.mesh;
+    let Some(uv) = m.uv_sets.get(job.uv_set as usize) else {
+        return 1.0;
+    };
+    let scale = glam::Vec2::new(job.width as f32, job.height as f32);
+    for tri in &m.triangles {
+        let p = tri.map(|v| m.positions[v as usize]);
+        let q = tri.map(|v| uv[v as usize] * scale);
+        surface += (p[1] - p[0]).cross(p[2] - p[0]).length() as f64;
+        texels += (q[1] - q[0]).perp_dot(q[2] - q[0]).abs() as f64;
+    }
+    if surface > 0.0 && texels > 0.0 {
+        (texels / surface).sqrt() as f32
+    } else {
+        1.0
+    }
+}
+
+/// The pixel size a unit's vector images are rendered at: its image rectangle (`size`, model
+/// units) at the texel density where it landed, [`VECTOR_OVERSAMPLE`] pixels a texel, within
+/// the limits above and the adapter's.
+fn raster_size(size: [f32; 2], density: f32, max_side: u32) -> [u32; 2] {
+    let side = |s: f32| {
+        (s * density * VECTOR_OVERSAMPLE)
+            .ceil()
+            .clamp(8.0, max_side as f32)
+    };
+    let (mut w, mut h) = (side(size[0]), side(size[1]));
+    let pixels = w as f64 * h as f64;
+    if pixels > VECTOR_MAX_PIXELS as f64 {
+        let k = (VECTOR_MAX_PIXELS as f64 / pixels).sqrt() as f32;
+        w = (w * k).floor().max(1.0);
+        h = (h * k).floor().max(1.0);
+    }
+    [w as u32, h as u32]
+}
+
+/// Sets [`Layer::raster`] of every layer with vector images (SVG files, text) in `job` and in
+/// the units of `placed`: per job layer, the largest any of its units needs at the texel density
+/// of the triangle it landed on. Returns the job with the rasters set (`job` itself when no layer
+/// has vectors), and warns of a text's missing glyphs and of text cut at its curve's end.
+pub(crate) fn set_rasters<'a>(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    job: &'a Job,
+    placed: &mut Placed,
+    warnings: &mut Vec<String>,
+) -> std::borrow::Cow<'a, Job> {
+    if !job.layers.iter().any(Layer::has_vectors) {
+        return std::borrow::Cow::Borrowed(job);
+    }
+    let max_side = engine.ctx.max_texture_side().min(VECTOR_MAX_SIDE);
+    let mean = std::sync::OnceLock::new();
+    let mut out = job.clone();
+    for (l, layer) in out.layers.iter_mut().enumerate() {
+        if !layer.has_vectors() {
+            continue;
+        }
+        let units = placed.units_of[l].clone();
+        let mut px = [0u32; 2];
+        for u in units.clone() {
+            let density = texel_density(mesh, job, placed.placements[u].triangle)
+                .unwrap_or_else(|| *mean.get_or_init(|| mean_density(mesh, job)));
+            let r = raster_size(placed.job.layers[u].size, density, max_side);
+            px = [px[0].max(r[0]), px[1].max(r[1])];
+        }
+        layer.raster = Some(px);
+        if layer.text.is_some() && layer.ribbon.is_some() {
+            // Text along a curve is one unit: its strip spans the curve's length.
+            layer.size = placed.job.layers[units.start].size;
+        }
+        for u in units.clone() {
+            placed.job.layers[u].raster = Some(px);
+        }
+        if let Some(t) = &layer.text {
+            text_warnings(l, t, units.map(|u| &placed.job.layers[u]), warnings);
+        }
+    }
+    std::borrow::Cow::Owned(out)
+}
+
+/// Warnings of text layer `l`: characters its font lacks, and text cut at its curve's end.
+fn text_warnings<'a>(
+    l: usize,
+    t: &crate::io::text::Text,
+    units: impl Iterator<Item = &'a Layer>,
+    warnings: &mut Vec<String>,
+) {
+    if !t.block.missing.is_empty() {
+        let chars: String = t.block.missing.iter().collect();
+        warnings.push(format!(
+            "layers[{l}].text: the font has no glyph for {chars:?}; drawn as its missing-glyph box (.notdef); choose a font that covers them"
+        ));
+    }
+    for unit in units.filter(|u| u.ribbon.is_some()) {
+        if t.fit_on(unit.size[0]).1 {
+            warnings.push(format!(
+                "layers[{l}].text is longer than its curve ({:.4} model units) and is cut at its end; lengthen the path, lower `size`, or set \"fit\": \"shrink\"",
+                unit.size[0]
+            ));
+        }
+    }
+}

@@ -1,0 +1,650 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Vector graphics and text on the surface (Schmidt et al. 2006, §6.2): SVG images rendered at the
+//! texel density where they land, and text layers shaped by rustybuzz, as decals and along curves.
+mod common;
+
+use decalbake::io::image::{linear_to_srgb, srgb_to_linear, LinearImage};
+use decalbake::io::text::shape;
+use decalbake::io::vector::{Svg, BUNDLED_FONT};
+use std::f32::consts::PI;
+use std::path::Path;
+
+/// An SVG of large shapes with straight, curved and slanted edges and a gradient, 100 units
+/// square, asymmetric (a mirrored or turned bake fails the comparison).
+const SHAPES: &str = r##"<svg xmlns="http://www.w3.org/2000/svg" width="100" height="100" viewBox="0 0 100 100">
+  <defs><linearGradient id="g" x1="0" y1="0" x2="1" y2="0">
+    <stop offset="0" stop-color="#1060d0"/><stop offset="1" stop-color="#20c080"/></linearGradient></defs>
+  <rect x="10.3" y="8.6" width="45.2" height="30.1" fill="#d02020"/>
+  <circle cx="66" cy="64" r="27.3" fill="url(#g)"/>
+  <path d="M8 92 L40 50 L44 90 Z" fill="#f0c000" fill-opacity="0.8"/>
+</svg>"##;
+
+/// The plane scene: the unit square (UV = (x, 1 − y)), a white base, `layers`, a `side`² texture.
+fn plane_job(dir: &Path, side: u32, samples: u32, layers: serde_json::Value) -> decalbake::Job {
+    common::write_plane(&dir.join("plane.glb"), 16, false);
+    let text = serde_json::json!({ "mesh": "plane.glb",
+        "texture": { "width": side, "height": side, "padding": 0, "samples": samples,
+                     "base": [1.0, 1.0, 1.0, 1.0] },
+        "layers": layers })
+    .to_string();
+    decalbake::Job::parse(&text, &dir.join("job.json"), dir, dir).unwrap()
+}
+
+/// `img` (straight alpha, linear colour) over white, as 8-bit sRGB values.
+fn over_white(p: [f32; 4]) -> [f32; 3] {
+    let c = |v: f32| (linear_to_srgb(v * p[3] + (1.0 - p[3])) * 255.0).round();
+    [c(p[0]), c(p[1]), c(p[2])]
+}
+
+/// Where a row of values crosses `level` first, in texels from the row's start (interpolated
+/// between texel centres).
+fn crossing(row: &[f32], level: f32) -> Option<f32> {
+    row.windows(2).enumerate().find_map(|(i, w)| {
+        ((w[0] - level) * (w[1] - level) <= 0.0 && w[0] != w[1])
+            .then(|| i as f32 + 0.5 + (level - w[0]) / (w[1] - w[0]))
+    })
+}
+
+/// The position of the first step in a row that crosses `level`, to a fraction of a texel: over
+/// the five texels each side of the crossing, the values scaled between the plateaus at the
+/// window's ends, summed (a step at p from the window's start sums to p, whatever its blur).
+fn edge(row: &[f32], level: f32) -> Option<f32> {
+    let c = crossing(row, level)? as usize;
+    let (a, b) = (c.checked_sub(5)?, c + 5);
+    let (left, right) = (row[a], *row.get(b)?);
+    if (left - right).abs() < 1e-3 {
+        return None;
+    }
+    Some(
+        a as f32
+            + row[a..=b]
+                .iter()
+                .map(|v| (v - right) / (left - right))
+                .sum::<f32>(),
+    )
+}
+
+/// An SVG decal on a plane, planar, covering texels 64 to 192 of a 256² bake, against resvg's own
+/// rendering of the same SVG at 128² composed over the same white base: the mean error over the
+/// decal is at most 1/255 (8-bit values, all channels), and every edge crossing along the rows
+/// and columns through the rectangle's sides and the circle's centre lies within half a texel
+/// of resvg's (each edge's position summed from the values across it, to a fraction of a
+/// texel). The bake renders the SVG at 256² (two pixels a texel), its samples read the first
+/// mipmap level: measured mean 0.21, edges within 0.16 texel. Placing the decal one texel off
+/// fails both checks (mean 2.5, an edge 1.1 texel off).
+#[test]
+fn svg_decal_matches_resvg_at_the_same_resolution() {
+    let engine = common::engine();
+    let dir = common::scratch("vector_resvg");
+    std::fs::write(dir.join("shapes.svg"), SHAPES).unwrap();
+    let job = plane_job(
+        &dir,
+        256,
+        4,
+        serde_json::json!([{ "image": "shapes.svg", "at": [0.5, 0.5, 0.0], "size": [0.5, 0.5],
+        "up": [0, 1, 0], "method": "planar" }]),
+    );
+    let mesh = engine.load_mesh(&job.mesh).unwrap();
+    let baked = engine.bake(&mesh, &job).unwrap();
+    let reference = Svg::parse(SHAPES.as_bytes())
+        .unwrap()
+        .render([128, 128], false);
+    let want = |x: u32, y: u32| over_white(reference.pixels[(y * 128 + x) as usize]);
+    let got = |x: u32, y: u32| {
+        let i = (((y + 64) * 256 + x + 64) * 4) as usize;
+        [0, 1, 2].map(|k| baked.texels[i + k] as f32)
+    };
+    let mut sum = 0.0f64;
+    for y in 0..128 {
+        for x in 0..128 {
+            let (a, b) = (want(x, y), got(x, y));
+            sum += (0..3).map(|k| (a[k] - b[k]).abs() as f64).sum::<f64>();
+        }
+    }
+    let mean = sum / (128.0 * 128.0 * 3.0);
+    // Edges: rows through the rectangle and the circle, columns through the rectangle.
+    // Ink: how far from the white base (summed over the channels).
+    let ink = |v: [f32; 3]| 765.0 - v[0] - v[1] - v[2];
+    let mut worst = 0.0f32;
+    let mut edges = 0;
+    for line in [20u32, 30, 64, 80] {
+        for (along_rows, reversed) in [(true, false), (true, true), (false, false), (false, true)] {
+            let sample = |f: &dyn Fn(u32, u32) -> [f32; 3]| -> Vec<f32> {
+                let mut v: Vec<f32> = (0..128)
+                    .map(|k| {
+                        if along_rows {
+                            ink(f(k, line))
+                        } else {
+                            ink(f(line, k))
+                        }
+                    })
+                    .collect();
+                if reversed {
+                    v.reverse();
+                }
+                v
+            };
+            let (a, b) = (sample(&want), sample(&got));
+            let (lo, hi) = a
+                .iter()
+                .fold((f32::MAX, f32::MIN), |m, &x| (m.0.min(x), m.1.max(x)));
+            if hi - lo < 60.0 {
+                continue;
+            }
+            let level = 0.5 * (lo + hi);
+            if let (Some(ca), Some(cb)) = (edge(&a, level), edge(&b, level)) {
+                worst = worst.max((ca - cb).abs());
+                edges += 1;
+            }
+        }
+    }
+    eprintln!("mean error {mean:.3} (8-bit), {edges} edges, worst {worst:.3} texel");
+    assert!(edges >= 8, "{edges} edges found");
+    assert!(mean <= 1.0, "mean error {mean:.3} of 255");
+    assert!(worst <= 0.5, "an edge is {worst:.3} texel off");
+}
+
+/// The profile of a dark disc's edge along the row through its centre: (radius in texels where
+/// the value crosses one half, the width from 10 % to 90 % coverage).
+fn disc_edge(baked: &decalbake::Baked, side: u32) -> (f32, f32) {
+    let y = side / 2;
+    // Coverage from the luminance over white (linear; the disc is black).
+    let row: Vec<f32> = (0..side).map(|x| 1.0 - baked.linear(x, y)[1]).collect();
+    let right = &row[side as usize / 2..];
+    let c50 = crossing(right, 0.5).expect("the edge");
+    let (c10, c90) = (crossing(right, 0.1).unwrap(), crossing(right, 0.9).unwrap());
+    (c50, (c10 - c90).abs())
+}
+
+/// A circle of radius 40 from a 100-unit SVG, magnified over the whole 1024² bake: its edge is at
+/// most two texels wide (10 % to 90 %; measured 1.6) and its radius, 409.6 texels, within one
+/// texel (measured 0.1 off). The same circle as a 64-pixel PNG smears over 26 texels from 10 %
+/// to 90 % (16 texels a pixel), which is what the vector path exists to avoid: held to the SVG's
+/// two texels, the PNG fails.
+#[test]
+fn a_magnified_svg_circle_keeps_a_sharp_edge() {
+    let engine = common::engine();
+    let dir = common::scratch("vector_circle");
+    let circle = r#"<svg xmlns="http://www.w3.org/2000/svg" width="100" height="100"><circle cx="50" cy="50" r="40" fill="black"/></svg>"#;
+    std::fs::write(dir.join("circle.svg"), circle).unwrap();
+    let small = Svg::parse(circle.as_bytes())
+        .unwrap()
+        .render([64, 64], false);
+    std::fs::write(dir.join("circle.png"), small.encode_png(8)).unwrap();
+    let mut widths = Vec::new();
+    for image in ["circle.svg", "circle.png"] {
+        let job = plane_job(
+            &dir,
+            1024,
+            4,
+            serde_json::json!([{ "image": image, "at": [0.5, 0.5, 0.0], "size": [1.0, 1.0],
+                "up": [0, 1, 0], "method": "planar" }]),
+        );
+        let mesh = engine.load_mesh(&job.mesh).unwrap();
+        let baked = engine.bake(&mesh, &job).unwrap();
+        let (radius, width) = disc_edge(&baked, 1024);
+        eprintln!("{image}: radius {radius:.2} texels, edge {width:.2} texels wide");
+        widths.push(width);
+        if image.ends_with("svg") {
+            assert!(width <= 2.0, "the SVG's edge is {width:.2} texels wide");
+            assert!(
+                (radius - 409.6).abs() <= 1.0,
+                "the SVG's radius is {radius:.2} texels, not 409.6"
+            );
+        }
+    }
+    assert!(
+        widths[1] > 8.0,
+        "the PNG's edge is {} texels wide",
+        widths[1]
+    );
+}
+
+/// A UV sphere of radius 1 (`rings` × `segments`), equirectangular UVs: u = longitude / 2π + 1/2,
+/// v = 1/2 − latitude / π.
+fn write_sphere(path: &Path, rings: u32, segments: u32) {
+    let mut pos = Vec::new();
+    let mut uv = Vec::new();
+    for j in 0..=rings {
+        let lat = PI / 2.0 - PI * j as f32 / rings as f32;
+        for i in 0..=segments {
+            let lon = -PI + 2.0 * PI * i as f32 / segments as f32;
+            pos.push([lat.cos() * lon.sin(), lat.sin(), lat.cos() * lon.cos()]);
+            uv.push([i as f32 / segments as f32, j as f32 / rings as f32]);
+        }
+    }
+    let mut idx = Vec::new();
+    for j in 0..rings {
+        for i in 0..segments {
+            let a = j * (segments + 1) + i;
+            let (b, c, d) = (a + 1, a + segments + 1, a + segments + 2);
+            idx.extend([a, c, d, a, d, b]);
+        }
+    }
+    common::write_glb(path, &pos, Some(&uv), &idx);
+}
+
+/// One texel's signed distance from the curve (positive on its left, seen from outside) and its
+/// position along it, both in model units.
+type Frame = dyn Fn(f32, f32) -> (f32, f32);
+
+/// Text of flat-bottomed capitals (`"EEEEE"`, no descenders, the bottoms on the baseline) along a
+/// curve, checked at every texel the text paints (coverage ≥ 1/2 against the white base): it lies
+/// within one em of the curve; on the curve's left (`side` left: the glyphs' up is the curve's
+/// left seen from outside) and above the baseline by at most the cap height and 2 % of an em;
+/// and, in each fifth of the line, the lowest painted texel is on the baseline within 1 % of the
+/// em plus half a texel (the coverage's threshold falls anywhere in a texel); the painted texels
+/// run along the curve over the line's advance, within 0.15 em at each end (the first and last
+/// glyphs' side bearings). Returns the worst baseline error in ems. A `"side": "right"` bake fails the side check; a strip drawn with
+/// its baseline off the curve (a ribbon of the text's block) fails the baseline check.
+fn check_text_on_curve(
+    baked: &decalbake::Baked,
+    frame: &Frame,
+    em: f32,
+    texel: f32,
+    span: (f32, f32),
+) -> f32 {
+    let cap = 0.73 * em;
+    let mut lowest = [f32::MAX; 5];
+    let mut painted = 0;
+    let mut extent = (f32::MAX, f32::MIN);
+    for y in 0..baked.height {
+        for x in 0..baked.width {
+            let c = baked.linear(x, y);
+            if 1.0 - c[0] < 0.5 {
+                continue;
+            }
+            painted += 1;
+            let (u, v) = (
+                (x as f32 + 0.5) / baked.width as f32,
+                (y as f32 + 0.5) / baked.height as f32,
+            );
+            let (d, s) = frame(u, v);
+            assert!(
+                d.abs() <= em,
+                "a painted texel {d:.4} from the curve (em {em})"
+            );
+            assert!(
+                d >= -0.02 * em - texel && d <= cap + 0.02 * em + texel,
+                "a painted texel at {d:.4} across the curve: not on its left within the cap height"
+            );
+            extent = (extent.0.min(s), extent.1.max(s));
+            let k = (((s - span.0) / (span.1 - span.0)) * 5.0).floor();
+            if (0.0..5.0).contains(&k) {
+                lowest[k as usize] = lowest[k as usize].min(d);
+            }
+        }
+    }
+    assert!(painted > 500, "{painted} texels painted");
+    // The line's extent along the curve is its advance (the glyphs' side bearings inside it).
+    let (first, last) = extent;
+    assert!(
+        (first - span.0).abs() <= 0.15 * em && (last - span.1).abs() <= 0.15 * em,
+        "the text runs from {first:.4} to {last:.4} along the curve, not {:.4} to {:.4}",
+        span.0,
+        span.1
+    );
+    let worst = lowest
+        .iter()
+        .map(|&d| {
+            assert!(d < f32::MAX, "a fifth of the line is empty");
+            d.abs()
+        })
+        .fold(0.0f32, f32::max);
+    eprintln!(
+        "{painted} texels painted; baseline off by at most {:.4} em",
+        worst / em
+    );
+    assert!(
+        worst <= 0.01 * em + 0.5 * texel,
+        "the lowest texel of a fifth of the line is {worst:.5} off the baseline (em {em})"
+    );
+    worst / em
+}
+
+/// Text along a circle on a plane: the square [−1, 1]² (64 × 64 cells, UV = ((x + 1) / 2,
+/// (1 − y) / 2)), the arc of radius 0.8 around the origin over 216°, counter-clockwise (its left
+/// is the centre), em 0.15 on a 2048² bake (1 % of the em is 1.5 texels); see
+/// [`check_text_on_curve`]. The strip's inner edge shrinks by 17 %, under the ribbon's
+/// `curved_threshold` (0.2), so the map there is the extended exponential map, not its harmonic
+/// repair (which a tighter circle gets, and which puts the cap height up to 3 % of an em off).
+#[test]
+fn text_follows_a_circle_on_a_plane() {
+    let engine = common::engine();
+    let dir = common::scratch("vector_text_plane");
+    let n = 64u32;
+    let mut pos = Vec::new();
+    let mut uv = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            let (x, y) = (
+                -1.0 + 2.0 * i as f32 / n as f32,
+                -1.0 + 2.0 * j as f32 / n as f32,
+            );
+            pos.push([x, y, 0.0]);
+            uv.push([(x + 1.0) / 2.0, (1.0 - y) / 2.0]);
+        }
+    }
+    let idx: Vec<u32> = (0..n)
+        .flat_map(|j| (0..n).map(move |i| (j, i)))
+        .flat_map(|(j, i)| {
+            let a = j * (n + 1) + i;
+            [a, a + 1, a + n + 2, a, a + n + 2, a + n + 1]
+        })
+        .collect();
+    common::write_glb(&dir.join("plane.glb"), &pos, Some(&uv), &idx);
+    let path: Vec<[f32; 3]> = (0..=120)
+        .map(|k| {
+            let t = -0.6 * PI + 1.2 * PI * k as f32 / 120.0;
+            [0.8 * t.cos(), 0.8 * t.sin(), 0.0]
+        })
+        .collect();
+    let em = 0.15;
+    let text = serde_json::json!({ "mesh": "plane.glb",
+        "texture": { "width": 2048, "height": 2048, "padding": 0, "base": [1.0, 1.0, 1.0, 1.0] },
+        "layers": [{ "kind": "text", "text": "EEEEE", "size": em, "path": path }] })
+    .to_string();
+    let job = decalbake::Job::parse(&text, &dir.join("job.json"), &dir, &dir).unwrap();
+    let mesh = engine.load_mesh(&job.mesh).unwrap();
+    let baked = engine.bake(&mesh, &job).unwrap();
+    let w = &baked.report.warnings;
+    assert!(!w.iter().any(|w| w.contains("longer than")), "{w:?}");
+    let frame = |u: f32, v: f32| {
+        let (x, y) = (2.0 * u - 1.0, 1.0 - 2.0 * v);
+        (0.8 - x.hypot(y), 0.8 * y.atan2(x))
+    };
+    let block = shape("EEEEE", BUNDLED_FONT, 0.0).unwrap();
+    let half = 0.5 * block.advance / block.units_per_em * em;
+    check_text_on_curve(&baked, &frame, em, 2.0 / 2048.0, (-half, half));
+}
+
+/// Text along the latitude 20° of the unit sphere, travelling east (its left is north), on a
+/// 2048 × 1024 equirectangular bake; see [`check_text_on_curve`] (distances along the meridian
+/// and the parallel).
+#[test]
+fn text_follows_a_parallel_on_a_sphere() {
+    let engine = common::engine();
+    let dir = common::scratch("vector_text_sphere");
+    write_sphere(&dir.join("sphere.glb"), 64, 128);
+    let lat0 = 20f32.to_radians();
+    let path: Vec<serde_json::Value> = (0..=40)
+        .map(|k| {
+            let lon = -1.0 + 2.0 * k as f32 / 40.0;
+            let p = [lat0.cos() * lon.sin(), lat0.sin(), lat0.cos() * lon.cos()];
+            serde_json::json!({ "ray": { "origin": p.map(|c| 2.0 * c), "dir": p.map(|c| -c) } })
+        })
+        .collect();
+    let em = 0.4;
+    let text = serde_json::json!({ "mesh": "sphere.glb",
+        "texture": { "width": 2048, "height": 1024, "padding": 0, "base": [1.0, 1.0, 1.0, 1.0] },
+        "layers": [{ "kind": "text", "text": "EEEEE", "size": em, "path": path }] })
+    .to_string();
+    let job = decalbake::Job::parse(&text, &dir.join("job.json"), &dir, &dir).unwrap();
+    let mesh = engine.load_mesh(&job.mesh).unwrap();
+    let baked = engine.bake(&mesh, &job).unwrap();
+    let frame = move |u: f32, v: f32| {
+        let (lon, lat) = ((u - 0.5) * 2.0 * PI, (0.5 - v) * PI);
+        (lat - lat0, lon * lat0.cos())
+    };
+    let block = shape("EEEEE", BUNDLED_FONT, 0.0).unwrap();
+    let half = 0.5 * block.advance / block.units_per_em * em;
+    check_text_on_curve(&baked, &frame, em, PI / 1024.0, (-half, half));
+}
+
+/// Shaping is rustybuzz's: a Hebrew word comes out in visual order (its last letter's glyph
+/// first) with the same glyphs rustybuzz gives; "fi" becomes DejaVu Sans's one ligature glyph;
+/// "AV" is kerned tighter than its two advances. Breaking any of these (shaping each character
+/// alone, reversing the order) fails.
+#[test]
+fn shaping_follows_rustybuzz() {
+    let face = rustybuzz::Face::from_slice(BUNDLED_FONT, 0).unwrap();
+    let direct = |text: &str| -> Vec<u16> {
+        let mut b = rustybuzz::UnicodeBuffer::new();
+        b.push_str(text);
+        b.guess_segment_properties();
+        let out = rustybuzz::shape(&face, &[], b);
+        out.glyph_infos()
+            .iter()
+            .map(|g| g.glyph_id as u16)
+            .collect()
+    };
+    let glyph = |c: char| face.glyph_index(c).unwrap().0;
+    let hebrew = "שלום";
+    let ours = shape(hebrew, BUNDLED_FONT, 0.0).unwrap();
+    assert_eq!(ours.glyph_ids, direct(hebrew));
+    assert_eq!(
+        ours.glyph_ids[0],
+        glyph('ם'),
+        "visual order: the last letter leftmost"
+    );
+    assert_eq!(*ours.glyph_ids.last().unwrap(), glyph('ש'));
+    let fi = shape("fi", BUNDLED_FONT, 0.0).unwrap();
+    assert_eq!(
+        fi.glyph_ids.len(),
+        1,
+        "fi is one ligature glyph: {:?}",
+        fi.glyph_ids
+    );
+    assert_ne!(fi.glyph_ids[0], glyph('f'));
+    let av = shape("AV", BUNDLED_FONT, 0.0).unwrap();
+    let apart = shape("A", BUNDLED_FONT, 0.0).unwrap().advance
+        + shape("V", BUNDLED_FONT, 0.0).unwrap().advance;
+    assert!(av.advance < apart, "AV {} against {apart}", av.advance);
+    let spaced = shape("AV", BUNDLED_FONT, 0.5).unwrap();
+    assert_eq!(spaced.advance, av.advance + 0.5 * av.units_per_em);
+}
+
+/// A text decal at a point: its block (advance by ascender to descender, at the em size) centred
+/// there, upright along `up`. On the plane at 512², "HH" in red: every painted texel lies inside
+/// the block's rectangle, and the painted part's bounding box spans the capitals' height (0.73
+/// em, within two texels) above the baseline, which sits the descender's depth above the
+/// block's bottom (within two texels). Turning the text by 180° (`"angle": 180`) moves the glyphs'
+/// bottom below the baseline and fails.
+#[test]
+fn text_decals_stand_upright_in_their_block() {
+    let engine = common::engine();
+    let dir = common::scratch("vector_text_decal");
+    let em = 0.25;
+    let job = plane_job(
+        &dir,
+        512,
+        4,
+        serde_json::json!([{ "kind": "text", "text": "HH", "size": em, "color": [1.0, 0.0, 0.0, 1.0],
+            "at": [0.5, 0.5, 0.0], "up": [0, 1, 0], "method": "planar" }]),
+    );
+    let mesh = engine.load_mesh(&job.mesh).unwrap();
+    let baked = engine.bake(&mesh, &job).unwrap();
+    let block = shape("HH", BUNDLED_FONT, 0.0).unwrap();
+    let s = em / block.units_per_em;
+    let (bw, bh) = (block.advance * s, (block.ascender - block.descender) * s);
+    let baseline = 0.5 - 0.5 * bh - block.descender * s;
+    let (mut lo, mut hi) = (f32::MAX, f32::MIN);
+    let texel = 1.0 / 512.0;
+    for y in 0..512 {
+        for x in 0..512 {
+            let c = baked.linear(x, y);
+            if c[1] > 0.5 {
+                continue;
+            }
+            let (px, py) = ((x as f32 + 0.5) * texel, 1.0 - (y as f32 + 0.5) * texel);
+            assert!(
+                (px - 0.5).abs() <= 0.5 * bw + texel,
+                "x {px} outside the block"
+            );
+            assert!(
+                (py - 0.5).abs() <= 0.5 * bh + texel,
+                "y {py} outside the block"
+            );
+            lo = lo.min(py);
+            hi = hi.max(py);
+        }
+    }
+    eprintln!(
+        "painted from {lo:.4} to {hi:.4}; baseline {baseline:.4}, cap {:.4}",
+        baseline + 0.73 * em
+    );
+    assert!(
+        (lo - baseline).abs() <= 2.0 * texel,
+        "bottom {lo} against the baseline {baseline}"
+    );
+    assert!(
+        (hi - (baseline + 0.729 * em)).abs() <= 2.0 * texel,
+        "top {hi}"
+    );
+}
+
+/// The colour of the rendered SVG is the file's sRGB colour decoded, and a mask SVG is data:
+/// a mid-grey (#808080) mask halves a layer (0.502 of alpha), as a PNG mask of 128 does.
+#[test]
+fn svg_colour_and_masks_read_as_images_do() {
+    let svg = br##"<svg xmlns="http://www.w3.org/2000/svg" width="4" height="4"><rect width="4" height="4" fill="#808080"/></svg>"##;
+    let s = Svg::parse(svg).unwrap();
+    let colour = s.render([4, 4], false);
+    let mask = s.render([4, 4], true);
+    assert!((colour.pixels[5][0] - srgb_to_linear(128.0 / 255.0)).abs() < 1e-6);
+    assert!((mask.pixels[5][0] - 128.0 / 255.0).abs() < 1e-6);
+    assert_eq!(mask.pixels[5][3], 1.0);
+    let _: &LinearImage = &colour;
+}
+
+/// Bad vector input exits 2 with a message naming the file or field, and writes nothing: an SVG
+/// that does not parse (its line and column), a font that does not load, a missing font, an
+/// empty text, text on a non-text layer. A font without some characters and text longer than
+/// its curve bake with a warning that names them; `"fit": "shrink"` bakes the long text without
+/// one.
+#[test]
+fn bad_vector_input_is_refused_by_file_and_field() {
+    let dir = common::scratch("vector_bad");
+    common::write_plane(&dir.join("plane.glb"), 8, false);
+    std::fs::write(
+        dir.join("bad.svg"),
+        "<svg xmlns=\"http://www.w3.org/2000/svg\">\n<rect width=\"4\"\n</svg>",
+    )
+    .unwrap();
+    std::fs::write(dir.join("notafont.ttf"), "this is not a font").unwrap();
+    let decal = |extra: serde_json::Value| {
+        let mut l = serde_json::json!({ "at": [0.5, 0.5, 0.0], "size": [0.3, 0.3] });
+        for (k, v) in extra.as_object().unwrap() {
+            l[k] = v.clone();
+        }
+        l
+    };
+    let short: Vec<[f32; 3]> = vec![[0.3, 0.5, 0.0], [0.5, 0.52, 0.0], [0.7, 0.5, 0.0]];
+    let cases: Vec<(&str, serde_json::Value, &[&str])> = vec![
+        (
+            "svg",
+            decal(serde_json::json!({ "image": "bad.svg" })),
+            &["bad.svg", "does not parse", "3:1"],
+        ),
+        (
+            "font",
+            serde_json::json!({ "kind": "text", "text": "Hi", "size": 0.1, "at": [0.5, 0.5, 0.0], "font": "notafont.ttf" }),
+            &["layers[0].font", "notafont.ttf", "does not load"],
+        ),
+        (
+            "missing font",
+            serde_json::json!({ "kind": "text", "text": "Hi", "size": 0.1, "at": [0.5, 0.5, 0.0], "font": "nowhere.otf" }),
+            &["layers[0].font", "nowhere.otf"],
+        ),
+        (
+            "empty",
+            serde_json::json!({ "kind": "text", "text": " ", "size": 0.1, "at": [0.5, 0.5, 0.0] }),
+            &["layers[0].text", "empty"],
+        ),
+        (
+            "no size",
+            serde_json::json!({ "kind": "text", "text": "Hi", "at": [0.5, 0.5, 0.0] }),
+            &["layers[0].size", "em size"],
+        ),
+        (
+            "text on a decal",
+            decal(serde_json::json!({ "image": "bad.svg", "text": "Hi" })),
+            &["layers[0].text", "text layers only"],
+        ),
+        (
+            "side on a text decal",
+            serde_json::json!({ "kind": "text", "text": "Hi", "size": 0.1, "at": [0.5, 0.5, 0.0], "side": "right" }),
+            &["layers[0].side", "along a `path`"],
+        ),
+    ];
+    for (name, layer, want) in cases {
+        let job = serde_json::json!({ "mesh": "plane.glb", "texture": { "width": 64, "height": 64 },
+            "layers": [layer], "output": { "texture": "out.png", "report": null } });
+        std::fs::write(dir.join("job.json"), job.to_string()).unwrap();
+        let (code, _, err) = common::cli(&["bake", dir.join("job.json").to_str().unwrap()]);
+        assert_eq!(code, 2, "{name}: {err}");
+        for w in want {
+            assert!(err.contains(w), "{name}: {w:?} not in {err}");
+        }
+        assert!(
+            !dir.join("out.png").exists(),
+            "{name}: an output was written"
+        );
+    }
+    let warned = |layer: serde_json::Value| -> Vec<String> {
+        let job = serde_json::json!({ "mesh": "plane.glb", "texture": { "width": 128, "height": 128 },
+            "layers": [layer], "output": { "texture": "out.png", "report": "report.json" } });
+        std::fs::write(dir.join("job.json"), job.to_string()).unwrap();
+        let (code, _, err) = common::cli(&["bake", dir.join("job.json").to_str().unwrap()]);
+        assert_eq!(code, 0, "{err}");
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap())
+                .unwrap();
+        report["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|w| w.as_str().unwrap().to_string())
+            .collect()
+    };
+    let w = warned(
+        serde_json::json!({ "kind": "text", "text": "Ab漢字", "size": 0.1, "at": [0.5, 0.5, 0.0] }),
+    );
+    assert!(
+        w.iter()
+            .any(|w| w.contains("layers[0].text") && w.contains("漢字")),
+        "{w:?}"
+    );
+    let long = serde_json::json!({ "kind": "text", "text": "a line far too long for its curve", "size": 0.1, "path": short });
+    let w = warned(long.clone());
+    assert!(
+        w.iter()
+            .any(|w| w.contains("longer than its curve") && w.contains("shrink")),
+        "{w:?}"
+    );
+    let mut shrunk = long;
+    shrunk["fit"] = "shrink".into();
+    let w = warned(shrunk);
+    assert!(!w.iter().any(|w| w.contains("longer than")), "{w:?}");
+}
+
+/// `decalbake param` exports a text layer along a curve like a ribbon: a row per vertex the map
+/// reaches, `u` along the curve and `v` across it; on the straight path along y = 0.5 of the
+/// plane, u is x less the path's start and v is y − 0.5 (within 1e-4).
+#[test]
+fn param_exports_a_text_layers_map() {
+    let dir = common::scratch("vector_param");
+    common::write_plane(&dir.join("plane.glb"), 32, false);
+    let job = serde_json::json!({ "mesh": "plane.glb", "layers": [{ "kind": "text", "text": "Hello",
+        "size": 0.1, "path": [[0.2, 0.5, 0.0], [0.8, 0.5, 0.0]], "interpolate": "linear" }] });
+    std::fs::write(dir.join("job.json"), job.to_string()).unwrap();
+    let out = dir.join("text.csv");
+    let (code, _, err) = common::param(&dir.join("job.json"), "0", &out);
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("x,y,z,distance,u,v"));
+    let (mut worst, mut n) = (0.0f32, 0);
+    for line in lines {
+        let f: Vec<f32> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        if f[0] > 0.25 && f[0] < 0.75 {
+            worst = worst
+                .max((f[4] - (f[0] - 0.2)).abs())
+                .max((f[5] - (f[1] - 0.5)).abs());
+            n += 1;
+        }
+    }
+    eprintln!("{n} rows inside, max error {worst:.2e}");
+    assert!(n > 50, "{n} rows");
+    assert!(worst < 1e-4, "max error {worst:.2e}");
+}
