@@ -211,14 +211,14 @@ fn ribbon_path() -> Vec<serde_json::Value> {
         .collect()
 }
 
-/// The demo text's curve: rays from Spot's left (+x), along its flank below the badge, from the
-/// head back (so the text reads from the viewer's left to right).
+/// The demo text's curve: rays from +x, along Spot's flank below the badge, from the rump towards
+/// the head (seen from +x, left to right: the glyphs' up is the curve's left).
 fn text_path() -> Vec<serde_json::Value> {
     (0..9)
         .map(|k| {
             let t = k as f32 / 8.0;
             let z = 0.72 - 0.62 * t;
-            let y = -0.2 + 0.03 * (t * PI).sin();
+            let y = -0.26 + 0.03 * (t * PI).sin();
             serde_json::json!({ "ray": { "origin": [1.5, y, z], "dir": [-1, 0, 0] } })
         })
         .collect()
@@ -282,8 +282,8 @@ pub fn job_json() -> String {
               "width": 0.09, "repeat": "tile" },
             // A vector logo on the rump: the SVG is rendered where it lands, at the texel
             // density there, so it stays sharp at any size.
-            { "kind": "decal", "image": "decals/logo.svg", "at": { "ray": { "origin": [0.0, 1.5, 0.12], "dir": [0, -1, 0] } },
-              "size": [0.22, 0.22], "up": [0, 0, 1], "method": "expmap" },
+            { "kind": "decal", "image": "decals/logo.svg", "at": { "ray": { "origin": [0.0, 0.05, 1.5], "dir": [0, 0, -1] } },
+              "size": [0.26, 0.26], "up": [0, 1, 0], "method": "expmap" },
             // A line of text along the left flank, below the badge: shaped by rustybuzz,
             // its baseline on the curve.
             { "kind": "text", "text": "Spot · decalbake", "size": 0.075, "color": [0.08, 0.16, 0.45, 1.0],
