@@ -648,3 +648,90 @@ fn param_exports_a_text_layers_map() {
     assert!(n > 50, "{n} rows");
     assert!(worst < 1e-4, "max error {worst:.2e}");
 }
+
+/// SVG works for every layer kind and channel: a stroke of SVG stamps with an SVG mask, a ribbon
+/// of an SVG strip, and a decal whose roughness and emissive are SVG images, on the plane at 256².
+/// Each layer reports the pixel size its vectors were rendered at (`raster_px`), and the bake
+/// equals, within one 8-bit step, the same job with every SVG replaced by a PNG of its rendering
+/// at that size (the colour and the ORM and emissive textures). Rendering the PNGs at half the
+/// size fails the comparison.
+#[test]
+fn svg_works_for_every_layer_kind_and_channel() {
+    let engine = common::engine();
+    let dir = common::scratch("vector_kinds");
+    std::fs::write(dir.join("shapes.svg"), SHAPES).unwrap();
+    let ring = r#"<svg xmlns="http://www.w3.org/2000/svg" width="40" height="40"><circle cx="20" cy="20" r="15" fill="none" stroke="white" stroke-width="8"/></svg>"#;
+    std::fs::write(dir.join("ring.svg"), ring).unwrap();
+    let layers = |ext: &str| {
+        let f = |stem: &str| format!("{stem}{ext}");
+        serde_json::json!([
+            { "kind": "stroke", "image": f("shapes"), "mask": f("ring"), "size": [0.15, 0.15],
+              "path": [[0.15, 0.2, 0.0], [0.5, 0.3, 0.0], [0.85, 0.2, 0.0]], "spacing": 0.3 },
+            { "kind": "ribbon", "image": f("shapes"), "width": 0.1,
+              "path": [[0.15, 0.5, 0.0], [0.5, 0.55, 0.0], [0.85, 0.5, 0.0]] },
+            { "image": f("shapes"), "at": [0.5, 0.8, 0.0], "size": [0.3, 0.3], "method": "planar",
+              "roughness": f("ring"), "emissive": f("shapes") }
+        ])
+    };
+    let vector = plane_job(&dir, 256, 4, layers(".svg"));
+    let mesh = engine.load_mesh(&vector.mesh).unwrap();
+    let baked = engine.bake(&mesh, &vector).unwrap();
+    let kinds: Vec<_> = baked.channels.iter().map(|c| c.kind.name()).collect();
+    assert_eq!(kinds, ["orm", "emissive"]);
+    for half in [false, true] {
+        // Each layer's SVGs rendered at that layer's size, into files of its own.
+        let mut twin = layers(".png");
+        for (i, r) in baked.report.layers.iter().enumerate() {
+            let px = r
+                .raster_px
+                .unwrap_or_else(|| panic!("layer {i} has no raster_px"));
+            let px = if half { px.map(|p| p / 2) } else { px };
+            for (stem, text, raw) in [("shapes", SHAPES, false), ("ring", ring, true)] {
+                let name = format!("{stem}{i}.png");
+                let img = Svg::parse(text.as_bytes()).unwrap().render(px, raw);
+                let bytes = if raw {
+                    // A mask (and a data channel) is read as stored: write the values as they are.
+                    let samples: Vec<u16> = img
+                        .pixels
+                        .iter()
+                        .flat_map(|p| p.map(|v| (v * 255.0).round() as u16))
+                        .collect();
+                    decalbake::io::image::png_bytes(px[0], px[1], 8, &samples)
+                } else {
+                    img.encode_png(8)
+                };
+                std::fs::write(dir.join(&name), bytes).unwrap();
+                for (k, v) in twin[i].as_object_mut().unwrap().iter_mut() {
+                    if v == &serde_json::json!(format!("{stem}.png")) && k != "kind" {
+                        *v = name.clone().into();
+                    }
+                }
+            }
+        }
+        let job = plane_job(&dir, 256, 4, twin);
+        let other = engine.bake(&mesh, &job).unwrap();
+        let diff = |a: &[u16], b: &[u16]| {
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| x.abs_diff(*y))
+                .max()
+                .unwrap_or(0)
+        };
+        let mut worst = diff(&baked.texels, &other.texels);
+        for (c, d) in baked.channels.iter().zip(&other.channels) {
+            worst = worst.max(diff(&c.texels, &d.texels));
+        }
+        eprintln!(
+            "PNGs at {} size: largest difference {worst} of 255",
+            if half { "half" } else { "the same" }
+        );
+        if half {
+            assert!(worst > 8, "half-size PNGs differ by only {worst}");
+        } else {
+            assert!(
+                worst <= 1,
+                "the SVG bake differs from its PNG twin by {worst} of 255"
+            );
+        }
+    }
+}
