@@ -91,19 +91,26 @@ pub(crate) fn set_rasters<'a>(
     }
     let max_side = engine.ctx.max_texture_side().min(VECTOR_MAX_SIDE);
     let mean = std::sync::OnceLock::new();
+    let mut sizes: Vec<Option<[u32; 2]>> = job
+        .layers
+        .iter()
+        .enumerate()
+        .map(|(l, layer)| {
+            layer.has_vectors().then(|| {
+                placed.units_of[l].clone().fold([0u32; 2], |px, u| {
+                    let density = texel_density(mesh, job, placed.placements[u].triangle)
+                        .unwrap_or_else(|| *mean.get_or_init(|| mean_density(mesh, job)));
+                    let r = raster_size(placed.job.layers[u].size, density, max_side);
+                    [px[0].max(r[0]), px[1].max(r[1])]
+                })
+            })
+        })
+        .collect();
+    within_budget(&mut sizes, warnings);
     let mut out = job.clone();
-    for (l, layer) in out.layers.iter_mut().enumerate() {
-        if !layer.has_vectors() {
-            continue;
-        }
+    for (l, (layer, px)) in out.layers.iter_mut().zip(sizes).enumerate() {
+        let Some(px) = px else { continue };
         let units = placed.units_of[l].clone();
-        let mut px = [0u32; 2];
-        for u in units.clone() {
-            let density = texel_density(mesh, job, placed.placements[u].triangle)
-                .unwrap_or_else(|| *mean.get_or_init(|| mean_density(mesh, job)));
-            let r = raster_size(placed.job.layers[u].size, density, max_side);
-            px = [px[0].max(r[0]), px[1].max(r[1])];
-        }
         layer.raster = Some(px);
         if layer.text.is_some() && layer.ribbon.is_some() {
             // Text along a curve is one unit: its strip spans the curve's length.
@@ -117,6 +124,31 @@ pub(crate) fn set_rasters<'a>(
         }
     }
     std::borrow::Cow::Owned(out)
+}
+
+/// The most pixels a bake's vector images take together (2²⁵: 512 MiB as f32 RGBA before
+/// mipmaps); past it every layer's size is scaled down by one factor, with a warning.
+pub const VECTOR_BUDGET_PIXELS: u64 = 1 << 25;
+
+/// Scales every raster size down by one factor when together they pass
+/// [`VECTOR_BUDGET_PIXELS`], and warns.
+fn within_budget(sizes: &mut [Option<[u32; 2]>], warnings: &mut Vec<String>) {
+    let total: u64 = sizes
+        .iter()
+        .flatten()
+        .map(|p| p[0] as u64 * p[1] as u64)
+        .sum();
+    if total <= VECTOR_BUDGET_PIXELS {
+        return;
+    }
+    let k = (VECTOR_BUDGET_PIXELS as f64 / total as f64).sqrt();
+    for p in sizes.iter_mut().flatten() {
+        *p = p.map(|s| ((s as f64 * k).floor() as u32).max(8));
+    }
+    warnings.push(format!(
+        "the layers' vector images need {total} pixels together, above {VECTOR_BUDGET_PIXELS}; each is rendered at {:.0} % of its size (fewer or smaller vector layers keep them sharp)",
+        k * 100.0
+    ));
 }
 
 /// Warnings of text layer `l`: characters its font lacks, and text cut at its curve's end.
@@ -139,5 +171,41 @@ fn text_warnings<'a>(
                 unit.size[0]
             ));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Sizes under the budget are kept; over it, all are scaled by one factor to within it, with
+    /// a warning (leaving them whole fails the total's check).
+    #[test]
+    fn rasters_keep_within_the_budget() {
+        let mut warnings = Vec::new();
+        let mut small = vec![Some([1024, 512]), None];
+        within_budget(&mut small, &mut warnings);
+        assert_eq!(small, [Some([1024, 512]), None]);
+        assert!(warnings.is_empty());
+        let mut big = vec![Some([8192, 4096]), None, Some([4096, 4096])];
+        within_budget(&mut big, &mut warnings);
+        let total: u64 = big
+            .iter()
+            .flatten()
+            .map(|p| p[0] as u64 * p[1] as u64)
+            .sum();
+        assert!(total <= VECTOR_BUDGET_PIXELS, "{total}");
+        let [a, c] = [big[0].unwrap(), big[2].unwrap()];
+        assert_eq!(a[0], 2 * a[1], "the aspect is kept: {a:?}");
+        assert_eq!(a[1], c[1], "one factor for all: {a:?} {c:?}");
+        assert_eq!(warnings.len(), 1);
+    }
+
+    /// A raster covers its rectangle at two pixels a texel, within the side limit.
+    #[test]
+    fn raster_sizes_follow_the_density() {
+        assert_eq!(raster_size([0.5, 0.25], 256.0, 8192), [256, 128]);
+        assert_eq!(raster_size([100.0, 1.0], 256.0, 8192), [8192, 512]);
+        assert_eq!(raster_size([0.001, 0.001], 256.0, 8192), [8, 8]);
     }
 }
