@@ -507,7 +507,8 @@ fn svg_colour_and_masks_read_as_images_do() {
     let _: &LinearImage = &colour;
 }
 
-/// Bad vector input exits 2 with a message naming the file or field, and writes nothing: an SVG
+/// Bad vector input exits 2 with a message naming the file or field, before the GPU starts, and
+/// writes nothing: an SVG
 /// that does not parse (its line and column), a font that does not load, a missing font, an
 /// empty text, text on a non-text layer. A font without some characters and text longer than
 /// its curve bake with a warning that names them; `"fit": "shrink"` bakes the long text without
@@ -579,6 +580,10 @@ fn bad_vector_input_is_refused_by_file_and_field() {
         assert!(
             !dir.join("out.png").exists(),
             "{name}: an output was written"
+        );
+        assert!(
+            !err.contains("adapter:"),
+            "{name}: refused only after the GPU started: {err}"
         );
     }
     let warned = |layer: serde_json::Value| -> Vec<String> {

@@ -1445,7 +1445,7 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
             "must be at least 1 (leave it out for the automatic budget)".into(),
         ));
     }
-    Ok(Layer {
+    let layer = Layer {
         kind,
         image,
         mask: l.mask.as_ref().map(|m| input_dir.join(m)),
@@ -1467,7 +1467,23 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
         channels: super::channels::validate(&l.channel_fields(), i, src, input_dir, l.opacity)?,
         text: text.map(std::sync::Arc::new),
         raster: None,
-    })
+    };
+    check_svgs(&layer)?;
+    Ok(layer)
+}
+
+/// Every SVG file of `layer` (image, mask, channel images) parses: a malformed one is refused
+/// when the job loads, before any device work. A file that cannot be read is left to the bake,
+/// which names it.
+fn check_svgs(layer: &Layer) -> Result<()> {
+    use super::vector::{is_svg, Svg};
+    let paths = std::iter::once(layer.image.as_path())
+        .chain(layer.mask.as_deref())
+        .chain(layer.channels.image_paths());
+    for p in paths.filter(|p| is_svg(p) && p.is_file()) {
+        Svg::load(p)?;
+    }
+    Ok(())
 }
 
 /// Layer `i`'s text, shaped, when its kind is `"text"`; a text field on another kind is an error
