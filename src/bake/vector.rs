@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! The pixel size each layer's vector images (SVG files, text, `crate::io::vector`) are rendered
-//! at, decided after placement from the texel density of the triangle each unit landed on
+//! at, decided after placement from the texel density around the triangle each unit landed on
 //! ([`set_rasters`]), and a text layer's warnings (missing glyphs, text cut at its curve's end).
 //! The images stage ([`super::images`]) then renders them at that size.
 
@@ -20,19 +20,47 @@ pub const VECTOR_MAX_SIDE: u32 = 8192;
 /// a layer that would need more is rendered at this size, with its aspect.
 pub const VECTOR_MAX_PIXELS: u64 = 1 << 24;
 
-/// Texels of the bake per model unit at triangle `t`: the square root of its UV area in texels
-/// over its area on the surface; `None` where either is degenerate.
-fn texel_density(mesh: &LoadedMesh, job: &Job, t: u32) -> Option<f32> {
+/// Triangle `t`'s area on the surface and its UV area in texels (0 where it has none).
+fn areas(mesh: &LoadedMesh, job: &Job, t: usize) -> (f32, f32) {
     let m = &mesh.mesh;
-    let tri = m.triangles.get(t as usize)?;
-    let uv = m.uv_sets.get(job.uv_set as usize)?;
+    let (Some(tri), Some(uv)) = (m.triangles.get(t), m.uv_sets.get(job.uv_set as usize)) else {
+        return (0.0, 0.0);
+    };
     let scale = glam::Vec2::new(job.width as f32, job.height as f32);
     let p = tri.map(|v| m.positions[v as usize]);
     let q = tri.map(|v| uv[v as usize] * scale);
     let surface = (p[1] - p[0]).cross(p[2] - p[0]).length();
     let texels = (q[1] - q[0]).perp_dot(q[2] - q[0]).abs();
-    (surface > 0.0 && texels > 0.0 && surface.is_finite() && texels.is_finite())
-        .then(|| (texels / surface).sqrt())
+    if surface.is_finite() && texels.is_finite() {
+        (surface, texels)
+    } else {
+        (0.0, 0.0)
+    }
+}
+
+/// Texels of the bake per model unit around triangle `t`: the square root of the UV area in
+/// texels over the area on the surface of the triangles that share a vertex with it (an area
+/// mean, so that one sliver does not decide); `None` where either is zero.
+fn texel_density(mesh: &LoadedMesh, job: &Job, t: u32) -> Option<f32> {
+    let topo = &mesh.topo;
+    let tri = topo.triangles.get(t as usize)?;
+    let mut ring: Vec<u32> = tri
+        .iter()
+        .flat_map(|&v| {
+            let (a, b) = (
+                topo.vertex_triangle_offsets[v as usize] as usize,
+                topo.vertex_triangle_offsets[v as usize + 1] as usize,
+            );
+            topo.vertex_triangles[a..b].iter().copied()
+        })
+        .collect();
+    ring.sort_unstable();
+    ring.dedup();
+    let (surface, texels) = ring.iter().fold((0.0f32, 0.0f32), |acc, &k| {
+        let (s, x) = areas(mesh, job, k as usize);
+        (acc.0 + s, acc.1 + x)
+    });
+    (surface > 0.0 && texels > 0.0).then(|| (texels / surface).sqrt())
 }
 
 /// The mesh's mean texel density over the UV set: where a layer's own triangle has none.
@@ -77,7 +105,7 @@ fn raster_size(size: [f32; 2], density: f32, max_side: u32) -> [u32; 2] {
 
 /// Sets [`Layer::raster`] of every layer with vector images (SVG files, text) in `job` and in
 /// the units of `placed`: per job layer, the largest any of its units needs at the texel density
-/// of the triangle it landed on. Returns the job with the rasters set (`job` itself when no layer
+/// around the triangle it landed on. Returns the job with the rasters set (`job` itself when no layer
 /// has vectors), and warns of a text's missing glyphs and of text cut at its curve's end.
 pub(crate) fn set_rasters<'a>(
     engine: &Engine,
