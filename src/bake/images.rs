@@ -42,59 +42,93 @@ impl Images {
     }
 }
 
+/// Where one layer image or mask comes from.
+enum Source<'a> {
+    /// A text layer's line.
+    Text(&'a crate::io::job::Layer),
+    /// A file (an SVG at the raster size), a mask when `raw`.
+    File {
+        path: &'a Path,
+        raster: Option<[u32; 2]>,
+        raw: bool,
+    },
+}
+
 /// Loads and uploads the base and every layer's image and mask (vector images at each layer's
-/// [`Layer::raster`]).
+/// [`crate::io::job::Layer::raster`]). The images the engine does not keep yet are decoded (or
+/// rendered) on every core, as many at a time as there are threads, and uploaded in job order.
 pub fn load(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Images> {
     let base = load_base(engine, mesh, job)?;
-    let mut cache: HashMap<ImageKey, Arc<GpuImage>> = HashMap::new();
-    let mut get =
-        |key: ImageKey, make: &dyn Fn() -> Result<LinearImage>| -> Result<Arc<GpuImage>> {
-            if let Some(x) = cache.get(&key) {
-                return Ok(x.clone());
-            }
-            let kept = engine.images.lock().expect("image cache").get(&key);
-            let gi = match kept {
-                Some(gi) => gi,
-                None => {
-                    let im = make()?;
-                    let label = if key.1 { "layer.mask" } else { "layer.image" };
-                    let gi = Arc::new(upload_image(engine, &im, true, label));
-                    // f32 or f16 texels and a third more for the mipmaps.
-                    let bytes = im.width as u64 * im.height as u64 * 16 * 4 / 3;
-                    let mut kept = engine.images.lock().expect("image cache");
-                    kept.put(key.clone(), gi.clone(), bytes);
-                    gi
-                }
-            };
-            cache.insert(key, gi.clone());
-            Ok(gi)
-        };
-    let mut layers = Vec::with_capacity(job.layers.len());
+    // Every layer's image and mask: its key, where it comes from, the field that names it.
+    let mut wanted: Vec<(ImageKey, Source<'_>, String)> = Vec::new();
+    let mut keys = Vec::with_capacity(job.layers.len());
     for (i, l) in job.layers.iter().enumerate() {
-        let field = format!("layers[{i}].image");
-        let img = match &l.text {
+        let image = match &l.text {
             Some(t) => {
                 let curve = l.ribbon.as_ref().map(|_| l.size[0]);
                 let key = (text_key(&t.svg(curve)), false, 0, None, l.raster);
-                get(key, &|| {
-                    checked(engine, l.colour_image()?, &l.image, job, &field)
-                })?
+                (key, Source::Text(l))
             }
-            None => get(file_key(&l.image, false, l.raster), &|| {
-                checked_image(engine, &l.image, l.raster, job, &field, false)
-            })?,
+            None => (
+                file_key(&l.image, false, l.raster),
+                Source::File {
+                    path: &l.image,
+                    raster: l.raster,
+                    raw: false,
+                },
+            ),
         };
-        let mask = match &l.mask {
-            None => None,
-            Some(p) => {
-                let field = format!("layers[{i}].mask");
-                Some(get(file_key(p, true, l.raster), &|| {
-                    checked_image(engine, p, l.raster, job, &field, true)
-                })?)
-            }
-        };
-        layers.push((img, mask));
+        let mask = l.mask.as_deref().map(|p| {
+            let source = Source::File {
+                path: p,
+                raster: l.raster,
+                raw: true,
+            };
+            (file_key(p, true, l.raster), source)
+        });
+        keys.push((image.0.clone(), mask.as_ref().map(|m| m.0.clone())));
+        wanted.push((image.0, image.1, format!("layers[{i}].image")));
+        if let Some((key, source)) = mask {
+            wanted.push((key, source, format!("layers[{i}].mask")));
+        }
     }
+    let mut cache: HashMap<ImageKey, Arc<GpuImage>> = HashMap::new();
+    let mut missing = Vec::new();
+    for (key, source, field) in wanted {
+        if cache.contains_key(&key) || missing.iter().any(|m: &(ImageKey, _, _)| m.0 == key) {
+            continue;
+        }
+        match engine.images.lock().expect("image cache").get(&key) {
+            Some(gi) => {
+                cache.insert(key, gi);
+            }
+            None => missing.push((key, source, field)),
+        }
+    }
+    let make = |(_, source, field): &(ImageKey, Source<'_>, String)| match source {
+        Source::Text(l) => checked(engine, l.colour_image()?, &l.image, job, field),
+        Source::File { path, raster, raw } => {
+            checked_image(engine, path, *raster, job, field, *raw)
+        }
+    };
+    use rayon::prelude::*;
+    for batch in missing.chunks(rayon::current_num_threads().max(1)) {
+        let made: Vec<Result<LinearImage>> = batch.par_iter().map(make).collect();
+        for ((key, _, _), im) in batch.iter().zip(made) {
+            let im = im?;
+            let label = if key.1 { "layer.mask" } else { "layer.image" };
+            let gi = Arc::new(upload_image(engine, &im, true, label));
+            // f32 or f16 texels and a third more for the mipmaps.
+            let bytes = im.width as u64 * im.height as u64 * 16 * 4 / 3;
+            let mut kept = engine.images.lock().expect("image cache");
+            kept.put(key.clone(), gi.clone(), bytes);
+            cache.insert(key.clone(), gi);
+        }
+    }
+    let layers = keys
+        .into_iter()
+        .map(|(image, mask)| (cache[&image].clone(), mask.map(|m| cache[&m].clone())))
+        .collect();
     let dummy = upload_image(
         engine,
         &LinearImage::solid(1, 1, [1.0; 4]),
