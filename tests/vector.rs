@@ -535,7 +535,7 @@ fn bad_vector_input_is_refused_by_file_and_field() {
         (
             "svg",
             decal(serde_json::json!({ "image": "bad.svg" })),
-            &["bad.svg", "does not parse", "3:1"],
+            &["layers[0].image", "bad.svg", "does not parse", "3:1"],
         ),
         (
             "font",

@@ -112,7 +112,7 @@ pub fn load(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<Images> {
         }
     };
     use rayon::prelude::*;
-    for batch in missing.chunks(rayon::current_num_threads().max(1)) {
+    for batch in batches(&missing) {
         let made: Vec<Result<LinearImage>> = batch.par_iter().map(make).collect();
         for ((key, _, _), im) in batch.iter().zip(made) {
             let im = im?;
@@ -266,6 +266,46 @@ fn load_base_of(
             },
             None => solid([0.5, 0.5, 0.5, 1.0]),
         },
+    })
+}
+
+/// The most decoded pixels a batch of the images stage holds at once (2²⁶: 1 GiB as f32 RGBA),
+/// unless one image alone is larger.
+const BATCH_PIXELS: u64 = 1 << 26;
+
+/// `missing` in batches decoded together: as many as there are threads, and together at most
+/// [`BATCH_PIXELS`] by their sizes (a file's from its header, a vector image's raster size).
+fn batches<'a, 'b>(
+    missing: &'b [(ImageKey, Source<'a>, String)],
+) -> impl Iterator<Item = &'b [(ImageKey, Source<'a>, String)]> {
+    let threads = rayon::current_num_threads().max(1);
+    let pixels = |(key, source, _): &(ImageKey, Source<'_>, String)| -> u64 {
+        let px = match (key.4, source) {
+            (Some(r), _) => (r[0], r[1]),
+            (None, Source::File { path, .. }) => {
+                crate::io::vector::dimensions(path).unwrap_or((1, 1))
+            }
+            (None, Source::Text(_)) => (crate::io::vector::DEFAULT_SIDE, 1),
+        };
+        px.0 as u64 * px.1 as u64
+    };
+    let mut start = 0;
+    std::iter::from_fn(move || {
+        if start >= missing.len() {
+            return None;
+        }
+        let mut end = start + 1;
+        let mut total = pixels(&missing[start]);
+        while end < missing.len() && end - start < threads {
+            total += pixels(&missing[end]);
+            if total > BATCH_PIXELS {
+                break;
+            }
+            end += 1;
+        }
+        let batch = &missing[start..end];
+        start = end;
+        Some(batch)
     })
 }
 

@@ -14,11 +14,11 @@ use crate::io::job::{Job, Layer};
 pub const VECTOR_OVERSAMPLE: f32 = 2.0;
 
 /// The longest side a vector image is rendered at (the adapter's texture limit may be lower).
-pub const VECTOR_MAX_SIDE: u32 = 8192;
+pub const VECTOR_MAX_SIDE: u32 = crate::io::vector::MAX_SIDE;
 
-/// The most pixels a vector image is rendered with (4096², 256 MiB as f32 RGBA before mipmaps):
-/// a layer that would need more is rendered at this size, with its aspect.
-pub const VECTOR_MAX_PIXELS: u64 = 1 << 24;
+/// The most pixels a vector image is rendered with: a layer that would need more is rendered at
+/// this size, with its aspect.
+pub const VECTOR_MAX_PIXELS: u64 = crate::io::vector::MAX_PIXELS;
 
 /// Triangle `t`'s area on the surface and its UV area in texels (0 where it has none).
 fn areas(mesh: &LoadedMesh, job: &Job, t: usize) -> (f32, f32) {

@@ -719,7 +719,11 @@ fn input_hash(text: &str, job: &Job, shared: &Shared) -> Result<String> {
         _ => {}
     }
     for l in &job.layers {
-        files.push(l.image.clone());
+        match &l.text {
+            // A text layer's glyphs come from its font (the bundled one is the binary's).
+            Some(t) => files.extend(t.font.clone()),
+            None => files.push(l.image.clone()),
+        }
         files.extend(l.mask.clone());
         let c = &l.channels;
         files.extend(c.normal.as_ref().map(|n| n.image.clone()));

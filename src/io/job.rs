@@ -677,8 +677,13 @@ impl Layer {
         match &self.text {
             Some(t) => {
                 let curve = self.ribbon.as_ref().map(|_| self.size[0]);
-                let svg = super::vector::Svg::parse(t.svg(curve).as_bytes())
-                    .expect("the text's own SVG parses");
+                let svg = super::vector::Svg::parse(t.svg(curve).as_bytes()).map_err(|e| {
+                    Error::Image {
+                        path: self.image.clone(),
+                        action: "rendering",
+                        detail: format!("the text's SVG does not parse: {e}"),
+                    }
+                })?;
                 let px = self.raster.unwrap_or_else(|| svg.default_px());
                 Ok(svg.render(px, false))
             }
@@ -1468,20 +1473,27 @@ fn validate_layer(l: &LayerSpec, i: usize, src: &Path, input_dir: &Path) -> Resu
         text: text.map(std::sync::Arc::new),
         raster: None,
     };
-    check_svgs(&layer)?;
+    check_svgs(&layer, i, src)?;
     Ok(layer)
 }
 
-/// Every SVG file of `layer` (image, mask, channel images) parses: a malformed one is refused
-/// when the job loads, before any device work. A file that cannot be read is left to the bake,
-/// which names it.
-fn check_svgs(layer: &Layer) -> Result<()> {
+/// Every SVG file of layer `i` (image, mask, channel images) parses: a malformed one is refused
+/// when the job loads, before any device work, naming the job file, the field and the SVG. A file
+/// that cannot be read is left to the bake, which names it.
+fn check_svgs(layer: &Layer, i: usize, src: &Path) -> Result<()> {
     use super::vector::{is_svg, Svg};
-    let paths = std::iter::once(layer.image.as_path())
-        .chain(layer.mask.as_deref())
-        .chain(layer.channels.image_paths());
-    for p in paths.filter(|p| is_svg(p) && p.is_file()) {
-        Svg::load(p)?;
+    let paths = [("image", layer.image.as_path())]
+        .into_iter()
+        .chain(layer.mask.as_deref().map(|p| ("mask", p)))
+        .chain(layer.channels.image_paths().map(|p| ("channels", p)));
+    for (name, p) in paths.filter(|(_, p)| is_svg(p) && p.is_file()) {
+        if let Err(e) = Svg::load(p) {
+            let field = match name {
+                "channels" => format!("layers[{i}] (a channel image)"),
+                n => format!("layers[{i}].{n}"),
+            };
+            return Err(Error::job(src, field, e.to_string()));
+        }
     }
     Ok(())
 }

@@ -243,6 +243,8 @@ impl Text {
         };
         let line = b.advance * scale;
         let x0 = match self.align {
+            // Text longer than its curve starts at the curve's start and is cut at its end.
+            _ if line > width => 0.0,
             TextAlign::Start => 0.0,
             TextAlign::Center => 0.5 * (width - line),
             TextAlign::End => width - line,
@@ -364,11 +366,14 @@ pub fn validate(
         Some(t) => t.to_string(),
     };
     let size = match f.size {
-        Some(s) if s.is_finite() && s > 0.0 && s <= super::at::MAX_SIZE_MODEL_UNITS => s,
+        Some(s) if (1e-6..=super::at::MAX_SIZE_MODEL_UNITS).contains(&s) => s,
         Some(s) => {
             return Err(err(
                 "size",
-                format!("{s} must be a positive em size in model units"),
+                format!(
+                    "{s} must be an em size in model units, from 1e-6 to {}",
+                    super::at::MAX_SIZE_MODEL_UNITS
+                ),
             ))
         }
         None => {
@@ -450,6 +455,15 @@ pub fn validate(
         return Err(err(
             "text",
             "draws nothing: its glyphs have no width in this font".into(),
+        ));
+    }
+    if block.line_height() <= 0.0 || block.strip_height() <= 0.0 || block.units_per_em <= 0.0 {
+        return Err(err(
+            "font",
+            format!(
+                "its ascender ({}) and descender ({}) give its lines no height; choose another font",
+                block.ascender, block.descender
+            ),
         ));
     }
     Ok(Text {

@@ -29,6 +29,13 @@ pub const BUNDLED_FAMILY: &str = "DejaVu Sans";
 /// The longest side an SVG is rendered at when nothing asks for a size (its own size when larger).
 pub const DEFAULT_SIDE: u32 = 1024;
 
+/// The longest side a vector image is rendered at.
+pub const MAX_SIDE: u32 = 8192;
+
+/// The most pixels one vector image is rendered with (4096², 256 MiB as f32 RGBA before
+/// mipmaps).
+pub const MAX_PIXELS: u64 = 1 << 24;
+
 /// Whether `path` names an SVG file (by its extension, any case).
 pub fn is_svg(path: &Path) -> bool {
     path.extension()
@@ -100,19 +107,27 @@ impl Svg {
 
     /// Pixel size at [`DEFAULT_SIDE`] on the longer side (or the SVG's own, when larger), with
     /// the SVG's aspect.
+    /// The SVG's aspect is kept, and so are [`MAX_SIDE`] and [`MAX_PIXELS`].
     pub fn default_px(&self) -> [u32; 2] {
         let [w, h] = self.size();
-        let scale = (DEFAULT_SIDE as f32 / w.max(h)).max(1.0);
+        let longer = w.max(h).max(f32::MIN_POSITIVE);
+        let mut scale = (DEFAULT_SIDE as f32 / longer).max(1.0);
+        scale = scale.min(MAX_SIDE as f32 / longer);
+        let pixels = (w * scale) as f64 * (h * scale) as f64;
+        if pixels > MAX_PIXELS as f64 {
+            scale *= (MAX_PIXELS as f64 / pixels).sqrt() as f32;
+        }
         [
-            ((w * scale).round() as u32).max(1),
-            ((h * scale).round() as u32).max(1),
+            ((w * scale).round() as u32).clamp(1, MAX_SIDE),
+            ((h * scale).round() as u32).clamp(1, MAX_SIDE),
         ]
     }
 
     /// The document rendered over `px` pixels (stretched to that size): straight alpha; colour
     /// sRGB-decoded, or kept as stored when `raw` (a mask).
+    /// Each side is held to [`MAX_SIDE`].
     pub fn render(&self, px: [u32; 2], raw: bool) -> LinearImage {
-        let [w, h] = [px[0].max(1), px[1].max(1)];
+        let [w, h] = px.map(|p| p.clamp(1, MAX_SIDE));
         let mut pixmap = resvg::tiny_skia::Pixmap::new(w, h).expect("a non-empty pixmap");
         let [sw, sh] = self.size();
         let xf = resvg::tiny_skia::Transform::from_scale(w as f32 / sw, h as f32 / sh);
@@ -177,14 +192,38 @@ pub fn load_image(path: &Path, px: Option<[u32; 2]>, raw: bool) -> Result<Linear
     })
 }
 
-/// An image file's width and height: an SVG's own size (rounded, at least 1), else read from the
-/// header.
+/// An image file's width and height: an SVG's at [`Svg::default_px`] (its aspect), else read
+/// from the header.
 pub fn dimensions(path: &Path) -> std::result::Result<(u32, u32), String> {
     if is_svg(path) {
         let bytes = std::fs::read(path).map_err(|e| e.to_string())?;
         let svg = Svg::parse(&bytes).map_err(|e| format!("the SVG does not parse: {e}"))?;
-        let [w, h] = svg.size();
-        return Ok(((w.round() as u32).max(1), (h.round() as u32).max(1)));
+        // At its default pixel size: the aspect of a small SVG survives the rounding.
+        let [w, h] = svg.default_px();
+        return Ok((w, h));
     }
     image::image_dimensions(path).map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An SVG that declares a huge size is rendered within the limits, with its aspect; a tiny
+    /// one at the default side, its aspect kept (rounding its own size would make it square).
+    #[test]
+    fn default_sizes_keep_the_aspect_within_the_limits() {
+        let svg = |w: &str, h: &str| {
+            Svg::parse(
+                format!(r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}"/>"#)
+                    .as_bytes(),
+            )
+            .unwrap()
+        };
+        assert_eq!(svg("1e9", "1e9").default_px(), [4096, 4096]);
+        assert_eq!(svg("100000", "10").default_px(), [8192, 1]);
+        assert_eq!(svg("1", "0.3").default_px(), [1024, 307]);
+        assert_eq!(svg("100", "50").default_px(), [1024, 512]);
+        assert_eq!(svg("3000", "1000").default_px(), [3000, 1000]);
+    }
 }
