@@ -14,7 +14,7 @@
 //! | `letter_spacing` | 0 (em units, added after every glyph) |
 //! | `at` or `path` | a decal at one point (the text block's centre there), or along a curve |
 //! | `side` | `"left"`: along a curve, glyphs stand on the curve with their up to its left, seen from outside; `"right"` |
-//! | `fit` | `"clip"`: text longer than its curve is cut at the curve's end (a warning); `"shrink"`: scaled down to fit |
+//! | `fit` | `"clip"`: text longer than its curve starts at its start and is cut at its end (a warning); `"shrink"`: scaled down to fit |
 //!
 //! Placed by `at`, a text layer is a decal whose image is the text block (the line's advance by
 //! the font's ascender to descender); along a `path` it is a ribbon centred on the curve, as wide
