@@ -3,7 +3,7 @@
 //! texel density where they land, and text layers shaped by rustybuzz, as decals and along curves.
 mod common;
 
-use decalbake::io::image::{linear_to_srgb, srgb_to_linear, LinearImage};
+use decalbake::io::image::{linear_to_srgb, srgb_to_linear};
 use decalbake::io::text::shape;
 use decalbake::io::vector::{Svg, BUNDLED_FONT};
 use std::f32::consts::PI;
@@ -504,7 +504,6 @@ fn svg_colour_and_masks_read_as_images_do() {
     assert!((colour.pixels[5][0] - srgb_to_linear(128.0 / 255.0)).abs() < 1e-6);
     assert!((mask.pixels[5][0] - 128.0 / 255.0).abs() < 1e-6);
     assert_eq!(mask.pixels[5][3], 1.0);
-    let _: &LinearImage = &colour;
 }
 
 /// Bad vector input exits 2 with a message naming the file or field, before the GPU starts, and

@@ -46,13 +46,7 @@ fn texel_density(mesh: &LoadedMesh, job: &Job, t: u32) -> Option<f32> {
     let tri = topo.triangles.get(t as usize)?;
     let mut ring: Vec<u32> = tri
         .iter()
-        .flat_map(|&v| {
-            let (a, b) = (
-                topo.vertex_triangle_offsets[v as usize] as usize,
-                topo.vertex_triangle_offsets[v as usize + 1] as usize,
-            );
-            topo.vertex_triangles[a..b].iter().copied()
-        })
+        .flat_map(|&v| topo.triangles_around(v).iter().copied())
         .collect();
     ring.sort_unstable();
     ring.dedup();

@@ -426,6 +426,40 @@ fn run(cli: Cli) -> Result<()> {
     }
 }
 
+/// `decalbake bench --channels` or `--vector` (`which`): what a layer's channels or vector images
+/// cost on `mesh` (default the bundled bob) against the same bake without them.
+fn layer_bench(
+    engine: &Engine,
+    which: &str,
+    mesh: Option<PathBuf>,
+    sizes: Vec<u32>,
+    decals: &[usize],
+    reps: usize,
+) -> Result<()> {
+    let mesh = mesh.unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/bob.glb"));
+    if which == "vector" {
+        let opts = bench::vector::VectorBenchOptions {
+            mesh,
+            sizes,
+            // The default `--decals` list is the bake bench's; this one's default is 64.
+            decals: match decals {
+                [1, 16, 256] | [] => 64,
+                d => d[0],
+            },
+            reps,
+        };
+        return bench::vector::run(engine, &opts, |v| println!("{v}"));
+    }
+    let opts = bench::channels::ChannelBenchOptions {
+        mesh,
+        sizes,
+        decals: decals.iter().copied().max().unwrap_or(256),
+        reps,
+    };
+    let table = |l: &str| eprintln!("{l}");
+    bench::channels::run(engine, &opts, |v| println!("{v}"), table)
+}
+
 /// `decalbake bench`: the benchmark its flags pick, JSON lines on stdout.
 fn bench_cmd(backend: Option<&str>, args: BenchArgs) -> Result<()> {
     let BenchArgs {
@@ -457,31 +491,9 @@ fn bench_cmd(backend: Option<&str>, args: BenchArgs) -> Result<()> {
         vector,
     } = args;
     let mut engine = engine(backend)?;
-    if vector {
-        let opts = bench::vector::VectorBenchOptions {
-            mesh: mesh
-                .clone()
-                .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/bob.glb")),
-            sizes: sizes.clone(),
-            // The default `--decals` list is the bake bench's; this one's default is 64.
-            decals: match decals.as_slice() {
-                [1, 16, 256] | [] => 64,
-                d => d[0],
-            },
-            reps,
-        };
-        return bench::vector::run(&engine, &opts, |v| println!("{v}"));
-    }
-    if channels {
-        let opts = bench::channels::ChannelBenchOptions {
-            mesh: mesh
-                .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/bob.glb")),
-            sizes,
-            decals: decals.iter().copied().max().unwrap_or(256),
-            reps,
-        };
-        let table = |l: &str| eprintln!("{l}");
-        return bench::channels::run(&engine, &opts, |v| println!("{v}"), table);
+    if channels || vector {
+        let which = if vector { "vector" } else { "channels" };
+        return layer_bench(&engine, which, mesh, sizes, &decals, reps);
     }
     if let Some(dir) = corpus {
         return bench::corpus::run(&engine, &dir, |v| println!("{v}"));
