@@ -24,6 +24,8 @@ pub mod pelt;
 pub mod place;
 pub mod solve;
 
-pub use bake::{Baked, BvhBuild, Engine, LoadedMesh, StagePath, StagePaths};
+pub use bake::{
+    Baked, BvhBuild, Edit, EditReport, Engine, LiveBake, LoadedMesh, StagePath, StagePaths,
+};
 pub use error::{Error, Result};
 pub use io::job::Job;

@@ -248,16 +248,45 @@ impl Canvas {
         self.fill_base_image(engine, &images.base, log)
     }
 
-    /// `base_init` of `base`.
+    /// `base_init` of `base` over the whole window.
     fn fill_base_image(
         &self,
         engine: &Engine,
         base: &super::engine::GpuImage,
         log: &mut Log,
     ) -> Result<()> {
+        self.fill_base_regions(engine, base, &[], log)
+    }
+
+    /// `base_init` of `base` over `regions` (x, y, w, h texel rectangles of the window: a live
+    /// bake's edit resets its cells); none: the whole window.
+    pub(crate) fn fill_base_regions(
+        &self,
+        engine: &Engine,
+        base: &super::engine::GpuImage,
+        regions: &[[u32; 4]],
+        log: &mut Log,
+    ) -> Result<()> {
         let (dev, pipes) = (&engine.ctx.device, &engine.pipes);
         let [_, _, w, h] = self.global.window();
-        let base_params = params_buffer(dev, "bake.base_params", &[self.global]);
+        let whole = [[0, 0, w, h]];
+        let entries: Vec<Params> = match regions {
+            [] => vec![self.global],
+            r => r
+                .iter()
+                .map(|r| Params {
+                    rect_origin: [r[0] as i32, r[1] as i32],
+                    atlas_origin: [r[2], r[3]],
+                    ..self.global
+                })
+                .collect(),
+        };
+        let sizes = if regions.is_empty() {
+            &whole[..]
+        } else {
+            regions
+        };
+        let base_params = params_buffer(dev, "bake.base_params", &entries);
         engine.ctx.scoped("base", || {
             let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("bake.base"),
@@ -279,12 +308,50 @@ impl Canvas {
                     timestamp_writes: None,
                 });
                 pass.set_pipeline(&pipes.base_init.pipeline);
-                pass.set_bind_group(0, &bg_base, &[0]);
-                pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+                for (k, r) in sizes.iter().enumerate() {
+                    let offset = (k as u64 * super::params::PARAMS_STRIDE) as u32;
+                    pass.set_bind_group(0, &bg_base, &[offset]);
+                    pass.dispatch_workgroups(r[2].div_ceil(8), r[3].div_ceil(8), 1);
+                    log.commands += 1;
+                }
             }
-            log.commands += 1;
             engine.ctx.queue.submit([enc.finish()]);
         })
+    }
+
+    /// This canvas's planes, islands and `Params` with a new stats buffer of `rows` rows (laid
+    /// out as this one's, counters reset, masks clear), which the queue may write: a live bake
+    /// keeps its edit's cells in the last row ([`crate::bake::LiveBake`]).
+    pub(crate) fn with_rows(&self, dev: &wgpu::Device, rows: usize) -> Self {
+        let init: Vec<i32> = (0..rows)
+            .flat_map(|_| {
+                [0, i32::MAX, i32::MAX, i32::MIN, i32::MIN, 0, 0, 0]
+                    .into_iter()
+                    .chain(std::iter::repeat_n(
+                        0,
+                        (self.stats_stride - STATS_COUNTERS) as usize,
+                    ))
+            })
+            .collect();
+        let stats = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("bake.stats"),
+            contents: bytemuck::cast_slice(&init),
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+        });
+        Self {
+            acc_rg: self.acc_rg.clone(),
+            acc_ba: self.acc_ba.clone(),
+            stroke: None,
+            carry: None,
+            stats,
+            stats_size: rows as u64 * self.stats_stride as u64 * 4,
+            stats_stride: self.stats_stride,
+            grid: self.grid,
+            global: self.global,
+            islands: self.islands.clone(),
+        }
     }
 
     /// The canvas window's texels, linear straight-alpha RGBA f32, read back (a float output).

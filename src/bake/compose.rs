@@ -11,7 +11,9 @@ use super::channels::{Draw, Pass};
 use super::engine::{Engine, LoadedMesh};
 use super::images::Images;
 use super::maps::{LayerMaps, Slots};
-use super::params::{params_buffer, pbind, Params, FLAG_TOOL, FLAG_WARP, PARAMS_STRIDE};
+use super::params::{
+    params_buffer, pbind, Params, FLAG_DIRTY, FLAG_TOOL, FLAG_WARP, PARAMS_STRIDE,
+};
 use super::place::Placed;
 use super::plan::{meets, pack_atlas, plan_cells, Batch, TILE_TARGET};
 use super::stage::{Cx, Log};
@@ -168,10 +170,38 @@ fn flushes(
     (out, params)
 }
 
+/// The cells a live bake's edit re-composes ([`crate::bake::LiveBake`]): a cell mask laid out as
+/// a stats row's (one bit per [`super::plan::CELL`]-texel cell, `grid` cells a row, row-major).
+pub(crate) struct Dirty<'a> {
+    /// The mask's words.
+    pub mask: &'a [u32],
+    /// Cells per row and column.
+    pub grid: [u32; 2],
+}
+
+impl Dirty<'_> {
+    /// Whether texel rectangle (x, y, w, h) meets a marked cell.
+    fn meets(&self, r: [i32; 4]) -> bool {
+        let cell = super::plan::CELL as i32;
+        let (x0, y0) = ((r[0] / cell).max(0), (r[1] / cell).max(0));
+        let x1 = ((r[0] + r[2] - 1) / cell).min(self.grid[0] as i32 - 1);
+        let y1 = ((r[1] + r[3] - 1) / cell).min(self.grid[1] as i32 - 1);
+        (y0..=y1).any(|cy| {
+            (x0..=x1).any(|cx| {
+                let b = (cy as u32 * self.grid[0] + cx as u32) as usize;
+                self.mask[b / 32] >> (b % 32) & 1 == 1
+            })
+        })
+    }
+}
+
 /// Rasterizes and composes the chunk's layers into the canvas (a stroke's stamps into the stroke
 /// buffer, applied to the canvas after its last stamp); returns each layer's distortion. `pass`:
 /// a channel's pass ([`super::channels`]) into its own canvas, each unit drawn as its job layer's
-/// [`Draw`] says (no distortion measured: the colour's pass did).
+/// [`Draw`] says (no distortion measured: the colour's pass did). `dirty`: a live bake's edit,
+/// which draws only the raster rectangles that meet its cells, at the places the whole chunk's
+/// plan gives them (the same samples, bit for bit), and composes only its cells' texels (no
+/// distortion measured).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn compose(
     cx: Cx<'_>,
@@ -179,7 +209,7 @@ pub(crate) fn compose(
     canvas: &Canvas,
     slots: &Slots,
     maps: &LayerMaps,
-    stats: &[i32],
+    (stats, dirty): (&[i32], Option<&Dirty<'_>>),
     placed: &Placed,
     pass: Option<&Pass>,
     log: &mut Log,
@@ -189,7 +219,10 @@ pub(crate) fn compose(
     let blending = engine.pipes.layer_blending;
     let mut jobs = raster_jobs(job, canvas, maps, stats, placed, blending);
     let sizes: Vec<[u32; 2]> = jobs.iter().map(|j| j.params.rect_size).collect();
-    let (origins, mut batches) = pack_atlas(&sizes, job.ss);
+    let starts: Vec<bool> = (0..jobs.len())
+        .map(|k| k == 0 || jobs[k].units != jobs[k - 1].units)
+        .collect();
+    let (origins, mut batches) = pack_atlas(&sizes, &starts, job.ss);
     for (j, o) in jobs.iter_mut().zip(&origins) {
         j.params.atlas_origin = *o;
     }
@@ -211,6 +244,15 @@ pub(crate) fn compose(
             )
         });
     }
+    if let Some(d) = dirty {
+        for (entries, _) in &mut batches {
+            entries.retain(|&(k, _)| {
+                let p = &jobs[k].params;
+                let [w, h] = p.rect_size.map(|v| v as i32);
+                d.meets([p.rect_origin[0], p.rect_origin[1], w, h])
+            });
+        }
+    }
     batches.retain(|(entries, _)| !entries.is_empty());
     if std::env::var("DECALBAKE_DEBUG").is_ok() {
         let covered: u64 = sizes.iter().map(|s| s[0] as u64 * s[1] as u64).sum();
@@ -222,7 +264,12 @@ pub(crate) fn compose(
     }
     let (flush, flush_params) = flushes(placed, maps, &jobs, &canvas.global, pass);
     super::tools::check_window(canvas, maps, stats, placed, &job.source)?;
-    let jp = entry_params(&jobs, maps, placed, (images, canvas, pass), flush_params);
+    let mut jp = entry_params(&jobs, maps, placed, (images, canvas, pass), flush_params);
+    if dirty.is_some() {
+        for p in &mut jp {
+            p.flags |= FLAG_DIRTY;
+        }
+    }
     let job_params = params_buffer(dev, "bake.raster_params", &jp);
     let n_chunk = maps.range.len() as u64;
     let partials_size = n_chunk * DIST_GROUPS as u64 * PARTIAL_VEC4S as u64 * 16;
@@ -265,7 +312,7 @@ pub(crate) fn compose(
             flats: flats.as_ref().map_or(&no_flats, |f| &f.buffer),
             pass,
         };
-        if pass.is_none() {
+        if pass.is_none() && dirty.is_none() {
             log.commands +=
                 record_distortion(engine, mesh, canvas, slots, maps, &partials, &mut enc);
         }
@@ -282,7 +329,7 @@ pub(crate) fn compose(
         drop(pass);
         engine.ctx.queue.submit([enc.finish()]);
     })?;
-    if pass.is_some() {
+    if pass.is_some() || dirty.is_some() {
         return Ok(Vec::new());
     }
     let pb = engine

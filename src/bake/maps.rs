@@ -38,8 +38,13 @@ pub struct Slots {
 impl Slots {
     /// Slots for as many layers as fit the chunk budget ([`super::stage::unit_capacity`]).
     pub(crate) fn new(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Self {
-        let (dev, g) = (&engine.ctx.device, &mesh.gpu);
         let chunk = super::stage::unit_capacity(mesh).min(job.layers.len().max(1));
+        Self::with_units(engine, mesh, chunk)
+    }
+
+    /// Slots for `chunk` units (zeroed).
+    pub(crate) fn with_units(engine: &Engine, mesh: &LoadedMesh, chunk: usize) -> Self {
+        let (dev, g) = (&engine.ctx.device, &mesh.gpu);
         let coords = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("bake.coords"),
             size: (chunk as u64 * g.vertex_count as u64 * 16).max(16),
@@ -51,7 +56,10 @@ impl Slots {
         let lists = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("bake.lists"),
             size: (chunk as u64 * g.triangle_count as u64 * 4).max(16),
-            usage: wgpu::BufferUsages::STORAGE,
+            // Copied between slots by a live bake's edits (`bake/live.rs`).
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_DST
+                | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
         Self {

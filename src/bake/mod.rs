@@ -38,6 +38,7 @@ mod images;
 pub(crate) use images::checked_image;
 mod islands;
 pub mod kinds;
+mod live;
 mod maps;
 pub mod memory;
 mod param;
@@ -55,6 +56,7 @@ mod vector;
 
 pub use engine::{Baked, BakedChannel, BvhBuild, Engine, LoadedMesh, StagePath, StagePaths};
 pub use images::{f32_to_f16, load_raw, upload_image};
+pub use live::{Edit, EditReport, LiveBake};
 pub use param::{size_figures, ParamMap, ParamRow, SizeFigures};
 pub use place::Units;
 
@@ -308,13 +310,14 @@ fn compose_units(
             let r = layer_report(job, i, placed, &maps, row, &mut log.warnings);
             units.push(r);
         }
-        let d = compose::compose(cx, images, canvas, &slots, &maps, &stats, placed, None, log)?;
+        let at = (&stats[..], None);
+        let d = compose::compose(cx, images, canvas, &slots, &maps, at, placed, None, log)?;
         for (l, d) in units[first..].iter_mut().zip(d) {
             l.distortion = d;
         }
         for (pass, c) in passes {
-            let at = (&slots, &maps, &stats);
-            compose::compose(cx, images, c, at.0, at.1, at.2, placed, Some(pass), log)?;
+            let at = (&stats[..], None);
+            compose::compose(cx, images, c, &slots, &maps, at, placed, Some(pass), log)?;
         }
     }
     Ok(units)

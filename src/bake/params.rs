@@ -106,6 +106,9 @@ pub const FLAG_NO_CLIP: u32 = 256;
 pub const FLAG_LINEAR: u32 = 512;
 /// `layer_raster`'s normal variant: the normal map's green points down the image (`"dx"`).
 pub const FLAG_NORMAL_DX: u32 = 1024;
+/// `compose`: a live bake's edit ([`crate::bake::LiveBake`]): only the texels of the cells marked
+/// in the stats buffer's last row are composed.
+pub const FLAG_DIRTY: u32 = 2048;
 
 /// Texels per side of a tool stamp's flat cell (`bake/tools.rs`). Keep in sync with `FLAT_RES` in
 /// `wgsl/bake/stamp_flatten.wgsl`, `stamp_filter.wgsl` and `layer_raster.wgsl`.

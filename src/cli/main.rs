@@ -256,6 +256,11 @@ struct BenchArgs {
     /// layers as PNGs at the same pixel sizes, at each of `--sizes`; JSON lines on stdout.
     #[arg(long)]
     vector: bool,
+    /// What an edit of a live bake costs: the largest `--decals` value (default 256) on `--mesh`
+    /// (default the bundled bob) at each of `--sizes`, a full bake (median of `--reps`) against
+    /// moving one decal 20 times (`full_ms`, `edit_ms`, `identical`); JSON lines on stdout.
+    #[arg(long)]
+    edit: bool,
 }
 
 /// The engine's diagnostics (`log`) on stderr: its warnings and errors by default; with
@@ -426,8 +431,9 @@ fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// `decalbake bench --channels` or `--vector` (`which`): what a layer's channels or vector images
-/// cost on `mesh` (default the bundled bob) against the same bake without them.
+/// `decalbake bench --channels`, `--vector` or `--edit` (`which`): what a layer's channels or
+/// vector images cost on `mesh` (default the bundled bob) against the same bake without them, or
+/// an edit of a live bake against a full bake.
 fn layer_bench(
     engine: &Engine,
     which: &str,
@@ -437,6 +443,15 @@ fn layer_bench(
     reps: usize,
 ) -> Result<()> {
     let mesh = mesh.unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/bob.glb"));
+    if which == "edit" {
+        let opts = bench::edit::EditBenchOptions {
+            mesh,
+            sizes,
+            decals: decals.iter().copied().max().unwrap_or(256),
+            reps,
+        };
+        return bench::edit::run(engine, &opts, |v| println!("{v}"));
+    }
     if which == "vector" {
         let opts = bench::vector::VectorBenchOptions {
             mesh,
@@ -489,10 +504,15 @@ fn bench_cmd(backend: Option<&str>, args: BenchArgs) -> Result<()> {
         corpus,
         channels,
         vector,
+        edit,
     } = args;
     let mut engine = engine(backend)?;
-    if channels || vector {
-        let which = if vector { "vector" } else { "channels" };
+    if channels || vector || edit {
+        let which = match (vector, edit) {
+            (true, _) => "vector",
+            (_, true) => "edit",
+            _ => "channels",
+        };
         return layer_bench(&engine, which, mesh, sizes, &decals, reps);
     }
     if let Some(dir) = corpus {

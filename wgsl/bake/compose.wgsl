@@ -14,9 +14,22 @@
 // Per layer (params.aux), `stats_stride` words; word 5 counts texels the layer changed.
 @group(0) @binding(3) var<storage, read_write> stats: array<atomic<i32>>;
 
+// A live bake's edit (src/bake/live.rs): only the texels of the cells marked in the stats buffer's
+// last row (laid out as a layer's cell mask) are composed; the rest of the canvas is already baked.
+const FLAG_DIRTY: u32 = 2048u;
+
+fn outside_edit(t: vec2<i32>) -> bool {
+    if ((params.flags & FLAG_DIRTY) == 0u) { return false; }
+    let c = (u32(t.y) / params.cell) * params.grid.x + u32(t.x) / params.cell;
+    let row = arrayLength(&stats) / params.stats_stride - 1u;
+    let w = u32(atomicLoad(&stats[row * params.stats_stride + 8u + c / 32u]));
+    return ((w >> (c % 32u)) & 1u) == 0u;
+}
+
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= params.rect_size.x || gid.y >= params.rect_size.y) { return; }
+    if (outside_edit(vec2<i32>(gid.xy) + params.rect_origin)) { return; }
     var sum = vec4<f32>(0.0);
     var n = 0.0;
     for (var j = 0u; j < params.ss; j++) {

@@ -4,7 +4,9 @@
 // colour. Encoding: sRGB (or, with FLAG_LINEAR, as stored: a data or normal channel), 8 bits (one u32 per texel, RGBA8) or, with flag bit 2, 16 bits (two u32 per
 // texel, RGBA16), rows `rect_size.x` words apart; alpha stays linear. Over the canvas window only
 // (shared/window.wgsl). CPU twins: `nearest_island` in
-// src/bake/cpu.rs, `linear_to_srgb` in src/io/image.rs. Dispatch: (ceil(W / 8), ceil(H / 8), 1).
+// src/bake/cpu.rs, `linear_to_srgb` in src/io/image.rs. Dispatch: (ceil(W / 8), ceil(H / 8), 1), or
+// over a region of the window (a live bake's edit, src/bake/live.rs): `rect_origin` its first texel,
+// `atlas_origin` its size (0: the whole window), dispatched over that size.
 #import params
 #import acc
 #import window
@@ -28,15 +30,21 @@ fn to_srgb(c: f32) -> f32 {
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     // The canvas window's texels (the whole texture unless this is a tile, shared/window.wgsl).
     let size = win_size();
-    if (gid.x >= size.x || gid.y >= size.y) { return; }
+    var g = gid.xy;
+    var end = size;
+    if (params.atlas_origin.x > 0u) {
+        g = gid.xy + vec2<u32>(params.rect_origin);
+        end = min(size, vec2<u32>(params.rect_origin) + params.atlas_origin);
+    }
+    if (g.x >= end.x || g.y >= end.y) { return; }
     let w = size.x;
-    let i = gid.y * w + gid.x;
+    let i = g.y * w + g.x;
     var src = i;
     if ((params.flags & FLAG_NO_PAD) == 0u && mask[i] == 0u) {
         let n = nearest[i];
         if (n != 0xffffffffu) {
-            let dx = i32(n % w) - i32(gid.x);
-            let dy = i32(n / w) - i32(gid.y);
+            let dx = i32(n % w) - i32(g.x);
+            let dy = i32(n / w) - i32(g.y);
             let d2 = u32(dx * dx + dy * dy);
             if (params.aux == 0xffffffffu || d2 <= params.aux * params.aux) {
                 src = n;
@@ -45,15 +53,15 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let c = acc_load(src);
     // Row stride of `packed` in u32 words (rows padded to 256 bytes for texture copies).
-    let row = gid.y * params.rect_size.x;
+    let row = g.y * params.rect_size.x;
     var e = vec4<f32>(to_srgb(c.r), to_srgb(c.g), to_srgb(c.b), clamp(c.a, 0.0, 1.0));
     if ((params.flags & FLAG_LINEAR) != 0u) {
         e = clamp(c, vec4<f32>(0.0), vec4<f32>(1.0));
     }
     if ((params.flags & FLAG_16BIT) != 0u) {
-        packed[row + 2u * gid.x] = pack2x16unorm(e.rg);
-        packed[row + 2u * gid.x + 1u] = pack2x16unorm(e.ba);
+        packed[row + 2u * g.x] = pack2x16unorm(e.rg);
+        packed[row + 2u * g.x + 1u] = pack2x16unorm(e.ba);
     } else {
-        packed[row + gid.x] = pack4x8unorm(e);
+        packed[row + g.x] = pack4x8unorm(e);
     }
 }

@@ -7,6 +7,7 @@ pub mod channels;
 pub mod common;
 pub mod corpus;
 pub mod device;
+pub mod edit;
 pub mod geodesic;
 pub mod linalg;
 pub mod ribbons;

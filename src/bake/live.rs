@@ -1,0 +1,773 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! Live bakes: a bake kept on the GPU for a host that edits its layers and wants each edit seen
+//! ([`Engine::live`], [`LiveBake::apply`]). The canvas, every unit's coordinates and triangle list
+//! (one chunk's [`Slots`], a unit per slot) and their stats rows stay between edits. An edit:
+//!
+//! 1. places the edited job again (the placement of an unchanged layer is the same, bit for bit);
+//! 2. computes the map and selection of the changed layer only, in a chunk of its own, and copies
+//!    its coordinates and triangle list into its slot;
+//! 3. resets the 64 × 64 cells its old and new footprints touch to the base (`base_init` over
+//!    those cells) and composes every layer there in job order, drawing the raster rectangles of
+//!    the whole job's plan that meet those cells at the places that plan gives them, so each
+//!    sample is the full bake's, bit for bit (`compose::Dirty`, `FLAG_DIRTY` in `compose.wgsl`);
+//! 4. pads and encodes those cells and the texels their padding reaches, into the kept encoded
+//!    texture, and copies them into the host's `wgpu::Texture`.
+//!
+//! [`LiveBake::read`] reads back only what the edits since the last read changed. The bytes equal
+//! a full bake of the edited job (`tests/live.rs`, after random sequences of edits).
+//!
+//! Where a batch's result depends on its company, the changed layer is solved in the company a
+//! full bake gives it: a chart layer with every chart of the job where the adapter packs such a
+//! batch ([`crate::solve::gpu::Packing`]), and an exponential map with another where the full
+//! bake's batch has more than one (a map alone in its chunk may be spread over workgroups on a
+//! GPU, `maps::expmap::gpu`).
+//!
+//! A live bake takes decal, text and ribbon layers (one unit each) into the colour texture; jobs
+//! with strokes, PBR channels, tiles, float outputs or a base transferred from another UV set
+//! are refused with an error that says so (bake them with [`Engine::bake`]).
+
+use super::canvas::Canvas;
+use super::compose::{self, Dirty};
+use super::engine::{Engine, LoadedMesh};
+use super::finish::{self, Encoded};
+use super::images::{self, Images};
+use super::maps::{self, LayerMaps, Slots};
+use super::params::{params_buffer, Params};
+use super::place::{self, Placed};
+use super::plan::{plan_cells, CELL};
+use super::stage::{Cx, Log};
+use crate::error::{Error, Result};
+use crate::io::job::{Base, Job, Layer, LayerKind};
+use crate::maps::method;
+use std::time::Instant;
+
+/// One change to a live bake's layers ([`LiveBake::apply`]). Layer indices are the job's.
+#[derive(Debug, Clone)]
+pub enum Edit {
+    /// Layer `layer` becomes `to`: moved (`at`), turned (`angle`), resized (`size`), re-weighted
+    /// (`opacity`, `blend`), or any other field changed.
+    Set {
+        /// The layer.
+        layer: usize,
+        /// Its new fields.
+        to: Box<Layer>,
+    },
+    /// `layer` inserted before layer `at` (`at` = the number of layers: on top).
+    Add {
+        /// Where.
+        at: usize,
+        /// The new layer.
+        layer: Box<Layer>,
+    },
+    /// Layer `layer` removed.
+    Remove {
+        /// The layer.
+        layer: usize,
+    },
+    /// Layer `from` moved to position `to` in the layer order (the layers between shift by one).
+    Reorder {
+        /// The layer.
+        from: usize,
+        /// Its new position.
+        to: usize,
+    },
+}
+
+/// What one edit re-did ([`LiveBake::apply`]).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct EditReport {
+    /// Maps (and selections) computed: the changed layer's, and its company where a batch needs
+    /// it (see the module's documentation).
+    pub maps: usize,
+    /// 64 × 64 cells reset and re-composed.
+    pub cells: u32,
+    /// Layers drawn into those cells.
+    pub layers_drawn: usize,
+    /// Milliseconds: placement and images, maps and selection, compose, padding and encode.
+    pub place_ms: f64,
+    /// See `place_ms`.
+    pub maps_ms: f64,
+    /// See `place_ms`.
+    pub compose_ms: f64,
+    /// See `place_ms`.
+    pub encode_ms: f64,
+}
+
+/// A unit's map as the compose stage reads it: its `Params` (slot and stats row: its index) and
+/// what the map stage reported.
+#[derive(Clone)]
+struct UnitMap {
+    params: Params,
+    expmap: Option<crate::maps::expmap::GeoResult>,
+    chart: Option<crate::maps::chart::ChartReport>,
+    ribbon: Option<crate::maps::ribbon::repair::RepairReport>,
+    reach: Option<Vec<u32>>,
+}
+
+/// A bake kept on the GPU and re-baked edit by edit ([`Engine::live`]).
+pub struct LiveBake<'a> {
+    engine: &'a Engine,
+    mesh: &'a LoadedMesh,
+    /// The job as edited so far.
+    job: Job,
+    /// Its units (one per layer) and their images.
+    placed: Placed,
+    images: Images,
+    /// The canvas; its stats buffer has `capacity` rows and the edit's cell mask in one more.
+    canvas: Canvas,
+    /// A slot per unit: coordinates and triangle list at the unit's index.
+    slots: Slots,
+    capacity: usize,
+    units: Vec<UnitMap>,
+    /// Each unit's stats row (counters and cell mask) as its selection left it.
+    rows: Vec<i32>,
+    encoded: Encoded,
+    texture: wgpu::Texture,
+    texels: Vec<u16>,
+    /// Regions encoded since the last [`LiveBake::read`].
+    pending: Vec<[u32; 4]>,
+}
+
+impl Engine {
+    /// Bakes `job` onto `mesh` and keeps the bake on the GPU for edits ([`LiveBake::apply`]),
+    /// each of which re-bakes only what it changed, to the bytes a full bake of the edited job
+    /// gives. See [`LiveBake`] for the jobs it takes.
+    pub fn live<'a>(&'a self, mesh: &'a LoadedMesh, job: &Job) -> Result<LiveBake<'a>> {
+        LiveBake::new(self, mesh, job)
+    }
+}
+
+/// A [`Log`] for work whose report is not kept.
+fn scratch_log() -> Log {
+    Log {
+        timings: Default::default(),
+        warnings: Vec::new(),
+        commands: 0,
+        paths: Default::default(),
+    }
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1000.0
+}
+
+/// The job's refusal when a live bake cannot take it.
+fn refuse(job: &Job, field: &str, what: &str) -> Error {
+    Error::Job {
+        path: job.source.clone(),
+        field: field.into(),
+        detail: format!("a live bake does not take {what}; bake this job with Engine::bake"),
+    }
+}
+
+/// Whether a live bake takes `job` (its fields; its layers one by one: [`check_layer`]).
+fn check_job(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> Result<()> {
+    if super::tiles::tile_shape(engine, job).is_some() {
+        return Err(refuse(
+            job,
+            "texture",
+            "tiled bakes (or a texture beyond one storage buffer)",
+        ));
+    }
+    if job.exr() {
+        return Err(refuse(job, "output.texture", "float (EXR) outputs"));
+    }
+    let sets = mesh.mesh.uv_sets.len() as u32;
+    let transferred = match &job.base {
+        Base::Transfer { .. } => true,
+        Base::Material => mesh.mesh.material.as_ref().is_some_and(|m| {
+            m.base_color_texture.is_some()
+                && m.base_color_uv_set != job.uv_set
+                && m.base_color_uv_set < sets
+        }),
+        _ => false,
+    };
+    if transferred {
+        return Err(refuse(
+            job,
+            "texture.base",
+            "a base transferred from another UV set",
+        ));
+    }
+    for (i, l) in job.layers.iter().enumerate() {
+        check_layer(job, i, l)?;
+    }
+    Ok(())
+}
+
+/// Whether a live bake takes layer `i`: one unit (not a stroke), colour only, sane numbers.
+fn check_layer(job: &Job, i: usize, l: &Layer) -> Result<()> {
+    let field = |f: &str| format!("layers[{i}].{f}");
+    if l.kind == LayerKind::Stroke {
+        return Err(refuse(job, &field("kind"), "strokes"));
+    }
+    if crate::io::channels::ChannelKind::ALL
+        .into_iter()
+        .any(|k| l.channels.paints(k))
+    {
+        return Err(refuse(job, &field("normal"), "PBR channels"));
+    }
+    let bad = |f: &str, detail: &str| Error::Job {
+        path: job.source.clone(),
+        field: field(f),
+        detail: detail.into(),
+    };
+    if !l.size.iter().all(|s| s.is_finite() && *s > 0.0) {
+        return Err(bad("size", "each side must be a positive number"));
+    }
+    if !(l.opacity.is_finite() && (0.0..=1.0).contains(&l.opacity)) {
+        return Err(bad("opacity", "must be between 0 and 1"));
+    }
+    if !l.angle.is_finite() {
+        return Err(bad("angle", "must be a number of degrees"));
+    }
+    Ok(())
+}
+
+/// The units `list` of `placed` as a job of their own (unit k of it is `list[k]`): a chunk for
+/// their maps and selection. Live bakes hold no strokes, so every unit is its own layer.
+fn subset(placed: &Placed, list: &[usize]) -> Placed {
+    let mut job = placed.job.clone();
+    job.layers = list.iter().map(|&u| placed.job.layers[u].clone()).collect();
+    Placed {
+        placements: list.iter().map(|&u| placed.placements[u]).collect(),
+        frames: list.iter().map(|&u| placed.frames[u]).collect(),
+        job,
+        origin: (0..list.len()).map(|k| (k, 0)).collect(),
+        units_of: (0..list.len()).map(|k| k..k + 1).collect(),
+        hidden: vec![false; list.len()],
+        blends: vec![None; list.len()],
+        sources: vec![false; list.len()],
+        clone_of: vec![None; list.len()],
+        blocks: (0..list.len()).map(|k| k..k + 1).collect(),
+        strokes: Vec::new(),
+        ribbons: list.iter().map(|&u| placed.ribbons[u].clone()).collect(),
+    }
+}
+
+impl<'a> LiveBake<'a> {
+    fn new(engine: &'a Engine, mesh: &'a LoadedMesh, job: &Job) -> Result<Self> {
+        check_job(engine, mesh, job)?;
+        super::limits(engine, mesh, job)?;
+        super::check::check_job(engine, mesh, job, None)?;
+        let capacity = super::stage::unit_capacity(mesh);
+        let mut log = scratch_log();
+        let (placed, images) = place_and_load(engine, mesh, job, capacity, &mut log)?;
+        let ucx = Cx {
+            engine,
+            mesh,
+            job: &placed.job,
+        };
+        let canvas = Canvas::new(ucx, &images, false, None, &mut log)?;
+        let canvas = canvas.with_rows(&engine.ctx.device, capacity + 1);
+        let slots = Slots::with_units(engine, mesh, capacity);
+        let n = placed.job.layers.len();
+        let maps = maps::compute(ucx, &placed, &slots, 0..n, &canvas.global, &mut log)
+            .map_err(|e| placed.rename(e))?;
+        let stats = super::select::select(ucx, &canvas, (&slots, &maps), &placed, &mut log)?;
+        let stride = canvas.stats_stride as usize;
+        let rows = stats[..n * stride].to_vec();
+        let at = (&rows[..], None);
+        compose::compose(
+            ucx, &images, &canvas, &slots, &maps, at, &placed, None, &mut log,
+        )?;
+        let units = (0..n)
+            .map(|k| UnitMap {
+                params: maps.params[k],
+                expmap: maps.expmap[k],
+                chart: maps.chart[k],
+                ribbon: maps.ribbon[k].clone(),
+                reach: maps.reach[k].clone(),
+            })
+            .collect();
+        let encoded = finish::pad_and_encode(ucx, &canvas, (true, false), &mut log)?;
+        let texture = output_texture(engine, job);
+        let live = Self {
+            engine,
+            mesh,
+            job: job.clone(),
+            placed,
+            images,
+            canvas,
+            slots,
+            capacity,
+            units,
+            rows,
+            encoded,
+            texture,
+            texels: vec![0; job.width as usize * job.height as usize * 4],
+            pending: vec![[0, 0, job.width, job.height]],
+        };
+        live.copy_to_texture(&[[0, 0, job.width, job.height]])?;
+        Ok(live)
+    }
+
+    /// The job as edited so far.
+    pub fn job(&self) -> &Job {
+        &self.job
+    }
+
+    /// The baked texture, kept current by every edit: `Rgba8UnormSrgb` for an 8-bit job,
+    /// `Rgba16Uint` holding the sRGB-encoded values for a 16-bit one (the PNG's values; a
+    /// 16-bit normalized format is an optional feature of wgpu).
+    pub fn texture(&self) -> &wgpu::Texture {
+        &self.texture
+    }
+
+    /// The texels (4 values a texel, sRGB-encoded, at the job's bit depth, as
+    /// [`crate::Baked::texels`]), reading back only the regions the edits since the last read
+    /// changed.
+    pub fn read(&mut self) -> Result<&[u16]> {
+        let (w, stride) = (self.job.width, self.encoded.stride);
+        for r in std::mem::take(&mut self.pending) {
+            let (offset, size) = (
+                r[1] as u64 * stride as u64 * 4,
+                r[3] as u64 * stride as u64 * 4,
+            );
+            let bytes = self.engine.ctx.read_buffer_range(
+                &self.encoded.packed,
+                offset,
+                size,
+                "live read-back",
+            )?;
+            let words: &[u32] = bytemuck::cast_slice(&bytes);
+            let depth = self.job.bit_depth;
+            // Whole rows: the packed words of a row start at its first texel.
+            let rows = [0, r[1], w, r[3]];
+            super::engine::unpack_rows(&mut self.texels, w, rows, words, stride, depth);
+        }
+        Ok(&self.texels)
+    }
+
+    /// Applies `edit`: re-computes only the changed layer's map and re-composes only the cells
+    /// its old and new footprints touch. On an error (a layer that misses the mesh, a field a
+    /// live bake does not take) the bake is left as it was.
+    pub fn apply(&mut self, edit: Edit) -> Result<EditReport> {
+        let (engine, mesh) = (self.engine, self.mesh);
+        let mut report = EditReport::default();
+        let t = Instant::now();
+        let (job, old_of, fresh, touched) = self.edited(edit)?;
+        let mut log = scratch_log();
+        let (placed, images) = place_and_load(engine, mesh, &job, self.capacity, &mut log)?;
+        report.place_ms = ms(t);
+
+        let t = Instant::now();
+        let fresh = self.company(&placed, fresh);
+        let (scratch, maps, stats) = self.fresh_maps(&placed, &fresh, &mut log)?;
+        report.maps = fresh.len();
+        let stride = self.canvas.stats_stride as usize;
+        // The cells to re-compose: the changed layers' footprints before and after.
+        let mut dirty = vec![0u32; stride - super::canvas::STATS_COUNTERS as usize];
+        let mut mark = |row: &[i32]| {
+            for (d, m) in dirty
+                .iter_mut()
+                .zip(&row[super::canvas::STATS_COUNTERS as usize..])
+            {
+                *d |= *m as u32;
+            }
+        };
+        for &u in &touched {
+            mark(&self.rows[u * stride..(u + 1) * stride]);
+        }
+        for k in 0..fresh.len() {
+            mark(&stats[k * stride..(k + 1) * stride]);
+        }
+        // The new slots, rows and maps: kept units from their old place, fresh ones from scratch.
+        let n = placed.job.layers.len();
+        let mut rows = vec![0i32; n * stride];
+        let mut units = Vec::with_capacity(n);
+        let slots = if old_of
+            .iter()
+            .enumerate()
+            .all(|(j, o)| *o == Some(j) || o.is_none())
+        {
+            None
+        } else {
+            Some(Slots::with_units(engine, mesh, self.capacity))
+        };
+        let target = slots.as_ref().unwrap_or(&self.slots);
+        let mut copies = Vec::new();
+        for j in 0..n {
+            let (from, src, unit, row) = match fresh.iter().position(|&u| u == j) {
+                Some(k) => {
+                    let p = &maps;
+                    let unit = UnitMap {
+                        params: p.params[k],
+                        expmap: p.expmap[k],
+                        chart: p.chart[k],
+                        ribbon: p.ribbon[k].clone(),
+                        reach: p.reach[k].clone(),
+                    };
+                    (k, &scratch, unit, &stats[k * stride..(k + 1) * stride])
+                }
+                None => {
+                    let o = old_of[j].expect("a unit is kept or fresh");
+                    let row = &self.rows[o * stride..(o + 1) * stride];
+                    (o, &self.slots, self.units[o].clone(), row)
+                }
+            };
+            if !std::ptr::eq(src, target) || from != j {
+                copies.push((src, from, j));
+            }
+            rows[j * stride..(j + 1) * stride].copy_from_slice(row);
+            let mut unit = unit;
+            unit.params.slot = j as u32;
+            unit.params.aux = j as u32;
+            units.push(unit);
+        }
+        self.copy_slots(target, &copies)?;
+        report.maps_ms = ms(t);
+
+        let t = Instant::now();
+        let canvas = &self.canvas;
+        let grid = canvas.grid;
+        let cells = plan_cells(
+            &dirty.iter().map(|&w| w as i32).collect::<Vec<_>>(),
+            grid,
+            CELL,
+            [job.width, job.height],
+            u32::MAX,
+        );
+        report.cells = dirty.iter().map(|w| w.count_ones()).sum();
+        let regions: Vec<[u32; 4]> = cells.iter().map(|r| r.map(|v| v as u32)).collect();
+        let ucx = Cx {
+            engine,
+            mesh,
+            job: &placed.job,
+        };
+        if !regions.is_empty() {
+            canvas.fill_base_regions(engine, &images.base, &regions, &mut log)?;
+            let at =
+                (capacity_row(self.capacity, stride) + super::canvas::STATS_COUNTERS as usize) * 4;
+            engine
+                .ctx
+                .queue
+                .write_buffer(&canvas.stats, at as u64, bytemuck::cast_slice(&dirty));
+            let all = LayerMaps {
+                range: 0..n,
+                params: units.iter().map(|u| u.params).collect(),
+                buffer: params_buffer(
+                    &engine.ctx.device,
+                    "bake.layer_params",
+                    &units.iter().map(|u| u.params).collect::<Vec<_>>(),
+                ),
+                expmap: units.iter().map(|u| u.expmap).collect(),
+                chart: units.iter().map(|u| u.chart).collect(),
+                ribbon: units.iter().map(|u| u.ribbon.clone()).collect(),
+                reach: units.iter().map(|u| u.reach.clone()).collect(),
+            };
+            report.layers_drawn = (0..n)
+                .filter(|&u| {
+                    let m = &rows
+                        [u * stride + super::canvas::STATS_COUNTERS as usize..(u + 1) * stride];
+                    m.iter().zip(&dirty).any(|(a, b)| *a as u32 & b != 0)
+                })
+                .count();
+            let d = Dirty { mask: &dirty, grid };
+            let at = (&rows[..], Some(&d));
+            compose::compose(
+                ucx, &images, canvas, target, &all, at, &placed, None, &mut log,
+            )?;
+        }
+        report.compose_ms = ms(t);
+
+        let t = Instant::now();
+        let encoded = padded_regions(&job, &regions);
+        if !encoded.is_empty() {
+            let e = (&self.encoded, &encoded[..]);
+            finish::encode_regions(ucx, canvas, (true, false), e, &mut log)?;
+            self.copy_to_texture(&encoded)?;
+        }
+        report.encode_ms = ms(t);
+        self.pending.extend(encoded);
+        if let Some(s) = slots {
+            self.slots = s;
+        }
+        (self.job, self.placed, self.images, self.units, self.rows) =
+            (job, placed, images, units, rows);
+        Ok(report)
+    }
+
+    /// The edited job; per new unit, the old unit it keeps (`None`: fresh); the fresh units; the
+    /// old units whose footprints the edit clears.
+    #[allow(clippy::type_complexity)]
+    fn edited(&self, edit: Edit) -> Result<(Job, Vec<Option<usize>>, Vec<usize>, Vec<usize>)> {
+        let mut job = self.job.clone();
+        let n = job.layers.len();
+        let mut old_of: Vec<Option<usize>> = (0..n).map(Some).collect();
+        let out_of_range = |field: &str, i: usize, n: usize| Error::Job {
+            path: self.job.source.clone(),
+            field: field.into(),
+            detail: format!("layer {i} does not exist: the job has {n} layers"),
+        };
+        let (fresh, touched) = match edit {
+            Edit::Set { layer, to } => {
+                if layer >= n {
+                    return Err(out_of_range("layers", layer, n));
+                }
+                check_layer(&job, layer, &to)?;
+                job.layers[layer] = *to;
+                old_of[layer] = None;
+                (vec![layer], vec![layer])
+            }
+            Edit::Add { at, layer } => {
+                if at > n {
+                    return Err(out_of_range("layers", at, n));
+                }
+                if n + 1 > self.capacity {
+                    return Err(Error::Job {
+                        path: self.job.source.clone(),
+                        field: "layers".into(),
+                        detail: format!(
+                            "a live bake on this mesh holds at most {} layers",
+                            self.capacity
+                        ),
+                    });
+                }
+                check_layer(&job, at, &layer)?;
+                job.layers.insert(at, *layer);
+                old_of.insert(at, None);
+                (vec![at], vec![])
+            }
+            Edit::Remove { layer } => {
+                if layer >= n {
+                    return Err(out_of_range("layers", layer, n));
+                }
+                job.layers.remove(layer);
+                old_of.remove(layer);
+                (vec![], vec![layer])
+            }
+            Edit::Reorder { from, to } => {
+                if from >= n || to >= n {
+                    return Err(out_of_range("layers", from.max(to), n));
+                }
+                let l = job.layers.remove(from);
+                job.layers.insert(to, l);
+                let o = old_of.remove(from);
+                old_of.insert(to, o);
+                (vec![], vec![from])
+            }
+        };
+        Ok((job, old_of, fresh, touched))
+    }
+
+    /// The fresh units with the company their batch needs to solve as in a full bake (see the
+    /// module's documentation), ascending.
+    fn company(&self, placed: &Placed, mut fresh: Vec<usize>) -> Vec<usize> {
+        let layers = &placed.job.layers;
+        let charts: Vec<usize> = (0..layers.len())
+            .filter(|&u| {
+                let m = method(layers[u].method);
+                m.uses_expmap() && m.solves_chart()
+            })
+            .collect();
+        let packs = crate::solve::gpu::Packing::Auto.packs(&self.engine.ctx, charts.len());
+        if packs && fresh.iter().any(|u| charts.contains(u)) {
+            fresh.extend(&charts);
+        }
+        let maps: Vec<usize> = (0..layers.len())
+            .filter(|&u| method(layers[u].method).uses_expmap())
+            .collect();
+        let cpu = self.engine.ctx.device_type == Some(wgpu::DeviceType::Cpu)
+            && crate::maps::expmap::gpu::SPREAD_MIN_CANDIDATES_OVERRIDE
+                .load(std::sync::atomic::Ordering::Relaxed)
+                == 0;
+        let alone = fresh.iter().filter(|u| maps.contains(u)).count() == 1;
+        if !cpu && alone && maps.len() > 1 {
+            if let Some(&other) = maps.iter().find(|u| !fresh.contains(u)) {
+                fresh.push(other);
+            }
+        }
+        fresh.sort_unstable();
+        fresh.dedup();
+        fresh
+    }
+
+    /// The maps and selections of `fresh` (units of `placed`) in a chunk of their own: its slots,
+    /// the maps and the stats rows (one per fresh unit).
+    fn fresh_maps(
+        &self,
+        placed: &Placed,
+        fresh: &[usize],
+        log: &mut Log,
+    ) -> Result<(Slots, LayerMaps, Vec<i32>)> {
+        let (engine, mesh) = (self.engine, self.mesh);
+        let sub = subset(placed, fresh);
+        let cx = Cx {
+            engine,
+            mesh,
+            job: &sub.job,
+        };
+        let slots = Slots::with_units(engine, mesh, fresh.len().max(1));
+        let rename = |e: Error| match e {
+            Error::Placement {
+                path,
+                layer,
+                detail,
+            } if layer < fresh.len() => Error::Placement {
+                path,
+                layer: fresh[layer],
+                detail,
+            },
+            other => other,
+        };
+        if fresh.is_empty() {
+            let maps = LayerMaps {
+                range: 0..0,
+                params: Vec::new(),
+                buffer: params_buffer(&engine.ctx.device, "bake.layer_params", &[]),
+                expmap: Vec::new(),
+                chart: Vec::new(),
+                ribbon: Vec::new(),
+                reach: Vec::new(),
+            };
+            return Ok((slots, maps, Vec::new()));
+        }
+        let global = self.canvas.global;
+        let maps = maps::compute(cx, &sub, &slots, 0..fresh.len(), &global, log).map_err(rename)?;
+        let canvas = self.canvas.with_rows(&engine.ctx.device, fresh.len());
+        let stats =
+            super::select::select(cx, &canvas, (&slots, &maps), &sub, log).map_err(rename)?;
+        Ok((slots, maps, stats))
+    }
+
+    /// Copies units' coordinates and triangle lists: (from slots, from unit, to unit) into
+    /// `target`.
+    fn copy_slots(&self, target: &Slots, copies: &[(&Slots, usize, usize)]) -> Result<()> {
+        if copies.is_empty() {
+            return Ok(());
+        }
+        let g = &self.mesh.gpu;
+        let (cb, lb) = (g.vertex_count as u64 * 16, g.triangle_count as u64 * 4);
+        let ctx = &self.engine.ctx;
+        ctx.scoped("live slots", || {
+            let mut enc = ctx.device.create_command_encoder(&Default::default());
+            for &(src, from, to) in copies {
+                let (from, to) = (from as u64, to as u64);
+                enc.copy_buffer_to_buffer(&src.coords, from * cb, &target.coords, to * cb, cb);
+                enc.copy_buffer_to_buffer(&src.lists, from * lb, &target.lists, to * lb, lb);
+            }
+            ctx.queue.submit([enc.finish()]);
+        })
+    }
+
+    /// Copies `regions` of the encoded texture into [`LiveBake::texture`].
+    fn copy_to_texture(&self, regions: &[[u32; 4]]) -> Result<()> {
+        let ctx = &self.engine.ctx;
+        let bpp = if self.job.bit_depth == 16 { 8 } else { 4 };
+        let stride = self.encoded.stride as u64 * 4;
+        ctx.scoped("live texture", || {
+            let mut enc = ctx.device.create_command_encoder(&Default::default());
+            for r in regions {
+                enc.copy_buffer_to_texture(
+                    wgpu::TexelCopyBufferInfo {
+                        buffer: &self.encoded.packed,
+                        layout: wgpu::TexelCopyBufferLayout {
+                            offset: r[1] as u64 * stride + r[0] as u64 * bpp,
+                            bytes_per_row: Some(stride as u32),
+                            rows_per_image: Some(r[3]),
+                        },
+                    },
+                    wgpu::TexelCopyTextureInfo {
+                        texture: &self.texture,
+                        mip_level: 0,
+                        origin: wgpu::Origin3d {
+                            x: r[0],
+                            y: r[1],
+                            z: 0,
+                        },
+                        aspect: wgpu::TextureAspect::All,
+                    },
+                    wgpu::Extent3d {
+                        width: r[2],
+                        height: r[3],
+                        depth_or_array_layers: 1,
+                    },
+                );
+            }
+            ctx.queue.submit([enc.finish()]);
+        })
+    }
+}
+
+/// The stats row that holds an edit's cell mask: the one after the `capacity` units' rows.
+fn capacity_row(capacity: usize, stride: usize) -> usize {
+    capacity * stride
+}
+
+/// Places `job` and loads its images, as a bake does (vector images at the density where they
+/// land), refusing a layer of more than one unit and more units than the slots hold.
+fn place_and_load(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    job: &Job,
+    capacity: usize,
+    log: &mut Log,
+) -> Result<(Placed, Images)> {
+    let cx = Cx { engine, mesh, job };
+    let mut placed = place::place(cx, log)?;
+    if let Some(i) = placed.units_of.iter().position(|r| r.len() != 1) {
+        return Err(refuse(
+            job,
+            &format!("layers[{i}]"),
+            "a layer of several units (an animated ribbon)",
+        ));
+    }
+    if placed.job.layers.len() > capacity {
+        return Err(Error::Job {
+            path: job.source.clone(),
+            field: "layers".into(),
+            detail: format!("a live bake on this mesh holds at most {capacity} layers"),
+        });
+    }
+    let job = &*super::vector::set_rasters(engine, mesh, job, &mut placed, &mut log.warnings);
+    let images = images::load(engine, mesh, job)?.for_units(&placed.origin);
+    Ok((placed, images))
+}
+
+/// The texel regions an edit of `cells` re-encodes: each grown by the padding radius (the
+/// background texels whose nearest island texel may lie in it), clipped to the texture; the
+/// whole texture for `"padding": "full"`.
+fn padded_regions(job: &Job, cells: &[[u32; 4]]) -> Vec<[u32; 4]> {
+    let r = finish::padding_radius(job.padding);
+    let (w, h) = (job.width, job.height);
+    if cells.is_empty() {
+        return Vec::new();
+    }
+    if r == u32::MAX {
+        return vec![[0, 0, w, h]];
+    }
+    cells
+        .iter()
+        .map(|c| {
+            let (x0, y0) = (c[0].saturating_sub(r), c[1].saturating_sub(r));
+            let x1 = (c[0] + c[2]).saturating_add(r).min(w);
+            let y1 = (c[1] + c[3]).saturating_add(r).min(h);
+            [x0, y0, x1 - x0, y1 - y0]
+        })
+        .collect()
+}
+
+/// The texture a live bake keeps current.
+fn output_texture(engine: &Engine, job: &Job) -> wgpu::Texture {
+    engine.ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("decalbake.live"),
+        size: wgpu::Extent3d {
+            width: job.width,
+            height: job.height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: if job.bit_depth == 16 {
+            wgpu::TextureFormat::Rgba16Uint
+        } else {
+            wgpu::TextureFormat::Rgba8UnormSrgb
+        },
+        usage: wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC
+            | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    })
+}
