@@ -228,9 +228,24 @@ pub struct StagePaths {
     /// about 10× faster as a whole process (2026-11-28: 0.9-1.2 s against 11-12 s, most of it the
     /// conformal refinement's batched solves; benches/results/2026-11-28-lavapipe); both give layouts without flips or overlaps (`tests/pelt.rs`).
     pub unwrap: StagePath,
+    /// Exponential maps (the `expmap` and `hybrid` methods, and the maps charts start from): the
+    /// CPU twin (`maps::expmap::cpu::dem_cpu`, the maps of a chunk on every core, each uploaded
+    /// into its slot) against `expmap_relax`. On lavapipe the relaxation is 1.3-2.2× slower than
+    /// the twin (`bench --geodesic`, 2026-11-25); on GL the twin is taken whatever this says
+    /// (`maps::expmap::gpu::run`). Both give the same maps within `tests/expmap.rs`'s tolerance.
+    pub expmap: StagePath,
 }
 
 impl StagePaths {
+    /// Whether the bake's exponential maps come from the CPU twin.
+    pub(crate) fn expmap_on_cpu(&self, engine: &Engine) -> bool {
+        match self.expmap {
+            StagePath::Auto => engine.ctx.device_type == Some(wgpu::DeviceType::Cpu),
+            StagePath::Cpu => true,
+            StagePath::Gpu => false,
+        }
+    }
+
     /// Whether unwrapping runs the dynamics on the CPU twin.
     pub(crate) fn unwrap_on_cpu(&self, engine: &Engine) -> bool {
         match self.unwrap {
@@ -1132,8 +1147,13 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
     if any(&|l| l.method == Method::Planar) {
         list.push(&p.planar_coords);
     }
-    if any(&|l| matches!(l.method, Method::Expmap | Method::Lscm | Method::Hybrid)) {
-        list.extend([&p.expmap_relax as &dyn Prepare, &p.chart_gather]);
+    let maps_on_cpu = engine.stage_paths.expmap_on_cpu(engine);
+    if !maps_on_cpu && any(&|l| matches!(l.method, Method::Expmap | Method::Lscm | Method::Hybrid))
+    {
+        list.push(&p.expmap_relax);
+    }
+    if any(&|l| matches!(l.method, Method::Lscm | Method::Hybrid)) {
+        list.push(&p.chart_gather);
     }
     if any(&|l| matches!(l.method, Method::Lscm | Method::Hybrid)) {
         list.extend([

@@ -366,13 +366,28 @@ fn expmap_pass(
             (f.seed(&placed.placements[i]), opts, (i - start) as u32)
         })
         .collect();
-    let (results, dispatches) = crate::maps::expmap::gpu::run(
-        &engine.ctx,
-        &engine.pipes,
-        mesh.surface_ref(),
-        &requests,
-        &slots.coords,
-    )?;
+    if requests.is_empty() {
+        return Ok(());
+    }
+    let gl = engine.ctx.backend == Some(wgpu::Backend::Gl);
+    let (results, dispatches) = if engine.stage_paths.expmap_on_cpu(engine) {
+        log.paths.expmap = "cpu";
+        crate::maps::expmap::gpu::run_cpu_twin(
+            &engine.ctx,
+            mesh.surface_ref(),
+            &requests,
+            &slots.coords,
+        )?
+    } else {
+        log.paths.expmap = if gl { "cpu" } else { "gpu" };
+        crate::maps::expmap::gpu::run(
+            &engine.ctx,
+            &engine.pipes,
+            mesh.surface_ref(),
+            &requests,
+            &slots.coords,
+        )?
+    };
     log.commands += dispatches;
     for ((&i, r), (seed, opts, _)) in layers.iter().zip(results).zip(&requests) {
         maps.expmap[i - start] = Some(r);

@@ -133,11 +133,17 @@ pub struct Timings {
 pub struct Paths {
     /// Placement: the BVH walk of `place_bvh` on the GPU, or `place::place_cpu_bvh`.
     pub placement: &'static str,
+    /// Exponential maps: `expmap_relax` on the GPU, or the CPU twin (`maps::expmap::cpu`);
+    /// `"none"` when the bake has none.
+    pub expmap: &'static str,
 }
 
 impl Default for Paths {
     fn default() -> Self {
-        Self { placement: "gpu" }
+        Self {
+            placement: "gpu",
+            expmap: "none",
+        }
     }
 }
 

@@ -528,49 +528,62 @@ fn submit_rounds(
     }
 }
 
-/// The GL path of [`run`]. On wgpu's GL backend (Mesa llvmpipe) the relaxation settles on longer
-/// paths than the shortest for some vertices (seen on Spot even with one invocation per workgroup,
-/// so not a race; not yet understood; on Vulkan it matches the twin, `tests/expmap.rs`). There each
-/// map comes from its CPU twin ([`crate::maps::expmap::cpu::dem_cpu`], same fixed point) and its whole slot
-/// is uploaded: (u, v, distance, 1) reached, 2 for seed-triangle vertices, zeros elsewhere.
-fn run_cpu_twin(
+/// The CPU twin's maps, uploaded into their slots: the GL path of [`run`], and the bake's path on
+/// a CPU adapter ([`crate::bake::StagePaths::expmap`]). On wgpu's GL backend (Mesa llvmpipe) the
+/// relaxation settles on longer paths than the shortest for some vertices (seen on Spot even with
+/// one invocation per workgroup, so not a race; not yet understood; on Vulkan it matches the
+/// twin, `tests/expmap.rs`). Each map comes from [`crate::maps::expmap::cpu::dem_cpu`] (same
+/// fixed point), the maps on every core, and its whole slot is uploaded: (u, v, distance, 1)
+/// reached, 2 for seed-triangle vertices, zeros elsewhere.
+pub(crate) fn run_cpu_twin(
     ctx: &crate::gpu::GpuContext,
     mesh: SurfaceRef<'_>,
     maps: &[(Seed, Options, u32)],
     coords: &wgpu::Buffer,
 ) -> Result<(Vec<GeoResult>, u32)> {
+    use rayon::prelude::*;
     let (topo, k) = (mesh.topo, mesh.surface);
     let n = topo.positions.len();
+    // A slot per map at a time on each core: the maps of a chunk together may not fit memory.
+    let threads = rayon::current_num_threads().max(1);
     let mut results = Vec::with_capacity(maps.len());
-    for (seed, opts, slot) in maps {
-        let map = crate::maps::expmap::cpu::dem_cpu(topo, seed, *opts, k);
-        let seed_tri = topo.triangles[seed.triangle as usize];
-        let mut data = vec![[0f32; 4]; n];
-        let mut reached = 0;
-        for (v, d) in data.iter_mut().enumerate() {
-            if map.dist[v].is_finite() {
-                let flag = if seed_tri.contains(&(v as u32)) {
-                    2.0
-                } else {
-                    1.0
-                };
-                *d = [map.uv[v][0], map.uv[v][1], map.dist[v], flag];
-                reached += 1;
-            }
+    for batch in maps.chunks(threads) {
+        let slots: Vec<(Vec<[f32; 4]>, u32)> = batch
+            .par_iter()
+            .map(|(seed, opts, _)| {
+                let map = crate::maps::expmap::cpu::dem_cpu(topo, seed, *opts, k);
+                let seed_tri = topo.triangles[seed.triangle as usize];
+                let mut data = vec![[0f32; 4]; n];
+                let mut reached = 0;
+                for (v, d) in data.iter_mut().enumerate() {
+                    if map.dist[v].is_finite() {
+                        let flag = if seed_tri.contains(&(v as u32)) {
+                            2.0
+                        } else {
+                            1.0
+                        };
+                        *d = [map.uv[v][0], map.uv[v][1], map.dist[v], flag];
+                        reached += 1;
+                    }
+                }
+                (data, reached)
+            })
+            .collect();
+        for ((data, reached), (_, _, slot)) in slots.into_iter().zip(batch) {
+            ctx.scoped("exponential maps (CPU twin upload)", || {
+                ctx.queue.write_buffer(
+                    coords,
+                    *slot as u64 * n as u64 * 16,
+                    bytemuck::cast_slice(&data),
+                )
+            })?;
+            results.push(GeoResult {
+                sweeps: 0,
+                reached,
+                converged: 1,
+                triangles_reached: 0,
+            });
         }
-        ctx.scoped("exponential maps (CPU twin upload)", || {
-            ctx.queue.write_buffer(
-                coords,
-                *slot as u64 * n as u64 * 16,
-                bytemuck::cast_slice(&data),
-            )
-        })?;
-        results.push(GeoResult {
-            sweeps: 0,
-            reached,
-            converged: 1,
-            triangles_reached: 0,
-        });
     }
     Ok((results, 0))
 }
