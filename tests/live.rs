@@ -307,8 +307,8 @@ fn refused_jobs_and_edits_leave_the_bake_as_it_was() {
     assert_eq!(before, full(&engine, &mesh, &job));
 }
 
-/// Seventeen small conformal decals: on a CPU adapter their charts are solved packed, a chart a
-/// lane, as one batch (16 or more). An edit of one re-solves them all in one batch, as the full
+/// Seventeen small conformal decals solved on the GPU: on a CPU adapter their charts are solved
+/// packed, a chart a lane, as one batch (16 or more). An edit of one re-solves them all in one batch, as the full
 /// bake of the edited job does (the report's map count), and gives its bytes at 16 bits. Solved
 /// alone, an edited chart would run the per-workgroup kernel, whose x differs from the packed
 /// kernel's in the last bits (`tests/linalg.rs`, `packed_systems_match_one_workgroup_each`); on
@@ -317,7 +317,10 @@ fn refused_jobs_and_edits_leave_the_bake_as_it_was() {
 #[test]
 fn an_edited_chart_is_solved_with_its_batch() {
     let dir = scratch("live_charts");
-    let engine = engine();
+    let mut engine = engine();
+    // The GPU's solves (a CPU adapter's default is the twin, whose solves do not depend on
+    // their batch).
+    engine.stage_paths.charts = decalbake::StagePath::Gpu;
     let mut job = job(&dir, 256, 17, serde_json::json!({}));
     job.bit_depth = 16;
     for (i, l) in job.layers.iter_mut().enumerate() {

@@ -234,9 +234,24 @@ pub struct StagePaths {
     /// the twin (`bench --geodesic`, 2026-11-25); on GL the twin is taken whatever this says
     /// (`maps::expmap::gpu::run`). Both give the same maps within `tests/expmap.rs`'s tolerance.
     pub expmap: StagePath,
+    /// Conformal charts (the `lscm` and `hybrid` methods): the CPU twin's f64 conjugate gradient
+    /// (`solve::cg::pcg`, the charts of a batch on every core) against the batched GPU CG
+    /// (`cg_batched`, `cg_packed`, `cg_wide`). On lavapipe the GPU solves 256 small charts at
+    /// 0.42× the twin's charts a second and a 10k-vertex chart in about twice the twin's time
+    /// (2026-11-25, "Linear algebra and LSCM charts" in the guide's performance chapter).
+    pub charts: StagePath,
 }
 
 impl StagePaths {
+    /// Whether the bake's conformal charts are solved by the CPU twin.
+    pub(crate) fn charts_on_cpu(&self, engine: &Engine) -> bool {
+        match self.charts {
+            StagePath::Auto => engine.ctx.device_type == Some(wgpu::DeviceType::Cpu),
+            StagePath::Cpu => true,
+            StagePath::Gpu => false,
+        }
+    }
+
     /// Whether the bake's exponential maps come from the CPU twin.
     pub(crate) fn expmap_on_cpu(&self, engine: &Engine) -> bool {
         match self.expmap {
@@ -1153,14 +1168,10 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
         list.push(&p.expmap_relax);
     }
     if any(&|l| matches!(l.method, Method::Lscm | Method::Hybrid)) {
-        list.push(&p.chart_gather);
-    }
-    if any(&|l| matches!(l.method, Method::Lscm | Method::Hybrid)) {
-        list.extend([
-            &p.chart_scatter as &dyn Prepare,
-            &p.cg_batched,
-            &p.cg_packed_complex,
-        ]);
+        list.extend([&p.chart_gather as &dyn Prepare, &p.chart_scatter]);
+        if !engine.stage_paths.charts_on_cpu(engine) {
+            list.extend([&p.cg_batched as &dyn Prepare, &p.cg_packed_complex]);
+        }
     }
     if any(&|l| l.kind == LayerKind::Stroke) {
         list.extend([&p.stroke_apply as &dyn Prepare, &p.stamp_blend]);

@@ -480,6 +480,12 @@ impl<'a> LiveBake<'a> {
         }
         report.encode_ms = ms(t);
         self.pending.extend(encoded);
+        if self.pending.len() > 64 {
+            // A host that never reads: one band of rows covers them all.
+            let y0 = self.pending.iter().map(|r| r[1]).min().unwrap_or(0);
+            let y1 = self.pending.iter().map(|r| r[1] + r[3]).max().unwrap_or(0);
+            self.pending = vec![[0, y0, job.width, y1 - y0]];
+        }
         if let Some(s) = slots {
             self.slots = s;
         }
@@ -561,7 +567,8 @@ impl<'a> LiveBake<'a> {
                 m.uses_expmap() && m.solves_chart()
             })
             .collect();
-        let packs = crate::solve::gpu::Packing::Auto.packs(&self.engine.ctx, charts.len());
+        let packs = !self.engine.stage_paths.charts_on_cpu(self.engine)
+            && crate::solve::gpu::Packing::Auto.packs(&self.engine.ctx, charts.len());
         if packs && fresh.iter().any(|u| charts.contains(u)) {
             fresh.extend(&charts);
         }

@@ -482,7 +482,14 @@ fn chart_pass(
         })
         .collect();
     let mut stats = chart::SolveStats::default();
-    let charts = chart::build(&mesh.topo, &requests, &engine.solver(), &mut stats)?;
+    let solver = if engine.stage_paths.charts_on_cpu(engine) {
+        log.paths.charts = "cpu";
+        chart::Solver::Cpu
+    } else {
+        log.paths.charts = "gpu";
+        engine.solver()
+    };
+    let charts = chart::build(&mesh.topo, &requests, &solver, &mut stats)?;
     log.commands += stats.dispatches;
     let mut items: Vec<[u32; 8]> = Vec::new();
     let mut kept = vec![true; charts.len()];

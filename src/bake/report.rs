@@ -136,6 +136,9 @@ pub struct Paths {
     /// Exponential maps: `expmap_relax` on the GPU, or the CPU twin (`maps::expmap::cpu`);
     /// `"none"` when the bake has none.
     pub expmap: &'static str,
+    /// Conformal charts: the batched GPU CG, or the CPU twin's (`solve::cg::pcg`); `"none"`
+    /// when the bake has none.
+    pub charts: &'static str,
 }
 
 impl Default for Paths {
@@ -143,6 +146,7 @@ impl Default for Paths {
         Self {
             placement: "gpu",
             expmap: "none",
+            charts: "none",
         }
     }
 }

@@ -44,6 +44,7 @@ use crate::maps::Frame;
 use crate::mesh::{Topology, NO_NEIGHBOR};
 use crate::solve::sparse::{CgReport, CgStatus, Csr, PreconditionerKind};
 use lscm::System;
+use rayon::prelude::*;
 use region::{RegionFix, RegionReport};
 pub mod cone;
 pub mod lscm;
@@ -213,7 +214,7 @@ pub enum Solver<'a> {
         &'a crate::gpu::GpuContext,
         &'a crate::gpu::pipelines::Pipelines,
     ),
-    /// f64 CG on the CPU (the twin).
+    /// f64 CG on the CPU (the twin), the systems of a batch on every core.
     Cpu,
 }
 
@@ -256,7 +257,7 @@ impl Solver<'_> {
     ) -> Result<Vec<(Vec<f64>, CgReport)>> {
         match self {
             Solver::Cpu => Ok(systems
-                .iter()
+                .par_iter()
                 .map(|(s, x0, budget)| {
                     let mut x = x0.clone();
                     let rep =
