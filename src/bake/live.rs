@@ -104,6 +104,19 @@ struct UnitMap {
     reach: Option<Vec<u32>>,
 }
 
+impl UnitMap {
+    /// Unit k of a chunk's maps.
+    fn of(maps: &LayerMaps, k: usize) -> Self {
+        Self {
+            params: maps.params[k],
+            expmap: maps.expmap[k],
+            chart: maps.chart[k],
+            ribbon: maps.ribbon[k].clone(),
+            reach: maps.reach[k].clone(),
+        }
+    }
+}
+
 /// A bake kept on the GPU and re-baked edit by edit ([`Engine::live`]).
 pub struct LiveBake<'a> {
     engine: &'a Engine,
@@ -271,15 +284,7 @@ impl<'a> LiveBake<'a> {
         compose::compose(
             ucx, &images, &canvas, &slots, &maps, at, &placed, None, &mut log,
         )?;
-        let units = (0..n)
-            .map(|k| UnitMap {
-                params: maps.params[k],
-                expmap: maps.expmap[k],
-                chart: maps.chart[k],
-                ribbon: maps.ribbon[k].clone(),
-                reach: maps.reach[k].clone(),
-            })
-            .collect();
+        let units = (0..n).map(|k| UnitMap::of(&maps, k)).collect();
         let encoded = finish::pad_and_encode(ucx, &canvas, (true, false), &mut log)?;
         let texture = output_texture(engine, job);
         let live = Self {
@@ -353,145 +358,172 @@ impl<'a> LiveBake<'a> {
 
         let t = Instant::now();
         let fresh = self.company(&placed, fresh);
-        let (scratch, maps, stats) = self.fresh_maps(&placed, &fresh, &mut log)?;
+        let solved = self.fresh_maps(&placed, &fresh, &mut log)?;
         report.maps = fresh.len();
-        let stride = self.canvas.stats_stride as usize;
-        // The cells to re-compose: the changed layers' footprints before and after.
-        let mut dirty = vec![0u32; stride - super::canvas::STATS_COUNTERS as usize];
-        let mut mark = |row: &[i32]| {
-            for (d, m) in dirty
-                .iter_mut()
-                .zip(&row[super::canvas::STATS_COUNTERS as usize..])
-            {
-                *d |= *m as u32;
-            }
-        };
-        for &u in &touched {
-            mark(&self.rows[u * stride..(u + 1) * stride]);
-        }
-        for k in 0..fresh.len() {
-            mark(&stats[k * stride..(k + 1) * stride]);
-        }
-        // The new slots, rows and maps: kept units from their old place, fresh ones from scratch.
-        let n = placed.job.layers.len();
-        let mut rows = vec![0i32; n * stride];
-        let mut units = Vec::with_capacity(n);
-        let slots = if old_of
-            .iter()
-            .enumerate()
-            .all(|(j, o)| *o == Some(j) || o.is_none())
-        {
-            None
-        } else {
-            Some(Slots::with_units(engine, mesh, self.capacity))
-        };
-        let target = slots.as_ref().unwrap_or(&self.slots);
-        let mut copies = Vec::new();
-        for j in 0..n {
-            let (from, src, unit, row) = match fresh.iter().position(|&u| u == j) {
-                Some(k) => {
-                    let p = &maps;
-                    let unit = UnitMap {
-                        params: p.params[k],
-                        expmap: p.expmap[k],
-                        chart: p.chart[k],
-                        ribbon: p.ribbon[k].clone(),
-                        reach: p.reach[k].clone(),
-                    };
-                    (k, &scratch, unit, &stats[k * stride..(k + 1) * stride])
-                }
-                None => {
-                    let o = old_of[j].expect("a unit is kept or fresh");
-                    let row = &self.rows[o * stride..(o + 1) * stride];
-                    (o, &self.slots, self.units[o].clone(), row)
-                }
-            };
-            if !std::ptr::eq(src, target) || from != j {
-                copies.push((src, from, j));
-            }
-            rows[j * stride..(j + 1) * stride].copy_from_slice(row);
-            let mut unit = unit;
-            unit.params.slot = j as u32;
-            unit.params.aux = j as u32;
-            units.push(unit);
-        }
-        self.copy_slots(target, &copies)?;
+        let dirty = self.dirty_cells(&touched, &solved.2);
+        let (slots, units, rows) = self.relayout(&old_of, &fresh, &solved)?;
         report.maps_ms = ms(t);
 
         let t = Instant::now();
-        let canvas = &self.canvas;
-        let grid = canvas.grid;
-        let cells = plan_cells(
-            &dirty.iter().map(|&w| w as i32).collect::<Vec<_>>(),
-            grid,
-            CELL,
-            [job.width, job.height],
-            u32::MAX,
-        );
+        let target = slots.as_ref().unwrap_or(&self.slots);
+        let layout = (target, &units[..], &rows[..]);
+        let (regions, drawn) = self.recompose((&placed, &images), layout, &dirty, &mut log)?;
         report.cells = dirty.iter().map(|w| w.count_ones()).sum();
-        let regions: Vec<[u32; 4]> = cells.iter().map(|r| r.map(|v| v as u32)).collect();
-        let ucx = Cx {
-            engine,
-            mesh,
-            job: &placed.job,
-        };
-        if !regions.is_empty() {
-            canvas.fill_base_regions(engine, &images.base, &regions, &mut log)?;
-            let at =
-                (capacity_row(self.capacity, stride) + super::canvas::STATS_COUNTERS as usize) * 4;
-            engine
-                .ctx
-                .queue
-                .write_buffer(&canvas.stats, at as u64, bytemuck::cast_slice(&dirty));
-            let all = LayerMaps {
-                range: 0..n,
-                params: units.iter().map(|u| u.params).collect(),
-                buffer: params_buffer(
-                    &engine.ctx.device,
-                    "bake.layer_params",
-                    &units.iter().map(|u| u.params).collect::<Vec<_>>(),
-                ),
-                expmap: units.iter().map(|u| u.expmap).collect(),
-                chart: units.iter().map(|u| u.chart).collect(),
-                ribbon: units.iter().map(|u| u.ribbon.clone()).collect(),
-                reach: units.iter().map(|u| u.reach.clone()).collect(),
-            };
-            report.layers_drawn = (0..n)
-                .filter(|&u| {
-                    let m = &rows
-                        [u * stride + super::canvas::STATS_COUNTERS as usize..(u + 1) * stride];
-                    m.iter().zip(&dirty).any(|(a, b)| *a as u32 & b != 0)
-                })
-                .count();
-            let d = Dirty { mask: &dirty, grid };
-            let at = (&rows[..], Some(&d));
-            compose::compose(
-                ucx, &images, canvas, target, &all, at, &placed, None, &mut log,
-            )?;
-        }
+        report.layers_drawn = drawn;
         report.compose_ms = ms(t);
 
         let t = Instant::now();
-        let encoded = padded_regions(&job, &regions);
-        if !encoded.is_empty() {
-            let e = (&self.encoded, &encoded[..]);
-            finish::encode_regions(ucx, canvas, (true, false), e, &mut log)?;
-            self.copy_to_texture(&encoded)?;
-        }
+        self.encode(&placed.job, &regions, &mut log)?;
         report.encode_ms = ms(t);
-        self.pending.extend(encoded);
-        if self.pending.len() > 64 {
-            // A host that never reads: one band of rows covers them all.
-            let y0 = self.pending.iter().map(|r| r[1]).min().unwrap_or(0);
-            let y1 = self.pending.iter().map(|r| r[1] + r[3]).max().unwrap_or(0);
-            self.pending = vec![[0, y0, job.width, y1 - y0]];
-        }
         if let Some(s) = slots {
             self.slots = s;
         }
         (self.job, self.placed, self.images, self.units, self.rows) =
             (job, placed, images, units, rows);
         Ok(report)
+    }
+
+    /// The cells to re-compose (a cell mask, as a stats row's): the footprints of the old units
+    /// `touched` and of the fresh units (`fresh_rows`: their stats rows).
+    fn dirty_cells(&self, touched: &[usize], fresh_rows: &[i32]) -> Vec<u32> {
+        let stride = self.canvas.stats_stride as usize;
+        let counters = super::canvas::STATS_COUNTERS as usize;
+        let mut dirty = vec![0u32; stride - counters];
+        let old = touched
+            .iter()
+            .map(|&u| &self.rows[u * stride..(u + 1) * stride]);
+        for row in old.chain(fresh_rows.chunks_exact(stride)) {
+            for (d, m) in dirty.iter_mut().zip(&row[counters..]) {
+                *d |= *m as u32;
+            }
+        }
+        dirty
+    }
+
+    /// The units' new layout: kept units from their old slot, fresh ones from the scratch chunk
+    /// that `solved` holds (its slots, maps and stats rows), each copied to its new index. Returns
+    /// new slots where units moved (`None`: the kept slots, fresh units copied into them), every
+    /// unit's map and every unit's stats row.
+    #[allow(clippy::type_complexity)]
+    fn relayout(
+        &self,
+        old_of: &[Option<usize>],
+        fresh: &[usize],
+        (scratch, maps, stats): &(Slots, LayerMaps, Vec<i32>),
+    ) -> Result<(Option<Slots>, Vec<UnitMap>, Vec<i32>)> {
+        let stride = self.canvas.stats_stride as usize;
+        let n = old_of.len();
+        let moved = old_of
+            .iter()
+            .enumerate()
+            .any(|(j, o)| o.is_some_and(|o| o != j));
+        let slots = moved.then(|| Slots::with_units(self.engine, self.mesh, self.capacity));
+        let target = slots.as_ref().unwrap_or(&self.slots);
+        let (mut rows, mut units, mut copies) = (vec![0i32; n * stride], Vec::new(), Vec::new());
+        for (j, old) in old_of.iter().enumerate() {
+            let (from, src, mut unit, row) = match fresh.iter().position(|&u| u == j) {
+                Some(k) => (
+                    k,
+                    scratch,
+                    UnitMap::of(maps, k),
+                    &stats[k * stride..][..stride],
+                ),
+                None => {
+                    let o = old.expect("a unit is kept or fresh");
+                    let row = &self.rows[o * stride..][..stride];
+                    (o, &self.slots, self.units[o].clone(), row)
+                }
+            };
+            if !std::ptr::eq(src, target) || from != j {
+                copies.push((src, from, j));
+            }
+            rows[j * stride..][..stride].copy_from_slice(row);
+            (unit.params.slot, unit.params.aux) = (j as u32, j as u32);
+            units.push(unit);
+        }
+        self.copy_slots(target, &copies)?;
+        Ok((slots, units, rows))
+    }
+
+    /// Resets the `dirty` cells to the base and composes every unit there, in job order, from
+    /// the layout (slots, maps, stats rows) at the places the whole job's plan gives them.
+    /// Returns the cells as texel regions and the units drawn.
+    fn recompose(
+        &self,
+        (placed, images): (&Placed, &Images),
+        (slots, units, rows): (&Slots, &[UnitMap], &[i32]),
+        dirty: &[u32],
+        log: &mut Log,
+    ) -> Result<(Vec<[u32; 4]>, usize)> {
+        let (engine, canvas) = (self.engine, &self.canvas);
+        let (grid, stride) = (canvas.grid, canvas.stats_stride as usize);
+        let counters = super::canvas::STATS_COUNTERS as usize;
+        let mask: Vec<i32> = dirty.iter().map(|&w| w as i32).collect();
+        let [w, h] = canvas.global.tex_size;
+        let regions: Vec<[u32; 4]> = plan_cells(&mask, grid, CELL, [w, h], u32::MAX)
+            .iter()
+            .map(|r| r.map(|v| v as u32))
+            .collect();
+        if regions.is_empty() {
+            return Ok((regions, 0));
+        }
+        canvas.fill_base_regions(engine, &images.base, &regions, log)?;
+        let at = (self.capacity * stride + counters) * 4;
+        let queue = &engine.ctx.queue;
+        queue.write_buffer(&canvas.stats, at as u64, bytemuck::cast_slice(dirty));
+        let params: Vec<Params> = units.iter().map(|u| u.params).collect();
+        let all = LayerMaps {
+            range: 0..units.len(),
+            buffer: params_buffer(&engine.ctx.device, "bake.layer_params", &params),
+            params,
+            expmap: units.iter().map(|u| u.expmap).collect(),
+            chart: units.iter().map(|u| u.chart).collect(),
+            ribbon: units.iter().map(|u| u.ribbon.clone()).collect(),
+            reach: units.iter().map(|u| u.reach.clone()).collect(),
+        };
+        let drawn = rows
+            .chunks_exact(stride)
+            .filter(|row| {
+                row[counters..]
+                    .iter()
+                    .zip(dirty)
+                    .any(|(a, b)| *a as u32 & b != 0)
+            })
+            .count();
+        let cx = Cx {
+            engine,
+            mesh: self.mesh,
+            job: &placed.job,
+        };
+        let d = Dirty { mask: dirty, grid };
+        let at = (rows, Some(&d));
+        compose::compose(cx, images, canvas, slots, &all, at, placed, None, log)?;
+        Ok((regions, drawn))
+    }
+
+    /// Pads and encodes the re-composed `cells` and the texels their padding reaches into the
+    /// kept encoded texture, copies them into the texture and notes them for [`LiveBake::read`].
+    fn encode(&mut self, job: &Job, cells: &[[u32; 4]], log: &mut Log) -> Result<()> {
+        let regions = padded_regions(job, cells);
+        if regions.is_empty() {
+            return Ok(());
+        }
+        let cx = Cx {
+            engine: self.engine,
+            mesh: self.mesh,
+            job,
+        };
+        let e = (&self.encoded, &regions[..]);
+        finish::encode_regions(cx, &self.canvas, (true, false), e, log)?;
+        self.copy_to_texture(&regions)?;
+        self.pending.extend(regions);
+        if self.pending.len() > 64 {
+            // A host that never reads: one band of rows covers them all.
+            let y0 = self.pending.iter().map(|r| r[1]).min().unwrap_or(0);
+            let y1 = self.pending.iter().map(|r| r[1] + r[3]).max().unwrap_or(0);
+            self.pending = vec![[0, y0, job.width, y1 - y0]];
+        }
+        Ok(())
     }
 
     /// The edited job; per new unit, the old unit it keeps (`None`: fresh); the fresh units; the
@@ -695,11 +727,6 @@ impl<'a> LiveBake<'a> {
             ctx.queue.submit([enc.finish()]);
         })
     }
-}
-
-/// The stats row that holds an edit's cell mask: the one after the `capacity` units' rows.
-fn capacity_row(capacity: usize, stride: usize) -> usize {
-    capacity * stride
 }
 
 /// Places `job` and loads its images, as a bake does (vector images at the density where they
