@@ -1,12 +1,13 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! Embedding: a host application's own wgpu device bakes a decal into a `wgpu::Texture` that
-//! never leaves the GPU, then reads one texel back to show it is there.
+//! never leaves the GPU, then reads one texel back to show it is there; then keeps the bake live
+//! and moves the decal, as an editor does when its user drags it.
 //!
 //! ```text
 //! cargo run --example embed
 //! ```
 
-use decalbake::{Engine, Job};
+use decalbake::{Edit, Engine, Job};
 use std::path::Path;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -58,6 +59,32 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &texel[..],
         &baked.rgba8()[(y * 256 + x) as usize * 4..][..4]
     );
+
+    // A live bake: the user drags the dot to Spot's other flank; only the cells it left and
+    // the cells it reached are re-baked, and the texture is current when `apply` returns.
+    let mut live = engine.live(&mesh, &job)?;
+    let mut dot = live.job().layers[0].clone();
+    dot.at = decalbake::io::at::AtSpec::Ray {
+        ray: decalbake::io::at::RaySpec {
+            origin: [-1.5, 0.0, 0.45],
+            dir: [1.0, 0.0, 0.0],
+        },
+    };
+    let edit = live.apply(Edit::Set {
+        layer: 0,
+        to: Box::new(dot),
+    })?;
+    let moved = engine.bake(&mesh, live.job())?.rgba8();
+    let (nx, ny) = reddest(&moved, 256);
+    let texel = read_texel(&device, &queue, live.texture(), nx, ny);
+    let was = read_texel(&device, &queue, live.texture(), x, y);
+    println!(
+        "moved in {:.1} ms ({} cells re-composed): texel ({nx}, {ny}) now sRGB {texel:?}, ({x}, {y}) back to {was:?}",
+        edit.place_ms + edit.maps_ms + edit.compose_ms + edit.encode_ms,
+        edit.cells
+    );
+    assert_eq!(&texel[..], &moved[(ny * 256 + nx) as usize * 4..][..4]);
+    assert_eq!(&was[..], &moved[(y * 256 + x) as usize * 4..][..4]);
     std::fs::remove_dir_all(&dir)?;
     Ok(())
 }
