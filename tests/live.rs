@@ -2,7 +2,8 @@
 //! Live bakes (`Engine::live`, `bake/live.rs`): after every edit of random sequences of moves,
 //! turns, resizes, re-weightings, additions, removals and re-orderings, the live texture's bytes
 //! equal a full bake of the edited job; an edit re-computes one map and re-composes only the
-//! cells it touched; jobs a live bake cannot take, and bad edits, are refused with the bake left
+//! cells it touched (decals by every method, ribbons and text layers); jobs a live bake cannot
+//! take, and bad edits, are refused with the bake left
 //! as it was.
 
 mod common;
@@ -347,4 +348,83 @@ fn an_edited_chart_is_solved_with_its_batch() {
     assert_eq!(differ(live.read().unwrap(), &want, 256), 0);
     let cpu = engine.ctx.device_type == Some(wgpu::DeviceType::Cpu);
     assert_eq!(report.maps, if cpu { 17 } else { 1 });
+}
+
+/// Ribbons and text layers (a text decal and a line of text along a curve) in a live bake:
+/// decals moved across them, the ribbon re-weighted and raised to the top, the text moved and a
+/// line removed give a full bake's bytes after every edit.
+#[test]
+fn ribbons_and_text_edit_live() {
+    let dir = scratch("live_ribbon_text");
+    let engine = engine();
+    let back = |k: usize, n: usize| {
+        let t = k as f32 / (n - 1) as f32;
+        serde_json::json!({ "ray": { "origin": [-0.3 + 0.6 * t, 1.5, 0.25 + 0.05 * (6.0 * t).sin()],
+            "dir": [0, -1, 0] } })
+    };
+    let path: Vec<_> = (0..9).map(|k| back(k, 9)).collect();
+    let top =
+        |x: f32, z: f32| serde_json::json!({ "ray": { "origin": [x, 1.5, z], "dir": [0, -1, 0] } });
+    let layers = serde_json::json!([
+        { "image": "img.png", "size": [0.2, 0.2], "at": top(0.3, 0.5) },
+        { "kind": "ribbon", "image": "img.png", "path": path, "width": 0.08 },
+        { "kind": "text", "text": "Spot", "size": 0.06, "at": top(-0.1, 0.0), "color": [0.1, 0.2, 0.9, 1.0] },
+        { "kind": "text", "text": "live bake", "size": 0.04, "path": path },
+        { "image": "img.png", "size": [0.15, 0.15], "at": top(-0.3, 0.6), "method": "expmap" }
+    ]);
+    let text = spot_job_json(&dir, 5, layers, serde_json::json!({}));
+    let job = Job::parse(&text.to_string(), &dir.join("job.json"), &dir, &dir).unwrap();
+    let mesh = engine.load_mesh(&job.mesh).unwrap();
+    let mut live = engine.live(&mesh, &job).unwrap();
+    let at = |x: f32, z: f32| AtSpec::Ray {
+        ray: RaySpec {
+            origin: [x, 1.5, z],
+            dir: [0.0, -1.0, 0.0],
+        },
+    };
+    let set = |live: &decalbake::LiveBake, i: usize, f: &dyn Fn(&mut decalbake::io::job::Layer)| {
+        let mut l = live.job().layers[i].clone();
+        f(&mut l);
+        Edit::Set {
+            layer: i,
+            to: Box::new(l),
+        }
+    };
+    // Each edit made from the bake as the edits before left it (indices move with re-orders).
+    type MakeEdit<'a> = Box<dyn Fn(&decalbake::LiveBake) -> Edit + 'a>;
+    let edits: Vec<(&str, MakeEdit)> = vec![
+        (
+            "decal onto the ribbon",
+            Box::new(|l| set(l, 0, &|d| d.at = at(0.0, 0.27))),
+        ),
+        (
+            "ribbon re-weighted",
+            Box::new(|l| set(l, 1, &|d| d.opacity = 0.5)),
+        ),
+        (
+            "text moved",
+            Box::new(|l| set(l, 2, &|d| d.at = at(0.05, 0.3))),
+        ),
+        (
+            "ribbon on top",
+            Box::new(|_| Edit::Reorder { from: 1, to: 4 }),
+        ),
+        // [decal, text, line of text, expmap decal, ribbon]
+        (
+            "expmap decal across",
+            Box::new(|l| set(l, 3, &|d| d.at = at(0.1, 0.25))),
+        ),
+        (
+            "line of text removed",
+            Box::new(|_| Edit::Remove { layer: 2 }),
+        ),
+    ];
+    for (what, make) in edits {
+        let report = live.apply(make(&live)).unwrap();
+        let want = full(&engine, &mesh, live.job());
+        let d = differ(live.read().unwrap(), &want, 256);
+        println!("{what}: {} cells, {d} values differ", report.cells);
+        assert_eq!(d, 0, "{what}");
+        assert!(report.cells > 0, "{what}");
+    }
 }
