@@ -3,8 +3,7 @@
 //! turns, resizes, re-weightings, additions, removals and re-orderings, the live texture's bytes
 //! equal a full bake of the edited job; an edit re-computes one map and re-composes only the
 //! cells it touched (decals by every method, ribbons and text layers); jobs a live bake cannot
-//! take, and bad edits, are refused with the bake left
-//! as it was.
+//! take, and bad edits, are refused with the bake left as it was.
 
 mod common;
 use common::*;
