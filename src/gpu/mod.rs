@@ -334,6 +334,9 @@ impl GpuContext {
     /// destroyed device makes every later call fail validation, and the loss is the cause worth
     /// reporting), else [`Error::Gpu`] with `detail`.
     pub fn gpu_error(&self, stage: &str, detail: impl std::fmt::Display) -> Error {
+        // The loss is delivered by a poll: a stage whose first failure is a queue write (the CPU
+        // twins' uploads) has not polled since the device went.
+        let _ = self.device.poll(wgpu::PollType::Poll);
         match self.check_lost(stage) {
             Err(lost) => lost,
             Ok(()) => Error::Gpu {
