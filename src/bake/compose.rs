@@ -219,8 +219,10 @@ pub(crate) fn compose(
     let blending = engine.pipes.layer_blending;
     let mut jobs = raster_jobs(job, canvas, maps, stats, placed, blending);
     let sizes: Vec<[u32; 2]> = jobs.iter().map(|j| j.params.rect_size).collect();
+    // Each job layer starts its own targets (a stroke's stamps share theirs).
+    let layer = |k: usize| placed.origin[jobs[k].units.start].0;
     let starts: Vec<bool> = (0..jobs.len())
-        .map(|k| k == 0 || jobs[k].units != jobs[k - 1].units)
+        .map(|k| k == 0 || layer(k) != layer(k - 1))
         .collect();
     let (origins, mut batches) = pack_atlas(&sizes, &starts, job.ss);
     for (j, o) in jobs.iter_mut().zip(&origins) {

@@ -139,6 +139,8 @@ pub struct LiveBake<'a> {
     texels: Vec<u16>,
     /// Regions encoded since the last [`LiveBake::read`].
     pending: Vec<[u32; 4]>,
+    /// An edit failed after it began changing the kept GPU state (a lost device, say).
+    failed: bool,
 }
 
 impl Engine {
@@ -162,6 +164,14 @@ fn scratch_log() -> Log {
 
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1000.0
+}
+
+/// The error of every call on a live bake after an edit failed part-way on the GPU.
+fn failed() -> Error {
+    Error::Gpu {
+        stage: "live bake".into(),
+        detail: "an earlier edit failed after it began changing the bake on the GPU; make a new live bake (after a lost device, on a new engine)".into(),
+    }
 }
 
 /// The job's refusal when a live bake cannot take it.
@@ -302,6 +312,7 @@ impl<'a> LiveBake<'a> {
             texture,
             texels: vec![0; job.width as usize * job.height as usize * 4],
             pending: vec![[0, 0, job.width, job.height]],
+            failed: false,
         };
         live.copy_to_texture(&[[0, 0, job.width, job.height]])?;
         Ok(live)
@@ -323,6 +334,9 @@ impl<'a> LiveBake<'a> {
     /// [`crate::Baked::texels`]), reading back only the regions the edits since the last read
     /// changed.
     pub fn read(&mut self) -> Result<&[u16]> {
+        if self.failed {
+            return Err(failed());
+        }
         let (w, stride) = (self.job.width, self.encoded.stride);
         for r in std::mem::take(&mut self.pending) {
             let (offset, size) = (
@@ -348,39 +362,79 @@ impl<'a> LiveBake<'a> {
     /// its old and new footprints touch. On an error (a layer that misses the mesh, a field a
     /// live bake does not take) the bake is left as it was.
     pub fn apply(&mut self, edit: Edit) -> Result<EditReport> {
+        if self.failed {
+            return Err(failed());
+        }
         let (engine, mesh) = (self.engine, self.mesh);
         let mut report = EditReport::default();
         let t = Instant::now();
-        let (job, old_of, fresh, touched) = self.edited(edit)?;
+        let (job, old_of, fresh, mut touched) = self.edited(edit)?;
         let mut log = scratch_log();
         let (placed, images) = place_and_load(engine, mesh, &job, self.capacity, &mut log)?;
         report.place_ms = ms(t);
 
         let t = Instant::now();
-        let fresh = self.company(&placed, fresh);
+        let fresh = self.company(&placed, &old_of, fresh);
         let solved = self.fresh_maps(&placed, &fresh, &mut log)?;
         report.maps = fresh.len();
+        // Re-solved units clear their old footprints too, and so does a kept layer whose vector
+        // image changed size (the bake's vector images share one pixel budget).
+        touched.extend(fresh.iter().filter_map(|&u| old_of[u]));
+        for (j, o) in old_of.iter().enumerate() {
+            if let Some(o) = *o {
+                if self.placed.job.layers[o].raster != placed.job.layers[j].raster {
+                    touched.push(o);
+                }
+            }
+        }
         let dirty = self.dirty_cells(&touched, &solved.2);
-        let (slots, units, rows) = self.relayout(&old_of, &fresh, &solved)?;
         report.maps_ms = ms(t);
+        // From here on the kept GPU state changes: a failure leaves the bake unusable.
+        let out = self.commit(
+            (job, placed, images),
+            (&old_of, &fresh, &solved),
+            &dirty,
+            &mut log,
+        );
+        if out.is_err() {
+            self.failed = true;
+        }
+        let (layout_ms, (cells, drawn), compose_ms, encode_ms) = out?;
+        report.maps_ms += layout_ms;
+        (report.cells, report.layers_drawn) = (cells, drawn);
+        (report.compose_ms, report.encode_ms) = (compose_ms, encode_ms);
+        Ok(report)
+    }
 
+    /// The GPU side of an edit: the new layout of the slots, the re-compose of the `dirty` cells
+    /// and their encode; then the edited job, units and rows become the bake's. Returns the
+    /// milliseconds of the layout, (cells, layers drawn), the compose's and the encode's.
+    #[allow(clippy::type_complexity)]
+    fn commit(
+        &mut self,
+        (job, placed, images): (Job, Placed, Images),
+        (old_of, fresh, solved): (&[Option<usize>], &[usize], &(Slots, LayerMaps, Vec<i32>)),
+        dirty: &[u32],
+        log: &mut Log,
+    ) -> Result<(f64, (u32, usize), f64, f64)> {
+        let t = Instant::now();
+        let (slots, units, rows) = self.relayout(old_of, fresh, solved)?;
+        let layout_ms = ms(t);
         let t = Instant::now();
         let target = slots.as_ref().unwrap_or(&self.slots);
         let layout = (target, &units[..], &rows[..]);
-        let (regions, drawn) = self.recompose((&placed, &images), layout, &dirty, &mut log)?;
-        report.cells = dirty.iter().map(|w| w.count_ones()).sum();
-        report.layers_drawn = drawn;
-        report.compose_ms = ms(t);
-
+        let (regions, drawn) = self.recompose((&placed, &images), layout, dirty, log)?;
+        let cells = dirty.iter().map(|w| w.count_ones()).sum();
+        let compose_ms = ms(t);
         let t = Instant::now();
-        self.encode(&placed.job, &regions, &mut log)?;
-        report.encode_ms = ms(t);
+        self.encode(&placed.job, &regions, log)?;
+        let encode_ms = ms(t);
         if let Some(s) = slots {
             self.slots = s;
         }
         (self.job, self.placed, self.images, self.units, self.rows) =
             (job, placed, images, units, rows);
-        Ok(report)
+        Ok((layout_ms, (cells, drawn), compose_ms, encode_ms))
     }
 
     /// The cells to re-compose (a cell mask, as a stats row's): the footprints of the old units
@@ -590,31 +644,48 @@ impl<'a> LiveBake<'a> {
     }
 
     /// The fresh units with the company their batch needs to solve as in a full bake (see the
-    /// module's documentation), ascending.
-    fn company(&self, placed: &Placed, mut fresh: Vec<usize>) -> Vec<usize> {
-        let layers = &placed.job.layers;
-        let charts: Vec<usize> = (0..layers.len())
-            .filter(|&u| {
-                let m = method(layers[u].method);
-                m.uses_expmap() && m.solves_chart()
-            })
-            .collect();
-        let packs = !self.engine.stage_paths.charts_on_cpu(self.engine)
-            && crate::solve::gpu::Packing::Auto.packs(&self.engine.ctx, charts.len());
-        if packs && fresh.iter().any(|u| charts.contains(u)) {
+    /// module's documentation), ascending. `old_of`: per unit of `placed`, the old unit it keeps.
+    fn company(
+        &self,
+        placed: &Placed,
+        old_of: &[Option<usize>],
+        mut fresh: Vec<usize>,
+    ) -> Vec<usize> {
+        let (engine, layers) = (self.engine, &placed.job.layers);
+        let old_layers = &self.placed.job.layers;
+        let with = |ls: &[Layer], f: &dyn Fn(&dyn crate::maps::MapMethod) -> bool| -> Vec<usize> {
+            (0..ls.len()).filter(|&u| f(method(ls[u].method))).collect()
+        };
+        // Whether a batch's members changed: the kept members' old indices against the old ones.
+        let changed = |now: &[usize], before: &[usize]| {
+            let kept: Vec<Option<usize>> = now.iter().map(|&u| old_of[u]).collect();
+            kept.len() != before.len() || kept.iter().zip(before).any(|(k, b)| *k != Some(*b))
+        };
+        let is_chart = |m: &dyn crate::maps::MapMethod| m.uses_expmap() && m.solves_chart();
+        let (charts, charts_before) = (with(layers, &is_chart), with(old_layers, &is_chart));
+        let packs = |n: usize| {
+            !engine.stage_paths.charts_on_cpu(engine)
+                && crate::solve::gpu::Packing::Auto.packs(&engine.ctx, n)
+        };
+        if (packs(charts.len()) || packs(charts_before.len())) && changed(&charts, &charts_before) {
             fresh.extend(&charts);
         }
-        let maps: Vec<usize> = (0..layers.len())
-            .filter(|&u| method(layers[u].method).uses_expmap())
-            .collect();
-        let cpu = self.engine.ctx.device_type == Some(wgpu::DeviceType::Cpu)
+        let uses = |m: &dyn crate::maps::MapMethod| m.uses_expmap();
+        let (maps, maps_before) = (with(layers, &uses), with(old_layers, &uses));
+        let cpu_adapter = engine.ctx.device_type == Some(wgpu::DeviceType::Cpu)
             && crate::maps::expmap::gpu::SPREAD_MIN_CANDIDATES_OVERRIDE
                 .load(std::sync::atomic::Ordering::Relaxed)
                 == 0;
-        let alone = fresh.iter().filter(|u| maps.contains(u)).count() == 1;
-        if !cpu && alone && maps.len() > 1 {
-            if let Some(&other) = maps.iter().find(|u| !fresh.contains(u)) {
-                fresh.push(other);
+        // A map alone in its batch may be spread over workgroups (GPU path, GPU adapter).
+        if !engine.stage_paths.expmap_on_cpu(engine) && !cpu_adapter {
+            if (maps.len() == 1 || maps_before.len() == 1) && changed(&maps, &maps_before) {
+                fresh.extend(&maps);
+            }
+            let alone = fresh.iter().filter(|u| maps.contains(u)).count() == 1;
+            if alone && maps.len() > 1 {
+                if let Some(&other) = maps.iter().find(|u| !fresh.contains(u)) {
+                    fresh.push(other);
+                }
             }
         }
         fresh.sort_unstable();
@@ -638,6 +709,7 @@ impl<'a> LiveBake<'a> {
             job: &sub.job,
         };
         let slots = Slots::with_units(engine, mesh, fresh.len().max(1));
+        // Errors name the unit's index in this chunk: renamed to name the job's layer.
         let rename = |e: Error| match e {
             Error::Placement {
                 path,
@@ -648,6 +720,25 @@ impl<'a> LiveBake<'a> {
                 layer: fresh[layer],
                 detail,
             },
+            Error::Job {
+                path,
+                field,
+                detail,
+            } => {
+                let index = field
+                    .strip_prefix("layers[")
+                    .and_then(|r| r.split_once(']'))
+                    .and_then(|(k, rest)| Some((k.parse::<usize>().ok()?, rest)));
+                let field = match index {
+                    Some((k, rest)) if k < fresh.len() => format!("layers[{}]{rest}", fresh[k]),
+                    _ => field,
+                };
+                Error::Job {
+                    path,
+                    field,
+                    detail,
+                }
+            }
             other => other,
         };
         if fresh.is_empty() {

@@ -124,13 +124,13 @@ pub type Batch = (Vec<(usize, [u32; 2])>, u32);
 
 /// Packs raster rectangles (sizes in texels), in order, into atlas batches of [`TILE_TARGET`]
 /// samples a side: rows filled left to right, a new batch when a job would overflow the bottom,
-/// and at every job `starts` marks (the first of a drawing group: a decal, or a stroke's
-/// stamps). Returns each job's origin in samples and the batches; each batch is one render pass
-/// (one clear).
+/// and at every job `starts` marks (the first of a job layer: a decal, or a stroke, whose stamps
+/// share their targets). Returns each job's origin in samples and the batches; each batch is one
+/// render pass (one clear).
 ///
-/// A group's places depend on its own rectangles only, so a group draws the same samples, bit for
+/// A layer's places depend on its own rectangles only, so a layer draws the same samples, bit for
 /// bit, whatever the other layers are: the rasterizer's arithmetic depends on where a triangle
-/// lies in its target (one 8-bit step differed on a texel after an edit when groups shared
+/// lies in its target (one 8-bit step differed on a texel after an edit when layers shared
 /// batches), and a live bake's edit re-draws some layers into the places a full bake of the
 /// edited job gives them (`bake/live.rs`).
 pub fn pack_atlas(sizes: &[[u32; 2]], starts: &[bool], ss: u32) -> (Vec<[u32; 2]>, Vec<Batch>) {
