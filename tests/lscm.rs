@@ -521,24 +521,8 @@ fn a_bake_solves_charts_on_the_faster_path_and_both_paths_agree() {
     let [cpu, gpu] = [&baked[0], &baked[1]];
     assert_eq!(cpu.report.paths.charts, "cpu");
     assert_eq!(gpu.report.paths.charts, "gpu");
-    let diffs: Vec<u16> = cpu
-        .texels
-        .iter()
-        .zip(&gpu.texels)
-        .map(|(a, b)| a.abs_diff(*b))
-        .filter(|d| *d > 0)
-        .collect();
-    let worst = diffs.iter().copied().max().unwrap_or(0);
-    println!(
-        "{} of {} values differ between the paths, worst {worst}",
-        diffs.len(),
-        cpu.texels.len()
-    );
-    assert!(
-        diffs.len() * 1000 <= cpu.texels.len(),
-        "{} differ",
-        diffs.len()
-    );
+    let (differ, worst) = value_diffs(&cpu.texels, &gpu.texels);
+    assert!(differ * 1000 <= cpu.texels.len(), "{differ} differ");
     assert!(worst <= 1, "worst difference {worst}");
     let charts = cpu
         .report

@@ -331,6 +331,24 @@ pub fn spot_ring(image: &str, size: f32) -> Vec<serde_json::Value> {
         .collect()
 }
 
+/// How many values of two textures' texels differ, and by at most how much (printed: the
+/// tests that compare two paths of one bake quote it).
+pub fn value_diffs(a: &[u16], b: &[u16]) -> (usize, u16) {
+    let diffs: Vec<u16> = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| x.abs_diff(*y))
+        .filter(|d| *d > 0)
+        .collect();
+    let worst = diffs.iter().copied().max().unwrap_or(0);
+    println!(
+        "{} of {} values differ between the paths, worst {worst}",
+        diffs.len(),
+        a.len()
+    );
+    (diffs.len(), worst)
+}
+
 pub mod rich;
 
 /// Peak resident memory of this process (`VmHWM`), bytes.

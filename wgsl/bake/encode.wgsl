@@ -5,8 +5,7 @@
 // texel, RGBA16), rows `rect_size.x` words apart; alpha stays linear. Over the canvas window only
 // (shared/window.wgsl). CPU twins: `nearest_island` in
 // src/bake/cpu.rs, `linear_to_srgb` in src/io/image.rs. Dispatch: (ceil(W / 8), ceil(H / 8), 1), or
-// over a region of the window (a live bake's edit, src/bake/live.rs): `rect_origin` its first texel,
-// `atlas_origin` its size (0: the whole window), dispatched over that size.
+// over a region of the window (a live bake's edit: `region_texel` in shared/window.wgsl).
 #import params
 #import acc
 #import window
@@ -30,13 +29,8 @@ fn to_srgb(c: f32) -> f32 {
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     // The canvas window's texels (the whole texture unless this is a tile, shared/window.wgsl).
     let size = win_size();
-    var g = gid.xy;
-    var end = size;
-    if (params.atlas_origin.x > 0u) {
-        g = gid.xy + vec2<u32>(params.rect_origin);
-        end = min(size, vec2<u32>(params.rect_origin) + params.atlas_origin);
-    }
-    if (g.x >= end.x || g.y >= end.y) { return; }
+    let g = region_texel(gid.xy);
+    if (g.x == 0xffffffffu) { return; }
     let w = size.x;
     let i = g.y * w + g.x;
     var src = i;

@@ -74,11 +74,9 @@ pub fn run(
     mut emit: impl FnMut(serde_json::Value),
     mut table: impl FnMut(&str),
 ) -> anyhow::Result<()> {
-    let dir = std::env::temp_dir().join(format!("decalbake-bench-channels-{}", std::process::id()));
-    std::fs::create_dir_all(&dir)?;
-    let result = run_in(engine, opts, &dir, &mut emit, &mut table);
-    let _ = std::fs::remove_dir_all(&dir);
-    result
+    super::common::in_scratch("channels", |dir| {
+        run_in(engine, opts, dir, &mut emit, &mut table)
+    })
 }
 
 /// [`run`] with its scratch folder `dir`.

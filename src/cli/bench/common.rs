@@ -114,6 +114,16 @@ pub fn random_job(
     Job::parse(&job.to_string(), &dir.join("bench-job.json"), dir, dir)
 }
 
+/// Runs `f` in a scratch folder of its own under the system's temporary folder (named after
+/// `name` and the process), removed afterwards whatever `f` returns.
+pub fn in_scratch<T>(name: &str, f: impl FnOnce(&Path) -> anyhow::Result<T>) -> anyhow::Result<T> {
+    let dir = std::env::temp_dir().join(format!("decalbake-bench-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    let result = f(&dir);
+    let _ = std::fs::remove_dir_all(&dir);
+    result
+}
+
 /// Median (upper middle for even counts).
 pub fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(|a, b| a.total_cmp(b));

@@ -46,11 +46,7 @@ pub fn run(
     opts: &VectorBenchOptions,
     mut emit: impl FnMut(serde_json::Value),
 ) -> anyhow::Result<()> {
-    let dir = std::env::temp_dir().join(format!("decalbake-bench-vector-{}", std::process::id()));
-    std::fs::create_dir_all(&dir)?;
-    let result = run_in(engine, opts, &dir, &mut emit);
-    let _ = std::fs::remove_dir_all(&dir);
-    result
+    super::common::in_scratch("vector", |dir| run_in(engine, opts, dir, &mut emit))
 }
 
 /// [`run`] in the scratch folder `dir`.
