@@ -334,9 +334,10 @@ impl GpuContext {
     /// destroyed device makes every later call fail validation, and the loss is the cause worth
     /// reporting), else [`Error::Gpu`] with `detail`.
     pub fn gpu_error(&self, stage: &str, detail: impl std::fmt::Display) -> Error {
-        // The loss is delivered by a poll: a stage whose first failure is a queue write (the CPU
-        // twins' uploads) has not polled since the device went.
-        let _ = self.device.poll(wgpu::PollType::Poll);
+        // The loss is delivered by a poll once the queue's work is done: a stage whose first
+        // failure is a queue write (the CPU twins' uploads) has not waited since the device went
+        // (a non-blocking poll left the loss undelivered under load).
+        let _ = self.device.poll(wgpu::PollType::wait_indefinitely());
         match self.check_lost(stage) {
             Err(lost) => lost,
             Ok(()) => Error::Gpu {
