@@ -308,7 +308,7 @@ impl LinearImage {
 /// How hard a PNG is compressed (`output.compression`). Both keep every sample exactly.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum PngCompression {
-    /// The `png` crate's fast deflate (`fdeflate`): the default.
+    /// Bands of rows deflated on every core by `fdeflate` (`io/png_bands.rs`): the default.
     #[default]
     Fast,
     /// The smallest file of a few encodings (the `png` crate's strongest deflate with adaptive,
@@ -320,22 +320,33 @@ pub enum PngCompression {
     Small,
 }
 
+/// One way of encoding a PNG's image data.
+#[derive(Clone, Copy, Debug)]
+enum Encoding {
+    /// Independent bands on every core ([`super::png_bands`]).
+    Bands,
+    /// The `png` crate's stream writer at a deflate level, with a filter.
+    Deflate(png::Compression, png::Filter),
+}
+
 impl PngCompression {
     /// The one encoding of a PNG written row by row ([`png_rows`]).
-    fn level(self) -> (png::Compression, png::Filter) {
+    fn encoding(self) -> Encoding {
         match self {
-            PngCompression::Fast => (png::Compression::Fast, png::Filter::Adaptive),
-            PngCompression::Small => (png::Compression::High, png::Filter::Adaptive),
+            PngCompression::Fast => Encoding::Bands,
+            PngCompression::Small => {
+                Encoding::Deflate(png::Compression::High, png::Filter::Adaptive)
+            }
         }
     }
 }
 
 /// The encodings `PngCompression::Small` tries on a PNG held whole, the fast one first.
-const SMALL_TRIES: [(png::Compression, png::Filter); 4] = [
-    (png::Compression::Fast, png::Filter::Adaptive),
-    (png::Compression::High, png::Filter::Adaptive),
-    (png::Compression::High, png::Filter::NoFilter),
-    (png::Compression::High, png::Filter::Up),
+const SMALL_TRIES: [Encoding; 4] = [
+    Encoding::Bands,
+    Encoding::Deflate(png::Compression::High, png::Filter::Adaptive),
+    Encoding::Deflate(png::Compression::High, png::Filter::NoFilter),
+    Encoding::Deflate(png::Compression::High, png::Filter::Up),
 ];
 
 /// PNG bytes of RGBA samples already encoded at `bit_depth` (8: 0..=255, 16: 0..=65535), written
@@ -360,7 +371,7 @@ pub fn png_bytes_with(
     use rayon::prelude::*;
     let encoded: Vec<Vec<u8>> = tries
         .par_iter()
-        .map(|&level| encode_png(width, height, (bit_depth, level), samples))
+        .map(|&encoding| encode_png(width, height, (bit_depth, encoding), samples))
         .collect();
     // The first of the smallest, in the tries' order: the same file on every run, and the fast
     // encoding where nothing beats it.
@@ -371,17 +382,12 @@ pub fn png_bytes_with(
 }
 
 /// One encoding of a PNG held whole, through [`png_rows_at`].
-fn encode_png(
-    width: u32,
-    height: u32,
-    (bit_depth, level): (u8, (png::Compression, png::Filter)),
-    samples: &[u16],
-) -> Vec<u8> {
+fn encode_png(width: u32, height: u32, depth: (u8, Encoding), samples: &[u16]) -> Vec<u8> {
     let mut out = Vec::new();
     png_rows_at(
         &mut out,
         [width, height],
-        (bit_depth, level),
+        depth,
         Path::new("memory"),
         |png| {
             png.write_texels(samples).map_err(|source| Error::Io {
@@ -397,10 +403,10 @@ fn encode_png(
 
 /// Writes an RGBA PNG (8 or 16 bits) to `out` a few rows at a time: `fill` hands it every row, top
 /// first, through [`PngRows::write_texels`] (a tiled bake streams its texture this way,
-/// `output/stream.rs`). The `png` crate's stream writer, with `compression`'s deflate and adaptive filters
-/// (the `image` crate's defaults) and IDAT chunks of [`PNG_CHUNK`] bytes. `fill`'s error, or the
-/// first write's (as writing `path`), is returned; the image is complete only when this returns
-/// `Ok`.
+/// `output/stream.rs`). `Fast` deflates bands of rows on every core (`io/png_bands.rs`), `Small`
+/// goes through the `png` crate's stream writer with its strongest deflate and adaptive filters;
+/// both write IDAT chunks of [`PNG_CHUNK`] bytes. `fill`'s error, or the first write's (as
+/// writing `path`), is returned; the image is complete only when this returns `Ok`.
 pub fn png_rows<W: std::io::Write, T>(
     out: W,
     size: [u32; 2],
@@ -408,14 +414,14 @@ pub fn png_rows<W: std::io::Write, T>(
     path: &Path,
     fill: impl FnOnce(&mut PngRows<'_, W>) -> Result<T>,
 ) -> Result<T> {
-    png_rows_at(out, size, (depth, compression.level()), path, fill)
+    png_rows_at(out, size, (depth, compression.encoding()), path, fill)
 }
 
-/// [`png_rows`] at a given deflate level and filter.
+/// [`png_rows`] in a given encoding.
 fn png_rows_at<W: std::io::Write, T>(
     out: W,
     [width, height]: [u32; 2],
-    (depth, (level, filter)): (u8, (png::Compression, png::Filter)),
+    (depth, encoding): (u8, Encoding),
     path: &Path,
     fill: impl FnOnce(&mut PngRows<'_, W>) -> Result<T>,
 ) -> Result<T> {
@@ -430,18 +436,40 @@ fn png_rows_at<W: std::io::Write, T>(
         16 => png::BitDepth::Sixteen,
         _ => png::BitDepth::Eight,
     });
-    enc.set_compression(level);
-    enc.set_filter(filter);
+    if let Encoding::Deflate(level, filter) = encoding {
+        enc.set_compression(level);
+        enc.set_filter(filter);
+    }
     let mut writer = enc.write_header().map_err(io)?;
-    let t = {
-        let mut rows = PngRows {
-            writer: writer.stream_writer_with_size(PNG_CHUNK).map_err(io)?,
-            depth,
-            row: Vec::new(),
-        };
-        let t = fill(&mut rows)?;
-        rows.writer.finish().map_err(io)?;
-        t
+    let t = match encoding {
+        Encoding::Deflate(..) => {
+            let mut rows = PngRows {
+                sink: Sink::Stream(writer.stream_writer_with_size(PNG_CHUNK).map_err(io)?),
+                depth,
+                row: Vec::new(),
+            };
+            let t = fill(&mut rows)?;
+            if let Sink::Stream(s) = rows.sink {
+                s.finish().map_err(io)?;
+            }
+            t
+        }
+        Encoding::Bands => {
+            let mut rows = PngRows {
+                sink: Sink::Bands(BandSink::new(&mut writer, width, depth)),
+                depth,
+                row: Vec::new(),
+            };
+            let t = fill(&mut rows)?;
+            if let Sink::Bands(b) = rows.sink {
+                b.finish().map_err(|source| Error::Io {
+                    path: path.to_path_buf(),
+                    action: "writing",
+                    source,
+                })?;
+            }
+            t
+        }
     };
     writer.finish().map_err(io)?;
     Ok(t)
@@ -449,9 +477,15 @@ fn png_rows_at<W: std::io::Write, T>(
 
 /// The rows of a PNG being written ([`png_rows`]).
 pub struct PngRows<'a, W: std::io::Write> {
-    writer: png::StreamWriter<'a, W>,
+    sink: Sink<'a, W>,
     depth: u8,
     row: Vec<u8>,
+}
+
+/// Where [`PngRows`] sends its rows.
+enum Sink<'a, W: std::io::Write> {
+    Stream(png::StreamWriter<'a, W>),
+    Bands(BandSink<'a, W>),
 }
 
 /// The bytes of one IDAT chunk of the PNGs the engine writes.
@@ -461,16 +495,141 @@ impl<W: std::io::Write> PngRows<'_, W> {
     /// Appends texels (4 samples each, whole rows or not), top row first.
     pub fn write_texels(&mut self, samples: &[u16]) -> std::io::Result<()> {
         use std::io::Write;
-        for part in samples.chunks(1 << 16) {
-            self.row.clear();
-            if self.depth == 16 {
-                self.row.extend(part.iter().flat_map(|v| v.to_be_bytes()));
-            } else {
-                self.row.extend(part.iter().map(|v| *v as u8));
+        match &mut self.sink {
+            Sink::Bands(b) => b.write_samples(samples),
+            Sink::Stream(writer) => {
+                for part in samples.chunks(1 << 16) {
+                    self.row.clear();
+                    if self.depth == 16 {
+                        self.row.extend(part.iter().flat_map(|v| v.to_be_bytes()));
+                    } else {
+                        self.row.extend(part.iter().map(|v| *v as u8));
+                    }
+                    writer.write_all(&self.row)?;
+                }
+                Ok(())
             }
-            self.writer.write_all(&self.row)?;
+        }
+    }
+}
+
+/// The fast encoding's writer: samples are held until a band of rows is complete; complete
+/// bands are encoded on every core (a few per core at a time, so the raw rows are never all
+/// held) and their deflate output joined into IDAT chunks of [`PNG_CHUNK`] bytes.
+struct BandSink<'a, W: std::io::Write> {
+    writer: &'a mut png::Writer<W>,
+    depth: u8,
+    /// Samples in a row, and in a band.
+    row_samples: usize,
+    band_samples: usize,
+    /// Samples of a band not yet complete.
+    pending: Vec<u16>,
+    /// The last row encoded, as bytes (zeros before the first).
+    above: Vec<u8>,
+    /// Joined deflate bytes not yet written, and the Adler-32 of the filtered bytes so far.
+    idat: Vec<u8>,
+    adler: u32,
+}
+
+impl<'a, W: std::io::Write> BandSink<'a, W> {
+    fn new(writer: &'a mut png::Writer<W>, width: u32, depth: u8) -> Self {
+        let row_samples = width as usize * 4;
+        let row_bytes = row_samples * if depth == 16 { 2 } else { 1 };
+        let band_samples = super::png_bands::band_rows(row_bytes) * row_samples;
+        BandSink {
+            writer,
+            depth,
+            row_samples,
+            band_samples,
+            pending: Vec::new(),
+            above: vec![0; row_bytes],
+            idat: super::png_bands::ZLIB_HEADER.to_vec(),
+            adler: 1,
+        }
+    }
+
+    /// Encodes every complete band of `samples` (after what is pending) and keeps the rest.
+    fn write_samples(&mut self, mut samples: &[u16]) -> std::io::Result<()> {
+        if !self.pending.is_empty() {
+            let take = (self.band_samples - self.pending.len()).min(samples.len());
+            self.pending.extend_from_slice(&samples[..take]);
+            samples = &samples[take..];
+            if self.pending.len() < self.band_samples {
+                return Ok(());
+            }
+            let band = std::mem::take(&mut self.pending);
+            self.encode(&band)?;
+        }
+        // A few bands per core at a time: the count only sets the pace, never the bytes.
+        let window = self.band_samples * 2 * rayon::current_num_threads().max(1);
+        let whole = samples.len() / self.band_samples * self.band_samples;
+        for part in samples[..whole].chunks(window) {
+            self.encode(part)?;
+        }
+        self.pending.extend_from_slice(&samples[whole..]);
+        Ok(())
+    }
+
+    /// Encodes `samples` (whole bands, the last possibly short) in parallel and joins them.
+    fn encode(&mut self, samples: &[u16]) -> std::io::Result<()> {
+        use rayon::prelude::*;
+        let (depth, row) = (self.depth, self.row_samples);
+        let bytes = |s: &[u16]| -> Vec<u8> {
+            if depth == 16 {
+                s.iter().flat_map(|v| v.to_be_bytes()).collect()
+            } else {
+                s.iter().map(|v| *v as u8).collect()
+            }
+        };
+        let bpp = if depth == 16 { 8 } else { 4 };
+        let row_bytes = self.above.len();
+        let above = &self.above;
+        let bands: Vec<super::png_bands::Band> = samples
+            .par_chunks(self.band_samples)
+            .enumerate()
+            .map(|(i, band)| {
+                let start = i * self.band_samples;
+                let prev = match start {
+                    0 => above.clone(),
+                    _ => bytes(&samples[start - row..start]),
+                };
+                super::png_bands::encode_band(bpp, &prev, &bytes(band), row_bytes)
+            })
+            .collect();
+        self.above = bytes(&samples[samples.len() - row..]);
+        for band in bands {
+            self.adler = super::png_bands::adler_combine(self.adler, band.adler, band.len);
+            self.idat.extend_from_slice(&band.deflate);
+            self.flush_chunks(false)?;
         }
         Ok(())
+    }
+
+    /// Writes the IDAT chunks that are full (or, at the end, what is left).
+    fn flush_chunks(&mut self, end: bool) -> std::io::Result<()> {
+        let full = if end {
+            self.idat.len()
+        } else {
+            self.idat.len() / PNG_CHUNK * PNG_CHUNK
+        };
+        for chunk in self.idat[..full].chunks(PNG_CHUNK) {
+            self.writer
+                .write_chunk(png::chunk::IDAT, chunk)
+                .map_err(std::io::Error::other)?;
+        }
+        self.idat.drain(..full);
+        Ok(())
+    }
+
+    /// Encodes the last (short) band, closes the stream and writes what is left.
+    fn finish(mut self) -> std::io::Result<()> {
+        if !self.pending.is_empty() {
+            let band = std::mem::take(&mut self.pending);
+            self.encode(&band)?;
+        }
+        let end = super::png_bands::stream_end(self.adler);
+        self.idat.extend_from_slice(&end);
+        self.flush_chunks(true)
     }
 }
 
@@ -545,28 +704,56 @@ pub struct ExrRows<'a, W> {
 
 impl<W: std::io::Write + std::io::Seek> ExrRows<'_, W> {
     /// Writes every block that lies within the rows `y0..` held by `linear` (RGBA f32, 4 values a
-    /// texel, whole rows of the image).
+    /// texel, whole rows of the image). The blocks are gathered and compressed on every core, a
+    /// few per core at a time (so the compressed blocks are never all held), and written in the
+    /// file's order: the same bytes as one at a time.
     pub fn write_rows(&mut self, y0: u32, linear: &[f32]) -> exr::error::UnitResult {
-        use exr::block::writer::ChunksWriter;
         let rows = linear.len() / 4 / self.width;
         let end = y0 as usize + rows;
-        while let Some(&(index, block)) = self.blocks.get(self.next) {
-            let (p, s) = (block.pixel_position, block.pixel_size);
-            if p.y() + s.y() > end {
-                break;
-            }
-            let mut data = Vec::with_capacity(s.x() * s.y() * 16);
-            for y in p.y()..p.y() + s.y() {
-                let row = &linear[(y - y0 as usize) * self.width * 4..][..self.width * 4];
-                // Channels in the file's (alphabetical) order: A, B, G, R.
-                for c in [3, 2, 1, 0] {
-                    for x in p.x()..p.x() + s.x() {
-                        data.extend_from_slice(&row[x * 4 + c].to_ne_bytes());
+        let ready = self.blocks[self.next..]
+            .iter()
+            .take_while(|(_, b)| b.pixel_position.y() + b.pixel_size.y() <= end)
+            .count();
+        let (width, headers) = (self.width, self.headers);
+        let window = 4 * rayon::current_num_threads().max(1);
+        let blocks = self.blocks[self.next..self.next + ready].to_vec();
+        for part in blocks.chunks(window) {
+            self.write_blocks(part, y0, linear, (width, headers))?;
+        }
+        Ok(())
+    }
+
+    /// Compresses `blocks` (within the rows `y0..` held by `linear`) in parallel and writes them
+    /// in order.
+    fn write_blocks(
+        &mut self,
+        blocks: &[(usize, exr::block::BlockIndex)],
+        y0: u32,
+        linear: &[f32],
+        (width, headers): (usize, &[exr::meta::header::Header]),
+    ) -> exr::error::UnitResult {
+        use exr::block::writer::ChunksWriter;
+        use rayon::prelude::*;
+        let chunks: Vec<_> = blocks
+            .par_iter()
+            .map(|&(index, block)| {
+                let (p, s) = (block.pixel_position, block.pixel_size);
+                let mut data = Vec::with_capacity(s.x() * s.y() * 16);
+                for y in p.y()..p.y() + s.y() {
+                    let row = &linear[(y - y0 as usize) * width * 4..][..width * 4];
+                    // Channels in the file's (alphabetical) order: A, B, G, R.
+                    for c in [3, 2, 1, 0] {
+                        for x in p.x()..p.x() + s.x() {
+                            data.extend_from_slice(&row[x * 4 + c].to_ne_bytes());
+                        }
                     }
                 }
-            }
-            let chunk = exr::block::UncompressedBlock { index: block, data }
-                .compress_to_chunk(self.headers)?;
+                let chunk = exr::block::UncompressedBlock { index: block, data }
+                    .compress_to_chunk(headers)?;
+                Ok((index, chunk))
+            })
+            .collect::<exr::error::Result<_>>()?;
+        for (index, chunk) in chunks {
             self.writer.write_chunk(index, chunk)?;
             self.next += 1;
         }
@@ -625,6 +812,64 @@ mod tests {
             for k in 0..4 {
                 assert!((a[k] - b[k]).abs() < 1e-4, "{a:?} vs {b:?}");
             }
+        }
+    }
+
+    /// Samples of several bands (varied content, so every filter comes up), at a bit depth.
+    fn band_samples(width: u32, height: u32, depth: u8) -> Vec<u16> {
+        let max = if depth == 16 { 65535 } else { 255 };
+        let mut s = 7u32;
+        (0..width * height * 4)
+            .map(|i| {
+                s = s.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                let (x, y) = ((i / 4) % width, i / 4 / width);
+                let v = match (y / 3) % 3 {
+                    0 => x * 5 + y,
+                    1 => s >> 20,
+                    _ => 77,
+                };
+                (v % (max + 1)) as u16
+            })
+            .collect()
+    }
+
+    #[test]
+    fn fast_pngs_stream_in_any_pieces_and_decode_to_their_samples() {
+        for depth in [8u8, 16] {
+            let (w, h) = (300, 2700);
+            let samples = band_samples(w, h, depth);
+            let whole = png_bytes(w, h, depth, &samples);
+            // Pieces that cut rows and bands anywhere give the same bytes.
+            let mut streamed = Vec::new();
+            png_rows(
+                &mut streamed,
+                [w, h],
+                (depth, PngCompression::Fast),
+                Path::new("m"),
+                |p| {
+                    for piece in samples.chunks(4 * 1237 + 8) {
+                        p.write_texels(piece).unwrap();
+                    }
+                    Ok(())
+                },
+            )
+            .unwrap();
+            assert!(streamed == whole, "{depth}-bit: streamed bytes differ");
+            let rows = super::super::png_bands::band_rows(w as usize * 4 * depth as usize / 8);
+            assert!((h as usize).div_ceil(rows) >= 3, "several bands");
+            let mut r = png::Decoder::new(std::io::Cursor::new(&whole))
+                .read_info()
+                .unwrap();
+            let mut buf = vec![0; r.output_buffer_size().unwrap()];
+            r.next_frame(&mut buf).unwrap();
+            let back: Vec<u16> = match depth {
+                16 => buf
+                    .chunks_exact(2)
+                    .map(|b| u16::from_be_bytes([b[0], b[1]]))
+                    .collect(),
+                _ => buf.iter().map(|&b| u16::from(b)).collect(),
+            };
+            assert!(back == samples, "{depth}-bit: decoded samples differ");
         }
     }
 

@@ -166,7 +166,10 @@ fn bands(
         action: "writing",
         source,
     };
-    crate::bake::bake_bands(engine, mesh, job, shape, on_stage, &mut |band| {
+    // The bands' encoding into the files, counted as writing.
+    let mut writing = 0.0;
+    let mut report = crate::bake::bake_bands(engine, mesh, job, shape, on_stage, &mut |band| {
+        let t = Instant::now();
         if let Some(p) = png.as_mut() {
             p.write_texels(&band.texels).map_err(io)?;
         }
@@ -174,11 +177,14 @@ fn bands(
             e.write_rows(band.y, linear)
                 .map_err(|e| io(std::io::Error::other(e)))?;
         }
+        writing += t.elapsed().as_secs_f64() * 1000.0;
         if let Some(r) = reduce.as_mut() {
             r.add(band);
         }
         Ok(())
-    })
+    })?;
+    report.timings.write_ms += writing;
+    Ok(report)
 }
 
 /// The model and the preview of a streamed bake, from its PNG (`texture`'s file, or `memory`).

@@ -172,11 +172,90 @@ pub fn run(
                 "gpu_commands": baked.report.gpu_commands,
                 "cpu_twin_compose_ms": cpu_ms,
                 "cpu_twin_over_gpu_compose": cpu_ms.map(|c| c / compose),
+                "png": png_figures(&baked, &dir)?,
             }));
         }
     }
     let _ = std::fs::remove_dir_all(&dir);
     Ok(())
+}
+
+/// The PNG encode against a file copy of the same samples, in one run (medians of 3, interleaved):
+/// the engine's encoding on every core and on one, the `png` crate's single-stream fast encoding
+/// (the engine's before it deflated bands), and `std::fs::copy` of the raw 8-bit samples (written
+/// to the scratch folder first, so the copy reads from the page cache), in ms and MB/s of raw
+/// samples.
+fn png_figures(baked: &decalbake::bake::Baked, dir: &Path) -> Result<serde_json::Value> {
+    let (w, h, depth) = (baked.width, baked.height, baked.bit_depth);
+    let raw: Vec<u8> = match depth {
+        16 => baked.texels.iter().flat_map(|v| v.to_be_bytes()).collect(),
+        _ => baked.texels.iter().map(|v| *v as u8).collect(),
+    };
+    let (src, dst) = (dir.join("raw.bin"), dir.join("raw-copy.bin"));
+    let io = |path: &Path, source| decalbake::Error::Io {
+        path: path.to_path_buf(),
+        action: "writing",
+        source,
+    };
+    std::fs::write(&src, &raw).map_err(|e| io(&src, e))?;
+    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().ok();
+    let (mut cores, mut single, mut stream, mut copy) = (vec![], vec![], vec![], vec![]);
+    let mut png_bytes = 0;
+    let time = |f: &mut dyn FnMut() -> usize| {
+        let t = Instant::now();
+        let n = f();
+        (t.elapsed().as_secs_f64() * 1000.0, n)
+    };
+    for _ in 0..3 {
+        let (ms, n) = time(&mut || baked.to_png().len());
+        cores.push(ms);
+        png_bytes = n;
+        if let Some(one) = &one {
+            single.push(time(&mut || one.install(|| baked.to_png().len())).0);
+        }
+        stream.push(time(&mut || single_stream_png(w, h, depth, &baked.texels)).0);
+        let (ms, _) = time(&mut || std::fs::copy(&src, &dst).map(|n| n as usize).unwrap_or(0));
+        copy.push(ms);
+    }
+    let _ = (std::fs::remove_file(&src), std::fs::remove_file(&dst));
+    let mb = raw.len() as f64 / 1e6;
+    let single = (!single.is_empty()).then(|| median(single));
+    let (cores, stream, copy) = (median(cores), median(stream), median(copy));
+    Ok(serde_json::json!({
+        "raw_mb": mb,
+        "png_bytes": png_bytes,
+        "threads": rayon::current_num_threads(),
+        "encode_ms": cores,
+        "encode_one_core_ms": single,
+        "single_stream_ms": stream,
+        "copy_ms": copy,
+        "encode_mb_s": mb / (cores / 1000.0),
+        "copy_mb_s": mb / (copy / 1000.0),
+        "encode_over_copy": cores / copy,
+    }))
+}
+
+/// The `png` crate's fast encoding of the raw samples in one deflate stream (adaptive filters,
+/// `fdeflate`), the samples converted to bytes first as the engine's encoding converts them: the
+/// bytes' length.
+fn single_stream_png(width: u32, height: u32, depth: u8, texels: &[u16]) -> usize {
+    let raw: Vec<u8> = match depth {
+        16 => texels.iter().flat_map(|v| v.to_be_bytes()).collect(),
+        _ => texels.iter().map(|v| *v as u8).collect(),
+    };
+    let mut out = Vec::new();
+    let mut enc = png::Encoder::new(&mut out, width, height);
+    enc.set_color(png::ColorType::Rgba);
+    enc.set_depth(match depth {
+        16 => png::BitDepth::Sixteen,
+        _ => png::BitDepth::Eight,
+    });
+    enc.set_compression(png::Compression::Fast);
+    enc.set_filter(png::Filter::Adaptive);
+    if let Ok(mut w) = enc.write_header() {
+        let _ = w.write_image_data(&raw);
+    }
+    out.len()
 }
 
 /// The same placements tested against every triangle (`place::place_gpu_brute`, the reference the
