@@ -479,7 +479,10 @@ fn unwrap_command_writes_a_valid_glb() {
         report.to_str().unwrap(),
     ]);
     assert_eq!(code, 0, "{err}");
-    let cpu_adapter = common::engine().ctx.device_type == Some(wgpu::DeviceType::Cpu);
+    let kind = common::engine().ctx.device_type;
+    // The command decided from the adapter's kind, asked without a device: the engine's.
+    assert_eq!(decalbake::gpu::GpuContext::adapter_type(None), kind);
+    let cpu_adapter = kind == Some(wgpu::DeviceType::Cpu);
     let r = read(&report);
     assert_eq!(r["device"], if cpu_adapter { "cpu" } else { "gpu" });
     assert_eq!(

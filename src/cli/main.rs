@@ -353,7 +353,7 @@ fn run(cli: Cli) -> Result<()> {
         }
         Cmd::Unwrap(args) => {
             let backend = cli.backend.clone();
-            unwrap::run(&args, || engine(backend.as_deref()))
+            unwrap::run(&args, backend.as_deref(), || engine(backend.as_deref()))
         }
         Cmd::Batch {
             manifest,

@@ -98,16 +98,33 @@ fn input(path: &Path, field: &str, detail: String) -> anyhow::Error {
     .into()
 }
 
-/// Runs the command (`engine` is made only when needed: the CPU twin needs none unless a preview
-/// is asked for).
-pub fn run(args: &UnwrapArgs, engine: impl Fn() -> Result<Engine>) -> Result<()> {
-    prepare(args, |args, mesh, topo, set, opts| {
-        let engine = if args.cpu && args.preview.is_none() {
-            None
-        } else {
-            Some(engine()?)
-        };
-        run_on(args, mesh, topo, set, opts, engine.as_ref())
+/// Runs the command (`engine` is made only when needed: `--cpu` needs none unless a preview is
+/// asked for, nor does the default where the adapter is a CPU, on which the CPU twin is the
+/// faster path: the adapter's kind is asked without making a device). The adapter is asked, or
+/// the engine made, on a thread of its own while the model loads.
+pub fn run(
+    args: &UnwrapArgs,
+    backend: Option<&str>,
+    engine: impl Fn() -> Result<Engine> + Sync,
+) -> Result<()> {
+    let needed = !(args.cpu && args.preview.is_none());
+    let probe = !args.gpu && !args.cpu && args.preview.is_none();
+    let make = || -> Result<Option<Engine>> {
+        let on_cpu = Some(wgpu::DeviceType::Cpu);
+        if probe && decalbake::gpu::GpuContext::adapter_type(backend) == on_cpu {
+            return Ok(None);
+        }
+        engine().map(Some)
+    };
+    std::thread::scope(|scope| {
+        let made = needed.then(|| scope.spawn(make));
+        prepare(args, |args, mesh, topo, set, opts| {
+            let engine = match made {
+                Some(thread) => thread.join().unwrap_or_else(|_| make())?,
+                None => None,
+            };
+            run_on(args, mesh, topo, set, opts, engine.as_ref())
+        })
     })
 }
 

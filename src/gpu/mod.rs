@@ -147,6 +147,35 @@ impl GpuContext {
             })
     }
 
+    /// The kind of adapter [`Self::new`] would take for `backend`, without making a device (`None`
+    /// where there is none): what a command asks before it decides whether it needs a device.
+    pub fn adapter_type(backend: Option<&str>) -> Option<wgpu::DeviceType> {
+        let attempts: Vec<wgpu::Backends> = match backend {
+            Some(name) => vec![parse_backends(name)?],
+            None => match wgpu::Backends::from_env() {
+                Some(b) => vec![b],
+                None => vec![wgpu::Backends::VULKAN, wgpu::Backends::GL],
+            },
+        };
+        attempts.into_iter().find_map(|backends| {
+            let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+                backends,
+                ..wgpu::InstanceDescriptor::new_without_display_handle()
+            });
+            let adapter =
+                pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+                    power_preference: wgpu::PowerPreference::HighPerformance,
+                    ..Default::default()
+                }))
+                .ok()?;
+            let compute = adapter
+                .get_downlevel_capabilities()
+                .flags
+                .contains(wgpu::DownlevelFlags::COMPUTE_SHADERS);
+            compute.then(|| adapter.get_info().device_type)
+        })
+    }
+
     /// Creates a headless device. `backend` (e.g. `"vulkan"`, `"gl"`) overrides `WGPU_BACKEND`; with
     /// neither, Vulkan is tried first and GL second.
     pub fn new(backend: Option<&str>) -> Result<Self> {
