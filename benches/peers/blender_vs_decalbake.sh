@@ -14,7 +14,9 @@
 #
 # Environment: DECALBAKE (default target/release/decalbake), BPY_PYTHON (default
 # ../shared/peers/.venv-bpy/bin/python from the project root, else /work/peers-venv-bpy/bin/python),
-# OUT_DIR (Blender's PNG and logs; default a new temporary folder).
+# OUT_DIR (Blender's PNG and logs; default a new temporary folder), BLENDER_TIMEOUT (seconds a
+# Blender run may take, 0 = no limit; a run stopped there prints {"tool": "blender", "rep",
+# "timed_out": true, "seconds": at least} and a summary with "blender_at_least_s", then stops).
 set -euo pipefail
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 if [[ $# -lt 2 ]]; then
@@ -65,10 +67,18 @@ for rep in $(seq 1 "$reps"); do
   printf '{"tool": "decalbake", "rep": %d, "seconds": %.3f}\n' "$rep" "$s"
 
   t0=$(now)
-  "$bpy_python" "$root/benches/peers/blender_decals.py" "$job" "$out_dir/report.json" \
-    --out "$out_dir/blender.png" "$@" >"$out_dir/blender.log" 2>&1 \
-    || { cat "$out_dir/blender.log" >&2; exit 1; }
+  rc=0
+  timeout "${BLENDER_TIMEOUT:-0}" "$bpy_python" "$root/benches/peers/blender_decals.py" "$job" \
+    "$out_dir/report.json" --out "$out_dir/blender.png" "$@" >"$out_dir/blender.log" 2>&1 || rc=$?
   t1=$(now)
+  if [[ $rc -eq 124 ]]; then
+    s=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.3f", b - a }')
+    printf '{"tool": "blender", "rep": %d, "timed_out": true, "seconds": %s}\n' "$rep" "$s"
+    printf '{"summary": true, "job": "%s", "decalbake_s": %s, "blender_at_least_s": %s}\n' \
+      "$job" "${db_times[0]}" "$s"
+    exit 0
+  fi
+  [[ $rc -eq 0 ]] || { cat "$out_dir/blender.log" >&2; exit 1; }
   s=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.6f", b - a }')
   bl_times+=("$s")
   phases=$(grep '^{"peer": "blender"' "$out_dir/blender.log" | tail -1)

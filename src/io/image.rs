@@ -456,7 +456,7 @@ fn png_rows_at<W: std::io::Write, T>(
         }
         Encoding::Bands => {
             let mut rows = PngRows {
-                sink: Sink::Bands(BandSink::new(&mut writer, width, depth)),
+                sink: Sink::Bands(BandSink::new(&mut writer, [width, height], depth)),
                 depth,
                 row: Vec::new(),
             };
@@ -529,10 +529,13 @@ struct BandSink<'a, W: std::io::Write> {
     /// Joined deflate bytes not yet written, and the Adler-32 of the filtered bytes so far.
     idat: Vec<u8>,
     adler: u32,
+    /// Samples the image has, and samples handed over so far.
+    expected: usize,
+    written: usize,
 }
 
 impl<'a, W: std::io::Write> BandSink<'a, W> {
-    fn new(writer: &'a mut png::Writer<W>, width: u32, depth: u8) -> Self {
+    fn new(writer: &'a mut png::Writer<W>, [width, height]: [u32; 2], depth: u8) -> Self {
         let row_samples = width as usize * 4;
         let row_bytes = row_samples * if depth == 16 { 2 } else { 1 };
         let band_samples = super::png_bands::band_rows(row_bytes) * row_samples;
@@ -545,11 +548,25 @@ impl<'a, W: std::io::Write> BandSink<'a, W> {
             above: vec![0; row_bytes],
             idat: super::png_bands::ZLIB_HEADER.to_vec(),
             adler: 1,
+            expected: row_samples * height as usize,
+            written: 0,
         }
+    }
+
+    /// The error of a writer handed more or fewer samples than the image has.
+    fn wrong_count(&self, written: usize) -> std::io::Error {
+        std::io::Error::other(format!(
+            "the PNG writer was handed {written} samples for an image of {}",
+            self.expected
+        ))
     }
 
     /// Encodes every complete band of `samples` (after what is pending) and keeps the rest.
     fn write_samples(&mut self, mut samples: &[u16]) -> std::io::Result<()> {
+        if self.written + samples.len() > self.expected {
+            return Err(self.wrong_count(self.written + samples.len()));
+        }
+        self.written += samples.len();
         if !self.pending.is_empty() {
             let take = (self.band_samples - self.pending.len()).min(samples.len());
             self.pending.extend_from_slice(&samples[..take]);
@@ -623,6 +640,9 @@ impl<'a, W: std::io::Write> BandSink<'a, W> {
 
     /// Encodes the last (short) band, closes the stream and writes what is left.
     fn finish(mut self) -> std::io::Result<()> {
+        if self.written != self.expected {
+            return Err(self.wrong_count(self.written));
+        }
         if !self.pending.is_empty() {
             let band = std::mem::take(&mut self.pending);
             self.encode(&band)?;
@@ -831,6 +851,30 @@ mod tests {
                 (v % (max + 1)) as u16
             })
             .collect()
+    }
+
+    #[test]
+    fn a_fast_png_handed_too_few_or_too_many_samples_is_an_error() {
+        let mut samples = band_samples(8, 8, 8);
+        samples.extend_from_slice(&[1, 2, 3, 4]);
+        for n in [samples.len() - 8, samples.len()] {
+            let mut out = Vec::new();
+            let r = png_rows(
+                &mut out,
+                [8, 8],
+                (8, PngCompression::Fast),
+                Path::new("m"),
+                |p| {
+                    p.write_texels(&samples[..n]).map_err(|source| Error::Io {
+                        path: "m".into(),
+                        action: "writing",
+                        source,
+                    })
+                },
+            );
+            let e = r.expect_err("a wrong sample count").to_string();
+            assert!(e.contains("samples for an image of 256"), "{n}: {e}");
+        }
     }
 
     #[test]

@@ -9,8 +9,8 @@
 //! joins zlib's: each band's block is made non-final and followed by an empty stored block
 //! (which ends it on a byte boundary), a final empty block closes the stream, and the Adler-32
 //! checksum of the whole is combined from the bands'. Bands are independent, so they are encoded
-//! in parallel ([`encode_bands`]), and a texture streamed a band of rows at a time
-//! ([`super::image::png_rows`]) gives the same bytes as one encoded whole.
+//! in parallel (the band writer of [`super::image::png_rows`]), and a texture streamed a band of
+//! rows at a time gives the same bytes as one encoded whole.
 //!
 //! The join reads `fdeflate`'s output: a 2-byte zlib header, one dynamic Huffman block (final),
 //! whose end-of-block code's last bit is a 1, zero padding, and the Adler-32. `Cargo.toml` pins
@@ -57,11 +57,12 @@ pub fn encode_band(bpp: usize, above: &[u8], rows: &[u8], row_bytes: usize) -> B
     let adler = u32::from_be_bytes(z[z.len() - 4..].try_into().expect("4 bytes"));
     let mut deflate = Vec::with_capacity(z.len() + 5);
     deflate.extend_from_slice(&z[2..z.len() - 4]);
-    deflate[0] &= !1; // not the final block
-                      // The last byte holds the end-of-block code's last bit (a 1) under the padding zeros. An empty
-                      // stored block (3 header bits, 0, 00; then LEN 0 and NLEN 0xffff on a byte boundary) follows
-                      // it: its header fits in the padding when there are 3 bits or more, else it spills into one
-                      // more zero byte.
+    // Not the final block.
+    deflate[0] &= !1;
+    // The last byte holds the end-of-block code's last bit (a 1) under the padding zeros. An
+    // empty stored block (3 header bits, 0, 00; then LEN 0 and NLEN 0xffff on a byte boundary)
+    // follows it: its header fits in the padding when there are 3 bits or more, else it spills
+    // into one more zero byte.
     let padding = deflate.last().expect("a block").leading_zeros();
     if padding < 3 {
         deflate.push(0);
