@@ -1037,13 +1037,7 @@ fn smooth_maps_unfold_a_crumpled_developable_sheet() {
 /// twin's u and v swapped, 16,597 values differed.
 #[test]
 fn a_bake_maps_on_the_faster_path_and_both_paths_agree() {
-    let dir = scratch("expmap_paths");
-    let layers = serde_json::Value::from(spot_ring("img.png", 0.2));
-    let text = spot_job_json(&dir, 4, layers, serde_json::json!({ "texture": "out.png" }));
-    let job = decalbake::Job::parse(&text.to_string(), &dir.join("job.json"), &dir, &dir).unwrap();
-    let mut engine = engine();
-    let mesh = engine.load_mesh(&spot_asset()).unwrap();
-    let auto = engine.bake(&mesh, &job).unwrap();
+    let (job, mut engine, mesh, auto) = spot_paths_bake("expmap_paths", spot_ring("img.png", 0.2));
     let cpu_adapter = engine.ctx.device_type == Some(wgpu::DeviceType::Cpu);
     let gl = engine.ctx.backend == Some(wgpu::Backend::Gl);
     let expected = if cpu_adapter || gl { "cpu" } else { "gpu" };

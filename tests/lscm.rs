@@ -493,21 +493,11 @@ fn lscm_batches_solve_on_complex_blocks() {
 /// to 68.
 #[test]
 fn a_bake_solves_charts_on_the_faster_path_and_both_paths_agree() {
-    let dir = scratch("chart_paths");
     let mut layers = spot_ring("img.png", 0.2);
     for (i, l) in layers.iter_mut().enumerate() {
         l["method"] = serde_json::json!(if i % 2 == 0 { "lscm" } else { "hybrid" });
     }
-    let text = spot_job_json(
-        &dir,
-        4,
-        serde_json::Value::from(layers),
-        serde_json::json!({ "texture": "out.png" }),
-    );
-    let job = decalbake::Job::parse(&text.to_string(), &dir.join("job.json"), &dir, &dir).unwrap();
-    let mut engine = engine();
-    let mesh = engine.load_mesh(&spot_asset()).unwrap();
-    let auto = engine.bake(&mesh, &job).unwrap();
+    let (job, mut engine, mesh, auto) = spot_paths_bake("chart_paths", layers);
     let cpu_adapter = engine.ctx.device_type == Some(wgpu::DeviceType::Cpu);
     assert_eq!(
         auto.report.paths.charts,

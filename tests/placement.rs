@@ -470,13 +470,8 @@ fn gpu_lbvh_is_its_twin_and_places_as_brute_force() {
 /// the same texture but for texels on a decal's edge, and the report names the path taken.
 #[test]
 fn a_bake_places_on_the_faster_path_and_both_paths_agree() {
-    let dir = scratch("placement_paths");
-    let layers = serde_json::Value::from(spot_ring("img.png", 0.2));
-    let text = spot_job_json(&dir, 4, layers, serde_json::json!({ "texture": "out.png" }));
-    let job = decalbake::Job::parse(&text.to_string(), &dir.join("job.json"), &dir, &dir).unwrap();
-    let mut engine = engine();
-    let mesh = engine.load_mesh(&spot_asset()).unwrap();
-    let auto = engine.bake(&mesh, &job).unwrap();
+    let (job, mut engine, mesh, auto) =
+        spot_paths_bake("placement_paths", spot_ring("img.png", 0.2));
     let cpu_adapter = engine.ctx.device_type == Some(wgpu::DeviceType::Cpu);
     let expected = if cpu_adapter && !mesh.bvh.nodes.is_empty() {
         "cpu"

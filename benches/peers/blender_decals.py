@@ -68,6 +68,7 @@ import sys  # noqa: E402
 
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
+from bpy_scene import import_joined  # noqa: E402
 
 T_BPY = time.perf_counter()
 
@@ -155,16 +156,7 @@ def main():
 
     # --- import ---------------------------------------------------------------------------
     t0 = time.perf_counter()
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.import_scene.gltf(filepath=os.path.join(job_dir, job["mesh"]))
-    meshes = [o for o in bpy.context.scene.objects if o.type == "MESH"]
-    bpy.ops.object.select_all(action="DESELECT")
-    for o in meshes:
-        o.select_set(True)
-    bpy.context.view_layer.objects.active = meshes[0]
-    if len(meshes) > 1:
-        bpy.ops.object.join()
-    low = bpy.context.view_layer.objects.active
+    low = import_joined(os.path.join(job_dir, job["mesh"]))
     t_import = time.perf_counter() - t0
 
     # --- scene set-up ---------------------------------------------------------------------

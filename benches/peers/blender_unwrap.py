@@ -24,6 +24,7 @@ import sys
 import time
 
 import bpy
+from bpy_scene import import_joined
 
 
 def main():
@@ -33,16 +34,7 @@ def main():
     ap.add_argument("--method", choices=["smart", "angle"], default="smart")
     a = ap.parse_args(sys.argv[1:])
 
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.import_scene.gltf(filepath=os.path.abspath(a.mesh), merge_vertices=True)
-    meshes = [o for o in bpy.context.scene.objects if o.type == "MESH"]
-    bpy.ops.object.select_all(action="DESELECT")
-    for o in meshes:
-        o.select_set(True)
-    bpy.context.view_layer.objects.active = meshes[0]
-    if len(meshes) > 1:
-        bpy.ops.object.join()
-    obj = bpy.context.view_layer.objects.active
+    obj = import_joined(os.path.abspath(a.mesh), merge_vertices=True)
     while obj.data.uv_layers:
         obj.data.uv_layers.remove(obj.data.uv_layers[0])
     obj.data.uv_layers.new(name="UVMap")

@@ -159,6 +159,27 @@ pub fn spot_asset() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb")
 }
 
+/// The stage-path tests' start: `layers` on Spot (`spot_job_json`, seed 4, into `out.png`) in the
+/// scratch folder `name`, an engine, the loaded mesh, and the bake at the engine's default paths.
+pub fn spot_paths_bake(
+    name: &str,
+    layers: Vec<serde_json::Value>,
+) -> (
+    decalbake::Job,
+    Engine,
+    decalbake::bake::LoadedMesh,
+    decalbake::bake::Baked,
+) {
+    let dir = scratch(name);
+    let output = serde_json::json!({ "texture": "out.png" });
+    let text = spot_job_json(&dir, 4, serde_json::Value::from(layers), output);
+    let job = decalbake::Job::parse(&text.to_string(), &dir.join("job.json"), &dir, &dir).unwrap();
+    let engine = engine();
+    let mesh = engine.load_mesh(&spot_asset()).unwrap();
+    let auto = engine.bake(&mesh, &job).unwrap();
+    (job, engine, mesh, auto)
+}
+
 /// A 256² job on the bundled Spot with `layers` and `output`, its layers' `img.png` (a 32×32
 /// `test_image` of `seed`, with alpha) written into `dir`.
 pub fn spot_job_json(
