@@ -739,3 +739,90 @@ fn svg_works_for_every_layer_kind_and_channel() {
         }
     }
 }
+
+/// The GPU alternative to resvg that `bench --vector` measures (`bake::vector_gpu`): the flat
+/// document drawn by point-sampled coverage on the GPU equals its CPU twin; with 4 × 4 samples a
+/// pixel it matches resvg's anti-aliased rendering (mean error under 1/255: what differs is the
+/// edge pixels, 16 point samples against resvg's analytic coverage); a disc's coverage sums to
+/// its area.
+#[test]
+fn gpu_coverage_matches_its_twin_resvg_and_the_area() {
+    use decalbake::bake::vector_gpu::{bin, coverage_cpu};
+    let engine = common::engine();
+    // SHAPES (fills, a gradient, fill opacity) and strokes: dashed, round caps and joins.
+    let strokes = SHAPES.replace(
+        "</svg>",
+        r##"<circle cx="50" cy="50" r="38" fill="none" stroke="#102030" stroke-width="2.5" stroke-dasharray="6 4"/>
+  <path d="M29 52 L44 67 L72 35" fill="none" stroke="#ffffff" stroke-width="9" stroke-linecap="round" stroke-linejoin="round"/>
+  <path d="M5 5 C 60 0, 40 60, 95 40 Q 90 90 50 95 Z" fill="#6030a0" fill-rule="evenodd" fill-opacity="0.6"/>
+</svg>"##,
+    );
+    let svg = Svg::parse(strokes.as_bytes()).unwrap();
+    let px = [203u32, 157];
+    let scene = svg.flatten(px).unwrap();
+    // One sample a pixel (the bench's): GPU against twin. A crossing's x is computed alike, but
+    // the GPU may fuse the multiply-add: a sample within rounding of an edge may fall either side.
+    let one = bin(&scene, 1);
+    let gpu = engine.draw_flat(&one).unwrap();
+    let cpu = coverage_cpu(&one);
+    let differ = gpu
+        .iter()
+        .zip(&cpu)
+        .filter(|(g, c)| g.iter().zip(c.iter()).any(|(a, b)| (a - b).abs() > 1e-5))
+        .count();
+    assert!(
+        differ * 1000 <= gpu.len(),
+        "{differ} of {} pixels differ from the twin",
+        gpu.len()
+    );
+    assert!(cpu.iter().any(|p| p[3] > 0.99) && cpu.iter().any(|p| p[3] == 0.0));
+    // 4 × 4 samples a pixel against resvg (premultiplied 8-bit).
+    let fine = bin(&scene, 4);
+    let gpu = engine.draw_flat(&fine).unwrap();
+    let mut pixmap = resvg::tiny_skia::Pixmap::new(px[0], px[1]).unwrap();
+    let [sw, sh] = svg.size();
+    let xf = resvg::tiny_skia::Transform::from_scale(px[0] as f32 / sw, px[1] as f32 / sh);
+    resvg::render(&svg_tree(&strokes), xf, &mut pixmap.as_mut());
+    let (mut sum, mut worst_inner) = (0.0f64, 0.0f32);
+    for (i, (g, r)) in gpu.iter().zip(pixmap.data().chunks_exact(4)).enumerate() {
+        let errs: Vec<f32> = (0..4).map(|c| (g[c] * 255.0 - r[c] as f32).abs()).collect();
+        sum += errs.iter().map(|&e| e as f64).sum::<f64>();
+        // Away from every edge (the 3 × 3 pixels around agree in resvg), at most 1.5/255:
+        // rounding, and the gradient's 8-bit stops.
+        let (x, y) = (i % px[0] as usize, i / px[0] as usize);
+        let flat = (x > 0 && y > 0 && x + 1 < px[0] as usize && y + 1 < px[1] as usize)
+            && (0..9).all(|k| {
+                let q = (y + k / 3 - 1) * px[0] as usize + x + k % 3 - 1;
+                pixmap.data()[4 * q..4 * q + 4] == pixmap.data()[4 * i..4 * i + 4]
+            });
+        if flat {
+            worst_inner = worst_inner.max(errs.iter().copied().fold(0.0, f32::max));
+        }
+    }
+    let mean = sum / (gpu.len() * 4) as f64;
+    eprintln!("against resvg: mean {mean:.3}/255, away from edges {worst_inner}/255");
+    assert!(mean < 1.0, "mean error {mean:.3}/255 against resvg");
+    assert!(worst_inner <= 1.5, "{worst_inner}/255 away from the edges");
+    // A disc of radius 40.3 px: its coverage sums to π r², less at most the perimeter times the
+    // flattening tolerance (the chords lie inside the arc), within the samples' noise (2 px²).
+    let disc = Svg::parse(
+        br#"<svg xmlns="http://www.w3.org/2000/svg" width="100" height="100">
+        <circle cx="50.2" cy="49.7" r="40.3" fill="black"/></svg>"#,
+    )
+    .unwrap();
+    let cov = engine
+        .draw_flat(&bin(&disc.flatten([100, 100]).unwrap(), 4))
+        .unwrap();
+    let area: f32 = cov.iter().map(|p| p[3]).sum();
+    let exact = PI * 40.3 * 40.3;
+    let chords = 2.0 * PI * 40.3 * decalbake::io::vector_paths::FLATTEN_TOLERANCE;
+    assert!(
+        area <= exact + 2.0 && area >= exact - chords - 2.0,
+        "area {area} against {exact} (chords {chords})"
+    );
+}
+
+/// The usvg tree resvg renders `text` (without `<text>`) from.
+fn svg_tree(text: &str) -> resvg::usvg::Tree {
+    resvg::usvg::Tree::from_data(text.as_bytes(), &resvg::usvg::Options::default()).unwrap()
+}

@@ -53,6 +53,7 @@ pub(crate) mod tiles;
 pub mod tools;
 mod transfer;
 mod vector;
+pub mod vector_gpu;
 
 pub use engine::{Baked, BakedChannel, BvhBuild, Engine, LoadedMesh, StagePath, StagePaths};
 pub use images::{f32_to_f16, load_raw, upload_image};

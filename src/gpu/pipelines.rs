@@ -203,6 +203,9 @@ pub struct Pipelines {
     pub island_mask: Lazy<Kernel>,
     /// Layer composition.
     pub compose: Lazy<Kernel>,
+    /// `wgsl/bake/vector_coverage.wgsl`: a flattened SVG drawn by point-sampled coverage (the
+    /// alternative to resvg that `decalbake bench --vector` measures; not used by bakes).
+    pub vector_coverage: Lazy<Kernel>,
     /// A finished stroke onto the canvas.
     pub stroke_apply: Lazy<Kernel>,
     /// Base fill.
@@ -376,6 +379,20 @@ impl Pipelines {
                     (3, Rw),
                     (10, Rw),
                     (11, Rw),
+                ],
+            ),
+            vector_coverage: kernel(
+                "vector_coverage",
+                &[
+                    (0, Uniform),
+                    (1, Ro),
+                    (2, Ro),
+                    (3, Ro),
+                    (4, Ro),
+                    (5, Ro),
+                    (6, Ro),
+                    (7, Rw),
+                    (8, Ro),
                 ],
             ),
             stroke_apply: kernel(

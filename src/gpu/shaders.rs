@@ -64,6 +64,10 @@ pub const KERNELS: &[(&str, &str)] = &[
     ),
     ("compose", include_str!("../../wgsl/bake/compose.wgsl")),
     (
+        "vector_coverage",
+        include_str!("../../wgsl/bake/vector_coverage.wgsl"),
+    ),
+    (
         "stamp_flatten",
         include_str!("../../wgsl/bake/stamp_flatten.wgsl"),
     ),

@@ -674,6 +674,18 @@ impl Layer {
 
     /// The layer's colour image: its text or its file, vector images at [`Layer::raster`].
     pub fn colour_image(&self) -> Result<super::image::LinearImage> {
+        match self.colour_svg()? {
+            Some(svg) => {
+                let px = self.raster.unwrap_or_else(|| svg.default_px());
+                Ok(svg.render(px, false))
+            }
+            None => super::vector::load_image(&self.image, self.raster, false),
+        }
+    }
+
+    /// The layer's colour image as a vector document: its text's, or its SVG file; `None` for a
+    /// bitmap.
+    pub fn colour_svg(&self) -> Result<Option<super::vector::Svg>> {
         match &self.text {
             Some(t) => {
                 let curve = self.ribbon.as_ref().map(|_| self.size[0]);
@@ -684,10 +696,12 @@ impl Layer {
                         detail: format!("the text's SVG does not parse: {e}"),
                     }
                 })?;
-                let px = self.raster.unwrap_or_else(|| svg.default_px());
-                Ok(svg.render(px, false))
+                Ok(Some(svg))
             }
-            None => super::vector::load_image(&self.image, self.raster, false),
+            None if super::vector::is_svg(&self.image) => {
+                Ok(Some(super::vector::Svg::load(&self.image)?))
+            }
+            None => Ok(None),
         }
     }
 

@@ -14,4 +14,5 @@ pub mod schema;
 pub mod stroke;
 pub mod text;
 pub mod vector;
+pub mod vector_paths;
 pub mod warp;

@@ -99,6 +99,11 @@ impl Svg {
         })
     }
 
+    /// The parsed tree (for [`super::vector_paths`]).
+    pub(super) fn tree(&self) -> &resvg::usvg::Tree {
+        &self.tree
+    }
+
     /// Width and height in the SVG's own units.
     pub fn size(&self) -> [f32; 2] {
         let s = self.tree.size();

@@ -17,6 +17,9 @@
 //! bitmap (the target: at most 2).
 
 use super::common::{median, random_job};
+use decalbake::bake::vector_gpu::bin;
+use decalbake::io::job::Layer;
+use decalbake::io::vector::Svg;
 use decalbake::{Engine, Job, LoadedMesh};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -67,11 +70,13 @@ fn run_in(
         for l in &mut svg.layers {
             l.image = logo.clone();
         }
-        let png = bitmap_twin(engine, &mesh, &svg, dir, "decal")?;
+        let (png, sized) = bitmap_twin(engine, &mesh, &svg, dir, "decal")?;
         compare(engine, (&mesh, &svg, &png), opts, "decals", side, emit)?;
+        coverage(engine, &sized, opts.reps, ("decals", side), emit)?;
         let text = text_job(dir, &plane_path, side)?;
-        let strips = bitmap_twin(engine, &plane, &text, dir, "line")?;
+        let (strips, sized) = bitmap_twin(engine, &plane, &text, dir, "line")?;
         compare(engine, (&plane, &text, &strips), opts, "glyphs", side, emit)?;
+        coverage(engine, &sized, opts.reps, ("glyphs", side), emit)?;
     }
     Ok(())
 }
@@ -125,17 +130,105 @@ fn timed(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> anyhow::Result<(f64, 
     ))
 }
 
+/// resvg against the GPU alternative (`bake::vector_gpu`) over the images of `layers` at their
+/// raster sizes, as the images stage would run each: resvg's renders on every core (with the
+/// conversion to straight linear colour the stage uploads), against flattening and binning on
+/// every core then one GPU draw a document (one point sample a pixel, read back; the kernel's own
+/// time, submission to end, reported apart). Neither uploads or builds mipmaps. Once untimed (the kernel's compile), then `reps` times in turn;
+/// one JSON line with the medians.
+fn coverage(
+    engine: &Engine,
+    layers: &[Layer],
+    reps: usize,
+    (workload, side): (&str, u32),
+    emit: &mut dyn FnMut(serde_json::Value),
+) -> anyhow::Result<()> {
+    use rayon::prelude::*;
+    let docs: Vec<(Svg, [u32; 2])> = layers
+        .iter()
+        .map(|l| {
+            let svg = l
+                .colour_svg()?
+                .ok_or_else(|| anyhow::anyhow!("a layer is no SVG"))?;
+            let px = l.raster.unwrap_or_else(|| svg.default_px());
+            Ok((svg, px))
+        })
+        .collect::<anyhow::Result<_>>()?;
+    let cpu = || -> f64 {
+        let t = Instant::now();
+        let n: usize = docs
+            .par_iter()
+            .map(|(svg, px)| svg.render(*px, false).pixels.len())
+            .sum();
+        std::hint::black_box(n);
+        t.elapsed().as_secs_f64() * 1000.0
+    };
+    let gpu = || -> anyhow::Result<[f64; 4]> {
+        let t = Instant::now();
+        let binned: Vec<_> = docs
+            .par_iter()
+            .map(|(svg, px)| svg.flatten(*px).map(|scene| bin(&scene, 1)))
+            .collect::<Result<_, String>>()
+            .map_err(|e| anyhow::anyhow!("flattening: {e}"))?;
+        let prepare = t.elapsed().as_secs_f64() * 1000.0;
+        let mut kernels = 0.0;
+        for b in &binned {
+            let (pixels, ms) = engine.draw_flat_timed(b)?;
+            std::hint::black_box(pixels);
+            kernels += ms;
+        }
+        let all = t.elapsed().as_secs_f64() * 1000.0;
+        Ok([all, prepare, all - prepare, kernels])
+    };
+    let (_, first) = (cpu(), gpu()?);
+    let (mut cpus, mut gpus) = (Vec::new(), Vec::new());
+    for _ in 0..reps.max(1) {
+        cpus.push(cpu());
+        gpus.push(gpu()?);
+    }
+    let scene_sizes: Vec<(usize, usize)> = docs
+        .iter()
+        .map(|(svg, px)| {
+            let scene = svg
+                .flatten(*px)
+                .unwrap_or(decalbake::io::vector_paths::FlatScene {
+                    size: *px,
+                    paths: Vec::new(),
+                });
+            (scene.segment_count(), bin(&scene, 1).refs())
+        })
+        .collect();
+    let med = |k: usize| median(gpus.iter().map(|g| g[k]).collect());
+    let resvg_ms = median(cpus.clone());
+    emit(serde_json::json!({
+        "bench": "vector", "workload": workload, "side": side, "variant": "coverage",
+        "images": docs.len(),
+        "pixels": docs.iter().map(|(_, p)| p[0] as u64 * p[1] as u64).sum::<u64>(),
+        "segments": scene_sizes.iter().map(|s| s.0).sum::<usize>(),
+        "tile_refs": scene_sizes.iter().map(|s| s.1).sum::<usize>(),
+        "resvg_ms": resvg_ms, "resvg_all_ms": cpus,
+        "gpu_ms": med(0), "gpu_prepare_ms": med(1), "gpu_draw_ms": med(2),
+        "gpu_kernel_ms": med(3), "ratio_kernel_over_resvg": med(3) / resvg_ms.max(1e-9),
+        "gpu_first_ms": first[0],
+        "ratio_gpu_over_resvg": med(0) / resvg_ms.max(1e-9),
+        "adapter": engine.ctx.adapter,
+    }));
+    Ok(())
+}
+
 /// The vector job with each layer's image a PNG of its rendering at the raster size its vector
-/// bake chose (a text layer's line too), written into `dir` as `{stem}{index}.png`.
+/// bake chose (a text layer's line too), written into `dir` as `{stem}{index}.png`; and the
+/// vector job's layers with that size set (`Layer::raster`).
 fn bitmap_twin(
     engine: &Engine,
     mesh: &LoadedMesh,
     job: &Job,
     dir: &Path,
     stem: &str,
-) -> anyhow::Result<Job> {
+) -> anyhow::Result<(Job, Vec<Layer>)> {
     let baked = engine.bake(mesh, job)?;
     let mut out = job.clone();
+    let mut sized_layers = Vec::new();
     for (i, (l, r)) in out.layers.iter_mut().zip(&baked.report.layers).enumerate() {
         let px = r
             .raster_px
@@ -147,13 +240,14 @@ fn bitmap_twin(
             sized.size[0] = LINE_LENGTH;
         }
         let img = sized.colour_image()?;
+        sized_layers.push(sized.clone());
         let path = dir.join(format!("{stem}{i}.png"));
         decalbake::io::image::write_atomic(&path, &img.encode_png(8))?;
         // The same layer with the PNG (a text line keeps its ribbon and strip width).
         l.image = path;
         l.text = None;
     }
-    Ok(out)
+    Ok((out, sized_layers))
 }
 
 /// The glyph workload: `LINES` lines of `GLYPHS_PER_LINE` glyphs along straight paths across the
