@@ -826,3 +826,54 @@ fn gpu_coverage_matches_its_twin_resvg_and_the_area() {
 fn svg_tree(text: &str) -> resvg::usvg::Tree {
     resvg::usvg::Tree::from_data(text.as_bytes(), &resvg::usvg::Options::default()).unwrap()
 }
+
+/// A vector decal is rendered at the densest texel layout its image rectangle reaches: on a plane
+/// whose UVs run four times as fast left of x = 0.5 as right of it, a decal placed right of the
+/// line but reaching across it gets the left's density (rendered at the density where it landed,
+/// it would get half the pixels a side), and one wholly on the right keeps the right's.
+#[test]
+fn vector_raster_follows_the_densest_part_a_decal_reaches() {
+    let engine = common::engine();
+    let dir = common::scratch("vector_density");
+    let n = 16;
+    let u_of = |x: f32| {
+        if x <= 0.5 {
+            1.6 * x
+        } else {
+            0.8 + 0.4 * (x - 0.5)
+        }
+    };
+    let (mut pos, mut uv, mut idx) = (Vec::new(), Vec::new(), Vec::new());
+    for j in 0..=n {
+        for i in 0..=n {
+            let (x, y) = (i as f32 / n as f32, j as f32 / n as f32);
+            pos.push([x, y, 0.0]);
+            uv.push([u_of(x), 1.0 - y]);
+        }
+    }
+    for j in 0..n {
+        for i in 0..n {
+            let a = j * (n + 1) + i;
+            idx.extend([a, a + 1, a + n + 2, a, a + n + 2, a + n + 1]);
+        }
+    }
+    common::write_glb(&dir.join("plane.glb"), &pos, Some(&uv), &idx);
+    std::fs::write(dir.join("shapes.svg"), SHAPES).unwrap();
+    let side = 512.0f32;
+    let job = serde_json::json!({ "mesh": "plane.glb",
+        "texture": { "width": 512, "height": 512, "padding": 0, "base": [1.0, 1.0, 1.0, 1.0] },
+        "layers": [
+            { "image": "shapes.svg", "at": [0.6, 0.5, 0.0], "size": [0.32, 0.32], "up": [0, 1, 0], "method": "planar" },
+            { "image": "shapes.svg", "at": [0.85, 0.5, 0.0], "size": [0.2, 0.2], "up": [0, 1, 0], "method": "planar" }
+        ] })
+    .to_string();
+    let job = decalbake::Job::parse(&job, &dir.join("job.json"), &dir, &dir).unwrap();
+    let mesh = engine.load_mesh(&job.mesh).unwrap();
+    let baked = engine.bake(&mesh, &job).unwrap();
+    let px = |l: usize| baked.report.layers[l].raster_px.unwrap();
+    // Texels per model unit: sqrt(texels in u × texels in v) per unit square.
+    let (dense, coarse) = ((1.6 * side * side).sqrt(), (0.4 * side * side).sqrt());
+    let want = |size: f32, density: f32| (size * density * 2.0).ceil() as u32;
+    assert_eq!(px(0), [want(0.32, dense); 2], "reaching the dense half");
+    assert_eq!(px(1), [want(0.2, coarse); 2], "wholly on the coarse half");
+}

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! The pixel size each layer's vector images (SVG files, text, `crate::io::vector`) are rendered
-//! at, decided after placement from the texel density around the triangle each unit landed on
+//! at, decided after placement from the largest texel density each unit's image reaches
 //! ([`set_rasters`]), and a text layer's warnings (missing glyphs, text cut at its curve's end).
 //! The images stage ([`super::images`]) then renders them at that size.
 
@@ -78,6 +78,40 @@ fn mean_density(mesh: &LoadedMesh, job: &Job) -> f32 {
     }
 }
 
+/// Texels per model unit that unit `u`'s vector images need: the largest [`texel_density`] over
+/// the triangles whose centroids lie in the ball around its placed point that holds its image
+/// rectangle, so a decal that reaches parts of the texture laid out denser than where it landed
+/// is drawn at their density; a ribbon's and text along
+/// a curve's at the triangle it landed on (its strip follows the curve, not a ball).
+fn unit_density(mesh: &LoadedMesh, job: &Job, placed: &Placed, u: usize) -> Option<f32> {
+    let p = &placed.placements[u];
+    let layer = &placed.job.layers[u];
+    let landed = texel_density(mesh, job, p.triangle);
+    let r = 0.5 * glam::Vec2::from(layer.size).length();
+    if layer.ribbon.is_some() || !(r.is_finite() && r > 0.0) {
+        return landed;
+    }
+    let c = glam::Vec3::from(p.point);
+    let m = &mesh.mesh;
+    let near = mesh
+        .bvh
+        .overlapping(c - glam::Vec3::splat(r), c + glam::Vec3::splat(r));
+    near.into_iter()
+        .filter(|&t| {
+            // The triangle's centroid within the ball (the BVH's leaf boxes hold more).
+            m.triangles.get(t as usize).is_some_and(|tri| {
+                let g = tri
+                    .iter()
+                    .map(|&v| m.positions[v as usize])
+                    .sum::<glam::Vec3>()
+                    / 3.0;
+                g.distance(c) <= r
+            })
+        })
+        .filter_map(|t| texel_density(mesh, job, t))
+        .fold(landed, |a, d| Some(a.map_or(d, |a| a.max(d))))
+}
+
 /// The pixel size a unit's vector images are rendered at: its image rectangle (`size`, model
 /// units) at the texel density where it landed, [`VECTOR_OVERSAMPLE`] pixels a texel, within
 /// the limits above and the adapter's.
@@ -98,8 +132,8 @@ fn raster_size(size: [f32; 2], density: f32, max_side: u32) -> [u32; 2] {
 }
 
 /// Sets [`Layer::raster`] of every layer with vector images (SVG files, text) in `job` and in
-/// the units of `placed`: per job layer, the largest any of its units needs at the texel density
-/// around the triangle it landed on. Returns the job with the rasters set (`job` itself when no layer
+/// the units of `placed`: per job layer, the largest any of its units needs at the largest texel
+/// density its image rectangle reaches ([`unit_density`]). Returns the job with the rasters set (`job` itself when no layer
 /// has vectors), and warns of a text's missing glyphs and of text cut at its curve's end.
 pub(crate) fn set_rasters<'a>(
     engine: &Engine,
@@ -120,7 +154,7 @@ pub(crate) fn set_rasters<'a>(
         .map(|(l, layer)| {
             layer.has_vectors().then(|| {
                 placed.units_of[l].clone().fold([0u32; 2], |px, u| {
-                    let density = texel_density(mesh, job, placed.placements[u].triangle)
+                    let density = unit_density(mesh, job, placed, u)
                         .unwrap_or_else(|| *mean.get_or_init(|| mean_density(mesh, job)));
                     let r = raster_size(placed.job.layers[u].size, density, max_side);
                     [px[0].max(r[0]), px[1].max(r[1])]

@@ -352,6 +352,11 @@ const SMALL_TRIES: [Encoding; 4] = [
 /// PNG bytes of RGBA samples already encoded at `bit_depth` (8: 0..=255, 16: 0..=65535), written
 /// through [`png_rows`], so that a texture streamed band by band and one encoded whole are the
 /// same bytes.
+///
+/// # Panics
+///
+/// When `samples` does not hold `width × height × 4` samples (a caller's mistake: every sample
+/// count the engine hands it is checked where the texture is made).
 pub fn png_bytes(width: u32, height: u32, bit_depth: u8, samples: &[u16]) -> Vec<u8> {
     png_bytes_with(width, height, bit_depth, samples, PngCompression::Fast)
 }
