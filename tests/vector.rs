@@ -835,6 +835,30 @@ fn svg_tree(text: &str) -> resvg::usvg::Tree {
 fn vector_raster_follows_the_densest_part_a_decal_reaches() {
     let engine = common::engine();
     let dir = common::scratch("vector_density");
+    write_uneven_plane(&dir.join("plane.glb"));
+    std::fs::write(dir.join("shapes.svg"), SHAPES).unwrap();
+    let side = 512.0f32;
+    let job = serde_json::json!({ "mesh": "plane.glb",
+        "texture": { "width": 512, "height": 512, "padding": 0, "base": [1.0, 1.0, 1.0, 1.0] },
+        "layers": [
+            { "image": "shapes.svg", "at": [0.6, 0.5, 0.0], "size": [0.32, 0.32], "up": [0, 1, 0], "method": "planar" },
+            { "image": "shapes.svg", "at": [0.85, 0.5, 0.0], "size": [0.2, 0.2], "up": [0, 1, 0], "method": "planar" }
+        ] })
+    .to_string();
+    let job = decalbake::Job::parse(&job, &dir.join("job.json"), &dir, &dir).unwrap();
+    let mesh = engine.load_mesh(&job.mesh).unwrap();
+    let baked = engine.bake(&mesh, &job).unwrap();
+    let px = |l: usize| baked.report.layers[l].raster_px.unwrap();
+    // Texels per model unit: sqrt(texels in u × texels in v) per unit square.
+    let (dense, coarse) = ((1.6 * side * side).sqrt(), (0.4 * side * side).sqrt());
+    let want = |size: f32, density: f32| (size * density * 2.0).ceil() as u32;
+    assert_eq!(px(0), [want(0.32, dense); 2], "reaching the dense half");
+    assert_eq!(px(1), [want(0.2, coarse); 2], "wholly on the coarse half");
+}
+
+/// The unit square in 16 × 16 cells whose UVs run four times as fast left of x = 0.5 (u = 1.6 x)
+/// as right of it: texel densities in the ratio 2 : 1.
+fn write_uneven_plane(path: &Path) {
     let n = 16;
     let u_of = |x: f32| {
         if x <= 0.5 {
@@ -857,23 +881,37 @@ fn vector_raster_follows_the_densest_part_a_decal_reaches() {
             idx.extend([a, a + 1, a + n + 2, a, a + n + 2, a + n + 1]);
         }
     }
-    common::write_glb(&dir.join("plane.glb"), &pos, Some(&uv), &idx);
-    std::fs::write(dir.join("shapes.svg"), SHAPES).unwrap();
-    let side = 512.0f32;
+    common::write_glb(path, &pos, Some(&uv), &idx);
+}
+
+/// Text along a curve that starts on the coarse half of that plane and runs into the dense half
+/// is rendered at the dense half's density: its strip gets twice the pixels across (at the density
+/// where the curve starts it gets the same as a line wholly on the coarse half).
+#[test]
+fn text_along_a_curve_follows_the_densest_part_it_crosses() {
+    let engine = common::engine();
+    let dir = common::scratch("vector_density_text");
+    write_uneven_plane(&dir.join("plane.glb"));
+    let line = |x0: f32, x1: f32, y: f32| {
+        let path: Vec<[f32; 3]> = (0..=4)
+            .map(|i| [x0 + (x1 - x0) * i as f32 / 4.0, y, 0.0])
+            .collect();
+        serde_json::json!({ "kind": "text", "text": "density", "size": 0.04, "path": path,
+            "interpolate": "linear", "fit": "shrink" })
+    };
     let job = serde_json::json!({ "mesh": "plane.glb",
         "texture": { "width": 512, "height": 512, "padding": 0, "base": [1.0, 1.0, 1.0, 1.0] },
-        "layers": [
-            { "image": "shapes.svg", "at": [0.6, 0.5, 0.0], "size": [0.32, 0.32], "up": [0, 1, 0], "method": "planar" },
-            { "image": "shapes.svg", "at": [0.85, 0.5, 0.0], "size": [0.2, 0.2], "up": [0, 1, 0], "method": "planar" }
-        ] })
+        "layers": [line(0.95, 0.15, 0.3), line(0.95, 0.6, 0.7)] })
     .to_string();
     let job = decalbake::Job::parse(&job, &dir.join("job.json"), &dir, &dir).unwrap();
     let mesh = engine.load_mesh(&job.mesh).unwrap();
     let baked = engine.bake(&mesh, &job).unwrap();
-    let px = |l: usize| baked.report.layers[l].raster_px.unwrap();
-    // Texels per model unit: sqrt(texels in u × texels in v) per unit square.
-    let (dense, coarse) = ((1.6 * side * side).sqrt(), (0.4 * side * side).sqrt());
-    let want = |size: f32, density: f32| (size * density * 2.0).ceil() as u32;
-    assert_eq!(px(0), [want(0.32, dense); 2], "reaching the dense half");
-    assert_eq!(px(1), [want(0.2, coarse); 2], "wholly on the coarse half");
+    let across = |l: usize| baked.report.layers[l].raster_px.unwrap()[1] as f32;
+    let ratio = across(0) / across(1);
+    assert!(
+        (ratio - 2.0).abs() < 0.05,
+        "{} against {} pixels across",
+        across(0),
+        across(1)
+    );
 }

@@ -81,35 +81,48 @@ fn mean_density(mesh: &LoadedMesh, job: &Job) -> f32 {
 /// Texels per model unit that unit `u`'s vector images need: the largest [`texel_density`] over
 /// the triangles whose centroids lie in the ball around its placed point that holds its image
 /// rectangle, so a decal that reaches parts of the texture laid out denser than where it landed
-/// is drawn at their density; a ribbon's and text along
-/// a curve's at the triangle it landed on (its strip follows the curve, not a ball).
+/// is drawn at their density; a ribbon and text along a curve take the largest over the triangles
+/// their curve runs through (the strip follows the curve, not a ball).
 fn unit_density(mesh: &LoadedMesh, job: &Job, placed: &Placed, u: usize) -> Option<f32> {
     let p = &placed.placements[u];
     let layer = &placed.job.layers[u];
     let landed = texel_density(mesh, job, p.triangle);
+    let densest = |tris: Vec<u32>| {
+        tris.into_iter()
+            .filter_map(|t| texel_density(mesh, job, t))
+            .fold(landed, |a, d| Some(a.map_or(d, |a| a.max(d))))
+    };
+    if let Some(ribbon) = placed.ribbons.get(u).and_then(Option::as_ref) {
+        let mut tris = ribbon.curve.triangles.clone();
+        tris.sort_unstable();
+        tris.dedup();
+        return densest(tris);
+    }
     let r = 0.5 * glam::Vec2::from(layer.size).length();
     if layer.ribbon.is_some() || !(r.is_finite() && r > 0.0) {
         return landed;
     }
     let c = glam::Vec3::from(p.point);
     let m = &mesh.mesh;
+    let centroid = |tri: &[u32; 3]| {
+        tri.iter()
+            .map(|&v| m.positions[v as usize])
+            .sum::<glam::Vec3>()
+            / 3.0
+    };
     let near = mesh
         .bvh
         .overlapping(c - glam::Vec3::splat(r), c + glam::Vec3::splat(r));
-    near.into_iter()
-        .filter(|&t| {
-            // The triangle's centroid within the ball (the BVH's leaf boxes hold more).
-            m.triangles.get(t as usize).is_some_and(|tri| {
-                let g = tri
-                    .iter()
-                    .map(|&v| m.positions[v as usize])
-                    .sum::<glam::Vec3>()
-                    / 3.0;
-                g.distance(c) <= r
+    // The triangles whose centroids are in the ball (the BVH's leaf boxes hold more).
+    densest(
+        near.into_iter()
+            .filter(|&t| {
+                m.triangles
+                    .get(t as usize)
+                    .is_some_and(|tri| centroid(tri).distance(c) <= r)
             })
-        })
-        .filter_map(|t| texel_density(mesh, job, t))
-        .fold(landed, |a, d| Some(a.map_or(d, |a| a.max(d))))
+            .collect(),
+    )
 }
 
 /// The pixel size a unit's vector images are rendered at: its image rectangle (`size`, model
