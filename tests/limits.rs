@@ -110,3 +110,65 @@ fn a_bake_beyond_the_memory_limit_is_refused_before_it_allocates() {
     assert_eq!(code, 0, "{stderr}");
     assert!(Path::new(&dir.join("out.png")).exists());
 }
+
+/// A PNG that is only its header: `w` × `h`, 8-bit RGBA, an empty image data chunk (where a
+/// reader's header ends) and no pixels (decoding it fails).
+fn header_only_png(w: u32, h: u32) -> Vec<u8> {
+    fn crc(bytes: &[u8]) -> u32 {
+        let mut c = 0xffff_ffffu32;
+        for &b in bytes {
+            c ^= b as u32;
+            for _ in 0..8 {
+                c = if c & 1 != 0 {
+                    0xedb8_8320 ^ (c >> 1)
+                } else {
+                    c >> 1
+                };
+            }
+        }
+        !c
+    }
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    for (kind, data) in [
+        (
+            &b"IHDR"[..],
+            [&w.to_be_bytes()[..], &h.to_be_bytes(), &[8, 6, 0, 0, 0]].concat(),
+        ),
+        (b"IDAT", Vec::new()),
+        (b"IEND", Vec::new()),
+    ] {
+        png.extend((data.len() as u32).to_be_bytes());
+        let body = [kind, &data[..]].concat();
+        png.extend(&body);
+        png.extend(crc(&body).to_be_bytes());
+    }
+    png
+}
+
+/// The layers' images count against the limit, from their headers, before any is decoded: a
+/// 64² bake whose decal is an 8192² PNG (3 GiB as the engine holds it) is refused under 1 GiB
+/// with the images named in the message, and the same job with a small image passes the check
+/// (it bakes). The big PNG is only a header, so a bake that decoded it would fail otherwise.
+#[test]
+fn layer_images_count_against_the_memory_limit() {
+    let dir = setup("limits_images");
+    std::fs::write(dir.join("big.png"), header_only_png(8192, 8192)).unwrap();
+    let text = job_text(
+        serde_json::json!({ "width": 64, "height": 64 }),
+        Some(("max_memory", "1GiB".into())),
+    );
+    let big = text.replace("img.png", "big.png");
+    let engine = engine();
+    let mesh = engine.load_mesh(&dir.join("plane.glb")).unwrap();
+    let job = Job::parse(&big, &dir.join("big.json"), &dir, &dir).unwrap();
+    let err = match engine.bake(&mesh, &job) {
+        Err(e @ Error::Job { .. }) => e.to_string(),
+        other => panic!("an 8192² image fits no 1 GiB: {:?}", other.map(|b| b.width)),
+    };
+    assert!(
+        err.contains("needs about") && err.contains("67108864 pixels"),
+        "{err}"
+    );
+    let job = Job::parse(&text, &dir.join("small.json"), &dir, &dir).unwrap();
+    engine.bake(&mesh, &job).unwrap();
+}

@@ -22,7 +22,10 @@
 //!   [`FLOAT_BAND_PER_TEXEL`] more for an EXR, plus [`STREAM_HOST`] for the preview's reduced
 //!   copy and the encoders;
 //! - 16-bit outputs add [`WIDE_PER_TEXEL`], float (EXR) outputs [`FLOAT_PER_TEXEL`] (the linear
-//!   canvas and its encoding).
+//!   canvas and its encoding);
+//! - the layers' bitmap images, read from their files' headers ([`image_pixels`]):
+//!   [`IMAGE_HOST_PER_PIXEL`] on the host while decoded, [`IMAGE_DEVICE_PER_PIXEL`] on the device
+//!   (not the vector images, whose sizes are decided after placement, within a budget).
 //!
 //! On a CPU adapter the device's memory is the host's, so the two add up against the limit; on a
 //! GPU the host part is compared with the limit and the device part with the adapter's buffer
@@ -53,6 +56,38 @@ pub const STREAM_HOST: u64 = 96 << 20;
 pub const WIDE_PER_TEXEL: u64 = 6;
 /// Host bytes a texel more for a float (EXR) output.
 pub const FLOAT_PER_TEXEL: u64 = 32;
+
+/// Device bytes a pixel of a layer's bitmap image: f32 RGBA and its mipmaps (a third more).
+pub const IMAGE_DEVICE_PER_PIXEL: u64 = 22;
+/// Host bytes a pixel of a layer's bitmap image while it is decoded: the file's pixels and the
+/// f32 image made from them (the images are decoded on every core at once).
+pub const IMAGE_HOST_PER_PIXEL: u64 = 24;
+
+/// Pixels of the distinct bitmap files the job's layers read (`image`, `mask`, channel images),
+/// from their headers (no pixel is decoded). Vector images and text are not counted: their sizes
+/// are decided after placement, all of them within a budget of 2²⁵ pixels. A file
+/// whose header does not read counts nothing here; the images stage names it.
+pub fn image_pixels(job: &Job) -> u64 {
+    use crate::io::vector::{dimensions, is_svg};
+    let mut paths: Vec<&std::path::Path> = job
+        .layers
+        .iter()
+        .filter(|l| l.text.is_none())
+        .flat_map(|l| {
+            std::iter::once(l.image.as_path())
+                .chain(l.mask.as_deref())
+                .chain(l.channels.image_paths())
+        })
+        .filter(|p| !is_svg(p))
+        .collect();
+    paths.sort_unstable();
+    paths.dedup();
+    paths
+        .into_iter()
+        .filter_map(|p| dimensions(p).ok())
+        .map(|(w, h)| w as u64 * h as u64)
+        .fold(0u64, u64::saturating_add)
+}
 
 /// A bake's estimated peak memory.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -138,7 +173,14 @@ pub fn available() -> Option<u64> {
 pub fn check(engine: &Engine, mesh: &LoadedMesh, job: &Job, streamed: bool) -> Result<()> {
     super::check::sides(engine, job)?;
     let tile = super::tiles::tile_shape(engine, job);
-    let e = estimate(job, mesh_bytes(mesh), tile, streamed);
+    let mut e = estimate(job, mesh_bytes(mesh), tile, streamed);
+    let pixels = image_pixels(job);
+    e.host = e
+        .host
+        .saturating_add(pixels.saturating_mul(IMAGE_HOST_PER_PIXEL));
+    e.device = e
+        .device
+        .saturating_add(pixels.saturating_mul(IMAGE_DEVICE_PER_PIXEL));
     let cpu = engine.ctx.device_type == Some(wgpu::DeviceType::Cpu);
     let needed = if cpu { e.host + e.device } else { e.host };
     let (limit, source) = match (job.max_memory, available()) {
@@ -158,13 +200,20 @@ pub fn check(engine: &Engine, mesh: &LoadedMesh, job: &Job, streamed: bool) -> R
         &job.source,
         "texture",
         format!(
-            "a {}x{} bake {how} needs about {} ({} on the host, {} on the device{}), above {source}: {}; bake a smaller texture, use smaller tiles (`texture.tile`; `decalbake bake` streams a tiled bake with a finite padding to its file band by band, the texture never whole in memory), or, where the machine has the room (swap, memory other processes will free), give a larger `max_memory` or `--max-memory`",
+            "a {}x{} bake {how} needs about {} ({} on the host, {} on the device{}{}), above {source}: {}; bake a smaller texture or smaller layer images, use smaller tiles (`texture.tile`; `decalbake bake` streams a tiled bake with a finite padding to its file band by band, the texture never whole in memory), or, where the machine has the room (swap, memory other processes will free), give a larger `max_memory` or `--max-memory`",
             job.width,
             job.height,
             bytes_text(needed),
             bytes_text(e.host),
             bytes_text(e.device),
             if cpu { ", which is host memory on this CPU adapter" } else { "" },
+            match pixels {
+                0 => String::new(),
+                n => format!(
+                    "; the layers' images, {n} pixels, take {} of it",
+                    bytes_text(n.saturating_mul(IMAGE_HOST_PER_PIXEL + IMAGE_DEVICE_PER_PIXEL))
+                ),
+            },
             bytes_text(limit),
         ),
     ))
