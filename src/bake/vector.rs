@@ -78,18 +78,32 @@ fn mean_density(mesh: &LoadedMesh, job: &Job) -> f32 {
     }
 }
 
+/// Each triangle's [`texel_density`], kept for the bake.
+type Densities = std::cell::RefCell<std::collections::HashMap<u32, Option<f32>>>;
+
 /// Texels per model unit that unit `u`'s vector images need: the largest [`texel_density`] over
 /// the triangles whose centroids lie in the ball around its placed point that holds its image
-/// rectangle, so a decal that reaches parts of the texture laid out denser than where it landed
-/// is drawn at their density; a ribbon and text along a curve take the largest over the triangles
-/// their curve runs through (the strip follows the curve, not a ball).
-fn unit_density(mesh: &LoadedMesh, job: &Job, placed: &Placed, u: usize) -> Option<f32> {
+/// rectangle and that face the side it was placed on (not the far side of a thin part), so a
+/// decal that reaches parts of the texture laid out denser than where it landed is drawn at their
+/// density; a ribbon and text along a curve take the largest over the triangles their curve runs
+/// through (the strip follows the curve, not a ball).
+fn unit_density(
+    (mesh, job, densities): (&LoadedMesh, &Job, &Densities),
+    placed: &Placed,
+    u: usize,
+) -> Option<f32> {
+    let density = |t: u32| {
+        *densities
+            .borrow_mut()
+            .entry(t)
+            .or_insert_with(|| texel_density(mesh, job, t))
+    };
     let p = &placed.placements[u];
     let layer = &placed.job.layers[u];
-    let landed = texel_density(mesh, job, p.triangle);
+    let landed = density(p.triangle);
     let densest = |tris: Vec<u32>| {
         tris.into_iter()
-            .filter_map(|t| texel_density(mesh, job, t))
+            .filter_map(density)
             .fold(landed, |a, d| Some(a.map_or(d, |a| a.max(d))))
     };
     if let Some(ribbon) = placed.ribbons.get(u).and_then(Option::as_ref) {
@@ -102,31 +116,25 @@ fn unit_density(mesh: &LoadedMesh, job: &Job, placed: &Placed, u: usize) -> Opti
     if layer.ribbon.is_some() || !(r.is_finite() && r > 0.0) {
         return landed;
     }
-    let c = glam::Vec3::from(p.point);
+    let (c, n) = (glam::Vec3::from(p.point), glam::Vec3::from(p.normal));
     let m = &mesh.mesh;
-    let centroid = |tri: &[u32; 3]| {
-        tri.iter()
-            .map(|&v| m.positions[v as usize])
-            .sum::<glam::Vec3>()
-            / 3.0
+    let near_side = |tri: &[u32; 3]| {
+        let [a, b, d] = tri.map(|v| m.positions[v as usize]);
+        ((a + b + d) / 3.0).distance(c) <= r && (b - a).cross(d - a).dot(n) >= 0.0
     };
     let near = mesh
         .bvh
         .overlapping(c - glam::Vec3::splat(r), c + glam::Vec3::splat(r));
-    // The triangles whose centroids are in the ball (the BVH's leaf boxes hold more).
+    // The BVH's leaf boxes hold more than the ball.
     densest(
         near.into_iter()
-            .filter(|&t| {
-                m.triangles
-                    .get(t as usize)
-                    .is_some_and(|tri| centroid(tri).distance(c) <= r)
-            })
+            .filter(|&t| m.triangles.get(t as usize).is_some_and(near_side))
             .collect(),
     )
 }
 
 /// The pixel size a unit's vector images are rendered at: its image rectangle (`size`, model
-/// units) at the texel density where it landed, [`VECTOR_OVERSAMPLE`] pixels a texel, within
+/// units) at the texel density it needs ([`unit_density`]), [`VECTOR_OVERSAMPLE`] pixels a texel, within
 /// the limits above and the adapter's.
 fn raster_size(size: [f32; 2], density: f32, max_side: u32) -> [u32; 2] {
     let side = |s: f32| {
@@ -160,6 +168,8 @@ pub(crate) fn set_rasters<'a>(
     }
     let max_side = engine.ctx.max_texture_side().min(VECTOR_MAX_SIDE);
     let mean = std::sync::OnceLock::new();
+    // Each triangle's density, computed once for the bake's units.
+    let densities = std::cell::RefCell::new(std::collections::HashMap::new());
     let mut sizes: Vec<Option<[u32; 2]>> = job
         .layers
         .iter()
@@ -167,7 +177,7 @@ pub(crate) fn set_rasters<'a>(
         .map(|(l, layer)| {
             layer.has_vectors().then(|| {
                 placed.units_of[l].clone().fold([0u32; 2], |px, u| {
-                    let density = unit_density(mesh, job, placed, u)
+                    let density = unit_density((mesh, job, &densities), placed, u)
                         .unwrap_or_else(|| *mean.get_or_init(|| mean_density(mesh, job)));
                     let r = raster_size(placed.job.layers[u].size, density, max_side);
                     [px[0].max(r[0]), px[1].max(r[1])]

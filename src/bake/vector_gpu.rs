@@ -140,14 +140,21 @@ pub fn bin(scene: &FlatScene, ss: u32) -> Binned {
                 j += 1;
             }
         }
+        let mut suffix = vec![0i32; th * rows * (tw + 2)];
+        for (row, sums) in buckets.chunks(tw + 1).zip(suffix.chunks_mut(tw + 2)) {
+            for c in (0..=tw).rev() {
+                sums[c] = sums[c + 1] + row[c];
+            }
+        }
         let base = b.tiles.len() as u32;
         for (i, list) in lists.into_iter().enumerate() {
             b.tiles.push([b.refs.len() as u32, list.len() as u32]);
             b.refs.extend(list);
             let (cy, cx) = (i / tw, i % tw);
             for r in 0..rows {
-                let row = &buckets[(cy * rows + r) * (tw + 1)..][..tw + 1];
-                b.backdrops.push(row[cx + 1..].iter().sum());
+                // Summed from the right: entry c holds the crossings of buckets c..=tw.
+                b.backdrops
+                    .push(suffix[(cy * rows + r) * (tw + 2) + cx + 1]);
             }
         }
         b.paths.push(PathRec {
@@ -240,6 +247,7 @@ fn paint_at(paints: &[[f32; 4]], off: usize, p: [f32; 2]) -> [f32; 4] {
         return paints[off + 1];
     }
     let k = paints[off + 1];
+    let n = h[1] as usize;
     let mut t = k[0] * p[0] + k[1] * p[1] + k[2];
     if h[2] == 1.0 {
         t -= t.floor();
@@ -247,15 +255,20 @@ fn paint_at(paints: &[[f32; 4]], off: usize, p: [f32; 2]) -> [f32; 4] {
         let m = t - 2.0 * (t * 0.5).floor();
         t = if m > 1.0 { 2.0 - m } else { m };
     }
-    t = t.clamp(0.0, 1.0);
-    let n = h[1] as usize;
+    // Padded ends take the end stops (hard stops at 0 or 1 included).
+    if t <= 0.0 {
+        return paints[off + 3];
+    }
+    if t >= 1.0 {
+        return paints[off + 3 + 2 * (n - 1)];
+    }
     let mut i = 0;
     while i + 2 < n && paints[off + 2 + 2 * (i + 1)][0] <= t {
         i += 1;
     }
     let (o0, o1) = (paints[off + 2 + 2 * i][0], paints[off + 2 + 2 * (i + 1)][0]);
     let (c0, c1) = (paints[off + 3 + 2 * i], paints[off + 3 + 2 * (i + 1)]);
-    let f = if o1 > o0 { (t - o0) / (o1 - o0) } else { 0.0 }.clamp(0.0, 1.0);
+    let f = if o1 > o0 { (t - o0) / (o1 - o0) } else { 1.0 }.clamp(0.0, 1.0);
     std::array::from_fn(|c| c0[c] + (c1[c] - c0[c]) * f)
 }
 

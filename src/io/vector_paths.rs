@@ -21,7 +21,7 @@ use resvg::usvg;
 pub const FLATTEN_TOLERANCE: f32 = 0.1;
 
 /// The most lines one curve is flattened into.
-const MAX_PIECES: usize = 64;
+const MAX_PIECES: usize = 4096;
 
 /// A paint: what a covered pixel of its path shows.
 #[derive(Clone, Debug, PartialEq)]
@@ -69,10 +69,11 @@ impl FlatScene {
 }
 
 impl Svg {
-    /// The document as flat paths over `px` pixels (stretched to that size, as
-    /// [`Svg::render`]); an error names what the flat form cannot hold.
+    /// The document as flat paths over `px` pixels (stretched to that size, each side held to
+    /// [`super::vector::MAX_SIDE`], as [`Svg::render`]); an error names what the flat form
+    /// cannot hold.
     pub fn flatten(&self, px: [u32; 2]) -> Result<FlatScene, String> {
-        let [w, h] = px.map(|p| p.max(1));
+        let [w, h] = px.map(|p| p.clamp(1, super::vector::MAX_SIDE));
         let [sw, sh] = self.size();
         let xf = Transform::from_scale(w as f32 / sw, h as f32 / sh);
         let mut paths = Vec::new();
@@ -192,15 +193,20 @@ fn flat_paint(
             })?;
             let (dx, dy) = (lg.x2() - lg.x1(), lg.y2() - lg.y1());
             let len2 = dx * dx + dy * dy;
-            let t = if len2 > 0.0 {
+            let t = if len2 > 1e-12 {
                 // t = ((inv p) - p1) · d / |d|², inv p = (sx x + kx y + tx, ky x + sy y + ty).
                 [
                     (inv.sx * dx + inv.ky * dy) / len2,
                     (inv.kx * dx + inv.sy * dy) / len2,
                     ((inv.tx - lg.x1()) * dx + (inv.ty - lg.y1()) * dy) / len2,
                 ]
-            } else {
+            } else if lg.spread_method() == usvg::SpreadMethod::Pad {
+                // tiny-skia draws a degenerate padded gradient in its last stop's colour.
                 [0.0, 0.0, 1.0]
+            } else {
+                return Err(format!(
+                    "path \"{id}\": its repeated or reflected gradient has no length"
+                ));
             };
             let spread = match lg.spread_method() {
                 usvg::SpreadMethod::Pad => 0,
@@ -240,8 +246,10 @@ fn segments(path: &resvg::tiny_skia::Path, ts: Transform) -> Vec<[f32; 4]> {
     };
     let mut out = Vec::new();
     let (mut start, mut at) = ([0.0f32; 2], [0.0f32; 2]);
+    // Horizontal lines cross no row; a line with a non-finite end (a transform out of range) is
+    // left out rather than binned.
     let line = |a: [f32; 2], b: [f32; 2], out: &mut Vec<[f32; 4]>| {
-        if a[1] != b[1] {
+        if a[1] != b[1] && a.iter().chain(&b).all(|v| v.is_finite()) {
             out.push([a[0], a[1], b[0], b[1]]);
         }
     };
@@ -321,15 +329,16 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_square_is_four_closed_lines_and_a_circle_stays_within_the_tolerance() {
+    fn a_square_keeps_its_upright_sides_a_circle_stays_within_the_tolerance_and_a_stroke_rings() {
         let svg = Svg::parse(
             br#"<svg xmlns="http://www.w3.org/2000/svg" width="10" height="10">
             <rect x="2" y="2" width="6" height="6" fill="red"/>
-            <circle cx="5" cy="5" r="4" fill="none" stroke="blue" stroke-width="1"/></svg>"#,
+            <circle cx="5" cy="5" r="4" fill="none" stroke="blue" stroke-width="1"/>
+            <circle cx="5" cy="5" r="3" fill="green"/></svg>"#,
         )
         .unwrap();
         let scene = svg.flatten([100, 100]).unwrap();
-        assert_eq!(scene.paths.len(), 2);
+        assert_eq!(scene.paths.len(), 3);
         // The square: two vertical sides (the horizontal ones cross no row), at 20 and 80 px.
         let sq = &scene.paths[0];
         assert_eq!(sq.segments.len(), 2, "{:?}", sq.segments);
@@ -338,12 +347,24 @@ mod tests {
             .iter()
             .all(|s| s[0] == s[2] && (s[0] == 20.0 || s[0] == 80.0)));
         assert_eq!(sq.paint, FlatPaint::Solid([1.0, 0.0, 0.0, 1.0]));
-        // The stroke's outline: two rings at radii 35 and 45 px, every point within tolerance
-        // (the stroker's own curves, flattened here) of one of them.
+        let radius = |x: f32, y: f32| ((x - 50.0).powi(2) + (y - 50.0).powi(2)).sqrt();
+        // The filled circle (r 30 px, four cubic arcs 0.01 px from the circle): each line's ends
+        // on it, its middle inside by at most the flattening tolerance.
+        let disc = &scene.paths[2];
+        assert!(disc.segments.len() > 40);
+        for s in &disc.segments {
+            assert!((radius(s[0], s[1]) - 30.0).abs() < 0.02, "{s:?}");
+            let mid = radius(0.5 * (s[0] + s[2]), 0.5 * (s[1] + s[3]));
+            assert!(
+                (30.0 - FLATTEN_TOLERANCE - 0.02..=30.02).contains(&mid),
+                "{mid}"
+            );
+        }
+        // The stroke's outline: two rings at radii 35 and 45 px (tiny-skia's stroker offsets the
+        // circle by curves of its own, within about 0.2 px).
         let ring = &scene.paths[1];
-        assert!(ring.segments.len() > 40);
         for s in &ring.segments {
-            let r = ((s[0] - 50.0).powi(2) + (s[1] - 50.0).powi(2)).sqrt();
+            let r = radius(s[0], s[1]);
             assert!((r - 35.0).abs() < 0.2 || (r - 45.0).abs() < 0.2, "{r}");
         }
     }

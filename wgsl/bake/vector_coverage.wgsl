@@ -51,6 +51,7 @@ fn paint_at(off: u32, p: vec2<f32>) -> vec4<f32> {
         return paints[off + 1u];
     }
     let k = paints[off + 1u];
+    let n = u32(h.y);
     var t = k.x * p.x + k.y * p.y + k.z;
     if (h.z == 1.0) {
         t = t - floor(t);
@@ -58,8 +59,13 @@ fn paint_at(off: u32, p: vec2<f32>) -> vec4<f32> {
         let m = t - 2.0 * floor(t * 0.5);
         t = select(m, 2.0 - m, m > 1.0);
     }
-    t = clamp(t, 0.0, 1.0);
-    let n = u32(h.y);
+    // Padded ends take the end stops (hard stops at 0 or 1 included).
+    if (t <= 0.0) {
+        return paints[off + 3u];
+    }
+    if (t >= 1.0) {
+        return paints[off + 3u + 2u * (n - 1u)];
+    }
     var i = 0u;
     while (i + 2u < n && paints[off + 2u + 2u * (i + 1u)].x <= t) {
         i++;
@@ -68,7 +74,7 @@ fn paint_at(off: u32, p: vec2<f32>) -> vec4<f32> {
     let o1 = paints[off + 2u + 2u * (i + 1u)].x;
     let c0 = paints[off + 3u + 2u * i];
     let c1 = paints[off + 3u + 2u * (i + 1u)];
-    let f = select(0.0, (t - o0) / (o1 - o0), o1 > o0);
+    let f = select(1.0, (t - o0) / (o1 - o0), o1 > o0);
     return mix(c0, c1, clamp(f, 0.0, 1.0));
 }
 
