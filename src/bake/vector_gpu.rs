@@ -369,6 +369,17 @@ impl Engine {
                 "draw it smaller",
             )?;
         }
+        let groups = [b.size[0].div_ceil(8), b.size[1].div_ceil(8)];
+        let most = ctx.device.limits().max_compute_workgroups_per_dimension;
+        if groups.iter().any(|&g| g > most) {
+            return Err(crate::error::Error::DeviceLimit {
+                what: what(),
+                needed: groups[0].max(groups[1]) as u64,
+                limit: most as u64,
+                limit_name: "max_compute_workgroups_per_dimension",
+                hint: "draw it smaller".into(),
+            });
+        }
         let dev = &ctx.device;
         let kernel = &self.pipes.vector_coverage;
         let uni = Uni {
@@ -376,46 +387,52 @@ impl Engine {
             ss: b.ss,
             paths: b.paths.len() as u32,
         };
-        let u = ctx.uniform_init("vector.uniform", bytemuck::bytes_of(&uni));
-        let ro =
-            |label: &str, bytes: &[u8]| ctx.storage_init(label, bytes, wgpu::BufferUsages::empty());
-        let paths = ro("vector.paths", bytemuck::cast_slice(&b.paths));
-        let tiles = ro("vector.tiles", bytemuck::cast_slice(&b.tiles));
-        let refs = ro("vector.refs", bytemuck::cast_slice(&b.refs));
-        let backdrops = ro("vector.backdrops", bytemuck::cast_slice(&b.backdrops));
-        let segs = ro("vector.segments", bytemuck::cast_slice(&b.segs));
-        let paints = ro("vector.paints", bytemuck::cast_slice(&b.paints));
-        let grid = ro("vector.grid", bytemuck::cast_slice(&b.grid));
-        let out = dev.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("vector.out"),
-            size: (pixels * 16).max(16),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let bg = kernel.bind(
-            dev,
-            "vector_coverage",
-            &[
-                (0, u.as_entire_binding()),
-                (1, paths.as_entire_binding()),
-                (2, tiles.as_entire_binding()),
-                (3, refs.as_entire_binding()),
-                (4, backdrops.as_entire_binding()),
-                (5, segs.as_entire_binding()),
-                (6, paints.as_entire_binding()),
-                (7, out.as_entire_binding()),
-                (8, grid.as_entire_binding()),
-            ],
-        );
-        let mut enc = dev.create_command_encoder(&Default::default());
-        {
-            let mut pass = enc.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&kernel.pipeline);
-            pass.set_bind_group(0, &bg, &[]);
-            pass.dispatch_workgroups(b.size[0].div_ceil(8), b.size[1].div_ceil(8), 1);
-        }
+        // Buffers, bindings and the commands under the context's error scopes: a failed
+        // allocation or binding is an error naming the stage, not a panic.
+        let (out, commands) = ctx.scoped("vector coverage", || {
+            let u = ctx.uniform_init("vector.uniform", bytemuck::bytes_of(&uni));
+            let ro = |label: &str, bytes: &[u8]| {
+                ctx.storage_init(label, bytes, wgpu::BufferUsages::empty())
+            };
+            let paths = ro("vector.paths", bytemuck::cast_slice(&b.paths));
+            let tiles = ro("vector.tiles", bytemuck::cast_slice(&b.tiles));
+            let refs = ro("vector.refs", bytemuck::cast_slice(&b.refs));
+            let backdrops = ro("vector.backdrops", bytemuck::cast_slice(&b.backdrops));
+            let segs = ro("vector.segments", bytemuck::cast_slice(&b.segs));
+            let paints = ro("vector.paints", bytemuck::cast_slice(&b.paints));
+            let grid = ro("vector.grid", bytemuck::cast_slice(&b.grid));
+            let out = dev.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("vector.out"),
+                size: (pixels * 16).max(16),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let bg = kernel.bind(
+                dev,
+                "vector_coverage",
+                &[
+                    (0, u.as_entire_binding()),
+                    (1, paths.as_entire_binding()),
+                    (2, tiles.as_entire_binding()),
+                    (3, refs.as_entire_binding()),
+                    (4, backdrops.as_entire_binding()),
+                    (5, segs.as_entire_binding()),
+                    (6, paints.as_entire_binding()),
+                    (7, out.as_entire_binding()),
+                    (8, grid.as_entire_binding()),
+                ],
+            );
+            let mut enc = dev.create_command_encoder(&Default::default());
+            {
+                let mut pass = enc.begin_compute_pass(&Default::default());
+                pass.set_pipeline(&kernel.pipeline);
+                pass.set_bind_group(0, &bg, &[]);
+                pass.dispatch_workgroups(groups[0], groups[1], 1);
+            }
+            (out, enc.finish())
+        })?;
         let t = std::time::Instant::now();
-        ctx.queue.submit([enc.finish()]);
+        ctx.queue.submit([commands]);
         ctx.wait("vector coverage")?;
         let kernel_ms = t.elapsed().as_secs_f64() * 1000.0;
         let bytes = ctx.read_buffer(&out, pixels * 16, "vector coverage read-back")?;
