@@ -112,35 +112,16 @@ fn a_bake_beyond_the_memory_limit_is_refused_before_it_allocates() {
 }
 
 /// A PNG that is only its header: `w` × `h`, 8-bit RGBA, an empty image data chunk (where a
-/// reader's header ends) and no pixels (decoding it fails).
+/// reader's header ends) and no pixels (decoding it fails). Written by the `png` crate.
 fn header_only_png(w: u32, h: u32) -> Vec<u8> {
-    fn crc(bytes: &[u8]) -> u32 {
-        let mut c = 0xffff_ffffu32;
-        for &b in bytes {
-            c ^= b as u32;
-            for _ in 0..8 {
-                c = if c & 1 != 0 {
-                    0xedb8_8320 ^ (c >> 1)
-                } else {
-                    c >> 1
-                };
-            }
-        }
-        !c
-    }
-    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
-    for (kind, data) in [
-        (
-            &b"IHDR"[..],
-            [&w.to_be_bytes()[..], &h.to_be_bytes(), &[8, 6, 0, 0, 0]].concat(),
-        ),
-        (b"IDAT", Vec::new()),
-        (b"IEND", Vec::new()),
-    ] {
-        png.extend((data.len() as u32).to_be_bytes());
-        let body = [kind, &data[..]].concat();
-        png.extend(&body);
-        png.extend(crc(&body).to_be_bytes());
+    let mut png = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut png, w, h);
+        enc.set_color(png::ColorType::Rgba);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut writer = enc.write_header().unwrap();
+        writer.write_chunk(png::chunk::IDAT, &[]).unwrap();
+        // Dropping the writer ends the file (IEND).
     }
     png
 }

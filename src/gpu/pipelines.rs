@@ -283,12 +283,13 @@ pub struct Pipelines {
 impl Pipelines {
     /// Every pipeline of the engine on `builder`'s device, none of them built yet.
     ///
-    /// Longer than a screen on purpose: it is the table of the engine's compute kernels, one entry
-    /// per kernel with its bindings in binding order (the data the style guide asks for, as vello's
-    /// `add_shader!` list). Adding a kernel adds an entry here; kernels whose bindings are built
-    /// rather than listed have a function of their own (`linalg_kernels`, `pelt_step`,
-    /// `select_triangles`, `ribbon_relax`...), and so do the render pipelines, which need more
-    /// than a binding list.
+    /// Longer than a screen on purpose (about 160 lines): it is the table of the engine's compute
+    /// kernels, one entry per kernel with its bindings in binding order (the data the style guide
+    /// asks for, as vello's `add_shader!` list). Adding a kernel adds an entry here; kernels whose
+    /// bindings are built rather than listed have a function of their own (`linalg_kernels`,
+    /// `pelt_step`, `select_triangles`, `ribbon_relax`, `vector_coverage`...), and so do the
+    /// render pipelines, which need more than a binding list. Splitting it by stage would scatter
+    /// one table over several functions that each build part of one struct.
     pub fn new(builder: Arc<Builder>) -> Self {
         use Bind::*;
         let b = &builder;
@@ -381,20 +382,7 @@ impl Pipelines {
                     (11, Rw),
                 ],
             ),
-            vector_coverage: kernel(
-                "vector_coverage",
-                &[
-                    (0, Uniform),
-                    (1, Ro),
-                    (2, Ro),
-                    (3, Ro),
-                    (4, Ro),
-                    (5, Ro),
-                    (6, Ro),
-                    (7, Rw),
-                    (8, Ro),
-                ],
-            ),
+            vector_coverage: Lazy::new(b, "vector_coverage", vector_coverage),
             stroke_apply: kernel(
                 "stroke_apply",
                 &[(0, Params), (3, Rw), (10, Rw), (11, Rw), (12, Rw), (13, Rw)],
@@ -614,6 +602,16 @@ fn ribbon_relax(device: &Builder) -> Kernel {
     binds.extend((3..=7).map(|b| (b, Ro)));
     binds.extend((8..=11).map(|b| (b, Rw)));
     Kernel::new(device, "ribbon_relax", &binds)
+}
+
+/// `vector_coverage` (`bake::vector_gpu`): the uniform, six read-only arrays, the pixels written,
+/// the tile grid.
+fn vector_coverage(device: &Builder) -> Kernel {
+    use Bind::*;
+    let mut binds = vec![(0, Uniform)];
+    binds.extend((1..=6).map(|b| (b, Ro)));
+    binds.extend([(7, Rw), (8, Ro)]);
+    Kernel::new(device, "vector_coverage", &binds)
 }
 
 /// `expmap_relax`'s bindings; `expmap_spread`'s less 9 (the rounds), with 14 (its dispatch sizes).
