@@ -26,7 +26,10 @@ fn bench_channels_runs_small() {
     let textures = |v: &serde_json::Value| v["textures"].clone();
     assert_eq!(lines[0]["variant"], "colour");
     assert_eq!(textures(&lines[0]), serde_json::json!(["base_color"]));
+    assert_eq!(lines[0]["channels"], "none");
     assert_eq!(lines[1]["variant"], "full");
+    // lavapipe holds the attachments: the channels are drawn beside the colour.
+    assert_eq!(lines[1]["channels"], "fused");
     assert_eq!(
         textures(&lines[1]),
         serde_json::json!(["base_color", "orm", "normal"])

@@ -480,3 +480,106 @@ fn strokes_and_ribbons_paint_channels() {
     // Layers that paint no normal leave no normal texture.
     assert!(b.channels.iter().all(|c| c.kind != ChannelKind::Normal));
 }
+
+/// The channel groups drawn and composed beside the colour in one pass give the separate passes'
+/// bytes: every texture of a job whose layers paint different channel sets (one none, one only a
+/// "dx" normal by UDN, one a masked material with a metallic image of another size than its
+/// colour, a ribbon replacing its data), 16 bits a channel, on mirrored UVs; and a job of two
+/// groups with a gap between their attachments (orm and emissive). The separate passes are taken
+/// when asked for and where the device has too few attachments.
+#[test]
+fn fused_channel_passes_give_the_separate_passes_bytes() {
+    let dir = common::scratch("channels-fused");
+    common::write_plane(&dir.join("plane.glb"), N, true);
+    common::write_raw_png(&dir.join("disc.png"), 64, |s, t| {
+        let r = ((s - 0.5).powi(2) + (t - 0.5).powi(2)).sqrt();
+        [s, 0.4, t, (1.0 - 2.0 * r).clamp(0.0, 1.0)]
+    });
+    common::write_raw_png(&dir.join("bump.png"), 96, |s, t| {
+        let n = bump(s, t) * 0.5 + 0.5;
+        [n.x, n.y, n.z, 1.0]
+    });
+    common::write_raw_png(&dir.join("ramp.png"), 40, |s, _| [s, s, s, 1.0]);
+    common::write_raw_png(&dir.join("mask.png"), 32, |s, t| [s * t, 0.0, 0.0, 1.0]);
+    let ribbon: Vec<[f32; 3]> = (0..=16)
+        .map(|k| {
+            [
+                0.15 + 0.7 * k as f32 / 16.0,
+                0.3 + 0.1 * (k as f32 * 0.5).sin(),
+                0.0,
+            ]
+        })
+        .collect();
+    let full = json!([
+        {"image": "disc.png", "at": [0.45, 0.5, 0.0], "size": [0.5, 0.5], "angle": 20,
+         "mask": "mask.png", "opacity": 0.8, "normal": "bump.png", "normal_opacity": 0.6,
+         "roughness": 0.3, "metallic": "ramp.png", "emissive": [1.0, 0.5, 0.0]},
+        {"image": "disc.png", "at": [0.55, 0.45, 0.0], "size": [0.4, 0.4], "method": "planar",
+         "blend": "multiply"},
+        {"image": "disc.png", "at": [0.6, 0.6, 0.0], "size": [0.3, 0.3], "angle": -30,
+         "normal": "bump.png", "normal_y": "dx", "normal_blend": "udn"},
+        {"kind": "ribbon", "image": "disc.png", "path": ribbon, "width": 0.12,
+         "roughness": 0.9, "occlusion": 0.5, "data_blend": "replace", "emissive": "ramp.png"}
+    ]);
+    let gap = json!([
+        {"image": "disc.png", "at": [0.5, 0.5, 0.0], "size": [0.6, 0.6], "roughness": 0.2,
+         "emissive": "ramp.png", "emissive_opacity": 0.7},
+        {"image": "disc.png", "at": [0.4, 0.4, 0.0], "size": [0.3, 0.3], "metallic": 0.0}
+    ]);
+    let fused = common::engine();
+    let mut separate = common::engine();
+    separate.separate_channel_passes = true;
+    let few = common::engine_with_limits(|l| l.max_color_attachments = 4);
+    for (name, layers) in [("full", full), ("gap", gap)] {
+        let job = json!({
+            "mesh": "plane.glb",
+            "texture": {"width": SIZE, "height": SIZE, "base": [0.5, 0.5, 0.5, 1.0], "padding": 2},
+            "output": {"texture": "baked.png", "bit_depth": 16},
+            "layers": layers
+        });
+        let path = dir.join(format!("{name}.json"));
+        std::fs::write(&path, job.to_string()).unwrap();
+        let job = Job::load(&path, None).unwrap();
+        let bake = |engine: &Engine| {
+            let (mesh, job) = engine.load_mesh_for(&job).unwrap();
+            engine.bake(&mesh, &job).unwrap()
+        };
+        let (a, b, c) = (bake(&fused), bake(&separate), bake(&few));
+        assert_eq!(a.report.paths.channels, "fused", "{name}");
+        assert_eq!(b.report.paths.channels, "separate", "{name}");
+        assert_eq!(c.report.paths.channels, "separate", "{name}: 4 attachments");
+        assert!(
+            a.channels.len() >= 2,
+            "{name}: {} channel textures",
+            a.channels.len()
+        );
+        for other in [&b, &c] {
+            assert_eq!(a.texels, other.texels, "{name}: the colour differs");
+            assert_eq!(a.channels.len(), other.channels.len());
+            for (x, y) in a.channels.iter().zip(&other.channels) {
+                assert_eq!(x.kind, y.kind);
+                let differ = x
+                    .texels
+                    .iter()
+                    .zip(&y.texels)
+                    .filter(|(p, q)| p != q)
+                    .count();
+                assert_eq!(
+                    differ,
+                    0,
+                    "{name}: {} differs in {differ} values",
+                    x.kind.name()
+                );
+            }
+        }
+        // The bake painted each group: some texel of each channel texture left its base.
+        for ch in &a.channels {
+            let first = &ch.texels[..4];
+            assert!(
+                ch.texels.chunks_exact(4).any(|t| t != first),
+                "{name}: {} is flat",
+                ch.kind.name()
+            );
+        }
+    }
+}

@@ -52,6 +52,22 @@ fn every_wgsl_file_validates() {
         "layer_raster (clipped)".into(),
         decalbake::gpu::shaders::clipped_source("layer_raster"),
     ));
+    // The normal variant, and the fused variants that draw and compose the PBR channel groups
+    // beside the colour.
+    sources.push((
+        "layer_raster (normal)".into(),
+        decalbake::gpu::shaders::normal_source(true),
+    ));
+    sources.push((
+        "layer_raster (fused)".into(),
+        decalbake::gpu::shaders::fused_source(true),
+    ));
+    for name in ["compose", "atlas_clear"] {
+        sources.push((
+            format!("{name} (fused)"),
+            decalbake::gpu::shaders::fused_kernel_source(name),
+        ));
+    }
     for (name, src) in &sources {
         let src = src.clone();
         let module = match naga::front::wgsl::parse_str(&src) {

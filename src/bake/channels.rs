@@ -1,11 +1,13 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! PBR channels beside the colour: each channel group a layer paints (`Orm`: occlusion,
-//! roughness and metallic as R, G, B; `Normal`; `Emissive`) is a pass of the raster and compose
-//! stage into its own canvas, over the maps and triangle selections the colour computed (a chunk's
-//! maps are shared by every pass; only raster and compose repeat). Each layer's channel image is
-//! made here on the CPU: the channel's values with the colour image's alpha (so every channel is
-//! masked by the image's alpha, and by the layer's `mask` as the colour is), at the larger of the
-//! two images' sizes. A canvas starts from the material's texture for that channel times its
+//! roughness and metallic as R, G, B; `Normal`; `Emissive`) is drawn into its own canvas by the
+//! raster and compose stage, over the maps and triangle selections the colour computed: beside
+//! the colour in the same pass where `Engine::fuses_channels` says (the channel draws,
+//! [`ChannelDraw`]), else in a pass of its own ([`Pass`]; a chunk's maps are shared by every
+//! pass; only raster and compose repeat). Each layer's channel image is made here on the CPU: the
+//! channel's values with the colour image's alpha (so every channel is masked by the image's
+//! alpha, and by the layer's `mask` as the colour is), at the larger of the two images' sizes; a
+//! group of numbers only has none (it is drawn as the numbers times the colour sample's alpha). A canvas starts from the material's texture for that channel times its
 //! factor, or from the factor alone (normals: flat, (0.5, 0.5, 1)).
 //!
 //! Tool strokes (blur, smear, clone) work on every channel as on the colour: their pass draws
@@ -13,7 +15,7 @@
 
 use super::engine::{Engine, GpuImage, LoadedMesh};
 use super::images::upload_image;
-use super::params::FLAG_NORMAL_DX;
+use super::params::{FLAG_CONSTANT, FLAG_NORMAL_DX};
 use crate::error::{Error, Result};
 use crate::io::channels::{Channel, DataBlend, NormalBlend, Value};
 use crate::io::image::LinearImage;
@@ -39,10 +41,16 @@ pub enum Draw {
     Skip,
     /// As in the colour pass (a tool stroke: blur, smear, clone).
     Colour,
-    /// Its channel image, opacity, blend id, data weights (`Params::chan`) and raster flags.
+    /// Its channel image or constant, opacity, blend id, data weights (`Params::chan`) and
+    /// raster flags.
     Channel {
-        /// The channel's image (a constant is a 1×1 image).
-        image: Arc<GpuImage>,
+        /// The channel's image; `None` where the channel is a constant (`constant`), drawn from
+        /// the colour image's coverage.
+        image: Option<Arc<GpuImage>>,
+        /// A constant channel's value (a data channel's parts R, G, B; emissive RGB): drawn as
+        /// the value times the colour image's alpha where it is sampled (what an image of the
+        /// value with the colour's alpha holds), with [`super::params::FLAG_CONSTANT`].
+        constant: Option<[f32; 4]>,
         /// The channel's opacity.
         opacity: f32,
         /// The blend's id in the compose shader.
@@ -65,6 +73,58 @@ pub struct Pass {
     pub base: (Arc<GpuImage>, u32),
     /// Normals: tangents per split vertex (`vec4<f32>`, xyz and the bitangent sign).
     pub tangents: Option<wgpu::Buffer>,
+}
+
+/// One raster entry's channel draws in a fused pass (`ChannelDraw` in `wgsl/bake/layer_raster.wgsl`
+/// and `compose.wgsl`): per group (orm, normal, emissive) the opacity, blend and data weights the
+/// separate pass's entry would carry; `bits[0]`: the groups the unit paints, `bits[1]`: its normal
+/// map is "dx", `bits[2]`: the groups drawn from a constant (`value`). A separate pass's raster
+/// reads its group's `value` (at `Params::draw` y) where it has `FLAG_CONSTANT`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct ChannelDraw {
+    /// Opacity per group.
+    pub opacity: [f32; 4],
+    /// Blend id per group.
+    pub blend: [u32; 4],
+    /// Painted groups, "dx".
+    pub bits: [u32; 4],
+    /// Data weights per group (`Params::chan`).
+    pub chan: [[f32; 4]; 3],
+    /// A constant group's value ([`Draw::Channel`]'s `constant`).
+    pub value: [[f32; 4]; 3],
+}
+
+impl ChannelDraw {
+    /// Unit `u`'s draws over `passes` (its layer `layer`): what [`Draw::Channel`] gives each.
+    pub(crate) fn of(passes: &[&Pass], layer: usize) -> Self {
+        let mut d = Self::default();
+        for p in passes {
+            let k = p.kind.slot();
+            if let Draw::Channel {
+                opacity,
+                blend,
+                chan,
+                flags,
+                constant,
+                ..
+            } = &p.draws[layer]
+            {
+                d.opacity[k] = *opacity;
+                d.blend[k] = *blend;
+                d.chan[k] = *chan;
+                d.bits[0] |= 1 << k;
+                if let Some(v) = constant {
+                    d.bits[2] |= 1 << k;
+                    d.value[k] = *v;
+                }
+                if flags & FLAG_NORMAL_DX != 0 {
+                    d.bits[1] = 1;
+                }
+            }
+        }
+        d
+    }
 }
 
 /// Blend ids of `wgsl/shared/blend.wgsl` beyond the colour modes.
@@ -104,20 +164,26 @@ pub(crate) fn pass(
             draws.push(Draw::Skip);
             continue;
         }
-        let (opacity, blend, chan, flags) = draw_params(l, kind);
+        let (opacity, blend, chan, mut flags) = draw_params(l, kind);
+        let constant = constant(&l.channels, kind);
         let key = format!("{:?} {:?}", l.image, l.channels);
-        let image = match made.get(&key) {
-            Some(m) => m.clone(),
-            None => {
+        let image = match (constant, made.get(&key)) {
+            (Some(_), _) => {
+                flags |= FLAG_CONSTANT;
+                None
+            }
+            (None, Some(m)) => Some(m.clone()),
+            (None, None) => {
                 let img = layer_image(job, i, kind, warnings)?;
                 let label = format!("bake.channel.{}", kind.name());
                 let m = Arc::new(upload_image(engine, &img, true, &label));
                 made.insert(key, m.clone());
-                m
+                Some(m)
             }
         };
         draws.push(Draw::Channel {
             image,
+            constant,
             opacity,
             blend,
             chan,
@@ -141,6 +207,30 @@ pub(crate) fn pass(
         base: (base, uv.unwrap_or(job.uv_set)),
         tangents,
     })
+}
+
+/// The value of channel group `kind` where every part of it the layer paints is a number (the
+/// parts it does not paint: 0, which its data weights leave unchanged); `None` where one is an
+/// image, or for normals.
+fn constant(c: &crate::io::channels::Channels, kind: ChannelKind) -> Option<[f32; 4]> {
+    match kind {
+        ChannelKind::Orm => {
+            let mut out = [0.0; 4];
+            for (k, p) in [&c.occlusion, &c.roughness, &c.metallic].iter().enumerate() {
+                match p.as_ref().map(|p| &p.value) {
+                    Some(Value::Constant(v)) => out[k] = v[0],
+                    Some(Value::Image(_)) => return None,
+                    None => {}
+                }
+            }
+            Some(out)
+        }
+        ChannelKind::Normal => None,
+        ChannelKind::Emissive => match c.emissive.as_ref().map(|e| &e.value) {
+            Some(Value::Constant(v)) => Some([v[0], v[1], v[2], 0.0]),
+            _ => None,
+        },
+    }
 }
 
 /// The mesh's material channels (the default material's where it has none or no document).

@@ -7,7 +7,7 @@
 //! the whole stage: [`crate::bake::cpu::bake_cpu`].
 
 use super::canvas::Canvas;
-use super::channels::{Draw, Pass};
+use super::channels::{ChannelDraw, Draw, Pass};
 use super::engine::{Engine, LoadedMesh};
 use super::images::Images;
 use super::maps::{LayerMaps, Slots};
@@ -195,10 +195,23 @@ impl Dirty<'_> {
     }
 }
 
+/// What a [`compose`] call draws and composes.
+#[derive(Clone, Copy)]
+pub(crate) enum Passes<'a> {
+    /// The colour, into the canvas the call is given.
+    Colour,
+    /// A channel group's separate pass ([`super::channels`]), into the canvas the call is given.
+    Channel(&'a Pass),
+    /// The colour into the canvas the call is given and, in the same raster and compose, every
+    /// channel group of the list into its canvas ([`Engine::fuses_channels`]).
+    Fused(&'a [(Pass, Canvas)]),
+}
+
 /// Rasterizes and composes the chunk's layers into the canvas (a stroke's stamps into the stroke
-/// buffer, applied to the canvas after its last stamp); returns each layer's distortion. `pass`:
-/// a channel's pass ([`super::channels`]) into its own canvas, each unit drawn as its job layer's
-/// [`Draw`] says (no distortion measured: the colour's pass did). `dirty`: a live bake's edit,
+/// buffer, applied to the canvas after its last stamp); returns each layer's distortion.
+/// `passes` ([`Passes`]): the colour's; a channel's pass ([`super::channels`]) into its own
+/// canvas, each unit drawn as its job layer's [`Draw`] says (no distortion measured: the colour's
+/// pass did); or the colour's with the channel groups fused beside it. `dirty`: a live bake's edit,
 /// which draws only the raster rectangles that meet its cells, at the places the whole chunk's
 /// plan gives them (the same samples, bit for bit), and composes only its cells' texels (no
 /// distortion measured).
@@ -211,10 +224,15 @@ pub(crate) fn compose(
     maps: &LayerMaps,
     (stats, dirty): (&[i32], Option<&Dirty<'_>>),
     placed: &Placed,
-    pass: Option<&Pass>,
+    passes: Passes<'_>,
     log: &mut Log,
 ) -> Result<Vec<Distortion>> {
     let Cx { engine, mesh, job } = cx;
+    let (pass, fused) = match passes {
+        Passes::Colour => (None, &[][..]),
+        Passes::Channel(p) => (Some(p), &[][..]),
+        Passes::Fused(f) => (None, f),
+    };
     let dev = &engine.ctx.device;
     let blending = engine.pipes.layer_blending;
     let mut jobs = raster_jobs(job, canvas, maps, stats, placed, blending);
@@ -272,6 +290,12 @@ pub(crate) fn compose(
             p.flags |= FLAG_DIRTY;
         }
     }
+    let draws = channel_draws(&mut jp, &jobs, placed, (pass, fused));
+    let draws = engine.ctx.storage_init(
+        "bake.channel_draws",
+        bytemuck::cast_slice(&draws),
+        wgpu::BufferUsages::empty(),
+    );
     let job_params = params_buffer(dev, "bake.raster_params", &jp);
     let n_chunk = maps.range.len() as u64;
     let partials_size = n_chunk * DIST_GROUPS as u64 * PARTIAL_VEC4S as u64 * 16;
@@ -313,6 +337,9 @@ pub(crate) fn compose(
             flush: &flush,
             flats: flats.as_ref().map_or(&no_flats, |f| &f.buffer),
             pass,
+            fused,
+            draws: &draws,
+            placeholder: &no_flats,
         };
         if pass.is_none() && dirty.is_none() {
             log.commands +=
@@ -389,6 +416,33 @@ fn entry_params(
         })
         .chain(flush_params)
         .collect()
+}
+
+/// The channel draws of a fused pass (`fused`: its channel groups) or of a separate channel
+/// pass (`pass`; its constants): one per entry of `jp`, each entry's [`Params::draw`] pointing
+/// at its own (and, for a separate pass, at its group). The colour's alone: one unread entry
+/// (a binding holds at least one).
+fn channel_draws(
+    jp: &mut [Params],
+    jobs: &[RasterJob],
+    placed: &Placed,
+    (pass, fused): (Option<&Pass>, &[(Pass, Canvas)]),
+) -> Vec<ChannelDraw> {
+    let passes: Vec<&Pass> = fused.iter().map(|(p, _)| p).chain(pass).collect();
+    if passes.is_empty() {
+        return vec![ChannelDraw::default()];
+    }
+    let group = pass.map_or(0, |p| p.kind.slot() as u32);
+    let mut draws: Vec<ChannelDraw> = jobs
+        .iter()
+        .flat_map(|j| j.units.clone())
+        .map(|u| ChannelDraw::of(&passes, placed.origin[u].0))
+        .collect();
+    draws.resize(jp.len(), ChannelDraw::default());
+    for (i, p) in jp.iter_mut().enumerate() {
+        p.draw = [i as u32, group, 0, 0];
+    }
+    draws
 }
 
 /// Unit `u`'s opacity, blend and data weights in `pass` (its `Params` `p` in the colour's), and
@@ -495,6 +549,12 @@ struct Recording<'a> {
     flats: &'a wgpu::Buffer,
     /// A channel's pass, `None` for the colour's.
     pass: Option<&'a Pass>,
+    /// The channel groups fused beside the colour, with their canvases (empty: none).
+    fused: &'a [(Pass, Canvas)],
+    /// The fused pass's channel draws ([`channel_draws`]).
+    draws: &'a wgpu::Buffer,
+    /// A 16-byte storage buffer bound where a fused pass has no channel group.
+    placeholder: &'a wgpu::Buffer,
 }
 
 impl Recording<'_> {
@@ -511,9 +571,17 @@ impl Recording<'_> {
     ) -> u32 {
         let (engine, pipes) = (self.engine, &self.engine.pipes);
         let ss = self.job.ss;
-        let tg = engine.targets([TILE_TARGET, used_h.next_power_of_two().max(64)]);
+        let size = [TILE_TARGET, used_h.next_power_of_two().max(64)];
+        let tg = engine.targets(size);
+        let channel_views = self.channel_views(size);
         {
-            let views = [&tg.color_view, &tg.cov_view];
+            let views: Vec<Option<&wgpu::TextureView>> = [Some(&tg.color_view), Some(&tg.cov_view)]
+                .into_iter()
+                .chain(channel_views.iter().map(|v| v.as_deref()))
+                .collect();
+            // As many attachments as the pipelines have targets: none after the last group's.
+            let used = views.iter().rposition(Option::is_some).map_or(0, |i| i + 1);
+            let views = &views[..used];
             let win = self.canvas.global.window();
             // Each job's part of the target is cleared (a quad per scissor) instead of the whole
             // target: llvmpipe then loads and stores only the bins the jobs touch. Measured with a
@@ -521,16 +589,25 @@ impl Recording<'_> {
             // decals at 4096² (46 targets of 2048², about 60 % packed) compose 3.09 → 2.76 s; 16
             // decals 394 → 372 ms; one decal the same (a tiled 8192² bake: 1.80 → 1.62 s).
             let mut pass =
-                crate::gpu::render_pass(enc, "bake.layer_raster", &views, wgpu::LoadOp::Load);
-            pass.set_pipeline(&pipes.atlas_clear.pipeline);
+                crate::gpu::render_pass_to(enc, "bake.layer_raster", views, wgpu::LoadOp::Load);
+            let bits = self.fused_bits();
+            let (clear, raster) = match bits {
+                0 => (&pipes.atlas_clear, None),
+                b => (
+                    &pipes.fused.clear[b as usize - 1],
+                    Some(&pipes.fused.raster[b as usize - 1]),
+                ),
+            };
+            pass.set_pipeline(&clear.pipeline);
             for &(k, origin) in batch {
                 let [sx, sy, sw, sh] = scissor(&self.jobs[k].params, win, ss);
                 pass.set_scissor_rect(origin[0] + sx, origin[1] + sy, sw, sh);
                 pass.draw(0..3, 0..1);
             }
-            let raster = match self.pass.map(|p| p.kind) {
-                Some(super::channels::ChannelKind::Normal) => &pipes.layer_raster_normal,
-                _ => &pipes.layer_raster,
+            let raster = match (raster, self.pass.map(|p| p.kind)) {
+                (Some(fused), _) => fused,
+                (None, Some(super::channels::ChannelKind::Normal)) => &pipes.layer_raster_normal,
+                (None, _) => &pipes.layer_raster,
             };
             pass.set_pipeline(&raster.pipeline);
             for &(k, origin) in batch {
@@ -579,7 +656,13 @@ impl Recording<'_> {
             )
         };
         let acc = [self.canvas.acc_rg.clone(), self.canvas.acc_ba.clone()];
-        let bg_canvas = bind_compose(&acc);
+        let (bg_canvas, compose) = match self.fused.is_empty() {
+            true => (bind_compose(&acc), &pipes.compose),
+            false => (
+                self.bind_fused_compose(&tg, &channel_views),
+                &pipes.fused.compose,
+            ),
+        };
         let bg_stroke = self.canvas.stroke.as_ref().map(bind_compose);
         let mut n = 2 * batch.len() as u32;
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -594,7 +677,7 @@ impl Recording<'_> {
                 (Some(_), Some(bg)) => bg,
                 _ => &bg_canvas,
             };
-            pass.set_pipeline(&pipes.compose.pipeline);
+            pass.set_pipeline(&compose.pipeline);
             pass.set_bind_group(0, bg, &[(rj.entry as u64 * PARAMS_STRIDE) as u32]);
             pass.dispatch_workgroups(p.rect_size[0].div_ceil(8), p.rect_size[1].div_ceil(8), 1);
         }
@@ -634,6 +717,63 @@ impl Recording<'_> {
         n
     }
 
+    /// The fused pass's channel groups as bits (0 occlusion-roughness-metallic, 1 normal, 2
+    /// emissive; 0: not fused).
+    fn fused_bits(&self) -> u32 {
+        self.fused
+            .iter()
+            .fold(0, |b, (p, _)| b | 1 << p.kind.slot())
+    }
+
+    /// The fused pass's channel attachments of `size`, by group (`None` where it has none).
+    fn channel_views(&self, size: [u32; 2]) -> [Option<std::sync::Arc<wgpu::TextureView>>; 3] {
+        let bits = self.fused_bits();
+        std::array::from_fn(|k| (bits >> k & 1 == 1).then(|| self.engine.channel_target(size, k)))
+    }
+
+    /// The fused compose's bindings: the colour's, each channel group's attachment and canvas
+    /// planes (the colour's attachment and 16-byte placeholders where the pass has no such
+    /// group), and the channel draws.
+    fn bind_fused_compose(
+        &self,
+        tg: &super::engine::Targets,
+        views: &[Option<std::sync::Arc<wgpu::TextureView>>; 3],
+    ) -> wgpu::BindGroup {
+        let mut planes: [Vec<&wgpu::Buffer>; 3] = Default::default();
+        for (pass, canvas) in self.fused {
+            planes[pass.kind.slot()] = vec![&canvas.acc_rg, &canvas.acc_ba];
+        }
+        let spare: Vec<wgpu::Buffer> = (0..6)
+            .map(|_| {
+                self.engine
+                    .ctx
+                    .storage_init("bake.no_channel", &[], wgpu::BufferUsages::empty())
+            })
+            .collect();
+        let mut entries = vec![
+            (0, pbind(self.job_params)),
+            (1, wgpu::BindingResource::TextureView(&tg.color_view)),
+            (2, wgpu::BindingResource::TextureView(&tg.cov_view)),
+            (3, self.canvas.stats.as_entire_binding()),
+            (10, self.canvas.acc_rg.as_entire_binding()),
+            (11, self.canvas.acc_ba.as_entire_binding()),
+            (18, self.draws.as_entire_binding()),
+        ];
+        for k in 0..3 {
+            let view = views[k].as_deref().unwrap_or(&tg.color_view);
+            entries.push((4 + k as u32, wgpu::BindingResource::TextureView(view)));
+            for (j, spare) in spare[2 * k..2 * k + 2].iter().enumerate() {
+                let plane = planes[k].get(j).copied().unwrap_or(spare);
+                entries.push((12 + 2 * k as u32 + j as u32, plane.as_entire_binding()));
+            }
+        }
+        self.engine.pipes.fused.compose.bind(
+            &self.engine.ctx.device,
+            "bake.compose_fused",
+            &entries,
+        )
+    }
+
     /// Whether unit `i` is drawn in this pass (always in the colour's).
     fn drawn(&self, i: usize) -> bool {
         self.pass
@@ -645,10 +785,16 @@ impl Recording<'_> {
     fn layer_bind_group(&self, i: usize) -> wgpu::BindGroup {
         let (engine, g) = (self.engine, &self.mesh.gpu);
         let (colour, m) = &self.images.layers[i];
+        // A constant channel is drawn from the colour image's coverage (`FLAG_CONSTANT`).
         let img = match self.pass.map(|p| &p.draws[self.placed.origin[i].0]) {
-            Some(Draw::Channel { image, .. }) => image,
+            Some(Draw::Channel {
+                image: Some(image), ..
+            }) => image,
             _ => colour,
         };
+        if !self.fused.is_empty() {
+            return self.fused_bind_group(i);
+        }
         let tangents = self.pass.and_then(|p| p.tangents.as_ref());
         let mview = m
             .as_ref()
@@ -666,6 +812,7 @@ impl Recording<'_> {
             (8, wgpu::BindingResource::Sampler(&engine.linear_sampler)),
             (9, self.flats.as_entire_binding()),
             (10, self.images.warps.as_entire_binding()),
+            (17, self.draws.as_entire_binding()),
         ];
         let layout = match tangents {
             Some(t) => {
@@ -677,5 +824,58 @@ impl Recording<'_> {
             None => &engine.pipes.layer_raster.layout,
         };
         make_bind_group(&engine.ctx.device, layout, "bake.layer_raster", &entries)
+    }
+
+    /// Unit `i`'s raster bind group in a fused pass: the colour's bindings, the mesh's frames
+    /// (the normal group's tangents, or a placeholder), each group's channel image (the dummy
+    /// image where its layer or the pass has none) and the channel draws.
+    fn fused_bind_group(&self, i: usize) -> wgpu::BindGroup {
+        let (engine, g) = (self.engine, &self.mesh.gpu);
+        let (colour, m) = &self.images.layers[i];
+        let dummy = &self.images.dummy.view;
+        let mut images = [dummy; 3];
+        let mut tangents = self.placeholder;
+        for (pass, _) in self.fused {
+            if let Draw::Channel {
+                image: Some(image), ..
+            } = &pass.draws[self.placed.origin[i].0]
+            {
+                images[pass.kind.slot()] = &image.view;
+            }
+            if let Some(t) = &pass.tangents {
+                tangents = t;
+            }
+        }
+        let entries = [
+            (0, pbind(self.job_params)),
+            (1, self.slots.lists.as_entire_binding()),
+            (2, g.split_tris.as_entire_binding()),
+            (3, g.uvs[self.job.uv_set as usize].as_entire_binding()),
+            (4, g.welded_of.as_entire_binding()),
+            (5, self.slots.coords.as_entire_binding()),
+            (6, wgpu::BindingResource::TextureView(&colour.view)),
+            (
+                7,
+                wgpu::BindingResource::TextureView(m.as_ref().map_or(dummy, |m| &m.view)),
+            ),
+            (8, wgpu::BindingResource::Sampler(&engine.linear_sampler)),
+            (9, self.flats.as_entire_binding()),
+            (10, self.images.warps.as_entire_binding()),
+            (11, g.split_positions.as_entire_binding()),
+            (12, g.split_normals.as_entire_binding()),
+            (13, tangents.as_entire_binding()),
+            (14, wgpu::BindingResource::TextureView(images[0])),
+            (15, wgpu::BindingResource::TextureView(images[1])),
+            (16, wgpu::BindingResource::TextureView(images[2])),
+            (17, self.draws.as_entire_binding()),
+        ];
+        let bits = self.fused_bits() as usize;
+        let layout = &engine.pipes.fused.raster[bits - 1].layout;
+        make_bind_group(
+            &engine.ctx.device,
+            layout,
+            "bake.layer_raster_fused",
+            &entries,
+        )
     }
 }

@@ -184,6 +184,9 @@ pub(crate) struct Targets {
     _cov: wgpu::Texture,
 }
 
+/// A fused channel attachment's key: its size and channel group.
+type ChannelTarget = ([u32; 2], usize);
+
 /// Where [`Engine::prepare`] builds a mesh's BVH (placement's walk, planar decals' candidates).
 ///
 /// Measured (docs/, "Placement"): on lavapipe the median-split build on the CPU is the faster
@@ -333,6 +336,9 @@ pub struct Engine {
     pub ctx: GpuContext,
     pub(crate) pipes: Pipelines,
     targets: Mutex<HashMap<[u32; 2], Arc<Targets>>>,
+    /// The fused channel passes' attachments, by size and channel group (0 occlusion-roughness-
+    /// metallic, 1 normal, 2 emissive), made when a bake first needs them.
+    channel_targets: Mutex<HashMap<ChannelTarget, Arc<wgpu::TextureView>>>,
     pub(crate) linear_sampler: wgpu::Sampler,
     /// Select every layer's triangles from the whole mesh instead of from the vertices its map can
     /// reach (`bake::maps::LayerMaps::candidate_triangles`). The results are the same; this is the
@@ -347,6 +353,12 @@ pub struct Engine {
     pub unclipped_raster: bool,
     /// Where a prepared mesh's BVH is built ([`BvhBuild`]). Default [`BvhBuild::Auto`].
     pub bvh_build: BvhBuild,
+    /// Draw and compose each PBR channel group in a pass of its own, after the colour's, instead
+    /// of beside the colour in one fused pass (`bake/compose.rs`). The fused pass is taken where
+    /// the device holds five attachments and the job has no strokes; both give the same bytes
+    /// (`tests/channels.rs`); the separate passes are its reference and the fallback. Default
+    /// `false`.
+    pub separate_channel_passes: bool,
     /// Where the stages with a CPU twin run ([`StagePaths`]). Default: the faster on the adapter.
     pub stage_paths: StagePaths,
     /// The raster clips a layer's triangles only where the mesh's triangles cover at least this
@@ -429,7 +441,7 @@ impl Default for BufferPool {
 impl BufferPool {
     /// The most bytes kept: a 4096² canvas (two 128 MiB planes) and its encode (64 MiB, or 128 MiB
     /// at 16 bits), twice over, for two bakes of different sizes or two threads.
-    pub const BYTES: u64 = 768 << 20;
+    pub const BYTES: u64 = Engine::DEFAULT_KEPT_BUFFERS;
 
     /// A free buffer of exactly `size` bytes and `usage`, if one is kept.
     pub fn take(&mut self, size: u64, usage: wgpu::BufferUsages) -> Option<wgpu::Buffer> {
@@ -508,6 +520,8 @@ impl Engine {
             ctx,
             pipes,
             targets: Mutex::new(HashMap::new()),
+            channel_targets: Mutex::new(HashMap::new()),
+            separate_channel_passes: false,
             buffers: Mutex::new(BufferPool::default()),
             linear_sampler,
             whole_mesh_selection: false,
@@ -747,10 +761,16 @@ impl Engine {
     /// decals at 4096² on bob, `/usr/bin/time -v`: 1.23 GB resident, 0.95 GB without, docs/performance.md) at
     /// the price of a fresh canvas for every later bake.
     pub fn keep_buffers(&self, bytes: u64) {
+        // (The default is [`Engine::DEFAULT_KEPT_BUFFERS`].)
         let mut pool = self.buffers.lock().expect("buffer pool poisoned");
         pool.cap = bytes;
         pool.trim();
     }
+
+    /// What [`Engine::keep_buffers`] is by default: 768 MiB, a 4096² canvas (two 128 MiB planes)
+    /// and its encode (64 MiB, or 128 MiB at 16 bits), twice over, for two bakes of different
+    /// sizes or two threads.
+    pub const DEFAULT_KEPT_BUFFERS: u64 = 768 << 20;
 
     /// Hands buffers back to the pool once no submitted work reads or writes them.
     pub(crate) fn return_buffers(&self, buffers: impl IntoIterator<Item = wgpu::Buffer>) {
@@ -764,23 +784,7 @@ impl Engine {
         let mut pool = self.targets.lock().expect("target pool poisoned");
         pool.entry(size)
             .or_insert_with(|| {
-                let mk = |label: &str, format| {
-                    self.ctx.device.create_texture(&wgpu::TextureDescriptor {
-                        label: Some(label),
-                        size: wgpu::Extent3d {
-                            width: size[0],
-                            height: size[1],
-                            depth_or_array_layers: 1,
-                        },
-                        mip_level_count: 1,
-                        sample_count: 1,
-                        dimension: wgpu::TextureDimension::D2,
-                        format,
-                        usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                            | wgpu::TextureUsages::TEXTURE_BINDING,
-                        view_formats: &[],
-                    })
-                };
+                let mk = |label: &str, format| self.attachment(label, size, format);
                 let color = mk("bake.target.color", self.pipes.layer_format);
                 let cov = mk("bake.target.coverage", COVERAGE_FORMAT);
                 Arc::new(Targets {
@@ -791,6 +795,60 @@ impl Engine {
                 })
             })
             .clone()
+    }
+
+    /// The fused channel passes' attachment of `size` for channel group `k` (0
+    /// occlusion-roughness-metallic, 1 normal, 2 emissive), in the layer target's format.
+    pub(crate) fn channel_target(&self, size: [u32; 2], k: usize) -> Arc<wgpu::TextureView> {
+        let mut pool = self.channel_targets.lock().expect("target pool poisoned");
+        pool.entry((size, k))
+            .or_insert_with(|| {
+                let t = self.attachment("bake.target.channel", size, self.pipes.layer_format);
+                Arc::new(t.create_view(&Default::default()))
+            })
+            .clone()
+    }
+
+    /// A render attachment of `size` and `format` that shaders can read.
+    fn attachment(
+        &self,
+        label: &str,
+        size: [u32; 2],
+        format: wgpu::TextureFormat,
+    ) -> wgpu::Texture {
+        self.ctx.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: size[0],
+                height: size[1],
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        })
+    }
+
+    /// Whether `job`'s PBR channel groups are drawn beside its colour in one pass
+    /// (`bake/compose.rs`; each group's values are those of a pass of its own, bit for bit), or a
+    /// pass each after the colour's: fused where the job paints channels and has no strokes (a
+    /// stroke's stamps build up in a stroke buffer per canvas, and tool strokes read their own
+    /// canvas, which the separate passes keep), the device holds the attachments
+    /// ([`crate::gpu::pipelines::Fused::fits`]) and [`Engine::separate_channel_passes`] is unset.
+    pub(crate) fn fuses_channels(&self, job: &Job) -> bool {
+        !self.separate_channel_passes
+            && job.channel_groups() != 0
+            && job
+                .layers
+                .iter()
+                .all(|l| l.kind != crate::io::job::LayerKind::Stroke)
+            && crate::gpu::pipelines::Fused::fits(
+                &self.ctx.device.limits(),
+                self.pipes.layer_format,
+            )
     }
 
     /// Bakes `job` onto `mesh` and reads the texture back: the bytes are the same on every run
@@ -1148,15 +1206,24 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
     if !job.layers.is_empty() && !placed_on_cpu {
         list.extend([&p.place_bvh as &dyn Prepare, &p.place_reduce]);
     }
+    // The channel groups the job paints, as bits, where they are fused beside the colour.
+    let fused = match engine.fuses_channels(job) {
+        true => job.channel_groups(),
+        false => 0,
+    };
     if !job.layers.is_empty() {
         list.extend([
             &p.select_triangles as &dyn Prepare,
             &p.compact_lists,
-            &p.layer_raster,
-            &p.atlas_clear,
-            &p.compose,
             &p.distortion,
         ]);
+        match fused {
+            0 => list.extend([&p.layer_raster as &dyn Prepare, &p.atlas_clear, &p.compose]),
+            g => {
+                let (f, g) = (&p.fused, g as usize - 1);
+                list.extend([&f.raster[g] as &dyn Prepare, &f.clear[g], &f.compose]);
+            }
+        }
     }
     let any = |f: &dyn Fn(&crate::io::job::Layer) -> bool| job.layers.iter().any(f);
     if any(&|l| l.method == Method::Planar) {
@@ -1179,7 +1246,7 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
     if any(&|l| l.kind == LayerKind::Ribbon) {
         list.push(&p.ribbon_relax);
     }
-    if any(&|l| l.channels.normal.is_some()) {
+    if fused == 0 && any(&|l| l.channels.normal.is_some()) {
         list.push(&p.layer_raster_normal);
     }
     if job.out_preview.is_some() {

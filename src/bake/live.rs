@@ -292,7 +292,15 @@ impl<'a> LiveBake<'a> {
         let rows = stats[..n * stride].to_vec();
         let at = (&rows[..], None);
         compose::compose(
-            ucx, &images, &canvas, &slots, &maps, at, &placed, None, &mut log,
+            ucx,
+            &images,
+            &canvas,
+            &slots,
+            &maps,
+            at,
+            &placed,
+            compose::Passes::Colour,
+            &mut log,
         )?;
         let units = (0..n).map(|k| UnitMap::of(&maps, k)).collect();
         let encoded = finish::pad_and_encode(ucx, &canvas, (true, false), &mut log)?;
@@ -551,7 +559,8 @@ impl<'a> LiveBake<'a> {
         };
         let d = Dirty { mask: dirty, grid };
         let at = (rows, Some(&d));
-        compose::compose(cx, images, canvas, slots, &all, at, placed, None, log)?;
+        let colour = compose::Passes::Colour;
+        compose::compose(cx, images, canvas, slots, &all, at, placed, colour, log)?;
         Ok((regions, drawn))
     }
 

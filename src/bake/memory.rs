@@ -57,6 +57,10 @@ pub const WIDE_PER_TEXEL: u64 = 6;
 /// Host bytes a texel more for a float (EXR) output.
 pub const FLOAT_PER_TEXEL: u64 = 32;
 
+/// Device bytes of a PBR channel group's attachment in the fused raster (`bake/compose.rs`): at
+/// most a 2048² atlas target of f32 RGBA.
+pub const CHANNEL_TARGET: u64 = 64 << 20;
+
 /// Device bytes a pixel of a layer's bitmap image: f32 RGBA and its mipmaps (a third more).
 pub const IMAGE_DEVICE_PER_PIXEL: u64 = 22;
 /// Host bytes a pixel of a layer's bitmap image while it is decoded: the file's pixels and the
@@ -141,7 +145,9 @@ pub fn estimate(job: &Job, mesh_bytes: u64, tile: Option<[u32; 2]>, streamed: bo
             )
         }
         None => (
-            texels.saturating_mul(DEVICE_PER_TEXEL * textures),
+            texels
+                .saturating_mul(DEVICE_PER_TEXEL * textures)
+                .saturating_add((textures - 1) * CHANNEL_TARGET),
             texels.saturating_mul(HOST_PER_TEXEL * textures + extra),
         ),
     };

@@ -294,6 +294,13 @@ fn compose_units(
 ) -> Result<Vec<LayerReport>> {
     let job = cx.job;
     let slots = maps::Slots::new(cx.engine, cx.mesh, job);
+    // `job` holds the units (a stroke's stamps among them): strokes are told by `placed`.
+    let fused = !passes.is_empty() && placed.strokes.is_empty() && cx.engine.fuses_channels(job);
+    log.paths.channels = match (passes.is_empty(), fused) {
+        (true, _) => "none",
+        (false, true) => "fused",
+        (false, false) => "separate",
+    };
     let mut units: Vec<LayerReport> = Vec::with_capacity(job.layers.len());
     let starts = tools::chunk_starts(placed);
     for range in slots.chunks(&placed.blocks, &starts) {
@@ -312,13 +319,18 @@ fn compose_units(
             units.push(r);
         }
         let at = (&stats[..], None);
-        let d = compose::compose(cx, images, canvas, &slots, &maps, at, placed, None, log)?;
+        let which = match fused {
+            true => compose::Passes::Fused(passes),
+            false => compose::Passes::Colour,
+        };
+        let d = compose::compose(cx, images, canvas, &slots, &maps, at, placed, which, log)?;
         for (l, d) in units[first..].iter_mut().zip(d) {
             l.distortion = d;
         }
-        for (pass, c) in passes {
+        for (pass, c) in passes.iter().filter(|_| !fused) {
             let at = (&stats[..], None);
-            compose::compose(cx, images, c, &slots, &maps, at, placed, Some(pass), log)?;
+            let which = compose::Passes::Channel(pass);
+            compose::compose(cx, images, c, &slots, &maps, at, placed, which, log)?;
         }
     }
     Ok(units)

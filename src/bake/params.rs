@@ -66,9 +66,13 @@ pub struct Params {
     /// A data channel's blend (`BLEND_DATA_*`, `wgsl/shared/blend.wgsl`): each output channel's
     /// weight on the source's alpha (its `<channel>_opacity`; 0 leaves it unchanged).
     pub chan: [f32; 4],
+    /// Channel passes ([`crate::bake::channels::ChannelDraw`]): x = this entry's index in the
+    /// raster and compose's buffer of channel draws; y = a separate pass's channel group (its
+    /// constant's place).
+    pub draw: [u32; 4],
 }
 
-const _: () = assert!(std::mem::size_of::<Params>() == 240);
+const _: () = assert!(std::mem::size_of::<Params>() == 256);
 
 impl Params {
     /// The canvas window x, y, w, h ([`Params::win`], the whole texture when unset).
@@ -109,6 +113,9 @@ pub const FLAG_NORMAL_DX: u32 = 1024;
 /// `compose`: a live bake's edit ([`crate::bake::LiveBake`]): only the texels of the cells marked
 /// in the stats buffer's last row are composed.
 pub const FLAG_DIRTY: u32 = 2048;
+/// `layer_raster`: a channel group drawn from a constant (its value in the channel draws, at
+/// [`Params::draw`] x and y) times the colour image's alpha ([`crate::bake::channels::Draw`]).
+pub const FLAG_CONSTANT: u32 = 4096;
 
 /// Texels per side of a tool stamp's flat cell (`bake/tools.rs`). Keep in sync with `FLAT_RES` in
 /// `wgsl/bake/stamp_flatten.wgsl`, `stamp_filter.wgsl` and `layer_raster.wgsl`.

@@ -139,6 +139,9 @@ pub struct Paths {
     /// Conformal charts: the batched GPU CG, or the CPU twin's (`solve::cg::pcg`); `"none"`
     /// when the bake has none.
     pub charts: &'static str,
+    /// PBR channel groups: `"fused"` (drawn and composed beside the colour in one pass),
+    /// `"separate"` (a pass each after the colour's) or `"none"` (the bake paints none).
+    pub channels: &'static str,
 }
 
 impl Default for Paths {
@@ -147,6 +150,7 @@ impl Default for Paths {
             placement: "gpu",
             expmap: "none",
             charts: "none",
+            channels: "none",
         }
     }
 }

@@ -95,10 +95,22 @@ pub fn render_pass<'e>(
     views: &[&wgpu::TextureView],
     load: wgpu::LoadOp<wgpu::Color>,
 ) -> wgpu::RenderPass<'e> {
+    let views: Vec<Option<&wgpu::TextureView>> = views.iter().map(|&v| Some(v)).collect();
+    render_pass_to(enc, label, &views, load)
+}
+
+/// [`render_pass`] into attachments of which some may be absent (`None`: the pipelines drawn
+/// have no target there).
+pub fn render_pass_to<'e>(
+    enc: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    views: &[Option<&wgpu::TextureView>],
+    load: wgpu::LoadOp<wgpu::Color>,
+) -> wgpu::RenderPass<'e> {
     let attachments: Vec<Option<wgpu::RenderPassColorAttachment>> = views
         .iter()
         .map(|view| {
-            Some(wgpu::RenderPassColorAttachment {
+            view.map(|view| wgpu::RenderPassColorAttachment {
                 view,
                 depth_slice: None,
                 resolve_target: None,

@@ -189,6 +189,8 @@ pub struct Pipelines {
     pub layer_raster_normal: Lazy<Raster>,
     /// Clears the layer raster's targets inside the scissor (a tile's raster rectangles).
     pub atlas_clear: Lazy<Raster>,
+    /// The colour and the PBR channel groups drawn and composed in one pass ([`Fused`]).
+    pub fused: Fused,
     /// Inverse rendering of the canvas into tool stamps' flat space.
     pub stamp_flatten: Lazy<Raster>,
     /// The tools' filters on the flat atlas (blur, smear).
@@ -341,6 +343,7 @@ impl Pipelines {
                 layer_raster(d, layer_format, layer_blending, true)
             }),
             atlas_clear: Lazy::new(b, "atlas_clear", move |d| atlas_clear(d, layer_format)),
+            fused: Fused::new(b, layer_format, layer_blending),
             stamp_flatten: Lazy::new(b, "stamp_flatten", move |d| flatten_raster(d, layer_format)),
             stamp_filter: kernel(
                 "stamp_filter",
@@ -775,6 +778,206 @@ fn atlas_clear(device: &Builder, format: wgpu::TextureFormat) -> Raster {
     )
 }
 
+/// The fused channel passes' pipelines (`bake/compose.rs`): per set of PBR channel groups (bit 0
+/// occlusion-roughness-metallic, 1 normal, 2 emissive; index = bits - 1), `layer_raster`'s fused
+/// variant into the colour, coverage and those groups' attachments (2, 3, 4; the others `None`)
+/// and the clear of the same attachments; and `compose`'s fused variant.
+pub struct Fused {
+    /// `layer_raster`'s fused variant (`shaders::fused_source`).
+    pub raster: [Lazy<Raster>; 7],
+    /// `atlas_clear`'s fused variant.
+    pub clear: [Lazy<Raster>; 7],
+    /// `compose`'s fused variant (`shaders::fused_kernel_source`).
+    pub compose: Lazy<Kernel>,
+}
+
+/// Names of the fused pipelines per set of channel groups.
+const FUSED_RASTER: [&str; 7] = [
+    "layer_raster_fused_1",
+    "layer_raster_fused_2",
+    "layer_raster_fused_3",
+    "layer_raster_fused_4",
+    "layer_raster_fused_5",
+    "layer_raster_fused_6",
+    "layer_raster_fused_7",
+];
+/// See [`FUSED_RASTER`].
+const FUSED_CLEAR: [&str; 7] = [
+    "atlas_clear_fused_1",
+    "atlas_clear_fused_2",
+    "atlas_clear_fused_3",
+    "atlas_clear_fused_4",
+    "atlas_clear_fused_5",
+    "atlas_clear_fused_6",
+    "atlas_clear_fused_7",
+];
+
+impl Fused {
+    fn new(b: &Arc<Builder>, format: wgpu::TextureFormat, blending: bool) -> Self {
+        use Bind::*;
+        Self {
+            raster: std::array::from_fn(|k| {
+                let bits = k as u32 + 1;
+                Lazy::new(b, FUSED_RASTER[k], move |d| {
+                    fused_raster(d, format, blending, bits)
+                })
+            }),
+            clear: std::array::from_fn(|k| {
+                let bits = k as u32 + 1;
+                Lazy::new(b, FUSED_CLEAR[k], move |d| fused_clear(d, format, bits))
+            }),
+            compose: Lazy::new(b, "compose_fused", |d| {
+                let binds = [
+                    (0, Params),
+                    (1, Tex(false)),
+                    (2, Tex(false)),
+                    (3, Rw),
+                    (4, Tex(false)),
+                    (5, Tex(false)),
+                    (6, Tex(false)),
+                    (10, Rw),
+                    (11, Rw),
+                    (12, Rw),
+                    (13, Rw),
+                    (14, Rw),
+                    (15, Rw),
+                    (16, Rw),
+                    (17, Rw),
+                    (18, Ro),
+                ];
+                let text = shaders::fused_kernel_source("compose");
+                Kernel::with_source(d, "compose_fused", &binds, Some(text))
+            }),
+        }
+    }
+
+    /// Whether `limits` hold the fused passes: five colour attachments of `format` and a compose
+    /// with ten storage buffers and five textures.
+    pub fn fits(limits: &wgpu::Limits, format: wgpu::TextureFormat) -> bool {
+        let bytes = format.target_pixel_byte_cost().unwrap_or(u32::MAX);
+        limits.max_color_attachments >= 5
+            && limits.max_color_attachment_bytes_per_sample >= bytes.saturating_mul(4) + 4
+            && limits.max_storage_buffers_per_shader_stage >= 10
+            && limits.max_sampled_textures_per_shader_stage >= 5
+    }
+}
+
+/// The colour targets of a fused pass for the channel groups `bits`: colour, coverage, then each
+/// group's attachment or `None`. `blend`: the colour and channel targets' blend; `coverage`: the
+/// coverage target's (the clear's overwrites it).
+fn fused_targets(
+    format: wgpu::TextureFormat,
+    (blend, coverage): (Option<wgpu::BlendState>, wgpu::ColorTargetState),
+    bits: u32,
+) -> Vec<Option<wgpu::ColorTargetState>> {
+    let colour = wgpu::ColorTargetState {
+        format,
+        blend,
+        write_mask: wgpu::ColorWrites::ALL,
+    };
+    let mut targets: Vec<_> = [Some(colour.clone()), Some(coverage)]
+        .into_iter()
+        .chain((0..3).map(|k| (bits >> k & 1 == 1).then(|| colour.clone())))
+        .collect();
+    // None after the last group's (a render pass has as many attachments as its pipelines).
+    while targets.last().is_some_and(Option::is_none) {
+        targets.pop();
+    }
+    targets
+}
+
+/// `atlas_clear`'s fused variant for the channel groups `bits`.
+fn fused_clear(device: &Builder, format: wgpu::TextureFormat, bits: u32) -> Raster {
+    let name = FUSED_CLEAR[bits as usize - 1];
+    raster(
+        device,
+        name,
+        Some(shaders::fused_kernel_source("atlas_clear")),
+        layout(device, name, &[], wgpu::ShaderStages::VERTEX),
+        &[],
+        &fused_targets(format, (None, COVERAGE_FORMAT.into()), bits),
+        None,
+        1,
+    )
+}
+
+/// `layer_raster`'s fused variant for the channel groups `bits` (see [`Fused`]).
+fn fused_raster(
+    device: &Builder,
+    format: wgpu::TextureFormat,
+    blending: bool,
+    bits: u32,
+) -> Raster {
+    use Bind::*;
+    let binds: Vec<(u32, Bind)> = UNIT_BINDS
+        .into_iter()
+        .chain([
+            (6, Tex(true)),
+            (7, Tex(true)),
+            (8, Sampler),
+            (9, Ro),
+            (10, Ro),
+            (11, Ro),
+            (12, Ro),
+            (13, Ro),
+            (14, Tex(true)),
+            (15, Tex(true)),
+            (16, Tex(true)),
+            (17, Ro),
+        ])
+        .collect();
+    let name = FUSED_RASTER[bits as usize - 1];
+    let layer_layout = layout(device, name, &binds, wgpu::ShaderStages::VERTEX_FRAGMENT);
+    let clipped = device.features().contains(wgpu::Features::CLIP_DISTANCES);
+    raster(
+        device,
+        name,
+        Some(shaders::fused_source(clipped)),
+        layer_layout,
+        &[],
+        &fused_targets(
+            format,
+            (blending.then_some(PREMULT_OVER), coverage_target()),
+            bits,
+        ),
+        None,
+        1,
+    )
+}
+
+/// The layer raster's coverage target: the largest value written stays (a sample drawn both
+/// inside and outside its layer's image reads as inside; `COVERED_OUTSIDE` in
+/// `wgsl/bake/layer_raster.wgsl`).
+fn coverage_target() -> wgpu::ColorTargetState {
+    let max = wgpu::BlendComponent {
+        src_factor: wgpu::BlendFactor::One,
+        dst_factor: wgpu::BlendFactor::One,
+        operation: wgpu::BlendOperation::Max,
+    };
+    wgpu::ColorTargetState {
+        format: COVERAGE_FORMAT,
+        blend: Some(wgpu::BlendState {
+            color: max,
+            alpha: max,
+        }),
+        write_mask: wgpu::ColorWrites::ALL,
+    }
+}
+
+/// Premultiplied source-over: what the layer raster's colour targets blend by where they blend.
+const PREMULT_OVER: wgpu::BlendState = wgpu::BlendState {
+    color: wgpu::BlendComponent {
+        src_factor: wgpu::BlendFactor::One,
+        dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
+        operation: wgpu::BlendOperation::Add,
+    },
+    alpha: wgpu::BlendComponent {
+        src_factor: wgpu::BlendFactor::One,
+        dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
+        operation: wgpu::BlendOperation::Add,
+    },
+};
+
 /// Bindings the layer raster and the tools' inverse raster share: `Params`, triangle lists, split
 /// triangles, UVs, welded ids, coordinates.
 const UNIT_BINDS: [(u32, Bind); 6] = [
@@ -808,6 +1011,7 @@ fn layer_raster(
             (8, Sampler),
             (9, Ro),
             (10, Ro),
+            (17, Ro),
         ])
         .chain(extra.iter().copied())
         .collect();
@@ -817,15 +1021,6 @@ fn layer_raster(
         "layer_raster"
     };
     let layer_layout = layout(device, name, &binds, wgpu::ShaderStages::VERTEX_FRAGMENT);
-    let premult = wgpu::BlendComponent {
-        src_factor: wgpu::BlendFactor::One,
-        dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
-        operation: wgpu::BlendOperation::Add,
-    };
-    let premult_over = wgpu::BlendState {
-        color: premult,
-        alpha: premult,
-    };
     // Triangles clipped to their layer's image and a margin where the device clips
     // (`clip_planes` in the shader); GL without the extension draws them whole.
     let clipped = device.features().contains(wgpu::Features::CLIP_DISTANCES);
@@ -842,10 +1037,10 @@ fn layer_raster(
         &[
             Some(wgpu::ColorTargetState {
                 format,
-                blend: blending.then_some(premult_over),
+                blend: blending.then_some(PREMULT_OVER),
                 write_mask: wgpu::ColorWrites::ALL,
             }),
-            Some(COVERAGE_FORMAT.into()),
+            Some(coverage_target()),
         ],
         None,
         1,

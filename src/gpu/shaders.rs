@@ -278,10 +278,37 @@ pub fn normal_source(clipped: bool) -> String {
         false => source("layer_raster"),
     };
     assert!(
-        text.contains("// NORMAL: "),
-        "layer_raster has no `// NORMAL: ` lines"
+        text.contains("// NORMAL: ") && text.contains("// NORMAL PASS: "),
+        "layer_raster has no `// NORMAL: ` or `// NORMAL PASS: ` lines"
     );
     text.replace("// NORMAL: ", "")
+        .replace("// NORMAL PASS: ", "")
+}
+
+/// `layer_raster`'s fused variant (the colour and every PBR channel group of a layer drawn in
+/// one pass, into attachments 0 to 4): its `// NORMAL: ` lines (the mesh's frames) and
+/// `// FUSED: ` lines live, and its `// CLIP: ` lines too when `clipped`.
+pub fn fused_source(clipped: bool) -> String {
+    let text = match clipped {
+        true => clipped_source("layer_raster"),
+        false => source("layer_raster"),
+    };
+    assert!(
+        text.contains("// FUSED: "),
+        "layer_raster has no `// FUSED: ` lines"
+    );
+    text.replace("// NORMAL: ", "").replace("// FUSED: ", "")
+}
+
+/// Kernel `name` (`compose`, `atlas_clear`) with its `// FUSED: ` lines live: the variant that
+/// handles the PBR channel groups' attachments beside the colour's.
+pub fn fused_kernel_source(name: &str) -> String {
+    let text = source(name);
+    assert!(
+        text.contains("// FUSED: "),
+        "{name} has no `// FUSED: ` lines"
+    );
+    text.replace("// FUSED: ", "")
 }
 
 /// Creates a shader module for kernel `name`.

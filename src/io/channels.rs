@@ -169,6 +169,16 @@ impl ChannelKind {
     pub fn linear(self) -> bool {
         self != ChannelKind::Emissive
     }
+
+    /// Its place among the groups (0, 1, 2: the bit of a set of groups, and the attachment after
+    /// the colour and coverage where the groups are drawn beside the colour).
+    pub fn slot(self) -> usize {
+        match self {
+            ChannelKind::Orm => 0,
+            ChannelKind::Normal => 1,
+            ChannelKind::Emissive => 2,
+        }
+    }
 }
 
 /// The job file's channel fields of one layer.

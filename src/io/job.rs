@@ -818,6 +818,15 @@ pub struct Job {
 }
 
 impl Job {
+    /// The PBR channel groups the layers paint, as bits
+    /// ([`crate::io::channels::ChannelKind::slot`]).
+    pub fn channel_groups(&self) -> u32 {
+        crate::io::channels::ChannelKind::ALL
+            .into_iter()
+            .filter(|&k| self.layers.iter().any(|l| l.channels.paints(k)))
+            .fold(0, |b, k| b | 1 << k.slot())
+    }
+
     /// Whether the texture is written as OpenEXR (`output.texture` ends in `.exr`): linear RGBA,
     /// 32-bit float, padded like the PNG; `output.bit_depth` then applies to the `.glb`'s PNG only.
     pub fn exr(&self) -> bool {

@@ -14,6 +14,26 @@
 // Per layer (params.aux), `stats_stride` words; word 5 counts texels the layer changed.
 @group(0) @binding(3) var<storage, read_write> stats: array<atomic<i32>>;
 
+// The fused variant (`// FUSED: ` lines live; `gpu::shaders::fused_kernel_source`) composes the
+// PBR channel groups drawn beside the colour by the fused raster (attachments 2 to 4 of
+// layer_raster) into their canvases (planes 12 to 17), each as the separate channel pass's compose
+// would: the same covered samples, averaged in the same order, blended by the channel's blend and
+// data weights (`draws[params.draw.x]`; keep `ChannelDraw` in sync with layer_raster.wgsl and
+// src/bake/channels.rs). Their texels are not counted: the colour's counts are the report's.
+// FUSED: @group(0) @binding(4) var orm_color: texture_2d<f32>;
+// FUSED: @group(0) @binding(5) var nrm_color: texture_2d<f32>;
+// FUSED: @group(0) @binding(6) var emissive_color: texture_2d<f32>;
+// FUSED: @group(0) @binding(12) var<storage, read_write> orm_rg: array<vec2<f32>>;
+// FUSED: @group(0) @binding(13) var<storage, read_write> orm_ba: array<vec2<f32>>;
+// FUSED: @group(0) @binding(14) var<storage, read_write> nrm_rg: array<vec2<f32>>;
+// FUSED: @group(0) @binding(15) var<storage, read_write> nrm_ba: array<vec2<f32>>;
+// FUSED: @group(0) @binding(16) var<storage, read_write> emissive_rg: array<vec2<f32>>;
+// FUSED: @group(0) @binding(17) var<storage, read_write> emissive_ba: array<vec2<f32>>;
+// FUSED: struct ChannelDraw { opacity: vec4<f32>, blend: vec4<u32>, bits: vec4<u32>, chan: array<vec4<f32>, 3>, value: array<vec4<f32>, 3> }
+// FUSED: @group(0) @binding(18) var<storage, read> draws: array<ChannelDraw>;
+// FUSED:
+// Written out per group, without arrays indexed at run time (llvmpipe keeps those in memory).
+
 // A live bake's edit (src/bake/live.rs): only the texels of the cells marked in the stats buffer's
 // last row (laid out as a layer's cell mask) are composed; the rest of the canvas is already baked.
 const FLAG_DIRTY: u32 = 2048u;
@@ -32,21 +52,57 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (outside_edit(vec2<i32>(gid.xy) + params.rect_origin)) { return; }
     var sum = vec4<f32>(0.0);
     var n = 0.0;
+    // FUSED: let bits = draws[params.draw.x].bits.x;
+    // FUSED: var s0 = vec4<f32>(0.0);
+    // FUSED: var s1 = vec4<f32>(0.0);
+    // FUSED: var s2 = vec4<f32>(0.0);
     for (var j = 0u; j < params.ss; j++) {
         for (var i = 0u; i < params.ss; i++) {
             let p = vec2<i32>(params.atlas_origin + gid.xy * params.ss + vec2<u32>(i, j));
             let cov = textureLoad(layer_cov, p, 0).r;
             if (cov > 0.5) {
-                sum += textureLoad(layer_color, p, 0);
                 n += 1.0;
+                // Covered only outside the layer's image (layer_raster.wgsl, COVERED_OUTSIDE):
+                // every attachment holds zeros there, which add nothing.
+                if (cov > 0.8) {
+                    sum += textureLoad(layer_color, p, 0);
+                    // FUSED: if ((bits & 1u) != 0u) { s0 += textureLoad(orm_color, p, 0); }
+                    // FUSED: if ((bits & 2u) != 0u) { s1 += textureLoad(nrm_color, p, 0); }
+                    // FUSED: if ((bits & 4u) != 0u) { s2 += textureLoad(emissive_color, p, 0); }
+                }
             }
         }
     }
     if (n == 0.0) { return; }
-    let src = sum / n;
-    if (src.a <= 0.0) { return; }
     let idx = win_index(vec2<i32>(gid.xy) + params.rect_origin);
     if (idx == 0xffffffffu) { return; }
+    // FUSED: let d = &draws[params.draw.x];
+    // FUSED: if ((bits & 1u) != 0u) {
+    // FUSED:     let s = s0 / n;
+    // FUSED:     if (s.a > 0.0) {
+    // FUSED:         let c = blend_any((*d).blend.x, vec4<f32>(orm_rg[idx], orm_ba[idx]), s, (*d).chan[0]);
+    // FUSED:         orm_rg[idx] = c.rg;
+    // FUSED:         orm_ba[idx] = c.ba;
+    // FUSED:     }
+    // FUSED: }
+    // FUSED: if ((bits & 2u) != 0u) {
+    // FUSED:     let s = s1 / n;
+    // FUSED:     if (s.a > 0.0) {
+    // FUSED:         let c = blend_any((*d).blend.y, vec4<f32>(nrm_rg[idx], nrm_ba[idx]), s, (*d).chan[1]);
+    // FUSED:         nrm_rg[idx] = c.rg;
+    // FUSED:         nrm_ba[idx] = c.ba;
+    // FUSED:     }
+    // FUSED: }
+    // FUSED: if ((bits & 4u) != 0u) {
+    // FUSED:     let s = s2 / n;
+    // FUSED:     if (s.a > 0.0) {
+    // FUSED:         let c = blend_any((*d).blend.z, vec4<f32>(emissive_rg[idx], emissive_ba[idx]), s, (*d).chan[2]);
+    // FUSED:         emissive_rg[idx] = c.rg;
+    // FUSED:         emissive_ba[idx] = c.ba;
+    // FUSED:     }
+    // FUSED: }
+    let src = sum / n;
+    if (src.a <= 0.0) { return; }
     acc_store(idx, blend_any(params.blend, acc_load(idx), src, params.chan));
     atomicAdd(&stats[params.aux * params.stats_stride + 5u], 1);
 }

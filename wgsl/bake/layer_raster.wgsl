@@ -8,15 +8,23 @@
 // straddle the cut see the jump across it and sample a coarser level there, which blends the two
 // sides on the seam's own line of samples (measured: an analytic derivative, and the varying it
 // needs, made every layer's raster about 15 % slower on lavapipe).
-// Attachment 0: premultiplied colour; attachment 1: island coverage (1 where a triangle is drawn).
+// Attachment 0: premultiplied colour; attachment 1: island coverage (1 where a triangle is drawn
+// inside the layer's image, COVERED_OUTSIDE where only outside it: every attachment holds exact
+// zeros there, and compose.wgsl reads nothing more of such a sample; the target keeps the largest
+// value written, so a sample drawn inside and outside reads 1).
 // A tiled ribbon (FLAG_REPEAT) repeats the image cone_a.w times along x.
 // A warped layer (FLAG_WARP) samples its image at T(img), T the layer's thin-plate spline
 // (`warps`, from params.warp.x; twin `Tps::eval` in src/maps/warp.rs), each copy of a tiled ribbon
 // alike; it paints only where T(img) lies in the image.
-// The normal variant (`// NORMAL: ` lines live; `gpu::shaders::normal_source`) draws a layer's
+// The normal variant (`// NORMAL: ` and `// NORMAL PASS: ` lines live; `gpu::shaders::normal_source`) draws a layer's
 // tangent-space normal map: each sample's normal, given in the decal's own frame (image x right,
 // image y up, z out of the surface), is turned into the mesh's tangent frame at that point
 // (`to_tangent_space`; CPU twin `bake::channels::to_tangent_space`).
+// The fused variant (`// NORMAL: ` and `// FUSED: ` lines live; `gpu::shaders::fused_source`) draws
+// the colour and every PBR channel group of a layer in one pass: attachments 2, 3 and 4 take its
+// occlusion-roughness-metallic, normal and emissive images, sampled at the same point, masked by
+// the same mask and weighted by each channel's opacity (`draws[params.draw.x]`), each the value
+// the separate channel pass would write (src/bake/compose.rs; `tests/channels.rs` compares them).
 // Non-indexed draw of 3 * (triangles in the layer's list) vertices.
 // CPU twin: `LayerRaster` in src/bake/cpu.rs.
 #import params
@@ -45,6 +53,22 @@ const FLAT_RES: u32 = 64u;
 // NORMAL: @group(0) @binding(11) var<storage, read> split_pos: array<f32>;
 // NORMAL: @group(0) @binding(12) var<storage, read> split_nrm: array<f32>;
 // NORMAL: @group(0) @binding(13) var<storage, read> tangents: array<vec4<f32>>;
+// Each raster entry's channel draws (bits.x: which of orm, normal, emissive the layer paints;
+// bits.y: its normal map is "dx"; bits.z: the groups drawn from a constant, `value`; keep in sync
+// with `ChannelDraw` in src/bake/channels.rs): the fused variant's, and a separate channel pass's
+// constants (FLAG_CONSTANT: draws[params.draw.x].value[params.draw.y]).
+struct ChannelDraw {
+    opacity: vec4<f32>,
+    blend: vec4<u32>,
+    bits: vec4<u32>,
+    chan: array<vec4<f32>, 3>,
+    value: array<vec4<f32>, 3>,
+}
+@group(0) @binding(17) var<storage, read> draws: array<ChannelDraw>;
+// The fused variant's channel images.
+// FUSED: @group(0) @binding(14) var orm_image: texture_2d<f32>;
+// FUSED: @group(0) @binding(15) var normal_image: texture_2d<f32>;
+// FUSED: @group(0) @binding(16) var emissive_image: texture_2d<f32>;
 
 // T(p) = a0 + a1 p.x + a2 p.y + sum_k w_k phi(|p - c_k|), phi(r) = r^2 ln r; in the twin's order of
 // operations, so an identity spline returns p bit for bit.
@@ -81,6 +105,9 @@ fn warp_jacobian(p: vec2<f32>) -> mat2x2<f32> {
     }
     return j;
 }
+
+// Coverage of a sample drawn only outside the layer's image (an R8Unorm target: 153/255).
+const COVERED_OUTSIDE: f32 = 0.6;
 
 fn in_image(p: vec2<f32>) -> bool {
     return all(p >= vec2<f32>(0.0)) && all(p <= vec2<f32>(1.0));
@@ -199,11 +226,11 @@ struct FsIn {
 // orthonormal about the interpolated normal (Gram-Schmidt: a sheared map keeps its x axis and
 // its handedness), and the normal is read in the mesh's frame (t, cross(n, t) * w, n), as glTF's
 // bitangent is.
-fn to_tangent_space(c: vec4<f32>, dpx: vec3<f32>, dpy: vec3<f32>, gx: vec2<f32>, gy: vec2<f32>,
-                    nrm: vec3<f32>, tan: vec4<f32>) -> vec4<f32> {
+fn to_tangent_space(c: vec4<f32>, dx: bool, dpx: vec3<f32>, dpy: vec3<f32>, gx: vec2<f32>,
+                    gy: vec2<f32>, nrm: vec3<f32>, tan: vec4<f32>) -> vec4<f32> {
     if (c.a <= 0.0) { return c; }
     var nd = c.rgb / c.a * 2.0 - 1.0;
-    if ((params.flags & FLAG_NORMAL_DX) != 0u) { nd.y = -nd.y; }
+    if (dx) { nd.y = -nd.y; }
     let det = gx.x * gy.y - gy.x * gx.y;
     let n = normalize(nrm);
     var ex = (dpx * gy.y - dpy * gx.y) / det;
@@ -221,6 +248,22 @@ fn to_tangent_space(c: vec4<f32>, dpx: vec3<f32>, dpy: vec3<f32>, gx: vec2<f32>,
 struct FsOut {
     @location(0) color: vec4<f32>,
     @location(1) coverage: vec4<f32>,
+    // FUSED: @location(2) orm: vec4<f32>,
+    // FUSED: @location(3) nrm: vec4<f32>,
+    // FUSED: @location(4) emissive: vec4<f32>,
+}
+
+// A constant channel value `k` where the colour sample `c` (masked) is: what an image of the value
+// with the colour image's alpha gives, premultiplied.
+fn constant_channel(k: vec4<f32>, c: vec4<f32>) -> vec4<f32> {
+    return vec4<f32>(k.rgb * c.a, c.a);
+}
+
+// `c` times the layer's mask at `img` where it has one (mask images are premultiplied like
+// decals: red * alpha is the mask value).
+fn masked(c: vec4<f32>, img: vec2<f32>, gx: vec2<f32>, gy: vec2<f32>) -> vec4<f32> {
+    if ((params.flags & FLAG_MASK) == 0u) { return c; }
+    return c * textureSampleGrad(mask, samp, img, gx, gy).r;
 }
 
 @fragment
@@ -263,12 +306,13 @@ fn fs_main(in: FsIn) -> FsOut {
     // The explicit gradients are the implicit ones (taken above, in uniform control flow).
     if (!inside) {
         o.color = vec4<f32>(0.0);
+        o.coverage = vec4<f32>(COVERED_OUTSIDE);
         return o;
     }
-    var c = textureSampleGrad(image, samp, img, gx, gy);
-    if ((params.flags & FLAG_MASK) != 0u) {
-        // Mask images are premultiplied like decals: red * alpha is the mask value.
-        c = c * textureSampleGrad(mask, samp, img, gx, gy).r;
+    var c = masked(textureSampleGrad(image, samp, img, gx, gy), img, gx, gy);
+    if ((params.flags & FLAG_CONSTANT) != 0u) {
+        // A separate channel pass of a constant group: `image` is the colour's.
+        c = constant_channel(draws[params.draw.x].value[params.draw.y], c);
     }
     if ((params.flags & FLAG_TOOL) != 0u) {
         // What is below, filtered in the stamp's flat space, with the stamp image's alpha as shape.
@@ -276,7 +320,24 @@ fn fs_main(in: FsIn) -> FsOut {
         let shape = select(0.0, c.a, f.a > 0.0);
         c = vec4<f32>(f.rgb * shape, shape);
     }
-    // NORMAL: c = to_tangent_space(c, dpx, dpy, gx, gy, in.wnrm, in.wtan);
+    // NORMAL PASS: let dx = (params.flags & FLAG_NORMAL_DX) != 0u;
+    // NORMAL PASS: c = to_tangent_space(c, dx, dpx, dpy, gx, gy, in.wnrm, in.wtan);
     o.color = c * params.opacity;
+    // FUSED: let bits = draws[params.draw.x].bits;
+    // FUSED: let opacity = draws[params.draw.x].opacity;
+    // FUSED: if ((bits.z & 1u) != 0u) {
+    // FUSED:     o.orm = constant_channel(draws[params.draw.x].value[0], c) * opacity.x;
+    // FUSED: } else if ((bits.x & 1u) != 0u) {
+    // FUSED:     o.orm = masked(textureSampleGrad(orm_image, samp, img, gx, gy), img, gx, gy) * opacity.x;
+    // FUSED: }
+    // FUSED: if ((bits.x & 2u) != 0u) {
+    // FUSED:     let n = masked(textureSampleGrad(normal_image, samp, img, gx, gy), img, gx, gy);
+    // FUSED:     o.nrm = to_tangent_space(n, bits.y != 0u, dpx, dpy, gx, gy, in.wnrm, in.wtan) * opacity.y;
+    // FUSED: }
+    // FUSED: if ((bits.z & 4u) != 0u) {
+    // FUSED:     o.emissive = constant_channel(draws[params.draw.x].value[2], c) * opacity.z;
+    // FUSED: } else if ((bits.x & 4u) != 0u) {
+    // FUSED:     o.emissive = masked(textureSampleGrad(emissive_image, samp, img, gx, gy), img, gx, gy) * opacity.z;
+    // FUSED: }
     return o;
 }

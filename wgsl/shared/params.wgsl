@@ -52,6 +52,9 @@ struct Params {
     // A data channel's blend (BLEND_DATA_*, shared/blend.wgsl): each output channel's weight on the
     // source's alpha (its `<channel>_opacity`; 0 leaves it unchanged).
     chan: vec4<f32>,
+    // Channel passes (layer_raster, and compose's fused variant): x = this entry's index in the
+    // `draws` buffer of channel draws; y = a separate pass's channel group (FLAG_CONSTANT).
+    draw: vec4<u32>,
 }
 
 const FLAG_FACING: u32 = 1u;
@@ -70,3 +73,6 @@ const FLAG_NO_CLIP: u32 = 256u;
 const FLAG_LINEAR: u32 = 512u;
 // layer_raster.wgsl's normal variant: the normal map's green points down the image ("dx").
 const FLAG_NORMAL_DX: u32 = 1024u;
+// layer_raster: a channel group drawn from a constant (draws[draw.x].value[draw.y]) times the
+// colour image's alpha.
+const FLAG_CONSTANT: u32 = 4096u;
