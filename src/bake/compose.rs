@@ -246,34 +246,7 @@ pub(crate) fn compose(
     for (j, o) in jobs.iter_mut().zip(&origins) {
         j.params.atlas_origin = *o;
     }
-    // A tile's canvas (`bake/tiles.rs`) draws the rectangles that meet its window, where the whole
-    // texture's bake draws them (same rectangle, same atlas place: the same samples, bit for bit),
-    // and composes their texels inside the window.
-    let win = canvas.global.window();
-    for (entries, _) in &mut batches {
-        entries.retain(|&(k, _)| {
-            let p = &jobs[k].params;
-            meets(
-                [
-                    p.rect_origin[0],
-                    p.rect_origin[1],
-                    p.rect_size[0] as i32,
-                    p.rect_size[1] as i32,
-                ],
-                win,
-            )
-        });
-    }
-    if let Some(d) = dirty {
-        for (entries, _) in &mut batches {
-            entries.retain(|&(k, _)| {
-                let p = &jobs[k].params;
-                let [w, h] = p.rect_size.map(|v| v as i32);
-                d.meets([p.rect_origin[0], p.rect_origin[1], w, h])
-            });
-        }
-    }
-    batches.retain(|(entries, _)| !entries.is_empty());
+    keep_drawn(&mut batches, &jobs, canvas.global.window(), dirty);
     if std::env::var("DECALBAKE_DEBUG").is_ok() {
         let covered: u64 = sizes.iter().map(|s| s[0] as u64 * s[1] as u64).sum();
         eprintln!(
@@ -297,6 +270,18 @@ pub(crate) fn compose(
         wgpu::BufferUsages::empty(),
     );
     let job_params = params_buffer(dev, "bake.raster_params", &jp);
+    // The fused compose binds a canvas's two planes per channel group: 16-byte placeholders where
+    // the pass has no such group.
+    let spare_planes: Vec<wgpu::Buffer> = match fused.is_empty() {
+        true => Vec::new(),
+        false => (0..6)
+            .map(|_| {
+                engine
+                    .ctx
+                    .storage_init("bake.no_channel", &[], wgpu::BufferUsages::empty())
+            })
+            .collect(),
+    };
     let n_chunk = maps.range.len() as u64;
     let partials_size = n_chunk * DIST_GROUPS as u64 * PARTIAL_VEC4S as u64 * 16;
     let partials = dev.create_buffer(&wgpu::BufferDescriptor {
@@ -340,6 +325,7 @@ pub(crate) fn compose(
             fused,
             draws: &draws,
             placeholder: &no_flats,
+            spare_planes: &spare_planes,
         };
         if pass.is_none() && dirty.is_none() {
             log.commands +=
@@ -370,6 +356,28 @@ pub(crate) fn compose(
         .chunks_exact(per)
         .map(Distortion::from_partials)
         .collect())
+}
+
+/// Keeps in `batches` the raster jobs this canvas draws, and the batches left with any. A tile's
+/// canvas (`bake/tiles.rs`) draws the rectangles that meet its window `win`, where the whole
+/// texture's bake draws them (same rectangle, same atlas place: the same samples, bit for bit),
+/// and composes their texels inside the window; a live bake's edit (`dirty`) those that meet its
+/// cells.
+fn keep_drawn(
+    batches: &mut Vec<Batch>,
+    jobs: &[RasterJob],
+    win: [u32; 4],
+    dirty: Option<&Dirty<'_>>,
+) {
+    let rect = |k: usize| {
+        let p = &jobs[k].params;
+        let [w, h] = p.rect_size.map(|v| v as i32);
+        [p.rect_origin[0], p.rect_origin[1], w, h]
+    };
+    for (entries, _) in batches.iter_mut() {
+        entries.retain(|&(k, _)| meets(rect(k), win) && dirty.is_none_or(|d| d.meets(rect(k))));
+    }
+    batches.retain(|(entries, _)| !entries.is_empty());
 }
 
 /// The chunk's uniform entries: one per (raster job, unit), the rectangle's fields with the
@@ -553,8 +561,10 @@ struct Recording<'a> {
     fused: &'a [(Pass, Canvas)],
     /// The fused pass's channel draws ([`channel_draws`]).
     draws: &'a wgpu::Buffer,
-    /// A 16-byte storage buffer bound where a fused pass has no channel group.
+    /// A 16-byte storage buffer bound where a fused pass has no normal group (its tangents).
     placeholder: &'a wgpu::Buffer,
+    /// Six 16-byte storage buffers bound where a fused pass has no group (its canvas's planes).
+    spare_planes: &'a [wgpu::Buffer],
 }
 
 impl Recording<'_> {
@@ -743,13 +753,7 @@ impl Recording<'_> {
         for (pass, canvas) in self.fused {
             planes[pass.kind.slot()] = vec![&canvas.acc_rg, &canvas.acc_ba];
         }
-        let spare: Vec<wgpu::Buffer> = (0..6)
-            .map(|_| {
-                self.engine
-                    .ctx
-                    .storage_init("bake.no_channel", &[], wgpu::BufferUsages::empty())
-            })
-            .collect();
+        let spare = self.spare_planes;
         let mut entries = vec![
             (0, pbind(self.job_params)),
             (1, wgpu::BindingResource::TextureView(&tg.color_view)),
@@ -783,8 +787,11 @@ impl Recording<'_> {
     /// Layer `i`'s raster bind group: its triangle list, UVs, coords, image and mask (in a
     /// channel's pass, its channel image; for normals, the mesh's frames too).
     fn layer_bind_group(&self, i: usize) -> wgpu::BindGroup {
-        let (engine, g) = (self.engine, &self.mesh.gpu);
-        let (colour, m) = &self.images.layers[i];
+        if !self.fused.is_empty() {
+            return self.fused_bind_group(i);
+        }
+        let engine = self.engine;
+        let colour = &self.images.layers[i].0;
         // A constant channel is drawn from the colour image's coverage (`FLAG_CONSTANT`).
         let img = match self.pass.map(|p| &p.draws[self.placed.origin[i].0]) {
             Some(Draw::Channel {
@@ -792,33 +799,11 @@ impl Recording<'_> {
             }) => image,
             _ => colour,
         };
-        if !self.fused.is_empty() {
-            return self.fused_bind_group(i);
-        }
         let tangents = self.pass.and_then(|p| p.tangents.as_ref());
-        let mview = m
-            .as_ref()
-            .map(|m| &m.view)
-            .unwrap_or(&self.images.dummy.view);
-        let mut entries = vec![
-            (0, pbind(self.job_params)),
-            (1, self.slots.lists.as_entire_binding()),
-            (2, g.split_tris.as_entire_binding()),
-            (3, g.uvs[self.job.uv_set as usize].as_entire_binding()),
-            (4, g.welded_of.as_entire_binding()),
-            (5, self.slots.coords.as_entire_binding()),
-            (6, wgpu::BindingResource::TextureView(&img.view)),
-            (7, wgpu::BindingResource::TextureView(mview)),
-            (8, wgpu::BindingResource::Sampler(&engine.linear_sampler)),
-            (9, self.flats.as_entire_binding()),
-            (10, self.images.warps.as_entire_binding()),
-            (17, self.draws.as_entire_binding()),
-        ];
+        let mut entries = self.unit_entries(i, &img.view);
         let layout = match tangents {
             Some(t) => {
-                entries.push((11, g.split_positions.as_entire_binding()));
-                entries.push((12, g.split_normals.as_entire_binding()));
-                entries.push((13, t.as_entire_binding()));
+                entries.extend(self.frames(t));
                 &engine.pipes.layer_raster_normal.layout
             }
             None => &engine.pipes.layer_raster.layout,
@@ -826,14 +811,52 @@ impl Recording<'_> {
         make_bind_group(&engine.ctx.device, layout, "bake.layer_raster", &entries)
     }
 
+    /// The bindings every variant of the layer raster has, for unit `i` drawing `image`: its
+    /// triangle list, UVs, coordinates, mask, the tool stamps' flats, the warps, the channel draws.
+    fn unit_entries<'b>(
+        &'b self,
+        i: usize,
+        image: &'b wgpu::TextureView,
+    ) -> Vec<(u32, wgpu::BindingResource<'b>)> {
+        let g = &self.mesh.gpu;
+        let mask = self.images.layers[i].1.as_ref();
+        let mview = mask.map_or(&self.images.dummy.view, |m| &m.view);
+        vec![
+            (0, pbind(self.job_params)),
+            (1, self.slots.lists.as_entire_binding()),
+            (2, g.split_tris.as_entire_binding()),
+            (3, g.uvs[self.job.uv_set as usize].as_entire_binding()),
+            (4, g.welded_of.as_entire_binding()),
+            (5, self.slots.coords.as_entire_binding()),
+            (6, wgpu::BindingResource::TextureView(image)),
+            (7, wgpu::BindingResource::TextureView(mview)),
+            (
+                8,
+                wgpu::BindingResource::Sampler(&self.engine.linear_sampler),
+            ),
+            (9, self.flats.as_entire_binding()),
+            (10, self.images.warps.as_entire_binding()),
+            (17, self.draws.as_entire_binding()),
+        ]
+    }
+
+    /// The normal and fused variants' mesh frames: split positions, normals and `tangents`.
+    fn frames<'b>(&'b self, tangents: &'b wgpu::Buffer) -> [(u32, wgpu::BindingResource<'b>); 3] {
+        let g = &self.mesh.gpu;
+        [
+            (11, g.split_positions.as_entire_binding()),
+            (12, g.split_normals.as_entire_binding()),
+            (13, tangents.as_entire_binding()),
+        ]
+    }
+
     /// Unit `i`'s raster bind group in a fused pass: the colour's bindings, the mesh's frames
     /// (the normal group's tangents, or a placeholder), each group's channel image (the dummy
     /// image where its layer or the pass has none) and the channel draws.
     fn fused_bind_group(&self, i: usize) -> wgpu::BindGroup {
-        let (engine, g) = (self.engine, &self.mesh.gpu);
-        let (colour, m) = &self.images.layers[i];
-        let dummy = &self.images.dummy.view;
-        let mut images = [dummy; 3];
+        let engine = self.engine;
+        let colour = &self.images.layers[i].0;
+        let mut images = [&self.images.dummy.view; 3];
         let mut tangents = self.placeholder;
         for (pass, _) in self.fused {
             if let Draw::Channel {
@@ -846,29 +869,11 @@ impl Recording<'_> {
                 tangents = t;
             }
         }
-        let entries = [
-            (0, pbind(self.job_params)),
-            (1, self.slots.lists.as_entire_binding()),
-            (2, g.split_tris.as_entire_binding()),
-            (3, g.uvs[self.job.uv_set as usize].as_entire_binding()),
-            (4, g.welded_of.as_entire_binding()),
-            (5, self.slots.coords.as_entire_binding()),
-            (6, wgpu::BindingResource::TextureView(&colour.view)),
-            (
-                7,
-                wgpu::BindingResource::TextureView(m.as_ref().map_or(dummy, |m| &m.view)),
-            ),
-            (8, wgpu::BindingResource::Sampler(&engine.linear_sampler)),
-            (9, self.flats.as_entire_binding()),
-            (10, self.images.warps.as_entire_binding()),
-            (11, g.split_positions.as_entire_binding()),
-            (12, g.split_normals.as_entire_binding()),
-            (13, tangents.as_entire_binding()),
-            (14, wgpu::BindingResource::TextureView(images[0])),
-            (15, wgpu::BindingResource::TextureView(images[1])),
-            (16, wgpu::BindingResource::TextureView(images[2])),
-            (17, self.draws.as_entire_binding()),
-        ];
+        let mut entries = self.unit_entries(i, &colour.view);
+        entries.extend(self.frames(tangents));
+        for (k, view) in images.into_iter().enumerate() {
+            entries.push((14 + k as u32, wgpu::BindingResource::TextureView(view)));
+        }
         let bits = self.fused_bits() as usize;
         let layout = &engine.pipes.fused.raster[bits - 1].layout;
         make_bind_group(

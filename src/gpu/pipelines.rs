@@ -289,7 +289,8 @@ impl Pipelines {
     /// kernels, one entry per kernel with its bindings in binding order (the data the style guide
     /// asks for, as vello's `add_shader!` list). Adding a kernel adds an entry here; kernels whose
     /// bindings are built rather than listed have a function of their own (`linalg_kernels`,
-    /// `pelt_step`, `select_triangles`, `ribbon_relax`, `vector_coverage`...), and so do the
+    /// `pelt_step`, `select_triangles`, `ribbon_relax`, `vector_coverage`, the fused channel
+    /// passes' `Fused::new`...), and so do the
     /// render pipelines, which need more than a binding list. Splitting it by stage would scatter
     /// one table over several functions that each build part of one struct.
     pub fn new(builder: Arc<Builder>) -> Self {
@@ -909,22 +910,9 @@ fn fused_raster(
     bits: u32,
 ) -> Raster {
     use Bind::*;
-    let binds: Vec<(u32, Bind)> = UNIT_BINDS
-        .into_iter()
-        .chain([
-            (6, Tex(true)),
-            (7, Tex(true)),
-            (8, Sampler),
-            (9, Ro),
-            (10, Ro),
-            (11, Ro),
-            (12, Ro),
-            (13, Ro),
-            (14, Tex(true)),
-            (15, Tex(true)),
-            (16, Tex(true)),
-            (17, Ro),
-        ])
+    let binds: Vec<(u32, Bind)> = raster_binds()
+        .chain(FRAME_BINDS)
+        .chain([(14, Tex(true)), (15, Tex(true)), (16, Tex(true))])
         .collect();
     let name = FUSED_RASTER[bits as usize - 1];
     let layer_layout = layout(device, name, &binds, wgpu::ShaderStages::VERTEX_FRAGMENT);
@@ -989,6 +977,23 @@ const UNIT_BINDS: [(u32, Bind); 6] = [
     (5, Bind::Ro),
 ];
 
+/// The normal and fused layer rasters' mesh frames: split positions, normals, tangents.
+const FRAME_BINDS: [(u32, Bind); 3] = [(11, Bind::Ro), (12, Bind::Ro), (13, Bind::Ro)];
+
+/// Every layer raster variant's bindings: [`UNIT_BINDS`], image, mask, sampler, the tool stamps'
+/// flats, the warps and the channel draws.
+fn raster_binds() -> impl Iterator<Item = (u32, Bind)> {
+    use Bind::*;
+    UNIT_BINDS.into_iter().chain([
+        (6, Tex(true)),
+        (7, Tex(true)),
+        (8, Sampler),
+        (9, Ro),
+        (10, Ro),
+        (17, Ro),
+    ])
+}
+
 /// `layer_raster` into `format` targets (see [`layer_target`]), blending premultiplied
 /// source-over where `blending`. `normal`: its normal variant (`shaders::normal_source`).
 fn layer_raster(
@@ -997,24 +1002,8 @@ fn layer_raster(
     blending: bool,
     normal: bool,
 ) -> Raster {
-    use Bind::*;
-    let extra: &[(u32, Bind)] = if normal {
-        &[(11, Ro), (12, Ro), (13, Ro)]
-    } else {
-        &[]
-    };
-    let binds: Vec<(u32, Bind)> = UNIT_BINDS
-        .into_iter()
-        .chain([
-            (6, Tex(true)),
-            (7, Tex(true)),
-            (8, Sampler),
-            (9, Ro),
-            (10, Ro),
-            (17, Ro),
-        ])
-        .chain(extra.iter().copied())
-        .collect();
+    let extra: &[(u32, Bind)] = if normal { &FRAME_BINDS } else { &[] };
+    let binds: Vec<(u32, Bind)> = raster_binds().chain(extra.iter().copied()).collect();
     let name = if normal {
         "layer_raster_normal"
     } else {
