@@ -159,6 +159,8 @@ fn fifty_random_edits_give_a_full_bakes_bytes() {
     for (seed, side, texture) in [
         (11u32, 512, serde_json::json!({})),
         (23, 256, serde_json::json!({ "padding": 3, "samples": 9 })),
+        // Adaptive supersampling: the live bake draws as the full bake does.
+        (37, 256, serde_json::json!({ "sampling": "adaptive" })),
     ] {
         let job = job(&dir, side, 5, texture);
         let mesh = engine.load_mesh(&job.mesh).unwrap();

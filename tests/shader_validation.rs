@@ -68,6 +68,31 @@ fn every_wgsl_file_validates() {
             decalbake::gpu::shaders::fused_kernel_source(name),
         ));
     }
+    // The adaptive raster (four samples a pixel, once a texel and triangle) and what reads it.
+    for (name, text) in [
+        ("plain", decalbake::gpu::shaders::source("layer_raster")),
+        (
+            "clipped",
+            decalbake::gpu::shaders::clipped_source("layer_raster"),
+        ),
+        ("normal", decalbake::gpu::shaders::normal_source(true)),
+        ("fused", decalbake::gpu::shaders::fused_source(true)),
+    ] {
+        sources.push((
+            format!("layer_raster ({name}, adaptive)"),
+            decalbake::gpu::shaders::msaa_source(text),
+        ));
+    }
+    for (name, fused) in [
+        ("compose", false),
+        ("compose", true),
+        ("island_mask", false),
+    ] {
+        sources.push((
+            format!("{name} (adaptive, fused {fused})"),
+            decalbake::gpu::shaders::msaa_kernel_source(name, fused),
+        ));
+    }
     for (name, src) in &sources {
         let src = src.clone();
         let module = match naga::front::wgsl::parse_str(&src) {

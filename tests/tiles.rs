@@ -54,6 +54,12 @@ fn tiled_bakes_are_the_untiled_bytes() {
         ),
         // A padding that reaches past the next band of rows (the halo spans two bands).
         ([256, 256], 64, serde_json::json!({ "padding": 80 })),
+        // Adaptive supersampling: tiles draw the whole bake's samples.
+        (
+            [256, 256],
+            128,
+            serde_json::json!({ "sampling": "adaptive" }),
+        ),
     ];
     for (side, tile, extra) in cases {
         let mut j = job(&dir, side, extra.clone());

@@ -124,7 +124,7 @@ fn bake_band(
         let m = super::islands::window_mask(
             engine,
             mesh,
-            (job.uv_set, job.ss),
+            (job.uv_set, job.ss, engine.adaptive_sampling(job)),
             [job.width, job.height],
             win,
             &mut commands,

@@ -125,7 +125,17 @@ impl Canvas {
             ..Default::default()
         };
         let islands = match window {
-            None => islands(engine, mesh, job.uv_set, [w, h], ss, &mut log.commands)?,
+            None => {
+                let sampling = (ss, engine.adaptive_sampling(job));
+                islands(
+                    engine,
+                    mesh,
+                    job.uv_set,
+                    [w, h],
+                    sampling,
+                    &mut log.commands,
+                )?
+            }
             Some(_) => Arc::new(Islands::none(dev)),
         };
         let canvas = Self {

@@ -242,9 +242,15 @@ pub(crate) fn compose(
     let starts: Vec<bool> = (0..jobs.len())
         .map(|k| k == 0 || layer(k) != layer(k - 1))
         .collect();
+    // Packed in grid samples; the adaptive raster's targets hold a texel's samples in one
+    // pixel, so its origins are the grid's over ss (every rectangle's samples are whole texels).
+    let msaa = engine.adaptive_sampling(job);
     let (origins, mut batches) = pack_atlas(&sizes, &starts, job.ss);
     for (j, o) in jobs.iter_mut().zip(&origins) {
-        j.params.atlas_origin = *o;
+        j.params.atlas_origin = match msaa {
+            true => o.map(|v| v / job.ss),
+            false => *o,
+        };
     }
     keep_drawn(&mut batches, &jobs, canvas.global.window(), dirty);
     if std::env::var("DECALBAKE_DEBUG").is_ok() {
@@ -326,6 +332,7 @@ pub(crate) fn compose(
             draws: &draws,
             placeholder: &no_flats,
             spare_planes: &spare_planes,
+            msaa,
         };
         if pass.is_none() && dirty.is_none() {
             log.commands +=
@@ -565,6 +572,8 @@ struct Recording<'a> {
     placeholder: &'a wgpu::Buffer,
     /// Six 16-byte storage buffers bound where a fused pass has no group (its canvas's planes).
     spare_planes: &'a [wgpu::Buffer],
+    /// Drawn at four samples a pixel ([`Engine::adaptive_sampling`]).
+    msaa: bool,
 }
 
 impl Recording<'_> {
@@ -579,10 +588,17 @@ impl Recording<'_> {
         flushed: &mut usize,
         enc: &mut wgpu::CommandEncoder,
     ) -> u32 {
-        let (engine, pipes) = (self.engine, &self.engine.pipes);
-        let ss = self.job.ss;
-        let size = [TILE_TARGET, used_h.next_power_of_two().max(64)];
-        let tg = engine.targets(size);
+        let (engine, pipes) = (self.engine, self.engine.pipes.family(self.msaa));
+        // Atlas pixels a texel a side: the grid's ss, the adaptive raster's one (of four samples).
+        let (ss, samples) = match self.msaa {
+            true => (1, 4),
+            false => (self.job.ss, 1),
+        };
+        let size = [
+            TILE_TARGET / self.job.ss * ss,
+            (used_h / self.job.ss * ss).next_power_of_two().max(64),
+        ];
+        let tg = engine.targets(size, samples);
         let channel_views = self.channel_views(size);
         {
             let views: Vec<Option<&wgpu::TextureView>> = [Some(&tg.color_view), Some(&tg.cov_view)]
@@ -602,27 +618,29 @@ impl Recording<'_> {
                 crate::gpu::render_pass_to(enc, "bake.layer_raster", views, wgpu::LoadOp::Load);
             let bits = self.fused_bits();
             let (clear, raster) = match bits {
-                0 => (&pipes.atlas_clear, None),
+                0 => (pipes.clear, None),
                 b => (
                     &pipes.fused.clear[b as usize - 1],
                     Some(&pipes.fused.raster[b as usize - 1]),
                 ),
             };
             pass.set_pipeline(&clear.pipeline);
-            for &(k, origin) in batch {
+            for &(k, _) in batch {
+                let origin = self.jobs[k].params.atlas_origin;
                 let [sx, sy, sw, sh] = scissor(&self.jobs[k].params, win, ss);
                 pass.set_scissor_rect(origin[0] + sx, origin[1] + sy, sw, sh);
                 pass.draw(0..3, 0..1);
             }
             let raster = match (raster, self.pass.map(|p| p.kind)) {
                 (Some(fused), _) => fused,
-                (None, Some(super::channels::ChannelKind::Normal)) => &pipes.layer_raster_normal,
-                (None, _) => &pipes.layer_raster,
+                (None, Some(super::channels::ChannelKind::Normal)) => pipes.raster_normal,
+                (None, _) => pipes.raster,
             };
             pass.set_pipeline(&raster.pipeline);
-            for &(k, origin) in batch {
+            for &(k, _) in batch {
                 let rj = &self.jobs[k];
                 let p = &rj.params;
+                let origin = p.atlas_origin;
                 let (jw, jh) = (p.rect_size[0] * ss, p.rect_size[1] * ss);
                 pass.set_viewport(
                     origin[0] as f32,
@@ -667,7 +685,7 @@ impl Recording<'_> {
         };
         let acc = [self.canvas.acc_rg.clone(), self.canvas.acc_ba.clone()];
         let (bg_canvas, compose) = match self.fused.is_empty() {
-            true => (bind_compose(&acc), &pipes.compose),
+            true => (bind_compose(&acc), pipes.compose),
             false => (
                 self.bind_fused_compose(&tg, &channel_views),
                 &pipes.fused.compose,
@@ -738,7 +756,10 @@ impl Recording<'_> {
     /// The fused pass's channel attachments of `size`, by group (`None` where it has none).
     fn channel_views(&self, size: [u32; 2]) -> [Option<std::sync::Arc<wgpu::TextureView>>; 3] {
         let bits = self.fused_bits();
-        std::array::from_fn(|k| (bits >> k & 1 == 1).then(|| self.engine.channel_target(size, k)))
+        let samples = if self.msaa { 4 } else { 1 };
+        std::array::from_fn(|k| {
+            (bits >> k & 1 == 1).then(|| self.engine.channel_target(size, k, samples))
+        })
     }
 
     /// The fused compose's bindings: the colour's, each channel group's attachment and canvas
@@ -771,7 +792,7 @@ impl Recording<'_> {
                 entries.push((12 + 2 * k as u32 + j as u32, plane.as_entire_binding()));
             }
         }
-        self.engine.pipes.fused.compose.bind(
+        self.engine.pipes.family(self.msaa).fused.compose.bind(
             &self.engine.ctx.device,
             "bake.compose_fused",
             &entries,
@@ -804,9 +825,9 @@ impl Recording<'_> {
         let layout = match tangents {
             Some(t) => {
                 entries.extend(self.frames(t));
-                &engine.pipes.layer_raster_normal.layout
+                &engine.pipes.family(self.msaa).raster_normal.layout
             }
-            None => &engine.pipes.layer_raster.layout,
+            None => &engine.pipes.family(self.msaa).raster.layout,
         };
         make_bind_group(&engine.ctx.device, layout, "bake.layer_raster", &entries)
     }
@@ -875,7 +896,7 @@ impl Recording<'_> {
             entries.push((14 + k as u32, wgpu::BindingResource::TextureView(view)));
         }
         let bits = self.fused_bits() as usize;
-        let layout = &engine.pipes.fused.raster[bits - 1].layout;
+        let layout = &engine.pipes.family(self.msaa).fused.raster[bits - 1].layout;
         make_bind_group(
             &engine.ctx.device,
             layout,

@@ -3,7 +3,10 @@
 //! `compose`, `base_init`) and of the padding rule, written plainly as the tests' oracle.
 //!
 //! It follows the GPU's sampling pattern exactly: sample (i, j) of texel (x, y) sits at
-//! `(x + (i + 0.5) / ss, y + (j + 0.5) / ss)` in texel units. Decal images are sampled bilinearly on
+//! `(x + (i + 0.5) / ss, y + (j + 0.5) / ss)` in texel units; a job drawn adaptively
+//! ([`Job::adaptive_sampling`]) has the four samples of [`SAMPLE_POS`] and evaluates each layer
+//! once a texel and triangle, as `layer_raster`'s adaptive variant does
+//! ([`LayerRaster::sample_adaptive`]). Decal images are sampled bilinearly on
 //! mip level 0 with clamp-to-edge; the GPU picks a coarser level when a decal is minified, so
 //! comparisons against this twin use magnified decals (see `tests/compose_vs_cpu.rs`).
 
@@ -240,23 +243,25 @@ pub fn bake_units_cpu(
 /// the result is transparent.
 fn group_texel(rasters: &[LayerRaster], sels: &[Selection], x: u32, y: u32) -> Option<[f32; 4]> {
     let job = rasters.first()?.job;
-    let (ss, size) = (job.ss, Vec2::new(job.width as f32, job.height as f32));
+    let size = Vec2::new(job.width as f32, job.height as f32);
+    let points = texel_samples(job, x, y, size);
     let (mut sum, mut n) = ([0.0f32; 4], 0u32);
-    for j in 0..ss {
-        for i in 0..ss {
-            let p = sample_pos(x, y, i, j, ss, size);
-            let mut acc: Option<[f32; 4]> = None;
-            for (r, sel) in rasters.iter().zip(sels) {
-                if let Some(s) = r.sample(p, &sel.triangles) {
-                    let d = acc.unwrap_or([0.0; 4]);
-                    acc = Some(std::array::from_fn(|k| s[k] + d[k] * (1.0 - s[3])));
-                }
+    for (i, &p) in points.iter().enumerate() {
+        let mut acc: Option<[f32; 4]> = None;
+        for (r, sel) in rasters.iter().zip(sels) {
+            let s = match job.adaptive_sampling() {
+                true => r.sample_adaptive(&points, i, &sel.triangles),
+                false => r.sample(p, &sel.triangles),
+            };
+            if let Some(s) = s {
+                let d = acc.unwrap_or([0.0; 4]);
+                acc = Some(std::array::from_fn(|k| s[k] + d[k] * (1.0 - s[3])));
             }
-            if let Some(a) = acc {
-                n += 1;
-                for k in 0..4 {
-                    sum[k] += a[k];
-                }
+        }
+        if let Some(a) = acc {
+            n += 1;
+            for k in 0..4 {
+                sum[k] += a[k];
             }
         }
     }
@@ -358,7 +363,7 @@ pub fn apply_stroke(
 /// Twin of the island raster: a texel is an island texel when any of its samples lies in a
 /// triangle (UVs assumed inside the [0,1] tile here; the GPU also handles other tiles).
 fn islands_cpu(mesh: &Mesh, topo: &Topology, job: &Job) -> Vec<bool> {
-    let (w, h, ss) = (job.width, job.height, job.ss);
+    let (w, h) = (job.width, job.height);
     let uvs = &mesh.uv_sets[job.uv_set as usize];
     let size = Vec2::new(w as f32, h as f32);
     let mut island = vec![false; (w * h) as usize];
@@ -375,19 +380,41 @@ fn islands_cpu(mesh: &Mesh, topo: &Topology, job: &Job) -> Vec<bool> {
                 if island[idx] {
                     continue;
                 }
-                'samples: for j in 0..ss {
-                    for i in 0..ss {
-                        let p = sample_pos(x, y, i, j, ss, size);
-                        if barycentric(p, a, b, c).is_some() {
-                            island[idx] = true;
-                            break 'samples;
-                        }
-                    }
-                }
+                island[idx] = texel_samples(job, x, y, size)
+                    .into_iter()
+                    .any(|p| barycentric(p, a, b, c).is_some());
             }
         }
     }
     island
+}
+
+/// Whether image point `p` lies in the image square [0, 1]².
+fn in_unit(p: Vec2) -> bool {
+    p.x >= 0.0 && p.y >= 0.0 && p.x <= 1.0 && p.y <= 1.0
+}
+
+/// Where the adaptive raster's four samples sit in a texel (the standard 4-sample pattern of
+/// WebGPU and Vulkan; `SAMPLE_POS` in `wgsl/bake/layer_raster.wgsl`).
+pub const SAMPLE_POS: [[f32; 2]; 4] = [
+    [0.375, 0.125],
+    [0.875, 0.375],
+    [0.125, 0.625],
+    [0.625, 0.875],
+];
+
+/// The sample points of texel (x, y) in UV space, in the GPU's order: the ss × ss grid row by
+/// row, or the adaptive raster's four ([`SAMPLE_POS`]).
+fn texel_samples(job: &Job, x: u32, y: u32, size: Vec2) -> Vec<Vec2> {
+    match job.adaptive_sampling() {
+        true => SAMPLE_POS
+            .iter()
+            .map(|o| Vec2::new(x as f32 + o[0], y as f32 + o[1]) / size)
+            .collect(),
+        false => (0..job.ss * job.ss)
+            .map(|s| sample_pos(x, y, s % job.ss, s / job.ss, job.ss, size))
+            .collect(),
+    }
 }
 
 /// Sample (i, j) of texel (x, y) in UV space, on an ss × ss grid.
@@ -503,56 +530,133 @@ impl<'a> LayerRaster<'a> {
     /// One sample: every selected triangle covering `p` composed source-over in list order; `None`
     /// when none covers it.
     fn sample(&self, p: Vec2, triangles: &[u32]) -> Option<[f32; 4]> {
-        let uvs = &self.mesh.uv_sets[self.job.uv_set as usize];
-        let layer = self.layer;
         let mut covered = false;
         let mut acc = [0.0f32; 4];
         for &t in triangles {
-            let [a, bb, c] = self.mesh.triangles[t as usize].map(|s| uvs[s as usize]);
-            let Some(bc) = barycentric(p, a, bb, c) else {
+            if self
+                .corners(t)
+                .is_none_or(|[a, b, c]| barycentric(p, a, b, c).is_none())
+            {
                 continue;
-            };
+            }
             covered = true;
-            let lc = self.topo.triangles[t as usize].map(|v| self.coords[v as usize]);
-            let mut lx = bc[0] * lc[0][0] + bc[1] * lc[1][0] + bc[2] * lc[2][0];
-            let mut ly = bc[0] * lc[0][1] + bc[1] * lc[1][1] + bc[2] * lc[2][1];
-            if let Some(cone) = &self.cone {
-                let z = cone.apply(glam::DVec2::new(lx as f64, ly as f64));
-                (lx, ly) = (z.x as f32, z.y as f32);
-            }
-            let mut im = Vec2::new(lx / layer.size[0] + 0.5, 0.5 - ly / layer.size[1]);
-            let mut inside = im.x >= 0.0 && im.y >= 0.0 && im.x <= 1.0 && im.y <= 1.0;
-            let flat_im = im;
-            if self.repeats > 0.0 {
-                // Twin of FLAG_REPEAT (level 0: the twin has no mipmaps).
-                im.x = (im.x * self.repeats).fract();
-            }
-            if let Some(t) = &self.warp {
-                im = Vec2::from(t.eval(im.to_array()));
-                inside &= im.x >= 0.0 && im.y >= 0.0 && im.x <= 1.0 && im.y <= 1.0;
-            }
-            let mut s = [0.0; 4];
-            if inside {
-                s = sample_bilinear(&self.premult, im);
-                if let Some(m) = self.mask {
-                    let mv = sample_bilinear(m, im);
-                    let f = mv[0] * mv[3];
-                    s = s.map(|v| v * f);
-                }
-                if let Some(f) = &self.flat {
-                    // Twin of `layer_raster`'s FLAG_TOOL: colour from the flat, shape = alpha.
-                    let c = sample_bilinear(f, flat_im);
-                    let shape = if c[3] > 0.0 { s[3] } else { 0.0 };
-                    s = [c[0] * shape, c[1] * shape, c[2] * shape, shape];
-                }
-                s = s.map(|v| v * layer.opacity);
-            }
+            let im = self.image_point(t, p);
+            let s = match self.paints(im) {
+                true => self.shade(im),
+                false => [0.0; 4],
+            };
             // Premultiplied source-over within the layer, in list order.
             for k in 0..4 {
                 acc[k] = s[k] + acc[k] * (1.0 - s[3]);
             }
         }
         covered.then_some(acc)
+    }
+
+    /// Twin of the adaptive raster: sample `i` of the texel whose four samples are `points`. Every
+    /// selected triangle covering it is evaluated once for the texel, at the texel's centre (its
+    /// map extrapolated; clamped into the image), times the share of the samples it covers whose
+    /// image point lies in the image; composed source-over in list order.
+    fn sample_adaptive(&self, points: &[Vec2], i: usize, triangles: &[u32]) -> Option<[f32; 4]> {
+        let mut covered = false;
+        let mut acc = [0.0f32; 4];
+        for &t in triangles {
+            let Some([a, b, c]) = self.corners(t) else {
+                continue;
+            };
+            let mine: Vec<Vec2> = points
+                .iter()
+                .copied()
+                .filter(|&q| barycentric(q, a, b, c).is_some())
+                .collect();
+            if barycentric(points[i], a, b, c).is_none() {
+                continue;
+            }
+            covered = true;
+            let inside = mine
+                .iter()
+                .filter(|&&q| self.paints(self.image_point(t, q)))
+                .count();
+            let mut s = [0.0; 4];
+            if inside > 0 {
+                let at = points.iter().sum::<Vec2>() / points.len() as f32;
+                let im = self
+                    .image_point(t, at)
+                    .clamp(Vec2::ZERO, Vec2::splat(0.999_999_94));
+                let share = inside as f32 / mine.len() as f32;
+                s = self.shade(im).map(|v| v * share);
+            }
+            for k in 0..4 {
+                acc[k] = s[k] + acc[k] * (1.0 - s[3]);
+            }
+        }
+        covered.then_some(acc)
+    }
+
+    /// Whether image point `im` is painted: in the image, and where the layer is warped, its
+    /// warped point too.
+    fn paints(&self, im: Vec2) -> bool {
+        let mut w = im;
+        if self.repeats > 0.0 {
+            w.x = (w.x * self.repeats).fract();
+        }
+        in_unit(im)
+            && self
+                .warp
+                .as_ref()
+                .is_none_or(|t| in_unit(Vec2::from(t.eval(w.to_array()))))
+    }
+
+    /// Triangle `t`'s UV corners.
+    fn corners(&self, t: u32) -> Option<[Vec2; 3]> {
+        let uvs = &self.mesh.uv_sets[self.job.uv_set as usize];
+        Some(self.mesh.triangles[t as usize].map(|s| uvs[s as usize]))
+    }
+
+    /// The image point of UV point `p` in triangle `t`'s map (affine, extrapolated outside it; a
+    /// cone chart's opened), before tiling and warping.
+    fn image_point(&self, t: u32, p: Vec2) -> Vec2 {
+        let [a, b, c] = self.corners(t).expect("a triangle has corners");
+        let area = (b - a).perp_dot(c - a);
+        let w0 = (b - p).perp_dot(c - p) / area;
+        let w1 = (c - p).perp_dot(a - p) / area;
+        let bc = [w0, w1, 1.0 - w0 - w1];
+        let lc = self.topo.triangles[t as usize].map(|v| self.coords[v as usize]);
+        let mut lx = bc[0] * lc[0][0] + bc[1] * lc[1][0] + bc[2] * lc[2][0];
+        let mut ly = bc[0] * lc[0][1] + bc[1] * lc[1][1] + bc[2] * lc[2][1];
+        if let Some(cone) = &self.cone {
+            let z = cone.apply(glam::DVec2::new(lx as f64, ly as f64));
+            (lx, ly) = (z.x as f32, z.y as f32);
+        }
+        let layer = self.layer;
+        Vec2::new(lx / layer.size[0] + 0.5, 0.5 - ly / layer.size[1])
+    }
+
+    /// The layer's premultiplied colour at image point `im`: tiled, warped, masked (clamped to the
+    /// images' edges), a tool stamp's flat, times the opacity.
+    fn shade(&self, im: Vec2) -> [f32; 4] {
+        let flat_im = im;
+        let mut im = im;
+        if self.repeats > 0.0 {
+            // Twin of FLAG_REPEAT (level 0: the twin has no mipmaps).
+            im.x = (im.x * self.repeats).fract();
+        }
+        if let Some(t) = &self.warp {
+            im = Vec2::from(t.eval(im.to_array()));
+        }
+        let mut s = sample_bilinear(&self.premult, im);
+        if let Some(m) = self.mask {
+            let mv = sample_bilinear(m, im);
+            let f = mv[0] * mv[3];
+            s = s.map(|v| v * f);
+        }
+        if let Some(f) = &self.flat {
+            // Twin of `layer_raster`'s FLAG_TOOL: colour from the flat, shape = alpha.
+            let c = sample_bilinear(f, flat_im);
+            let shape = if c[3] > 0.0 { s[3] } else { 0.0 };
+            s = [c[0] * shape, c[1] * shape, c[2] * shape, shape];
+        }
+        s.map(|v| v * self.layer.opacity)
     }
 }
 

@@ -184,8 +184,11 @@ pub(crate) struct Targets {
     _cov: wgpu::Texture,
 }
 
-/// A fused channel attachment's key: its size and channel group.
-type ChannelTarget = ([u32; 2], usize);
+/// A layer raster attachment pair's key: its size and samples a pixel.
+type TargetKey = ([u32; 2], u32);
+
+/// A fused channel attachment's key: its size, channel group and samples a pixel.
+type ChannelTarget = ([u32; 2], usize, u32);
 
 /// Where [`Engine::prepare`] builds a mesh's BVH (placement's walk, planar decals' candidates).
 ///
@@ -335,9 +338,10 @@ pub struct Engine {
     /// The GPU context.
     pub ctx: GpuContext,
     pub(crate) pipes: Pipelines,
-    targets: Mutex<HashMap<[u32; 2], Arc<Targets>>>,
-    /// The fused channel passes' attachments, by size and channel group (0 occlusion-roughness-
-    /// metallic, 1 normal, 2 emissive), made when a bake first needs them.
+    /// The layer raster's attachments, by size and samples a pixel.
+    targets: Mutex<HashMap<TargetKey, Arc<Targets>>>,
+    /// The fused channel passes' attachments, by size, channel group (0 occlusion-roughness-
+    /// metallic, 1 normal, 2 emissive) and samples a pixel, made when a bake first needs them.
     channel_targets: Mutex<HashMap<ChannelTarget, Arc<wgpu::TextureView>>>,
     pub(crate) linear_sampler: wgpu::Sampler,
     /// Select every layer's triangles from the whole mesh instead of from the vertices its map can
@@ -780,11 +784,13 @@ impl Engine {
         }
     }
 
-    pub(crate) fn targets(&self, size: [u32; 2]) -> Arc<Targets> {
+    /// The layer raster's colour and coverage attachments of `size` at `samples` a pixel (4: the
+    /// adaptive raster's, [`Engine::adaptive_sampling`]).
+    pub(crate) fn targets(&self, size: [u32; 2], samples: u32) -> Arc<Targets> {
         let mut pool = self.targets.lock().expect("target pool poisoned");
-        pool.entry(size)
+        pool.entry((size, samples))
             .or_insert_with(|| {
-                let mk = |label: &str, format| self.attachment(label, size, format);
+                let mk = |label: &str, format| self.attachment(label, (size, samples), format);
                 let color = mk("bake.target.color", self.pipes.layer_format);
                 let cov = mk("bake.target.coverage", COVERAGE_FORMAT);
                 Arc::new(Targets {
@@ -797,23 +803,29 @@ impl Engine {
             .clone()
     }
 
-    /// The fused channel passes' attachment of `size` for channel group `k` (0
-    /// occlusion-roughness-metallic, 1 normal, 2 emissive), in the layer target's format.
-    pub(crate) fn channel_target(&self, size: [u32; 2], k: usize) -> Arc<wgpu::TextureView> {
+    /// The fused channel passes' attachment of `size` at `samples` a pixel for channel group `k`
+    /// (0 occlusion-roughness-metallic, 1 normal, 2 emissive), in the layer target's format.
+    pub(crate) fn channel_target(
+        &self,
+        size: [u32; 2],
+        k: usize,
+        samples: u32,
+    ) -> Arc<wgpu::TextureView> {
         let mut pool = self.channel_targets.lock().expect("target pool poisoned");
-        pool.entry((size, k))
+        pool.entry((size, k, samples))
             .or_insert_with(|| {
-                let t = self.attachment("bake.target.channel", size, self.pipes.layer_format);
+                let format = self.pipes.layer_format;
+                let t = self.attachment("bake.target.channel", (size, samples), format);
                 Arc::new(t.create_view(&Default::default()))
             })
             .clone()
     }
 
-    /// A render attachment of `size` and `format` that shaders can read.
+    /// A render attachment of `size`, `samples` a pixel and `format` that shaders can read.
     fn attachment(
         &self,
         label: &str,
-        size: [u32; 2],
+        (size, samples): ([u32; 2], u32),
         format: wgpu::TextureFormat,
     ) -> wgpu::Texture {
         self.ctx.device.create_texture(&wgpu::TextureDescriptor {
@@ -824,12 +836,21 @@ impl Engine {
                 depth_or_array_layers: 1,
             },
             mip_level_count: 1,
-            sample_count: 1,
+            sample_count: samples,
             dimension: wgpu::TextureDimension::D2,
             format,
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
             view_formats: &[],
         })
+    }
+
+    /// Whether `job`'s layers are drawn at four samples a pixel, once a texel and triangle
+    /// (adaptive supersampling, `wgsl/bake/layer_raster.wgsl`'s `// MSAA: ` lines): the job asks
+    /// for it ([`Job::adaptive_sampling`]: four samples a texel, `texture.sampling` not `"full"`)
+    /// and the device holds four-sample targets of the layer format
+    /// ([`crate::gpu::pipelines::Pipelines::msaa_ok`]). Otherwise once a sample, on the grid.
+    pub(crate) fn adaptive_sampling(&self, job: &Job) -> bool {
+        job.adaptive_sampling() && self.pipes.msaa_ok
     }
 
     /// Whether `job`'s PBR channel groups are drawn beside its colour in one pass
@@ -1174,7 +1195,7 @@ impl ImageCache {
 }
 
 /// (UV set, width, height, supersampling).
-pub type IslandKey = (u32, u32, u32, u32);
+pub type IslandKey = (u32, u32, u32, u32, bool);
 
 /// A UV layout rasterized at one texture size: which texels the islands cover, and for every texel
 /// the index of its nearest island texel (exact Euclidean distance transform).
@@ -1217,10 +1238,11 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
             &p.compact_lists,
             &p.distortion,
         ]);
+        let family = p.family(engine.adaptive_sampling(job));
         match fused {
-            0 => list.extend([&p.layer_raster as &dyn Prepare, &p.atlas_clear, &p.compose]),
+            0 => list.extend([family.raster as &dyn Prepare, family.clear, family.compose]),
             g => {
-                let (f, g) = (&p.fused, g as usize - 1);
+                let (f, g) = (family.fused, g as usize - 1);
                 list.extend([&f.raster[g] as &dyn Prepare, &f.clear[g], &f.compose]);
             }
         }
@@ -1247,7 +1269,7 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
         list.push(&p.ribbon_relax);
     }
     if fused == 0 && any(&|l| l.channels.normal.is_some()) {
-        list.push(&p.layer_raster_normal);
+        list.push(p.family(engine.adaptive_sampling(job)).raster_normal);
     }
     if job.out_preview.is_some() {
         list.push(&p.preview);

@@ -12,17 +12,19 @@ use crate::error::Result;
 use crate::gpu::pipelines::make_bind_group;
 use std::sync::Arc;
 
-/// The islands of `mesh` for a UV set, texture size and sampling, computed on first use and cached
-/// on the mesh. Counts its dispatches and draws into `commands`.
+/// The islands of `mesh` for a UV set, texture size and sampling (`ss`, and whether the layers
+/// are drawn adaptively, at the four samples of one pixel: [`Engine::adaptive_sampling`]; the
+/// islands are drawn at the same samples), computed on first use and cached on the mesh. Counts
+/// its dispatches and draws into `commands`.
 pub fn islands(
     engine: &Engine,
     mesh: &LoadedMesh,
     uv_set: u32,
     size: [u32; 2],
-    ss: u32,
+    (ss, msaa): (u32, bool),
     commands: &mut u32,
 ) -> Result<Arc<Islands>> {
-    let key = (uv_set, size[0], size[1], ss);
+    let key = (uv_set, size[0], size[1], ss, msaa);
     let cache = || mesh.islands.lock().expect("island cache poisoned");
     if let Some(c) = cache().get(&key) {
         return Ok(c.clone());
@@ -37,13 +39,13 @@ pub fn islands(
 fn compute(
     engine: &Engine,
     mesh: &LoadedMesh,
-    (uv_set, w, h, ss): IslandKey,
+    (uv_set, w, h, ss, msaa): IslandKey,
     commands: &mut u32,
 ) -> Result<Islands> {
     let dev = &engine.ctx.device;
     let texels = w as u64 * h as u64;
     let global = Pass::global(mesh, [w, h], ss, [0; 4]);
-    let (pass, jobs) = Pass::new(engine, mesh, (uv_set, ss), global, [texels * 4; 2]);
+    let (pass, jobs) = Pass::new(engine, mesh, (uv_set, ss, msaa), global, [texels * 4; 2]);
     let buf = |label, bytes: u64| {
         dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
@@ -101,7 +103,7 @@ fn compute(
 pub(crate) fn window_mask(
     engine: &Engine,
     mesh: &LoadedMesh,
-    (uv_set, ss): (u32, u32),
+    (uv_set, ss, msaa): (u32, u32, bool),
     size: [u32; 2],
     win: [u32; 4],
     commands: &mut u32,
@@ -110,7 +112,7 @@ pub(crate) fn window_mask(
     let bytes = win[2] as u64 * win[3] as u64 * 4;
     let global = Pass::global(mesh, size, ss, win);
     // No distance transform here (the tiles' is on the CPU): a placeholder nearest map.
-    let (pass, jobs) = Pass::new(engine, mesh, (uv_set, ss), global, [bytes, 16]);
+    let (pass, jobs) = Pass::new(engine, mesh, (uv_set, ss, msaa), global, [bytes, 16]);
     engine.ctx.scoped("islands", || {
         let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("islands.window"),
@@ -132,6 +134,8 @@ struct Pass<'a> {
     mesh: &'a LoadedMesh,
     uv_set: u32,
     ss: u32,
+    /// Drawn at the four samples of one pixel a texel (the adaptive bake's pattern).
+    msaa: bool,
     /// Entry 0: the whole texture; entry k + 1: raster job k.
     params: wgpu::Buffer,
     mask: wgpu::Buffer,
@@ -158,7 +162,7 @@ impl<'a> Pass<'a> {
     fn new(
         engine: &'a Engine,
         mesh: &'a LoadedMesh,
-        (uv_set, ss): (u32, u32),
+        (uv_set, ss, msaa): (u32, u32, bool),
         global: Params,
         [mask_bytes, nearest_bytes]: [u64; 2],
     ) -> (Self, Vec<Params>) {
@@ -181,6 +185,7 @@ impl<'a> Pass<'a> {
             mesh,
             uv_set,
             ss,
+            msaa,
             params: params_buffer(dev, "islands.params", &entries),
             mask: buf("islands.mask", mask_bytes),
             nearest: buf("islands.nearest", nearest_bytes),
@@ -193,10 +198,15 @@ impl<'a> Pass<'a> {
     /// marks the texels with any covered sample. Returns the draws and dispatches recorded.
     fn record_raster(&self, jobs: &[Params], enc: &mut wgpu::CommandEncoder) -> u32 {
         let (dev, pipes, g) = (&self.engine.ctx.device, &self.engine.pipes, &self.mesh.gpu);
-        let ss = self.ss;
+        // Target pixels a texel a side, and samples a pixel.
+        let (ss, samples) = if self.msaa { (1, 4) } else { (self.ss, 1) };
+        let (raster, mask) = match self.msaa {
+            true => (&pipes.msaa.island_raster, &pipes.msaa.island_mask),
+            false => (&pipes.island_raster, &pipes.island_mask),
+        };
         let bg_island = make_bind_group(
             dev,
-            &pipes.island_raster.layout,
+            &raster.layout,
             "islands.raster",
             &[
                 (0, pbind(&self.params)),
@@ -208,16 +218,16 @@ impl<'a> Pass<'a> {
         for (k, j) in jobs.iter().enumerate() {
             let off = ((k + 1) as u64 * PARAMS_STRIDE) as u32;
             let side = target_side(j.rect_size, ss);
-            let tg = self.engine.targets([side, side]);
+            let tg = self.engine.targets([side, side], samples);
             {
                 let mut pass = crate::gpu::cleared_pass(enc, "islands.raster", &[&tg.cov_view]);
-                pass.set_pipeline(&pipes.island_raster.pipeline);
+                pass.set_pipeline(&raster.pipeline);
                 pass.set_bind_group(0, &bg_island, &[off]);
                 let [jw, jh] = j.rect_size.map(|v| (v * ss) as f32);
                 pass.set_viewport(0.0, 0.0, jw, jh, 0.0, 1.0);
                 pass.draw(0..3 * g.triangle_count, 0..1);
             }
-            let bg_mask = pipes.island_mask.bind(
+            let bg_mask = mask.bind(
                 dev,
                 "islands.mask",
                 &[
@@ -231,7 +241,7 @@ impl<'a> Pass<'a> {
                 label: Some("islands.mask"),
                 timestamp_writes: None,
             });
-            pass.set_pipeline(&pipes.island_mask.pipeline);
+            pass.set_pipeline(&mask.pipeline);
             pass.set_bind_group(0, &bg_mask, &[off]);
             pass.dispatch_workgroups(j.rect_size[0].div_ceil(8), j.rect_size[1].div_ceil(8), 1);
         }
@@ -296,7 +306,7 @@ impl Engine {
     ) -> Result<(Vec<u32>, Vec<u32>)> {
         let ss = (samples as f32).sqrt().round() as u32;
         let mut commands = 0;
-        let isl = islands(self, mesh, uv_set, size, ss.max(1), &mut commands)?;
+        let isl = islands(self, mesh, uv_set, size, (ss.max(1), false), &mut commands)?;
         let bytes = size[0] as u64 * size[1] as u64 * 4;
         let mask = self
             .ctx

@@ -301,6 +301,9 @@ fn compose_units(
         (false, true) => "fused",
         (false, false) => "separate",
     };
+    if cx.engine.adaptive_sampling(job) {
+        log.paths.sampling = "adaptive";
+    }
     let mut units: Vec<LayerReport> = Vec::with_capacity(job.layers.len());
     let starts = tools::chunk_starts(placed);
     for range in slots.chunks(&placed.blocks, &starts) {

@@ -142,6 +142,9 @@ pub struct Paths {
     /// PBR channel groups: `"fused"` (drawn and composed beside the colour in one pass),
     /// `"separate"` (a pass each after the colour's) or `"none"` (the bake paints none).
     pub channels: &'static str,
+    /// The layer raster's samples: `"full"` (once a sample) or `"adaptive"` (four samples a
+    /// pixel, once a texel and triangle: `texture.sampling`, where the device holds them).
+    pub sampling: &'static str,
 }
 
 impl Default for Paths {
@@ -151,6 +154,7 @@ impl Default for Paths {
             expmap: "none",
             charts: "none",
             channels: "none",
+            sampling: "full",
         }
     }
 }

@@ -245,7 +245,8 @@ fn islands(
     wins: &[[u32; 4]],
 ) -> Result<Arc<TiledIslands>> {
     let (w, h) = (job.width, job.height);
-    let key: IslandKey = (job.uv_set, w, h, job.ss);
+    let msaa = engine.adaptive_sampling(job);
+    let key: IslandKey = (job.uv_set, w, h, job.ss, msaa);
     let cache = || mesh.tiled_islands.lock().expect("island cache poisoned");
     if let Some(c) = cache().get(&key) {
         return Ok(c.clone());
@@ -256,7 +257,7 @@ fn islands(
         let m = super::islands::window_mask(
             engine,
             mesh,
-            (job.uv_set, job.ss),
+            (job.uv_set, job.ss, msaa),
             [w, h],
             win,
             &mut commands,

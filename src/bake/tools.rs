@@ -131,7 +131,7 @@ pub(crate) fn record(
     // The pooled raster targets (reused by every bake; rows of cells rounded up to a power of two so
     // that chunks share a few sizes), whose colour target has the layer format.
     let size = [FLAT_COLS * FLAT_RES, rows * FLAT_RES];
-    let targets = engine.targets(size);
+    let targets = engine.targets(size, 1);
     let view = &targets.color_view;
     let entries: Vec<Params> = units
         .iter()

@@ -54,7 +54,7 @@ pub fn fill(
         for (k, j) in jobs.iter().enumerate() {
             let off = (k as u64 * PARAMS_STRIDE) as u32;
             let side = target_side(j.rect_size, ss);
-            let tg = engine.targets([side, side]);
+            let tg = engine.targets([side, side], 1);
             {
                 let mut pass = crate::gpu::cleared_pass(
                     &mut enc,

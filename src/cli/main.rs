@@ -261,6 +261,10 @@ struct BenchArgs {
     /// moving one decal 20 times (`full_ms`, `edit_ms`, `identical`); JSON lines on stdout.
     #[arg(long)]
     edit: bool,
+    /// The bake and `--channels` benchmarks' `texture.sampling`: `full` (once a sample) or
+    /// `adaptive` (four samples a pixel, once a texel and triangle).
+    #[arg(long, default_value = "full", value_parser = ["full", "adaptive"])]
+    sampling: String,
 }
 
 /// The engine's diagnostics (`log`) on stderr: its warnings and errors by default; with
@@ -438,9 +442,8 @@ fn layer_bench(
     engine: &Engine,
     which: &str,
     mesh: Option<PathBuf>,
-    sizes: Vec<u32>,
-    decals: &[usize],
-    reps: usize,
+    (sizes, decals, reps): (Vec<u32>, &[usize], usize),
+    adaptive: bool,
 ) -> Result<()> {
     let mesh = mesh.unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/bob.glb"));
     if which == "edit" {
@@ -470,6 +473,7 @@ fn layer_bench(
         sizes,
         decals: decals.iter().copied().max().unwrap_or(256),
         reps,
+        adaptive,
     };
     let table = |l: &str| eprintln!("{l}");
     bench::channels::run(engine, &opts, |v| println!("{v}"), table)
@@ -505,7 +509,9 @@ fn bench_cmd(backend: Option<&str>, args: BenchArgs) -> Result<()> {
         channels,
         vector,
         edit,
+        sampling,
     } = args;
+    let adaptive = sampling == "adaptive";
     let mut engine = engine(backend)?;
     if channels || vector || edit {
         let which = match (vector, edit) {
@@ -513,7 +519,7 @@ fn bench_cmd(backend: Option<&str>, args: BenchArgs) -> Result<()> {
             (_, true) => "edit",
             _ => "channels",
         };
-        return layer_bench(&engine, which, mesh, sizes, &decals, reps);
+        return layer_bench(&engine, which, mesh, (sizes, &decals, reps), adaptive);
     }
     if let Some(dir) = corpus {
         return bench::corpus::run(&engine, &dir, |v| println!("{v}"));
@@ -603,6 +609,7 @@ fn bench_cmd(backend: Option<&str>, args: BenchArgs) -> Result<()> {
             decalbake::maps::expmap::Accuracy::Smooth
         },
         peers: peers.clone(),
+        adaptive,
     };
     if geodesic {
         if let Some(dir) = &opts.peers {

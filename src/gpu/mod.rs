@@ -241,6 +241,7 @@ impl GpuContext {
                         & (wgpu::Features::FLOAT32_FILTERABLE
                             | wgpu::Features::FLOAT32_BLENDABLE
                             | wgpu::Features::CLIP_DISTANCES
+                            | wgpu::Features::TEXTURE_ADAPTER_SPECIFIC_FORMAT_FEATURES
                             | cached),
                     required_limits: adapter.limits(),
                     experimental_features: wgpu::ExperimentalFeatures::disabled(),

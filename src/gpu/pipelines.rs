@@ -27,6 +27,8 @@ pub enum Bind {
     Rw,
     /// Float texture; `true` = filterable.
     Tex(bool),
+    /// Multisampled float texture (the adaptive raster's attachments).
+    TexMs,
     /// Filtering sampler.
     Sampler,
 }
@@ -54,6 +56,11 @@ fn layout(
                     sample_type: wgpu::TextureSampleType::Float { filterable },
                     view_dimension: wgpu::TextureViewDimension::D2,
                     multisampled: false,
+                },
+                Bind::TexMs => wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: true,
                 },
                 Bind::Sampler => wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
             };
@@ -191,6 +198,11 @@ pub struct Pipelines {
     pub atlas_clear: Lazy<Raster>,
     /// The colour and the PBR channel groups drawn and composed in one pass ([`Fused`]).
     pub fused: Fused,
+    /// The same raster family at four samples a pixel (adaptive supersampling, [`Msaa`]).
+    pub msaa: Msaa,
+    /// Whether the device holds [`Msaa`]'s targets (four samples of the layer format and of the
+    /// coverage format, readable by shaders).
+    pub msaa_ok: bool,
     /// Inverse rendering of the canvas into tool stamps' flat space.
     pub stamp_flatten: Lazy<Raster>,
     /// The tools' filters on the flat atlas (blur, smear).
@@ -338,13 +350,15 @@ impl Pipelines {
             select_triangles: Lazy::new(b, "select_triangles", select_triangles),
             compact_lists: kernel("compact_lists", &[(0, Params), (1, Ro), (2, Ro), (3, Rw)]),
             layer_raster: Lazy::new(b, "layer_raster", move |d| {
-                layer_raster(d, layer_format, layer_blending, false)
+                layer_raster(d, layer_format, layer_blending, (false, 1))
             }),
             layer_raster_normal: Lazy::new(b, "layer_raster_normal", move |d| {
-                layer_raster(d, layer_format, layer_blending, true)
+                layer_raster(d, layer_format, layer_blending, (true, 1))
             }),
-            atlas_clear: Lazy::new(b, "atlas_clear", move |d| atlas_clear(d, layer_format)),
-            fused: Fused::new(b, layer_format, layer_blending),
+            atlas_clear: Lazy::new(b, "atlas_clear", move |d| atlas_clear(d, layer_format, 1)),
+            fused: Fused::new(b, layer_format, layer_blending, 1),
+            msaa: Msaa::new(b, layer_format, layer_blending),
+            msaa_ok: multisampled(b, layer_format),
             stamp_flatten: Lazy::new(b, "stamp_flatten", move |d| flatten_raster(d, layer_format)),
             stamp_filter: kernel(
                 "stamp_filter",
@@ -371,21 +385,8 @@ impl Pipelines {
                     (11, Rw),
                 ],
             ),
-            island_mask: kernel(
-                "island_mask",
-                &[(0, Params), (1, Tex(false)), (2, Rw), (3, Rw)],
-            ),
-            compose: kernel(
-                "compose",
-                &[
-                    (0, Params),
-                    (1, Tex(false)),
-                    (2, Tex(false)),
-                    (3, Rw),
-                    (10, Rw),
-                    (11, Rw),
-                ],
-            ),
+            island_mask: kernel("island_mask", &ISLAND_MASK_BINDS),
+            compose: kernel("compose", &COMPOSE_BINDS),
             vector_coverage: Lazy::new(b, "vector_coverage", vector_coverage),
             stroke_apply: kernel(
                 "stroke_apply",
@@ -454,6 +455,27 @@ impl Pipelines {
         }
     }
 
+    /// The layer raster family the bake draws with: at four samples a pixel where `msaa`
+    /// (adaptive supersampling), else on the supersampling grid.
+    pub fn family(&self, msaa: bool) -> Family<'_> {
+        match msaa {
+            false => Family {
+                raster: &self.layer_raster,
+                raster_normal: &self.layer_raster_normal,
+                clear: &self.atlas_clear,
+                fused: &self.fused,
+                compose: &self.compose,
+            },
+            true => Family {
+                raster: &self.msaa.raster,
+                raster_normal: &self.msaa.raster_normal,
+                clear: &self.msaa.clear,
+                fused: &self.msaa.fused,
+                compose: &self.msaa.compose,
+            },
+        }
+    }
+
     /// Builds the pipelines of `list` now, on every core (each on a thread of its own; a
     /// pipeline another thread is already building is waited for, never built twice).
     /// `decalbake bake` calls this with the pipelines its job will run while it reads the mesh.
@@ -464,6 +486,20 @@ impl Pipelines {
             }
         });
     }
+}
+
+/// The pipelines of one layer raster family ([`Pipelines::family`]).
+pub struct Family<'a> {
+    /// The layer raster.
+    pub raster: &'a Lazy<Raster>,
+    /// Its normal variant.
+    pub raster_normal: &'a Lazy<Raster>,
+    /// The atlas clear.
+    pub clear: &'a Lazy<Raster>,
+    /// The fused channel passes.
+    pub fused: &'a Fused,
+    /// The compose.
+    pub compose: &'a Lazy<Kernel>,
 }
 
 /// What builds the pipelines: the device and, where the backend keeps one, the pipeline cache
@@ -765,8 +801,8 @@ fn pelt_step(device: &Builder) -> Kernel {
     Kernel::new(device, "pelt_step", &step)
 }
 
-/// `atlas_clear`: clears the layer raster's targets inside the scissor.
-fn atlas_clear(device: &Builder, format: wgpu::TextureFormat) -> Raster {
+/// `atlas_clear`: clears the layer raster's targets inside the scissor (`samples` a pixel).
+fn atlas_clear(device: &Builder, format: wgpu::TextureFormat, samples: u32) -> Raster {
     raster(
         device,
         "atlas_clear",
@@ -775,8 +811,104 @@ fn atlas_clear(device: &Builder, format: wgpu::TextureFormat) -> Raster {
         &[],
         &[Some(format.into()), Some(COVERAGE_FORMAT.into())],
         None,
-        1,
+        samples,
     )
+}
+
+/// `compose`'s bindings.
+const COMPOSE_BINDS: [(u32, Bind); 6] = [
+    (0, Bind::Params),
+    (1, Bind::Tex(false)),
+    (2, Bind::Tex(false)),
+    (3, Bind::Rw),
+    (10, Bind::Rw),
+    (11, Bind::Rw),
+];
+
+/// The layer raster family at four samples a pixel: adaptive supersampling, where the raster runs
+/// once a pixel and triangle (`// MSAA: ` lines of `wgsl/bake/layer_raster.wgsl` and
+/// `wgsl/bake/compose.wgsl`). Taken for jobs of four samples a texel where the device holds the
+/// targets ([`Pipelines::msaa_ok`]; `Engine::adaptive_sampling`).
+pub struct Msaa {
+    /// `layer_raster`'s adaptive variant.
+    pub raster: Lazy<Raster>,
+    /// Its normal variant.
+    pub raster_normal: Lazy<Raster>,
+    /// `atlas_clear` at four samples.
+    pub clear: Lazy<Raster>,
+    /// The fused channel passes at four samples.
+    pub fused: Fused,
+    /// `compose` reading multisampled attachments.
+    pub compose: Lazy<Kernel>,
+    /// `island_raster` at four samples: the islands at the adaptive raster's samples.
+    pub island_raster: Lazy<Raster>,
+    /// `island_mask` reading them.
+    pub island_mask: Lazy<Kernel>,
+}
+
+impl Msaa {
+    fn new(b: &Arc<Builder>, format: wgpu::TextureFormat, blending: bool) -> Self {
+        Self {
+            raster: Lazy::new(b, "layer_raster_msaa", move |d| {
+                layer_raster(d, format, blending, (false, 4))
+            }),
+            raster_normal: Lazy::new(b, "layer_raster_normal_msaa", move |d| {
+                layer_raster(d, format, blending, (true, 4))
+            }),
+            clear: Lazy::new(b, "atlas_clear_msaa", move |d| atlas_clear(d, format, 4)),
+            fused: Fused::new(b, format, blending, 4),
+            compose: Lazy::new(b, "compose_msaa", |d| {
+                let binds = multisampled_binds(&COMPOSE_BINDS);
+                let text = shaders::msaa_kernel_source("compose", false);
+                Kernel::with_source(d, "compose_msaa", &binds, Some(text))
+            }),
+            island_raster: Lazy::new(b, "island_raster_msaa", |d| island_raster_at(d, 4)),
+            island_mask: Lazy::new(b, "island_mask_msaa", |d| {
+                let binds = multisampled_binds(&ISLAND_MASK_BINDS);
+                let text = shaders::msaa_kernel_source("island_mask", false);
+                Kernel::with_source(d, "island_mask_msaa", &binds, Some(text))
+            }),
+        }
+    }
+}
+
+/// `binds` with every texture multisampled.
+fn multisampled_binds(binds: &[(u32, Bind)]) -> Vec<(u32, Bind)> {
+    binds
+        .iter()
+        .map(|&(k, b)| match b {
+            Bind::Tex(_) => (k, Bind::TexMs),
+            b => (k, b),
+        })
+        .collect()
+}
+
+/// Whether the device renders four samples a pixel into `format` and `COVERAGE_FORMAT` targets
+/// that shaders read (`Rgba32Float` needs the adapter's own format features), asked with 1 × 1
+/// textures as [`layer_target`] does.
+fn multisampled(device: &wgpu::Device, format: wgpu::TextureFormat) -> bool {
+    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let probes = [format, COVERAGE_FORMAT].map(|f| {
+        device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("decalbake.multisample_probe"),
+            size: wgpu::Extent3d {
+                width: 1,
+                height: 1,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 4,
+            dimension: wgpu::TextureDimension::D2,
+            format: f,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        })
+    });
+    let refused = pollster::block_on(scope.pop()).is_some();
+    for p in probes {
+        p.destroy();
+    }
+    !refused
 }
 
 /// The fused channel passes' pipelines (`bake/compose.rs`): per set of PBR channel groups (bit 0
@@ -792,8 +924,8 @@ pub struct Fused {
     pub compose: Lazy<Kernel>,
 }
 
-/// Names of the fused pipelines per set of channel groups.
-const FUSED_RASTER: [&str; 7] = [
+/// Names of the fused pipelines per set of channel groups (then the same at four samples).
+const FUSED_RASTER: [&str; 14] = [
     "layer_raster_fused_1",
     "layer_raster_fused_2",
     "layer_raster_fused_3",
@@ -801,9 +933,16 @@ const FUSED_RASTER: [&str; 7] = [
     "layer_raster_fused_5",
     "layer_raster_fused_6",
     "layer_raster_fused_7",
+    "layer_raster_fused_msaa_1",
+    "layer_raster_fused_msaa_2",
+    "layer_raster_fused_msaa_3",
+    "layer_raster_fused_msaa_4",
+    "layer_raster_fused_msaa_5",
+    "layer_raster_fused_msaa_6",
+    "layer_raster_fused_msaa_7",
 ];
 /// See [`FUSED_RASTER`].
-const FUSED_CLEAR: [&str; 7] = [
+const FUSED_CLEAR: [&str; 14] = [
     "atlas_clear_fused_1",
     "atlas_clear_fused_2",
     "atlas_clear_fused_3",
@@ -811,23 +950,34 @@ const FUSED_CLEAR: [&str; 7] = [
     "atlas_clear_fused_5",
     "atlas_clear_fused_6",
     "atlas_clear_fused_7",
+    "atlas_clear_fused_msaa_1",
+    "atlas_clear_fused_msaa_2",
+    "atlas_clear_fused_msaa_3",
+    "atlas_clear_fused_msaa_4",
+    "atlas_clear_fused_msaa_5",
+    "atlas_clear_fused_msaa_6",
+    "atlas_clear_fused_msaa_7",
 ];
 
 impl Fused {
-    fn new(b: &Arc<Builder>, format: wgpu::TextureFormat, blending: bool) -> Self {
+    /// The family at `samples` a pixel (1, or 4: [`Msaa`]).
+    fn new(b: &Arc<Builder>, format: wgpu::TextureFormat, blending: bool, samples: u32) -> Self {
         use Bind::*;
+        let named = move |k: usize| k + if samples > 1 { 7 } else { 0 };
         Self {
             raster: std::array::from_fn(|k| {
                 let bits = k as u32 + 1;
-                Lazy::new(b, FUSED_RASTER[k], move |d| {
-                    fused_raster(d, format, blending, bits)
+                Lazy::new(b, FUSED_RASTER[named(k)], move |d| {
+                    fused_raster(d, format, blending, (bits, samples))
                 })
             }),
             clear: std::array::from_fn(|k| {
                 let bits = k as u32 + 1;
-                Lazy::new(b, FUSED_CLEAR[k], move |d| fused_clear(d, format, bits))
+                Lazy::new(b, FUSED_CLEAR[named(k)], move |d| {
+                    fused_clear(d, format, (bits, samples))
+                })
             }),
-            compose: Lazy::new(b, "compose_fused", |d| {
+            compose: Lazy::new(b, FUSED_COMPOSE[named(0) / 7], move |d| {
                 let binds = [
                     (0, Params),
                     (1, Tex(false)),
@@ -846,8 +996,17 @@ impl Fused {
                     (17, Rw),
                     (18, Ro),
                 ];
-                let text = shaders::fused_kernel_source("compose");
-                Kernel::with_source(d, "compose_fused", &binds, Some(text))
+                let name = FUSED_COMPOSE[named(0) / 7];
+                match samples {
+                    1 => {
+                        let text = shaders::fused_kernel_source("compose");
+                        Kernel::with_source(d, name, &binds, Some(text))
+                    }
+                    _ => {
+                        let text = shaders::msaa_kernel_source("compose", true);
+                        Kernel::with_source(d, name, &multisampled_binds(&binds), Some(text))
+                    }
+                }
             }),
         }
     }
@@ -887,9 +1046,16 @@ fn fused_targets(
     targets
 }
 
-/// `atlas_clear`'s fused variant for the channel groups `bits`.
-fn fused_clear(device: &Builder, format: wgpu::TextureFormat, bits: u32) -> Raster {
-    let name = FUSED_CLEAR[bits as usize - 1];
+/// See [`FUSED_RASTER`].
+const FUSED_COMPOSE: [&str; 2] = ["compose_fused", "compose_fused_msaa"];
+
+/// `atlas_clear`'s fused variant for the channel groups `bits`, at `samples` a pixel.
+fn fused_clear(
+    device: &Builder,
+    format: wgpu::TextureFormat,
+    (bits, samples): (u32, u32),
+) -> Raster {
+    let name = FUSED_CLEAR[bits as usize - 1 + if samples > 1 { 7 } else { 0 }];
     raster(
         device,
         name,
@@ -898,29 +1064,35 @@ fn fused_clear(device: &Builder, format: wgpu::TextureFormat, bits: u32) -> Rast
         &[],
         &fused_targets(format, (None, COVERAGE_FORMAT.into()), bits),
         None,
-        1,
+        samples,
     )
 }
 
-/// `layer_raster`'s fused variant for the channel groups `bits` (see [`Fused`]).
+/// `layer_raster`'s fused variant for the channel groups `bits` at `samples` a pixel (see
+/// [`Fused`]).
 fn fused_raster(
     device: &Builder,
     format: wgpu::TextureFormat,
     blending: bool,
-    bits: u32,
+    (bits, samples): (u32, u32),
 ) -> Raster {
     use Bind::*;
     let binds: Vec<(u32, Bind)> = raster_binds()
         .chain(FRAME_BINDS)
         .chain([(14, Tex(true)), (15, Tex(true)), (16, Tex(true))])
         .collect();
-    let name = FUSED_RASTER[bits as usize - 1];
+    let name = FUSED_RASTER[bits as usize - 1 + if samples > 1 { 7 } else { 0 }];
     let layer_layout = layout(device, name, &binds, wgpu::ShaderStages::VERTEX_FRAGMENT);
     let clipped = device.features().contains(wgpu::Features::CLIP_DISTANCES);
+    let text = shaders::fused_source(clipped);
     raster(
         device,
         name,
-        Some(shaders::fused_source(clipped)),
+        Some(if samples > 1 {
+            shaders::msaa_source(text)
+        } else {
+            text
+        }),
         layer_layout,
         &[],
         &fused_targets(
@@ -929,7 +1101,7 @@ fn fused_raster(
             bits,
         ),
         None,
-        1,
+        samples,
     )
 }
 
@@ -994,20 +1166,22 @@ fn raster_binds() -> impl Iterator<Item = (u32, Bind)> {
     ])
 }
 
-/// `layer_raster` into `format` targets (see [`layer_target`]), blending premultiplied
-/// source-over where `blending`. `normal`: its normal variant (`shaders::normal_source`).
+/// `layer_raster` into `format` targets (see [`layer_target`]) of `samples` a pixel (4: its
+/// adaptive variant, `shaders::msaa_source`), blending premultiplied source-over where
+/// `blending`. `normal`: its normal variant (`shaders::normal_source`).
 fn layer_raster(
     device: &Builder,
     format: wgpu::TextureFormat,
     blending: bool,
-    normal: bool,
+    (normal, samples): (bool, u32),
 ) -> Raster {
     let extra: &[(u32, Bind)] = if normal { &FRAME_BINDS } else { &[] };
     let binds: Vec<(u32, Bind)> = raster_binds().chain(extra.iter().copied()).collect();
-    let name = if normal {
-        "layer_raster_normal"
-    } else {
-        "layer_raster"
+    let name = match (normal, samples > 1) {
+        (false, false) => "layer_raster",
+        (true, false) => "layer_raster_normal",
+        (false, true) => "layer_raster_msaa",
+        (true, true) => "layer_raster_normal_msaa",
     };
     let layer_layout = layout(device, name, &binds, wgpu::ShaderStages::VERTEX_FRAGMENT);
     // Triangles clipped to their layer's image and a margin where the device clips
@@ -1016,6 +1190,12 @@ fn layer_raster(
     let text = match normal {
         true => Some(shaders::normal_source(clipped)),
         false => clipped.then(|| shaders::clipped_source("layer_raster")),
+    };
+    let text = match samples {
+        1 => text,
+        _ => Some(shaders::msaa_source(
+            text.unwrap_or_else(|| shaders::source("layer_raster")),
+        )),
     };
     raster(
         device,
@@ -1032,7 +1212,7 @@ fn layer_raster(
             Some(coverage_target()),
         ],
         None,
-        1,
+        samples,
     )
 }
 
@@ -1058,6 +1238,19 @@ fn flatten_raster(device: &Builder, format: wgpu::TextureFormat) -> Raster {
 
 /// `island_raster`: island coverage at the texture's samples.
 fn island_raster(device: &Builder) -> Raster {
+    island_raster_at(device, 1)
+}
+
+/// `island_mask`'s bindings.
+const ISLAND_MASK_BINDS: [(u32, Bind); 4] = [
+    (0, Bind::Params),
+    (1, Bind::Tex(false)),
+    (2, Bind::Rw),
+    (3, Bind::Rw),
+];
+
+/// `island_raster` into a coverage target of `samples` a pixel.
+fn island_raster_at(device: &Builder, samples: u32) -> Raster {
     use Bind::*;
     let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
     let island_layout = layout(
@@ -1074,7 +1267,7 @@ fn island_raster(device: &Builder) -> Raster {
         &[],
         &[Some(COVERAGE_FORMAT.into())],
         None,
-        1,
+        samples,
     )
 }
 

@@ -311,6 +311,33 @@ pub fn fused_kernel_source(name: &str) -> String {
     text.replace("// FUSED: ", "")
 }
 
+/// The adaptive-supersampling variant of a layer raster source (`text`: `layer_raster` as any of
+/// the functions above make it): its `// MSAA: ` lines live. It draws into targets of four samples
+/// a pixel, once a pixel and triangle (`wgsl/bake/layer_raster.wgsl`).
+pub fn msaa_source(text: String) -> String {
+    assert!(
+        text.contains("// MSAA: "),
+        "layer_raster has no `// MSAA: ` lines"
+    );
+    text.replace("// MSAA: ", "")
+}
+
+/// `compose` (its fused variant where `fused`) reading the adaptive raster's multisampled
+/// attachments: its `// MSAA: ` lines live and every `texture_2d<f32>` multisampled (the kernel
+/// binds no other texture).
+pub fn msaa_kernel_source(name: &str, fused: bool) -> String {
+    let text = match fused {
+        true => fused_kernel_source(name),
+        false => source(name),
+    };
+    assert!(
+        text.contains("// MSAA: "),
+        "{name} has no `// MSAA: ` lines"
+    );
+    text.replace("// MSAA: ", "")
+        .replace("texture_2d<f32>", "texture_multisampled_2d<f32>")
+}
+
 /// Creates a shader module for kernel `name`.
 pub fn module(device: &wgpu::Device, name: &str) -> wgpu::ShaderModule {
     module_from(device, name, source(name))

@@ -12,6 +12,7 @@
 //! | `texture.base` | `"material"` (the material's base-colour texture; its factor as a solid colour if it has none; mid grey without a material); also an image path, a linear RGBA colour, or `{"transfer": {"from_uv_set": N, "image": "material" or a path}}` |
 //! | `texture.padding` | `16` texels (`"full"` fills the whole background) |
 //! | `texture.samples` | `4` (2×2 supersampling; 1, 4, 9 or 16) |
+//! | `texture.sampling` | `"full"` (the raster runs once a sample); `"adaptive"`: with four samples, once a texel and triangle where the device holds four-sample targets |
 //! | `texture.tile` | none: tiles of the largest power-of-two side that fits one storage buffer, only when the whole texture does not; or a multiple of 64 |
 //! | layer `kind` | `"decal"` |
 //! | layer `mask` | none |
@@ -75,6 +76,19 @@ fn max_memory(spec: Option<&MemorySpec>, src: &Path) -> Result<Option<u64>> {
                 "\"{t}\" is not a size: give bytes, or a number with a unit (\"512MiB\", \"2GB\")"
             ))
         }),
+    }
+}
+
+/// `texture.sampling`: whether four samples a texel are drawn adaptively (not by default).
+fn sampling(t: &TextureSpec, src: &Path) -> Result<bool> {
+    match t.sampling.as_deref() {
+        Some("adaptive") => Ok(true),
+        None | Some("full") => Ok(false),
+        Some(other) => Err(Error::job(
+            src,
+            "texture.sampling",
+            format!("\"{other}\" is not a sampling; use \"adaptive\" or \"full\""),
+        )),
     }
 }
 
@@ -172,6 +186,11 @@ pub struct TextureSpec {
     #[serde(default = "default_samples")]
     #[schemars(extend("enum" = [1, 4, 9, 16]))]
     pub samples: u32,
+    /// How four samples a texel are drawn: `"full"` (once a sample; the default) or `"adaptive"`
+    /// (once a texel and triangle, written to the samples it covers).
+    #[serde(default)]
+    #[schemars(extend("enum" = ["adaptive", "full"]))]
+    pub sampling: Option<String>,
     /// Bake by tiles of this many texels a side (a multiple of 64); default: tiles only when the
     /// texture does not fit one storage buffer of the device.
     #[serde(default)]
@@ -223,6 +242,7 @@ impl Default for TextureSpec {
             base: BaseSpec::default(),
             padding: PaddingSpec::default(),
             samples: default_samples(),
+            sampling: None,
             tile: None,
             sets: Default::default(),
         }
@@ -797,6 +817,9 @@ pub struct Job {
     pub padding: Padding,
     /// Supersampling factor per axis (sqrt of samples).
     pub ss: u32,
+    /// `texture.sampling`: four samples drawn once a texel and triangle (true) or once a sample
+    /// (false, the default).
+    pub adaptive: bool,
     /// `texture.tile`: bake by tiles of this side (a multiple of 64).
     pub tile: Option<u32>,
     /// Layers.
@@ -818,6 +841,13 @@ pub struct Job {
 }
 
 impl Job {
+    /// Whether the bake draws its layers at four samples a pixel, once a texel and triangle
+    /// (`texture.sampling` adaptive with four samples a texel), where the device holds the
+    /// targets (`crate::Engine::adaptive_sampling`); the CPU twin follows this.
+    pub fn adaptive_sampling(&self) -> bool {
+        self.adaptive && self.ss == 2
+    }
+
     /// The PBR channel groups the layers paint, as bits
     /// ([`crate::io::channels::ChannelKind::slot`]).
     pub fn channel_groups(&self) -> u32 {
@@ -1160,6 +1190,7 @@ impl Job {
             base,
             padding,
             ss,
+            adaptive: sampling(t, src)?,
             tile: t.tile,
             layers,
             out_texture: out(&f.output.texture),

@@ -34,6 +34,24 @@
 // FUSED:
 // Written out per group, without arrays indexed at run time (llvmpipe keeps those in memory).
 
+// The adaptive variant (`// MSAA: ` lines live and every texture multisampled;
+// `gpu::shaders::msaa_kernel_source`) reads the raster's four samples of a texel from its pixel
+// (layer_raster.wgsl's adaptive variant), where the grid's sit on an ss x ss block of pixels.
+
+// Where sample `s` of texel `t` of this raster job lies in the atlas target, and the index
+// textureLoad takes with it (a mip level, 0; the adaptive variant's sample index).
+fn sample_point(t: vec2<u32>, s: u32) -> vec2<i32> {
+    var p = params.atlas_origin + t * params.ss + vec2<u32>(s % params.ss, s / params.ss);
+    // MSAA: p = params.atlas_origin + t;
+    return vec2<i32>(p);
+}
+
+fn sample_arg(s: u32) -> u32 {
+    var a = 0u;
+    // MSAA: a = s;
+    return a;
+}
+
 // A live bake's edit (src/bake/live.rs): only the texels of the cells marked in the stats buffer's
 // last row (laid out as a layer's cell mask) are composed; the rest of the canvas is already baked.
 const FLAG_DIRTY: u32 = 2048u;
@@ -56,20 +74,19 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     // FUSED: var s0 = vec4<f32>(0.0);
     // FUSED: var s1 = vec4<f32>(0.0);
     // FUSED: var s2 = vec4<f32>(0.0);
-    for (var j = 0u; j < params.ss; j++) {
-        for (var i = 0u; i < params.ss; i++) {
-            let p = vec2<i32>(params.atlas_origin + gid.xy * params.ss + vec2<u32>(i, j));
-            let cov = textureLoad(layer_cov, p, 0).r;
-            if (cov > 0.5) {
-                n += 1.0;
-                // Covered only outside the layer's image (layer_raster.wgsl, COVERED_OUTSIDE):
-                // every attachment holds zeros there, which add nothing.
-                if (cov > 0.8) {
-                    sum += textureLoad(layer_color, p, 0);
-                    // FUSED: if ((bits & 1u) != 0u) { s0 += textureLoad(orm_color, p, 0); }
-                    // FUSED: if ((bits & 2u) != 0u) { s1 += textureLoad(nrm_color, p, 0); }
-                    // FUSED: if ((bits & 4u) != 0u) { s2 += textureLoad(emissive_color, p, 0); }
-                }
+    for (var s = 0u; s < params.ss * params.ss; s++) {
+        let p = sample_point(gid.xy, s);
+        let q = sample_arg(s);
+        let cov = textureLoad(layer_cov, p, q).r;
+        if (cov > 0.5) {
+            n += 1.0;
+            // Covered only outside the layer's image (layer_raster.wgsl, COVERED_OUTSIDE):
+            // every attachment holds zeros there, which add nothing.
+            if (cov > 0.8) {
+                sum += textureLoad(layer_color, p, q);
+                // FUSED: if ((bits & 1u) != 0u) { s0 += textureLoad(orm_color, p, q); }
+                // FUSED: if ((bits & 2u) != 0u) { s1 += textureLoad(nrm_color, p, q); }
+                // FUSED: if ((bits & 4u) != 0u) { s2 += textureLoad(emissive_color, p, q); }
             }
         }
     }

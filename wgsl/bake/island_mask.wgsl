@@ -15,11 +15,14 @@
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= params.rect_size.x || gid.y >= params.rect_size.y) { return; }
     var any = false;
-    for (var j = 0u; j < params.ss; j++) {
-        for (var i = 0u; i < params.ss; i++) {
-            let p = vec2<i32>(gid.xy * params.ss + vec2<u32>(i, j));
-            any = any || textureLoad(cov, p, 0).r > 0.5;
-        }
+    for (var s = 0u; s < params.ss * params.ss; s++) {
+        var p = gid.xy * params.ss + vec2<u32>(s % params.ss, s / params.ss);
+        var q = 0u;
+        // The adaptive bake's variant (`gpu::shaders::msaa_kernel_source`): the texel's four
+        // samples in its pixel, as the adaptive layer raster draws them.
+        // MSAA: p = gid.xy;
+        // MSAA: q = s;
+        any = any || textureLoad(cov, vec2<i32>(p), q).r > 0.5;
     }
     if (any) {
         let idx = win_index(vec2<i32>(gid.xy) + params.rect_origin);

@@ -25,6 +25,17 @@
 // occlusion-roughness-metallic, normal and emissive images, sampled at the same point, masked by
 // the same mask and weighted by each channel's opacity (`draws[params.draw.x]`), each the value
 // the separate channel pass would write (src/bake/compose.rs; `tests/channels.rs` compares them).
+// The adaptive variant (`// MSAA: ` lines live; `gpu::shaders::msaa_source`) draws into targets
+// of one pixel a texel with four samples each (the standard 4-sample pattern, SAMPLE_POS), and
+// runs once a pixel and triangle instead of once a sample: the layer is evaluated at the texel's
+// centre (the triangle's map extrapolated where the centre lies outside it; clamped to the
+// image), at the mip level of the 2 x 2 grid (derivatives / ss), and written to the samples the triangle covers
+// weighted by the share of them inside the image (`image_share`), so that the compose's average
+// over covered samples keeps the image's edge anti-aliased. Where the four samples would read
+// the same value (inside a triangle and the image, a magnified image) the texel is the grid's;
+// elsewhere it differs by what one sample at the centre differs from four around it
+// (docs/performance.md, "Adaptive supersampling"). CPU twin: `LayerRaster::adaptive` in
+// src/bake/cpu.rs.
 // Non-indexed draw of 3 * (triangles in the layer's list) vertices.
 // CPU twin: `LayerRaster` in src/bake/cpu.rs.
 #import params
@@ -104,6 +115,46 @@ fn warp_jacobian(p: vec2<f32>) -> mat2x2<f32> {
         j += mat2x2<f32>(c.zw * g.x, c.zw * g.y);
     }
     return j;
+}
+
+// The adaptive variant: where the four samples of a pixel sit (WebGPU's and Vulkan's standard
+// pattern; keep in sync with `SAMPLE_POS` in src/bake/cpu.rs).
+const SAMPLE_POS = array<vec2<f32>, 4>(vec2<f32>(0.375, 0.125), vec2<f32>(0.875, 0.375),
+                                       vec2<f32>(0.125, 0.625), vec2<f32>(0.625, 0.875));
+
+// The image point of the layer's coordinates `u` as the fragment stage maps them (a cone chart's
+// opened), before tiling and warping.
+fn image_of(u: vec2<f32>) -> vec2<f32> {
+    if ((params.flags & FLAG_CONE) != 0u) {
+        let z = cone_apply(params.cone_a, params.cone_b, u);
+        return vec2<f32>(z.x / params.axis_u.w + 0.5, 0.5 - z.y / params.axis_v.w);
+    }
+    return u;
+}
+
+// The adaptive variant: of the samples `covered` (the fragment's sample mask), the share whose
+// image point lies in the image (and, for a warped layer, whose warped point does). `u`, `ux`,
+// `uy`: the layer's coordinates at the pixel centre and their derivatives (affine on a triangle,
+// so exact at each sample).
+fn image_share(covered: u32, u: vec2<f32>, ux: vec2<f32>, uy: vec2<f32>) -> f32 {
+    var k = 0.0;
+    var m = 0.0;
+    for (var i = 0u; i < 4u; i++) {
+        if (((covered >> i) & 1u) == 0u) { continue; }
+        k += 1.0;
+        let o = SAMPLE_POS[i] - 0.5;
+        let p = image_of(u + ux * o.x + uy * o.y);
+        var inside = in_image(p);
+        if ((params.flags & FLAG_WARP) != 0u) {
+            var w = p;
+            if ((params.flags & FLAG_REPEAT) != 0u) {
+                w.x = fract(p.x * params.cone_a.w);
+            }
+            inside = inside && in_image(warp_apply(w));
+        }
+        m += select(0.0, 1.0, inside);
+    }
+    return select(0.0, m / k, k > 0.0);
 }
 
 // Coverage of a sample drawn only outside the layer's image (an R8Unorm target: 153/255).
@@ -216,6 +267,7 @@ struct FsIn {
     // NORMAL: @location(1) wpos: vec3<f32>,
     // NORMAL: @location(2) wnrm: vec3<f32>,
     // NORMAL: @location(3) wtan: vec4<f32>,
+    // MSAA: @builtin(sample_mask) covered: u32,
 }
 
 // A decal normal `c` (premultiplied, encoded n * 0.5 + 0.5, in the decal's frame) turned into the
@@ -268,11 +320,9 @@ fn masked(c: vec4<f32>, img: vec2<f32>, gx: vec2<f32>, gy: vec2<f32>) -> vec4<f3
 
 @fragment
 fn fs_main(in: FsIn) -> FsOut {
-    var img = in.img;
-    if ((params.flags & FLAG_CONE) != 0u) {
-        let z = cone_apply(params.cone_a, params.cone_b, in.img);
-        img = vec2<f32>(z.x / params.axis_u.w + 0.5, 0.5 - z.y / params.axis_v.w);
-    }
+    var img = image_of(in.img);
+    // MSAA: let ux = dpdx(in.img);
+    // MSAA: let uy = dpdy(in.img);
     // A tiled ribbon wraps x into one copy of the image; the mip level comes from the unwrapped
     // coordinate's derivatives (the wrapped one jumps at each copy's edge). A warped image's
     // derivatives go through the spline's Jacobian: on lavapipe the implicit derivatives of T(img)
@@ -283,21 +333,30 @@ fn fs_main(in: FsIn) -> FsOut {
     let unwrapped = img * vec2<f32>(select(1.0, params.cone_a.w, repeat), 1.0);
     var gx = dpdx(unwrapped);
     var gy = dpdy(unwrapped);
+    // One pixel a texel: the 2 x 2 grid's mip level.
+    // MSAA: gx = gx / f32(params.ss);
+    // MSAA: gy = gy / f32(params.ss);
+    // The texel's centre (the triangle's map extrapolated where the centre lies outside it),
+    // clamped into the image.
+    // MSAA: img = clamp(img, vec2<f32>(0.0), vec2<f32>(0.99999994));
     // NORMAL: let dpx = dpdx(in.wpos);
     // NORMAL: let dpy = dpdy(in.wpos);
     var inside = in_image(img);
     // Where the stamp's flat image (FLAG_TOOL) is read: its cell is laid out unwarped.
     let flat_img = img;
     if (repeat) {
-        img.x = fract(unwrapped.x);
+        img.x = fract(img.x * params.cone_a.w);
     }
     if (warped) {
-        let j = warp_jacobian(img);
-        gx = j * gx;
-        gy = j * gy;
+        let wj = warp_jacobian(img);
+        gx = wj * gx;
+        gy = wj * gy;
         img = warp_apply(img);
         inside = inside && in_image(img);
     }
+    var share = 1.0;
+    // MSAA: share = image_share(in.covered, in.img, ux, uy);
+    // MSAA: inside = share > 0.0;
     var o: FsOut;
     o.coverage = vec4<f32>(1.0);
     // A sample outside the image is covered but transparent, and samples nothing: on a decal's
@@ -322,22 +381,22 @@ fn fs_main(in: FsIn) -> FsOut {
     }
     // NORMAL PASS: let dx = (params.flags & FLAG_NORMAL_DX) != 0u;
     // NORMAL PASS: c = to_tangent_space(c, dx, dpx, dpy, gx, gy, in.wnrm, in.wtan);
-    o.color = c * params.opacity;
+    o.color = c * params.opacity * share;
     // FUSED: let bits = draws[params.draw.x].bits;
     // FUSED: let opacity = draws[params.draw.x].opacity;
     // FUSED: if ((bits.z & 1u) != 0u) {
-    // FUSED:     o.orm = constant_channel(draws[params.draw.x].value[0], c) * opacity.x;
+    // FUSED:     o.orm = constant_channel(draws[params.draw.x].value[0], c) * opacity.x * share;
     // FUSED: } else if ((bits.x & 1u) != 0u) {
-    // FUSED:     o.orm = masked(textureSampleGrad(orm_image, samp, img, gx, gy), img, gx, gy) * opacity.x;
+    // FUSED:     o.orm = masked(textureSampleGrad(orm_image, samp, img, gx, gy), img, gx, gy) * opacity.x * share;
     // FUSED: }
     // FUSED: if ((bits.x & 2u) != 0u) {
     // FUSED:     let n = masked(textureSampleGrad(normal_image, samp, img, gx, gy), img, gx, gy);
-    // FUSED:     o.nrm = to_tangent_space(n, bits.y != 0u, dpx, dpy, gx, gy, in.wnrm, in.wtan) * opacity.y;
+    // FUSED:     o.nrm = to_tangent_space(n, bits.y != 0u, dpx, dpy, gx, gy, in.wnrm, in.wtan) * opacity.y * share;
     // FUSED: }
     // FUSED: if ((bits.z & 4u) != 0u) {
-    // FUSED:     o.emissive = constant_channel(draws[params.draw.x].value[2], c) * opacity.z;
+    // FUSED:     o.emissive = constant_channel(draws[params.draw.x].value[2], c) * opacity.z * share;
     // FUSED: } else if ((bits.x & 4u) != 0u) {
-    // FUSED:     o.emissive = masked(textureSampleGrad(emissive_image, samp, img, gx, gy), img, gx, gy) * opacity.z;
+    // FUSED:     o.emissive = masked(textureSampleGrad(emissive_image, samp, img, gx, gy), img, gx, gy) * opacity.z * share;
     // FUSED: }
     return o;
 }

@@ -37,6 +37,8 @@ pub struct BenchOptions {
     /// Geodesic benchmark: `../shared/peers`, to time potpourri3d's log maps on the same meshes and
     /// seed vertices in the same run.
     pub peers: Option<PathBuf>,
+    /// Bake with `texture.sampling` adaptive (four samples a pixel, once a texel and triangle).
+    pub adaptive: bool,
 }
 
 /// Runs the benchmark, calling `emit` with one JSON object per configuration.
@@ -67,7 +69,8 @@ pub fn run(
     })?;
     for &side in &opts.sizes {
         for &n in &opts.decals {
-            let job = random_job(&loaded, n, side, &dir, 7 + n as u32, &opts.method)?;
+            let mut job = random_job(&loaded, n, side, &dir, 7 + n as u32, &opts.method)?;
+            job.adaptive = opts.adaptive;
             // Cold run: the first bake at a size rasterizes the islands and their distance transform
             // (then cached on the mesh) and compiles pipelines in the driver.
             let t_cold = Instant::now();
@@ -170,6 +173,7 @@ pub fn run(
                 "texels_composed": texels,
                 "composed_texels_per_s": texels as f64 / (compose / 1000.0),
                 "gpu_commands": baked.report.gpu_commands,
+                "sampling": baked.report.paths.sampling,
                 "cpu_twin_compose_ms": cpu_ms,
                 "cpu_twin_over_gpu_compose": cpu_ms.map(|c| c / compose),
                 "png": png_figures(&baked, &dir)?,

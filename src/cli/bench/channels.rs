@@ -37,6 +37,9 @@ pub struct ChannelBenchOptions {
     pub decals: usize,
     /// Timed repetitions per variant (median reported).
     pub reps: usize,
+    /// Both variants with `texture.sampling` adaptive (four samples a pixel, once a texel and
+    /// triangle).
+    pub adaptive: bool,
 }
 
 /// Side of the normal map the bench writes.
@@ -57,6 +60,8 @@ struct Sample {
     textures: Vec<&'static str>,
     /// How the channels were drawn (the report's `paths.channels`).
     channels: &'static str,
+    /// How the layers were sampled (the report's `paths.sampling`).
+    sampling: &'static str,
 }
 
 /// One variant's figures at one size.
@@ -115,7 +120,7 @@ fn run_in(
     table("| size | variant | textures | median s | CPU s | cold s | images ms | placement ms | compose ms | of which canvas + channel images ms | maps + raster + compose ms | padding + encode ms | read-back ms |");
     table("|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for &side in &opts.sizes {
-        let colour = random_job(
+        let mut colour = random_job(
             &mesh,
             opts.decals,
             side,
@@ -123,6 +128,7 @@ fn run_in(
             7 + opts.decals as u32,
             "planar",
         )?;
+        colour.adaptive = opts.adaptive;
         let full = with_channels(&colour, &normal);
         let mut rows = [
             Row {
@@ -189,6 +195,7 @@ fn report_row(
     emit(serde_json::json!({
         "bench": "channels", "side": side, "decals": opts.decals, "variant": row.name,
         "textures": textures, "channels": row.samples[0].channels,
+        "sampling": row.samples[0].sampling,
         "mesh": opts.mesh, "reps": opts.reps.max(1),
         "cold_ms": row.cold_ms, "median_ms": row.med(|s| s.wall_ms),
         "all_ms": row.samples.iter().map(|s| s.wall_ms).collect::<Vec<_>>(),
@@ -247,6 +254,7 @@ fn timed(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> anyhow::Result<Sample
         chunks_ms: between(chunks, padding),
         textures: baked.channels.iter().map(|c| c.kind.name()).collect(),
         channels: baked.report.paths.channels,
+        sampling: baked.report.paths.sampling,
         timings: baked.report.timings,
     })
 }
