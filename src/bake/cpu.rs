@@ -6,7 +6,8 @@
 //! `(x + (i + 0.5) / ss, y + (j + 0.5) / ss)` in texel units; a job drawn adaptively
 //! ([`Job::adaptive_sampling`]) has the four samples of [`SAMPLE_POS`] and evaluates each layer
 //! once a texel and triangle, as `layer_raster`'s adaptive variant does
-//! ([`LayerRaster::sample_adaptive`]). Decal images are sampled bilinearly on
+//! (`LayerRaster::sample_adaptive`). The twin follows the job, not the device: on a device without
+//! four-sample targets the GPU draws the full pattern where the twin models the adaptive one. Decal images are sampled bilinearly on
 //! mip level 0 with clamp-to-edge; the GPU picks a coarser level when a decal is minified, so
 //! comparisons against this twin use magnified decals (see `tests/compose_vs_cpu.rs`).
 

@@ -849,8 +849,10 @@ impl Engine {
     /// for it ([`Job::adaptive_sampling`]: four samples a texel, `texture.sampling` not `"full"`)
     /// and the device holds four-sample targets of the layer format
     /// ([`crate::gpu::pipelines::Pipelines::msaa_ok`]). Otherwise once a sample, on the grid.
+    /// wgpu's GL backend is left out: its shaders' sample mask input needs an extension the
+    /// textures' probe does not ask about.
     pub(crate) fn adaptive_sampling(&self, job: &Job) -> bool {
-        job.adaptive_sampling() && self.pipes.msaa_ok
+        job.adaptive_sampling() && self.pipes.msaa_ok && self.ctx.backend != Some(wgpu::Backend::Gl)
     }
 
     /// Whether `job`'s PBR channel groups are drawn beside its colour in one pass
@@ -1215,10 +1217,14 @@ pub struct Islands {
 fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
     use crate::io::job::{LayerKind, Method};
     let p = &engine.pipes;
+    let (island_raster, island_mask) = match engine.adaptive_sampling(job) {
+        true => (&p.msaa.island_raster, &p.msaa.island_mask),
+        false => (&p.island_raster, &p.island_mask),
+    };
     let mut list: Vec<&dyn Prepare> = vec![
         &p.base_init,
-        &p.island_raster,
-        &p.island_mask,
+        island_raster,
+        island_mask,
         &p.encode,
         &p.edt_columns,
         &p.edt_rows,

@@ -34,7 +34,7 @@
 // over covered samples keeps the image's edge anti-aliased. Where the four samples would read
 // the same value (inside a triangle and the image, a magnified image) the texel is the grid's;
 // elsewhere it differs by what one sample at the centre differs from four around it
-// (docs/performance.md, "Adaptive supersampling"). CPU twin: `LayerRaster::adaptive` in
+// (docs/performance.md, "Adaptive supersampling"). CPU twin: `LayerRaster::sample_adaptive` in
 // src/bake/cpu.rs.
 // Non-indexed draw of 3 * (triangles in the layer's list) vertices.
 // CPU twin: `LayerRaster` in src/bake/cpu.rs.
