@@ -367,7 +367,7 @@ fn a_bake_builds_only_the_pipelines_it_runs_and_preparing_them_changes_no_byte()
     let mesh = lazy.load_mesh(&job.mesh).unwrap();
     let plain = lazy.bake(&mesh, &job).unwrap();
     let built = p.builder.spent().1;
-    assert!(p.compose.is_built() && p.layer_raster.is_built() && p.planar_coords.is_built());
+    assert!(p.grid.compose.is_built() && p.grid.raster.is_built() && p.planar_coords.is_built());
     assert!(!p.preview.is_built(), "no preview asked");
     assert!(
         !p.expmap_relax.is_built() && !p.cg_batched.is_built(),
@@ -380,7 +380,7 @@ fn a_bake_builds_only_the_pipelines_it_runs_and_preparing_them_changes_no_byte()
     let eager = engine();
     eager.prepare_for(&job);
     let q = eager.pipelines();
-    assert!(q.compose.is_built() && q.encode.is_built() && q.planar_coords.is_built());
+    assert!(q.grid.compose.is_built() && q.encode.is_built() && q.planar_coords.is_built());
     let mesh = eager.load_mesh(&job.mesh).unwrap();
     let prepared = eager.bake(&mesh, &job).unwrap();
     assert!(plain.texels == prepared.texels, "preparing changes no byte");

@@ -620,7 +620,7 @@ impl Recording<'_> {
                 crate::gpu::render_pass_to(enc, "bake.layer_raster", views, wgpu::LoadOp::Load);
             let bits = self.fused_bits();
             let (clear, raster) = match bits {
-                0 => (pipes.clear, None),
+                0 => (&pipes.clear, None),
                 b => (
                     &pipes.fused.clear[b as usize - 1],
                     Some(&pipes.fused.raster[b as usize - 1]),
@@ -635,8 +635,8 @@ impl Recording<'_> {
             }
             let raster = match (raster, self.pass.map(|p| p.kind)) {
                 (Some(fused), _) => fused,
-                (None, Some(super::channels::ChannelKind::Normal)) => pipes.raster_normal,
-                (None, _) => pipes.raster,
+                (None, Some(super::channels::ChannelKind::Normal)) => &pipes.raster_normal,
+                (None, _) => &pipes.raster,
             };
             pass.set_pipeline(&raster.pipeline);
             for &(k, _) in batch {
@@ -687,7 +687,7 @@ impl Recording<'_> {
         };
         let acc = [self.canvas.acc_rg.clone(), self.canvas.acc_ba.clone()];
         let (bg_canvas, compose) = match self.fused.is_empty() {
-            true => (bind_compose(&acc), pipes.compose),
+            true => (bind_compose(&acc), &pipes.compose),
             false => (
                 self.bind_fused_compose(&tg, &channel_views),
                 &pipes.fused.compose,

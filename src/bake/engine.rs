@@ -1217,14 +1217,11 @@ pub struct Islands {
 fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
     use crate::io::job::{LayerKind, Method};
     let p = &engine.pipes;
-    let (island_raster, island_mask) = match engine.adaptive_sampling(job) {
-        true => (&p.msaa.island_raster, &p.msaa.island_mask),
-        false => (&p.island_raster, &p.island_mask),
-    };
+    let family = p.family(engine.adaptive_sampling(job));
     let mut list: Vec<&dyn Prepare> = vec![
         &p.base_init,
-        island_raster,
-        island_mask,
+        &family.island_raster,
+        &family.island_mask,
         &p.encode,
         &p.edt_columns,
         &p.edt_rows,
@@ -1244,11 +1241,14 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
             &p.compact_lists,
             &p.distortion,
         ]);
-        let family = p.family(engine.adaptive_sampling(job));
         match fused {
-            0 => list.extend([family.raster as &dyn Prepare, family.clear, family.compose]),
+            0 => list.extend([
+                &family.raster as &dyn Prepare,
+                &family.clear,
+                &family.compose,
+            ]),
             g => {
-                let (f, g) = (family.fused, g as usize - 1);
+                let (f, g) = (&family.fused, g as usize - 1);
                 list.extend([&f.raster[g] as &dyn Prepare, &f.clear[g], &f.compose]);
             }
         }
@@ -1275,7 +1275,7 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
         list.push(&p.ribbon_relax);
     }
     if fused == 0 && any(&|l| l.channels.normal.is_some()) {
-        list.push(p.family(engine.adaptive_sampling(job)).raster_normal);
+        list.push(&family.raster_normal);
     }
     if job.out_preview.is_some() {
         list.push(&p.preview);

@@ -200,10 +200,8 @@ impl<'a> Pass<'a> {
         let (dev, pipes, g) = (&self.engine.ctx.device, &self.engine.pipes, &self.mesh.gpu);
         // Target pixels a texel a side, and samples a pixel.
         let (ss, samples) = if self.msaa { (1, 4) } else { (self.ss, 1) };
-        let (raster, mask) = match self.msaa {
-            true => (&pipes.msaa.island_raster, &pipes.msaa.island_mask),
-            false => (&pipes.island_raster, &pipes.island_mask),
-        };
+        let family = pipes.family(self.msaa);
+        let (raster, mask) = (&family.island_raster, &family.island_mask);
         let bg_island = make_bind_group(
             dev,
             &raster.layout,

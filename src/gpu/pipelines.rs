@@ -189,34 +189,21 @@ pub struct Pipelines {
     pub select_triangles: Lazy<Kernel>,
     /// A layer's selection marks into its triangle list, in the tested order.
     pub compact_lists: Lazy<Kernel>,
-    /// Layer raster.
-    pub layer_raster: Lazy<Raster>,
-    /// `layer_raster`'s normal variant (`shaders::normal_source`), same targets, three more
-    /// bindings (split positions, normals, tangents).
-    pub layer_raster_normal: Lazy<Raster>,
-    /// Clears the layer raster's targets inside the scissor (a tile's raster rectangles).
-    pub atlas_clear: Lazy<Raster>,
-    /// The colour and the PBR channel groups drawn and composed in one pass ([`Fused`]).
-    pub fused: Fused,
-    /// The same raster family at four samples a pixel (adaptive supersampling, [`Msaa`]).
-    pub msaa: Msaa,
-    /// Whether the device holds [`Msaa`]'s targets (four samples of the layer format and of the
+    /// The layer raster family on the supersampling grid ([`Layers`]).
+    pub grid: Layers,
+    /// The same family at four samples a pixel (adaptive supersampling).
+    pub msaa: Layers,
+    /// Whether the device holds `msaa`'s targets (four samples of the layer format and of the
     /// coverage format, readable by shaders).
     pub msaa_ok: bool,
     /// Inverse rendering of the canvas into tool stamps' flat space.
     pub stamp_flatten: Lazy<Raster>,
     /// The tools' filters on the flat atlas (blur, smear).
     pub stamp_filter: Lazy<Kernel>,
-    /// Island raster.
-    pub island_raster: Lazy<Raster>,
     /// Texture transfer: the source texture drawn at the baked set's UVs.
     pub transfer_raster: Lazy<Raster>,
     /// Texture transfer: samples averaged into the canvas.
     pub transfer_resolve: Lazy<Kernel>,
-    /// Island mask reduction.
-    pub island_mask: Lazy<Kernel>,
-    /// Layer composition.
-    pub compose: Lazy<Kernel>,
     /// `wgsl/bake/vector_coverage.wgsl`: a flattened SVG drawn by point-sampled coverage (the
     /// alternative to resvg that `decalbake bench --vector` measures; not used by bakes).
     pub vector_coverage: Lazy<Kernel>,
@@ -349,15 +336,8 @@ impl Pipelines {
             pelt_check: kernel("pelt_check", &[(0, Uniform), (1, Rw), (2, Ro)]),
             select_triangles: Lazy::new(b, "select_triangles", select_triangles),
             compact_lists: kernel("compact_lists", &[(0, Params), (1, Ro), (2, Ro), (3, Rw)]),
-            layer_raster: Lazy::new(b, "layer_raster", move |d| {
-                layer_raster(d, layer_format, layer_blending, (false, 1))
-            }),
-            layer_raster_normal: Lazy::new(b, "layer_raster_normal", move |d| {
-                layer_raster(d, layer_format, layer_blending, (true, 1))
-            }),
-            atlas_clear: Lazy::new(b, "atlas_clear", move |d| atlas_clear(d, layer_format, 1)),
-            fused: Fused::new(b, layer_format, layer_blending, 1),
-            msaa: Msaa::new(b, layer_format, layer_blending),
+            grid: Layers::new(b, layer_format, layer_blending, 1),
+            msaa: Layers::new(b, layer_format, layer_blending, 4),
             msaa_ok: multisampled(b, layer_format),
             stamp_flatten: Lazy::new(b, "stamp_flatten", move |d| flatten_raster(d, layer_format)),
             stamp_filter: kernel(
@@ -371,7 +351,6 @@ impl Pipelines {
                     (5, Rw),
                 ],
             ),
-            island_raster: Lazy::new(b, "island_raster", island_raster),
             transfer_raster: Lazy::new(b, "transfer_raster", move |d| {
                 transfer_raster(d, layer_format)
             }),
@@ -385,8 +364,6 @@ impl Pipelines {
                     (11, Rw),
                 ],
             ),
-            island_mask: kernel("island_mask", &ISLAND_MASK_BINDS),
-            compose: kernel("compose", &COMPOSE_BINDS),
             vector_coverage: Lazy::new(b, "vector_coverage", vector_coverage),
             stroke_apply: kernel(
                 "stroke_apply",
@@ -457,22 +434,10 @@ impl Pipelines {
 
     /// The layer raster family the bake draws with: at four samples a pixel where `msaa`
     /// (adaptive supersampling), else on the supersampling grid.
-    pub fn family(&self, msaa: bool) -> Family<'_> {
+    pub fn family(&self, msaa: bool) -> &Layers {
         match msaa {
-            false => Family {
-                raster: &self.layer_raster,
-                raster_normal: &self.layer_raster_normal,
-                clear: &self.atlas_clear,
-                fused: &self.fused,
-                compose: &self.compose,
-            },
-            true => Family {
-                raster: &self.msaa.raster,
-                raster_normal: &self.msaa.raster_normal,
-                clear: &self.msaa.clear,
-                fused: &self.msaa.fused,
-                compose: &self.msaa.compose,
-            },
+            false => &self.grid,
+            true => &self.msaa,
         }
     }
 
@@ -486,20 +451,6 @@ impl Pipelines {
             }
         });
     }
-}
-
-/// The pipelines of one layer raster family ([`Pipelines::family`]).
-pub struct Family<'a> {
-    /// The layer raster.
-    pub raster: &'a Lazy<Raster>,
-    /// Its normal variant.
-    pub raster_normal: &'a Lazy<Raster>,
-    /// The atlas clear.
-    pub clear: &'a Lazy<Raster>,
-    /// The fused channel passes.
-    pub fused: &'a Fused,
-    /// The compose.
-    pub compose: &'a Lazy<Kernel>,
 }
 
 /// What builds the pipelines: the device and, where the backend keeps one, the pipeline cache
@@ -825,49 +776,86 @@ const COMPOSE_BINDS: [(u32, Bind); 6] = [
     (11, Bind::Rw),
 ];
 
-/// The layer raster family at four samples a pixel: adaptive supersampling, where the raster runs
-/// once a pixel and triangle (`// MSAA: ` lines of `wgsl/bake/layer_raster.wgsl` and
-/// `wgsl/bake/compose.wgsl`). Taken for jobs of four samples a texel where the device holds the
-/// targets ([`Pipelines::msaa_ok`]; `Engine::adaptive_sampling`).
-pub struct Msaa {
-    /// `layer_raster`'s adaptive variant.
+/// The layer raster family at `samples` a pixel ([`Pipelines::family`]): 1, the supersampling
+/// grid; 4, adaptive supersampling, where the raster runs once a pixel and triangle (the
+/// `// MSAA: ` lines of `wgsl/bake/layer_raster.wgsl`, `compose.wgsl` and `island_mask.wgsl`),
+/// taken for jobs of four samples a texel where the device holds the targets
+/// ([`Pipelines::msaa_ok`]; `Engine::adaptive_sampling`).
+pub struct Layers {
+    /// `layer_raster`.
     pub raster: Lazy<Raster>,
-    /// Its normal variant.
+    /// Its normal variant (`shaders::normal_source`), same targets, three more bindings (split
+    /// positions, normals, tangents).
     pub raster_normal: Lazy<Raster>,
-    /// `atlas_clear` at four samples.
+    /// Clears the layer raster's targets inside the scissor (a job's raster rectangles).
     pub clear: Lazy<Raster>,
-    /// The fused channel passes at four samples.
+    /// The colour and the PBR channel groups drawn and composed in one pass ([`Fused`]).
     pub fused: Fused,
-    /// `compose` reading multisampled attachments.
+    /// Layer composition.
     pub compose: Lazy<Kernel>,
-    /// `island_raster` at four samples: the islands at the adaptive raster's samples.
+    /// The islands drawn at the same samples.
     pub island_raster: Lazy<Raster>,
-    /// `island_mask` reading them.
+    /// Island mask reduction.
     pub island_mask: Lazy<Kernel>,
 }
 
-impl Msaa {
-    fn new(b: &Arc<Builder>, format: wgpu::TextureFormat, blending: bool) -> Self {
+/// The names of [`Layers`]' pipelines (raster, normal, clear, compose, island raster, island
+/// mask) on the grid, then at four samples.
+const LAYERS_NAMES: [[&str; 6]; 2] = [
+    [
+        "layer_raster",
+        "layer_raster_normal",
+        "atlas_clear",
+        "compose",
+        "island_raster",
+        "island_mask",
+    ],
+    [
+        "layer_raster_msaa",
+        "layer_raster_normal_msaa",
+        "atlas_clear_msaa",
+        "compose_msaa",
+        "island_raster_msaa",
+        "island_mask_msaa",
+    ],
+];
+
+impl Layers {
+    fn new(b: &Arc<Builder>, format: wgpu::TextureFormat, blending: bool, samples: u32) -> Self {
+        let n = LAYERS_NAMES[usize::from(samples > 1)];
         Self {
-            raster: Lazy::new(b, "layer_raster_msaa", move |d| {
-                layer_raster(d, format, blending, (false, 4))
+            raster: Lazy::new(b, n[0], move |d| {
+                layer_raster(d, format, blending, (false, samples))
             }),
-            raster_normal: Lazy::new(b, "layer_raster_normal_msaa", move |d| {
-                layer_raster(d, format, blending, (true, 4))
+            raster_normal: Lazy::new(b, n[1], move |d| {
+                layer_raster(d, format, blending, (true, samples))
             }),
-            clear: Lazy::new(b, "atlas_clear_msaa", move |d| atlas_clear(d, format, 4)),
-            fused: Fused::new(b, format, blending, 4),
-            compose: Lazy::new(b, "compose_msaa", |d| {
-                let binds = multisampled_binds(&COMPOSE_BINDS);
-                let text = shaders::msaa_kernel_source("compose", false);
-                Kernel::with_source(d, "compose_msaa", &binds, Some(text))
+            clear: Lazy::new(b, n[2], move |d| atlas_clear(d, format, samples)),
+            fused: Fused::new(b, format, blending, samples),
+            compose: Lazy::new(b, n[3], move |d| {
+                reading_targets(d, ("compose", n[3]), &COMPOSE_BINDS, samples)
             }),
-            island_raster: Lazy::new(b, "island_raster_msaa", |d| island_raster_at(d, 4)),
-            island_mask: Lazy::new(b, "island_mask_msaa", |d| {
-                let binds = multisampled_binds(&ISLAND_MASK_BINDS);
-                let text = shaders::msaa_kernel_source("island_mask", false);
-                Kernel::with_source(d, "island_mask_msaa", &binds, Some(text))
+            island_raster: Lazy::new(b, n[4], move |d| island_raster(d, samples)),
+            island_mask: Lazy::new(b, n[5], move |d| {
+                reading_targets(d, ("island_mask", n[5]), &ISLAND_MASK_BINDS, samples)
             }),
+        }
+    }
+}
+
+/// Kernel `name` (labelled `label`) that reads raster targets of `samples` a pixel: as written on
+/// the grid; at four samples its adaptive variant, every texture multisampled.
+fn reading_targets(
+    d: &Builder,
+    (name, label): (&str, &str),
+    binds: &[(u32, Bind)],
+    samples: u32,
+) -> Kernel {
+    match samples {
+        1 => Kernel::new(d, label, binds),
+        _ => {
+            let text = shaders::msaa_kernel_source(name, false);
+            Kernel::with_source(d, label, &multisampled_binds(binds), Some(text))
         }
     }
 }
@@ -960,7 +948,7 @@ const FUSED_CLEAR: [&str; 14] = [
 ];
 
 impl Fused {
-    /// The family at `samples` a pixel (1, or 4: [`Msaa`]).
+    /// The family at `samples` a pixel (1, or 4: adaptive supersampling, [`Layers`]).
     fn new(b: &Arc<Builder>, format: wgpu::TextureFormat, blending: bool, samples: u32) -> Self {
         use Bind::*;
         let named = move |k: usize| k + if samples > 1 { 7 } else { 0 };
@@ -1237,10 +1225,6 @@ fn flatten_raster(device: &Builder, format: wgpu::TextureFormat) -> Raster {
 }
 
 /// `island_raster`: island coverage at the texture's samples.
-fn island_raster(device: &Builder) -> Raster {
-    island_raster_at(device, 1)
-}
-
 /// `island_mask`'s bindings.
 const ISLAND_MASK_BINDS: [(u32, Bind); 4] = [
     (0, Bind::Params),
@@ -1250,7 +1234,7 @@ const ISLAND_MASK_BINDS: [(u32, Bind); 4] = [
 ];
 
 /// `island_raster` into a coverage target of `samples` a pixel.
-fn island_raster_at(device: &Builder, samples: u32) -> Raster {
+fn island_raster(device: &Builder, samples: u32) -> Raster {
     use Bind::*;
     let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
     let island_layout = layout(
