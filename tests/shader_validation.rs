@@ -122,3 +122,22 @@ fn every_wgsl_file_validates() {
         on_disk.len()
     );
 }
+
+/// The block mask's size and row length in `wgsl/shared/blocks.wgsl` are the planner's
+/// (`bake::plan::BLOCK`, `BLOCKS_ROW`: the buffer the engine makes and clears row by row).
+#[test]
+fn the_block_masks_constants_are_the_planners() {
+    use decalbake::bake::plan::{BLOCK, BLOCKS_ROW, TILE_TARGET};
+    let text = decalbake::gpu::shaders::SHARED
+        .iter()
+        .find(|(n, _)| *n == "blocks")
+        .expect("shared/blocks.wgsl is registered")
+        .1;
+    for line in [
+        format!("const BLOCK: u32 = {BLOCK}u;"),
+        format!("const BLOCKS_ROW: u32 = {BLOCKS_ROW}u;"),
+    ] {
+        assert!(text.contains(&line), "blocks.wgsl lacks `{line}`");
+    }
+    assert_eq!(BLOCKS_ROW * BLOCK, TILE_TARGET);
+}

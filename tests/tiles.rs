@@ -2,7 +2,8 @@
 //! Bakes by tiles (`bake/tiles.rs`): byte-identical to the untiled bake where both fit (decals by
 //! every method, a continuous stroke, every padding, 8 and 16 bits, tiles that do not divide the
 //! texture); chosen automatically when the canvas does not fit the device's storage buffers; a
-//! blur stamp across a tile border is refused by name; EXR output holds the linear canvas, padded.
+//! blur stamp across a tile border is refused by name; EXR output holds the linear canvas, padded;
+//! the compose's block mask changes no byte, whole or tiled.
 
 mod common;
 use common::*;
@@ -245,4 +246,47 @@ fn exr_output_is_the_linear_padded_canvas() {
     assert!(worst <= 1, "{worst}");
     // Padding reached the float image too: a background texel next to an island is not empty.
     assert!(linear.chunks(4).filter(|t| t[3] > 0.0).count() > png.report.island_texels as usize);
+}
+
+/// The compose's block mask (`Engine::skip_empty_blocks`, `wgsl/shared/blocks.wgsl`) skips only
+/// texels that would compose nothing: with and without it the bytes are the same, whole and by
+/// tiles, at 1, 4 and 9 samples a texel and adaptively, on sides that are not multiples of a
+/// block (so raster rectangles of other widths move the atlas places off the block grid), with a
+/// stroke's stamps blended in their targets.
+#[test]
+fn skipping_empty_blocks_changes_no_byte() {
+    let dir = scratch("tiles_blocks");
+    let skip = engine();
+    let mut every = engine();
+    every.skip_empty_blocks = false;
+    let cases = [
+        ([256, 256], None, serde_json::json!({})),
+        ([250, 190], None, serde_json::json!({ "samples": 1 })),
+        (
+            [200, 136],
+            Some(128),
+            serde_json::json!({ "samples": 9, "padding": 3 }),
+        ),
+        (
+            [256, 256],
+            Some(128),
+            serde_json::json!({ "sampling": "adaptive" }),
+        ),
+    ];
+    for (side, tile, extra) in cases {
+        let mut j = job(&dir, side, extra.clone());
+        j.tile = tile;
+        let bake = |e: &Engine| e.bake(&e.load_mesh(&j.mesh).unwrap(), &j).unwrap();
+        let (a, b) = (bake(&skip), bake(&every));
+        let differ = a
+            .texels
+            .iter()
+            .zip(&b.texels)
+            .filter(|(p, q)| p != q)
+            .count();
+        assert_eq!(differ, 0, "{side:?}, tile {tile:?}, {extra}: values differ");
+        for l in &a.report.layers {
+            assert!(l.texels_covered > 0, "layer {} covers nothing", l.index);
+        }
+    }
 }

@@ -15,7 +15,7 @@ use super::params::{
     params_buffer, pbind, Params, FLAG_DIRTY, FLAG_TOOL, FLAG_WARP, PARAMS_STRIDE,
 };
 use super::place::Placed;
-use super::plan::{meets, pack_atlas, plan_cells, Batch, TILE_TARGET};
+use super::plan::{meets, pack_atlas, plan_cells, Batch, BLOCK, BLOCKS_ROW, TILE_TARGET};
 use super::stage::{Cx, Log};
 use crate::error::Result;
 use crate::gpu::pipelines::make_bind_group;
@@ -296,6 +296,7 @@ pub(crate) fn compose(
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         mapped_at_creation: false,
     });
+    let blocks = block_mask(engine);
     let no_flats = dev.create_buffer(&wgpu::BufferDescriptor {
         label: Some("bake.no_flats"),
         size: 16,
@@ -333,6 +334,7 @@ pub(crate) fn compose(
             placeholder: &no_flats,
             spare_planes: &spare_planes,
             msaa,
+            blocks: &blocks,
         };
         if pass.is_none() && dirty.is_none() {
             log.commands +=
@@ -363,6 +365,19 @@ pub(crate) fn compose(
         .chunks_exact(per)
         .map(Distortion::from_partials)
         .collect())
+}
+
+/// The compose's block mask (`wgsl/shared/blocks.wgsl`): one word per [`BLOCK`]² texels of the
+/// widest atlas target. Zeros, cleared before each batch, where the engine skips empty blocks
+/// ([`Engine::skip_empty_blocks`]); otherwise ones, never cleared: every block is composed.
+fn block_mask(engine: &Engine) -> wgpu::Buffer {
+    let words = (BLOCKS_ROW * (TILE_TARGET / BLOCK)) as usize;
+    let fill = u32::from(!engine.skip_empty_blocks);
+    engine.ctx.storage_init(
+        "bake.blocks",
+        bytemuck::cast_slice(&vec![fill; words]),
+        wgpu::BufferUsages::COPY_DST,
+    )
 }
 
 /// Keeps in `batches` the raster jobs this canvas draws, and the batches left with any. A tile's
@@ -575,6 +590,8 @@ struct Recording<'a> {
     spare_planes: &'a [wgpu::Buffer],
     /// Drawn at four samples a pixel ([`Engine::adaptive_sampling`]).
     msaa: bool,
+    /// The block mask the raster marks and the compose reads ([`block_mask`]).
+    blocks: &'a wgpu::Buffer,
 }
 
 impl Recording<'_> {
@@ -602,6 +619,10 @@ impl Recording<'_> {
         let size = [size[0], size[1].next_power_of_two().max(64)];
         let tg = engine.targets(size, samples);
         let channel_views = self.channel_views(size);
+        if engine.skip_empty_blocks {
+            let rows = used_h.div_ceil(self.job.ss).div_ceil(BLOCK) as u64;
+            enc.clear_buffer(self.blocks, 0, Some(rows * BLOCKS_ROW as u64 * 4));
+        }
         {
             let views: Vec<Option<&wgpu::TextureView>> = [Some(&tg.color_view), Some(&tg.cov_view)]
                 .into_iter()
@@ -682,6 +703,7 @@ impl Recording<'_> {
                     (3, self.canvas.stats.as_entire_binding()),
                     (10, planes[0].as_entire_binding()),
                     (11, planes[1].as_entire_binding()),
+                    (19, self.blocks.as_entire_binding()),
                 ],
             )
         };
@@ -785,6 +807,7 @@ impl Recording<'_> {
             (10, self.canvas.acc_rg.as_entire_binding()),
             (11, self.canvas.acc_ba.as_entire_binding()),
             (18, self.draws.as_entire_binding()),
+            (19, self.blocks.as_entire_binding()),
         ];
         for k in 0..3 {
             let view = views[k].as_deref().unwrap_or(&tg.color_view);
@@ -835,7 +858,8 @@ impl Recording<'_> {
     }
 
     /// The bindings every variant of the layer raster has, for unit `i` drawing `image`: its
-    /// triangle list, UVs, coordinates, mask, the tool stamps' flats, the warps, the channel draws.
+    /// triangle list, UVs, coordinates, mask, the tool stamps' flats, the warps, the channel draws,
+    /// the block mask.
     fn unit_entries<'b>(
         &'b self,
         i: usize,
@@ -860,6 +884,7 @@ impl Recording<'_> {
             (9, self.flats.as_entire_binding()),
             (10, self.images.warps.as_entire_binding()),
             (17, self.draws.as_entire_binding()),
+            (18, self.blocks.as_entire_binding()),
         ]
     }
 

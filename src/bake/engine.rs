@@ -355,6 +355,12 @@ pub struct Engine {
     /// within 32 of 65535; this is the reference `tests/demo_and_api.rs` and `decalbake bench`
     /// (`compose_unclipped_ms`) compare the clipped raster with. Default `false`.
     pub unclipped_raster: bool,
+    /// Compose only the 8 × 8 texel blocks of a raster rectangle in which the raster left
+    /// anything (`wgsl/shared/blocks.wgsl`): the texels of the others would compose nothing, so
+    /// the bytes are the same either way. `false` composes every texel of every rectangle: the
+    /// reference `tests/compose_vs_cpu.rs` and `decalbake bench` (`compose_every_block_ms`)
+    /// compare with. Default `true`.
+    pub skip_empty_blocks: bool,
     /// Where a prepared mesh's BVH is built ([`BvhBuild`]). Default [`BvhBuild::Auto`].
     pub bvh_build: BvhBuild,
     /// Draw and compose each PBR channel group in a pass of its own, after the colour's, instead
@@ -530,6 +536,7 @@ impl Engine {
             linear_sampler,
             whole_mesh_selection: false,
             unclipped_raster: false,
+            skip_empty_blocks: true,
             bvh_build: BvhBuild::Auto,
             stage_paths: StagePaths::default(),
             clip_min_texels: 128.0,

@@ -7,6 +7,13 @@ use super::params::Params;
 /// Largest raster target side, in samples. A raster job covers at most `TILE_TARGET / ss` texels a side.
 pub const TILE_TARGET: u32 = 2048;
 
+/// Side, in texels, of the compose's empty-block mask's blocks (`wgsl/shared/blocks.wgsl`): the
+/// raster marks the blocks it leaves anything in, the compose skips the rest.
+pub const BLOCK: u32 = 8;
+
+/// Words a row of the block mask: the blocks of the widest atlas target (one sample a texel).
+pub const BLOCKS_ROW: u32 = TILE_TARGET / BLOCK;
+
 /// Side of a cell of the per-layer coverage mask, in texels.
 pub const CELL: u32 = 64;
 

@@ -25,6 +25,9 @@ pub enum Bind {
     Ro,
     /// Read-write storage buffer.
     Rw,
+    /// Read-write storage buffer that only the fragment stage sees (a vertex stage may not write
+    /// storage without `VERTEX_WRITABLE_STORAGE`): the layer raster's block mask.
+    RwFragment,
     /// Float texture; `true` = filterable.
     Tex(bool),
     /// Multisampled float texture (the adaptive raster's attachments).
@@ -51,7 +54,9 @@ fn layout(
                 Bind::Params => buf(wgpu::BufferBindingType::Uniform, true),
                 Bind::Uniform => buf(wgpu::BufferBindingType::Uniform, false),
                 Bind::Ro => buf(wgpu::BufferBindingType::Storage { read_only: true }, false),
-                Bind::Rw => buf(wgpu::BufferBindingType::Storage { read_only: false }, false),
+                Bind::Rw | Bind::RwFragment => {
+                    buf(wgpu::BufferBindingType::Storage { read_only: false }, false)
+                }
                 Bind::Tex(filterable) => wgpu::BindingType::Texture {
                     sample_type: wgpu::TextureSampleType::Float { filterable },
                     view_dimension: wgpu::TextureViewDimension::D2,
@@ -64,9 +69,13 @@ fn layout(
                 },
                 Bind::Sampler => wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
             };
+            let visibility = match kind {
+                Bind::RwFragment => wgpu::ShaderStages::FRAGMENT,
+                _ => vis,
+            };
             wgpu::BindGroupLayoutEntry {
                 binding,
-                visibility: vis,
+                visibility,
                 ty,
                 count: None,
             }
@@ -767,13 +776,14 @@ fn atlas_clear(device: &Builder, format: wgpu::TextureFormat, samples: u32) -> R
 }
 
 /// `compose`'s bindings.
-const COMPOSE_BINDS: [(u32, Bind); 6] = [
+const COMPOSE_BINDS: [(u32, Bind); 7] = [
     (0, Bind::Params),
     (1, Bind::Tex(false)),
     (2, Bind::Tex(false)),
     (3, Bind::Rw),
     (10, Bind::Rw),
     (11, Bind::Rw),
+    (19, Bind::Ro),
 ];
 
 /// The layer raster family at `samples` a pixel ([`Pipelines::family`]): 1, the supersampling
@@ -983,6 +993,7 @@ impl Fused {
                     (16, Rw),
                     (17, Rw),
                     (18, Ro),
+                    (19, Ro),
                 ];
                 let name = FUSED_COMPOSE[named(0) / 7];
                 match samples {
@@ -1000,12 +1011,12 @@ impl Fused {
     }
 
     /// Whether `limits` hold the fused passes: five colour attachments of `format` and a compose
-    /// with ten storage buffers and five textures.
+    /// with eleven storage buffers and five textures.
     pub fn fits(limits: &wgpu::Limits, format: wgpu::TextureFormat) -> bool {
         let bytes = format.target_pixel_byte_cost().unwrap_or(u32::MAX);
         limits.max_color_attachments >= 5
             && limits.max_color_attachment_bytes_per_sample >= bytes.saturating_mul(4) + 4
-            && limits.max_storage_buffers_per_shader_stage >= 10
+            && limits.max_storage_buffers_per_shader_stage >= 11
             && limits.max_sampled_textures_per_shader_stage >= 5
     }
 }
@@ -1141,7 +1152,7 @@ const UNIT_BINDS: [(u32, Bind); 6] = [
 const FRAME_BINDS: [(u32, Bind); 3] = [(11, Bind::Ro), (12, Bind::Ro), (13, Bind::Ro)];
 
 /// Every layer raster variant's bindings: [`UNIT_BINDS`], image, mask, sampler, the tool stamps'
-/// flats, the warps and the channel draws.
+/// flats, the warps, the channel draws and the compose's block mask.
 fn raster_binds() -> impl Iterator<Item = (u32, Bind)> {
     use Bind::*;
     UNIT_BINDS.into_iter().chain([
@@ -1151,6 +1162,7 @@ fn raster_binds() -> impl Iterator<Item = (u32, Bind)> {
         (9, Ro),
         (10, Ro),
         (17, Ro),
+        (18, RwFragment),
     ])
 }
 

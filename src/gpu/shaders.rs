@@ -149,6 +149,7 @@ pub const SHARED: &[(&str, &str)] = &[
     ("acc", include_str!("../../wgsl/shared/acc.wgsl")),
     ("clip", include_str!("../../wgsl/shared/clip.wgsl")),
     ("window", include_str!("../../wgsl/shared/window.wgsl")),
+    ("blocks", include_str!("../../wgsl/shared/blocks.wgsl")),
     ("expmap", include_str!("../../wgsl/shared/expmap.wgsl")),
     (
         "expmap_relax_common",

@@ -1,18 +1,22 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // Composes one rasterized layer rectangle into the linear accumulation buffer. Each texel averages its
 // ss x ss samples over the samples that fell inside the UV island (so island-edge texels keep the
-// island's colour instead of mixing in background), then blends with the layer's mode.
+// island's colour instead of mixing in background), then blends with the layer's mode. A texel of
+// an 8 x 8 block the raster left empty (shared/blocks.wgsl) returns before loading any sample.
 // Dispatch: (ceil(rect w / 8), ceil(rect h / 8), 1). CPU twin: `LayerRaster::texel` and `BlendMode::blend` in src/bake/cpu.rs (whole bake: `bake_cpu`).
 #import params
 #import blend
 #import acc
 #import window
+#import blocks
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var layer_color: texture_2d<f32>;
 @group(0) @binding(2) var layer_cov: texture_2d<f32>;
 // Per layer (params.aux), `stats_stride` words; word 5 counts texels the layer changed.
 @group(0) @binding(3) var<storage, read_write> stats: array<atomic<i32>>;
+// The raster's block mask (shared/blocks.wgsl): a texel of a block left at 0 composes nothing.
+@group(0) @binding(19) var<storage, read> blocks: array<u32>;
 
 // The fused variant (`// FUSED: ` lines live; `gpu::shaders::fused_kernel_source`) composes the
 // PBR channel groups drawn beside the colour by the fused raster (attachments 2 to 4 of
@@ -46,6 +50,13 @@ fn sample_point(t: vec2<u32>, s: u32) -> vec2<i32> {
     return vec2<i32>(p);
 }
 
+// The atlas texel (the raster's block mask's index) of texel `t` of this raster job.
+fn atlas_texel(t: vec2<u32>) -> vec2<u32> {
+    var a = params.atlas_origin / params.ss + t;
+    // MSAA: a = params.atlas_origin + t;
+    return a;
+}
+
 fn sample_arg(s: u32) -> u32 {
     var a = 0u;
     // MSAA: a = s;
@@ -67,6 +78,7 @@ fn outside_edit(t: vec2<i32>) -> bool {
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= params.rect_size.x || gid.y >= params.rect_size.y) { return; }
+    if (blocks[block_of(atlas_texel(gid.xy))] == 0u) { return; }
     if (outside_edit(vec2<i32>(gid.xy) + params.rect_origin)) { return; }
     var sum = vec4<f32>(0.0);
     var n = 0.0;

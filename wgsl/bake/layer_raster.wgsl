@@ -41,6 +41,7 @@
 #import params
 #import cone
 #import clip
+#import blocks
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> lists: array<u32>;
@@ -76,6 +77,8 @@ struct ChannelDraw {
     value: array<vec4<f32>, 3>,
 }
 @group(0) @binding(17) var<storage, read> draws: array<ChannelDraw>;
+// The compose's block mask (shared/blocks.wgsl), seen by the fragment stage only.
+@group(0) @binding(18) var<storage, read_write> blocks: array<u32>;
 // The fused variant's channel images.
 // FUSED: @group(0) @binding(14) var orm_image: texture_2d<f32>;
 // FUSED: @group(0) @binding(15) var normal_image: texture_2d<f32>;
@@ -398,5 +401,19 @@ fn fs_main(in: FsIn) -> FsOut {
     // FUSED: } else if ((bits.x & 4u) != 0u) {
     // FUSED:     o.emissive = masked(textureSampleGrad(emissive_image, samp, img, gx, gy), img, gx, gy) * opacity.z * share;
     // FUSED: }
+    mark_block(in.pos.xy, o);
     return o;
+}
+
+// Marks the block of the texel at framebuffer position `pos` for the compose where `o` leaves
+// anything it reads: an output with alpha not <= 0 (a sample whose alphas are all 0 adds nothing
+// to the compose's sums, whatever it blends over; NaN is marked). The grid's texels are ss x ss
+// pixels, the adaptive raster's one.
+fn mark_block(pos: vec2<f32>, o: FsOut) {
+    var leaves = !(o.color.a <= 0.0);
+    // FUSED: leaves = leaves || !(o.orm.a <= 0.0) || !(o.nrm.a <= 0.0) || !(o.emissive.a <= 0.0);
+    if (!leaves) { return; }
+    var px = params.ss;
+    // MSAA: px = 1u;
+    blocks[block_of(vec2<u32>(pos) / px)] = 1u;
 }

@@ -121,6 +121,22 @@ pub fn run(
             let unclipped = engine.bake(&loaded, &job);
             engine.unclipped_raster = false;
             let unclipped_compose_ms = unclipped?.report.timings.compose_ms;
+            // The same bake composing every texel of every raster rectangle (no block mask),
+            // alternating with the engine's (pairs in one run: this machine's speed drifts by
+            // more than the difference); the bytes must not change.
+            let mut pairs = (Vec::new(), Vec::new());
+            let mut every_block_identical = true;
+            for _ in 0..opts.reps.max(1) {
+                engine.skip_empty_blocks = false;
+                let every = engine.bake(&loaded, &job);
+                engine.skip_empty_blocks = true;
+                let every = every?;
+                let masked = engine.bake(&loaded, &job)?;
+                every_block_identical &= every.texels == masked.texels;
+                pairs.0.push(every.report.timings.compose_ms);
+                pairs.1.push(masked.report.timings.compose_ms);
+            }
+            let (every_block_ms, block_mask_ms) = (median(pairs.0), median(pairs.1));
             let mut cpu_ms = None;
             if (n as u64) * (side as u64).pow(2) <= opts.cpu_budget {
                 let topo = &loaded.topo;
@@ -170,6 +186,9 @@ pub fn run(
                 "bvh": bvh,
                 "compose_whole_mesh_selection_ms": whole_compose_ms,
                 "compose_unclipped_ms": unclipped_compose_ms,
+                "compose_every_block_ms": every_block_ms,
+                "compose_block_mask_paired_ms": block_mask_ms,
+                "every_block_identical": every_block_identical,
                 "texels_composed": texels,
                 "composed_texels_per_s": texels as f64 / (compose / 1000.0),
                 "gpu_commands": baked.report.gpu_commands,
