@@ -25,7 +25,8 @@ pub mod place;
 pub mod solve;
 
 pub use bake::{
-    Baked, BvhBuild, Edit, EditReport, Engine, LiveBake, LoadedMesh, StagePath, StagePaths,
+    Baked, BakedTextures, BvhBuild, Edit, EditReport, Engine, LiveBake, LoadedMesh, StagePath,
+    StagePaths,
 };
 pub use error::{Error, Result};
 pub use io::job::Job;

@@ -583,3 +583,100 @@ fn fused_channel_passes_give_the_separate_passes_bytes() {
         }
     }
 }
+
+/// `Engine::bake_textures`: the colour and every channel group a job paints as GPU textures, each
+/// holding the bytes of the 8-bit PNG `Engine::bake` writes for it (read back here as a host
+/// would), in the formats the glTF material reads them in: emissive and colour sRGB, the
+/// occlusion-roughness-metallic and normal textures linear.
+#[test]
+fn bake_textures_gives_every_channel_on_the_gpu() {
+    let dir = common::scratch("channels-textures");
+    common::write_plane(&dir.join("plane.glb"), N, false);
+    common::write_raw_png(&dir.join("disc.png"), 64, |s, t| {
+        let r = ((s - 0.5).powi(2) + (t - 0.5).powi(2)).sqrt();
+        [s, 0.4, t, (1.0 - 2.0 * r).clamp(0.0, 1.0)]
+    });
+    common::write_raw_png(&dir.join("bump.png"), 96, |s, t| {
+        let n = bump(s, t) * 0.5 + 0.5;
+        [n.x, n.y, n.z, 1.0]
+    });
+    let job = json!({
+        "mesh": "plane.glb",
+        "texture": {"width": 100, "height": 72, "base": [0.5, 0.5, 0.5, 1.0], "padding": 2},
+        "output": {"texture": "baked.png"},
+        "layers": [{"image": "disc.png", "at": [0.45, 0.5, 0.0], "size": [0.6, 0.6],
+                    "normal": "bump.png", "roughness": 0.2, "metallic": 0.9,
+                    "emissive": [1.0, 0.5, 0.0]}]
+    });
+    std::fs::write(dir.join("job.json"), job.to_string()).unwrap();
+    let job = Job::load(&dir.join("job.json"), None).unwrap();
+    let engine = common::engine();
+    let (mesh, job) = engine.load_mesh_for(&job).unwrap();
+    let baked = engine.bake(&mesh, &job).unwrap();
+    let (textures, report) = engine.bake_textures(&mesh, &job).unwrap();
+    assert_eq!(
+        report.layers[0].texels_covered,
+        baked.report.layers[0].texels_covered
+    );
+    let kinds: Vec<ChannelKind> = textures.channels.iter().map(|(k, _)| *k).collect();
+    let expected: Vec<ChannelKind> = baked.channels.iter().map(|c| c.kind).collect();
+    assert_eq!(kinds, expected);
+    assert_eq!(
+        kinds,
+        [ChannelKind::Orm, ChannelKind::Normal, ChannelKind::Emissive]
+    );
+    let (device, queue) = (&engine.ctx.device, &engine.ctx.queue);
+    let row = (100 * 4u32).next_multiple_of(256);
+    let read = |texture: &wgpu::Texture| {
+        let buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: None,
+            size: (row * 72) as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = device.create_command_encoder(&Default::default());
+        enc.copy_texture_to_buffer(
+            texture.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buf,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(row),
+                    rows_per_image: None,
+                },
+            },
+            texture.size(),
+        );
+        queue.submit([enc.finish()]);
+        let bytes = engine.ctx.map_and_read(&buf, "test read-back").unwrap();
+        (0..72usize)
+            .flat_map(|y| bytes[y * row as usize..y * row as usize + 400].to_vec())
+            .collect::<Vec<u8>>()
+    };
+    // Values that differ from the PNG's 8-bit texels.
+    let differ = |bytes: &[u8], t: &[u16]| {
+        assert_eq!(bytes.len(), t.len());
+        bytes
+            .iter()
+            .zip(t)
+            .filter(|(b, v)| **b as u16 != **v)
+            .count()
+    };
+    assert_eq!(textures.color.format(), wgpu::TextureFormat::Rgba8UnormSrgb);
+    assert_eq!(differ(&read(&textures.color), &baked.texels), 0, "colour");
+    for ((kind, texture), channel) in textures.channels.iter().zip(&baked.channels) {
+        let format = match kind {
+            ChannelKind::Emissive => wgpu::TextureFormat::Rgba8UnormSrgb,
+            _ => wgpu::TextureFormat::Rgba8Unorm,
+        };
+        assert_eq!(texture.format(), format, "{kind:?}");
+        let bytes = read(texture);
+        assert_eq!(differ(&bytes, &channel.texels), 0, "{kind:?}");
+        // The decal painted something of its own into each channel.
+        let base = &bytes[..4];
+        assert!(
+            bytes.chunks_exact(4).any(|t| t != base),
+            "{kind:?} is one colour"
+        );
+    }
+}

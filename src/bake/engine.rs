@@ -120,6 +120,17 @@ pub struct Baked {
     pub report: Report,
 }
 
+/// A bake's textures on the GPU ([`Engine::bake_textures`]); usages `TEXTURE_BINDING | COPY_SRC |
+/// COPY_DST`, 8 bits a channel.
+pub struct BakedTextures {
+    /// The base colour, `Rgba8UnormSrgb`.
+    pub color: wgpu::Texture,
+    /// Each PBR channel group the job's layers paint, in the order of [`Baked::channels`]: emissive
+    /// `Rgba8UnormSrgb`; occlusion-roughness-metallic (R, G, B) and the tangent-space normal
+    /// (`n * 0.5 + 0.5`) `Rgba8Unorm`, their bytes as stored.
+    pub channels: Vec<(crate::io::channels::ChannelKind, wgpu::Texture)>,
+}
+
 /// One channel's texture of a [`Baked`].
 #[derive(Debug, Clone)]
 pub struct BakedChannel {
@@ -1028,26 +1039,37 @@ impl Engine {
     /// Bakes `job` onto `mesh` and returns the result as an `Rgba8UnormSrgb` texture that never leaves
     /// the GPU (usages: `TEXTURE_BINDING | COPY_SRC | COPY_DST`). The job's `bit_depth` is ignored.
     /// A texture that is baked by tiles (beyond one storage buffer) is assembled on the CPU and
-    /// uploaded.
+    /// uploaded. The colour only: [`Engine::bake_textures`] gives the PBR channels too.
     pub fn bake_to_texture(&self, mesh: &LoadedMesh, job: &Job) -> Result<(wgpu::Texture, Report)> {
-        let before = self.pipelines_spent();
-        let (texture, mut report) = self.bake_texture_unnoted(mesh, job)?;
-        self.note_start(&mut report, before);
-        Ok((texture, report))
+        let (textures, report) = self.bake_textures(mesh, job)?;
+        Ok((textures.color, report))
     }
 
-    fn bake_texture_unnoted(
+    /// Bakes `job` onto `mesh` into textures that never leave the GPU: the colour, as
+    /// [`Engine::bake_to_texture`] gives it, and one texture per PBR channel group the job's
+    /// layers paint ([`BakedTextures`]), 8 bits a channel, each holding the bytes of the PNG
+    /// [`Engine::bake`] would write for it. A job with channels that would go by tiles is refused,
+    /// as [`Engine::bake`] refuses it.
+    pub fn bake_textures(&self, mesh: &LoadedMesh, job: &Job) -> Result<(BakedTextures, Report)> {
+        let before = self.pipelines_spent();
+        let (textures, mut report) = self.bake_textures_unnoted(mesh, job)?;
+        self.note_start(&mut report, before);
+        Ok((textures, report))
+    }
+
+    fn bake_textures_unnoted(
         &self,
         mesh: &LoadedMesh,
         job: &Job,
-    ) -> Result<(wgpu::Texture, Report)> {
+    ) -> Result<(BakedTextures, Report)> {
         let mut job8 = job.clone();
         job8.bit_depth = 8;
         super::limits(self, mesh, &job8)?;
+        let srgb = wgpu::TextureFormat::Rgba8UnormSrgb;
         if let Some(tiled) = super::tiled(self, mesh, &job8, &|_| {}) {
             let baked = tiled?;
             let tex = self.ctx.scoped("texture output", || {
-                let tex = self.output_texture(job.width, job.height);
+                let tex = self.output_texture(job.width, job.height, srgb);
                 let bytes: Vec<u8> = baked.texels.iter().map(|&v| v as u8).collect();
                 self.ctx.queue.write_texture(
                     tex.as_image_copy(),
@@ -1061,37 +1083,72 @@ impl Engine {
                 );
                 tex
             })?;
-            return Ok((tex, baked.report));
+            let textures = BakedTextures {
+                color: tex,
+                channels: Vec::new(),
+            };
+            return Ok((textures, baked.report));
         }
         let run = super::run(self, mesh, &job8, &|_| {})?;
-        let tex = self.ctx.scoped("texture output", || {
-            let tex = self.output_texture(job.width, job.height);
+        let textures = self.ctx.scoped("texture output", || {
             let mut enc = self.ctx.device.create_command_encoder(&Default::default());
-            enc.copy_buffer_to_texture(
-                wgpu::TexelCopyBufferInfo {
-                    buffer: &run.encoded.packed,
-                    layout: wgpu::TexelCopyBufferLayout {
-                        offset: 0,
-                        bytes_per_row: Some(run.encoded.stride * 4),
-                        rows_per_image: Some(job.height),
-                    },
-                },
-                tex.as_image_copy(),
-                wgpu::Extent3d {
-                    width: job.width,
-                    height: job.height,
-                    depth_or_array_layers: 1,
-                },
-            );
+            let color = self.copy_to_texture(&mut enc, &run.encoded, job, srgb);
+            let channels = run
+                .channels
+                .iter()
+                .map(|(kind, encoded)| {
+                    let format = match kind.linear() {
+                        true => wgpu::TextureFormat::Rgba8Unorm,
+                        false => srgb,
+                    };
+                    (*kind, self.copy_to_texture(&mut enc, encoded, job, format))
+                })
+                .collect();
             self.ctx.queue.submit([enc.finish()]);
-            tex
+            BakedTextures { color, channels }
         })?;
-        self.return_buffers([run.encoded.packed.clone()]);
-        Ok((tex, run.report))
+        let packed = std::iter::once(&run.encoded)
+            .chain(run.channels.iter().map(|(_, e)| e))
+            .map(|e| e.packed.clone());
+        self.return_buffers(packed);
+        Ok((textures, run.report))
     }
 
-    /// The `Rgba8UnormSrgb` texture [`Self::bake_to_texture`] hands over.
-    fn output_texture(&self, width: u32, height: u32) -> wgpu::Texture {
+    /// A new `format` texture of the job's size, recorded into `enc` as a copy of `encoded`'s
+    /// 8-bit rows.
+    fn copy_to_texture(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        encoded: &super::finish::Encoded,
+        job: &Job,
+        format: wgpu::TextureFormat,
+    ) -> wgpu::Texture {
+        let tex = self.output_texture(job.width, job.height, format);
+        enc.copy_buffer_to_texture(
+            wgpu::TexelCopyBufferInfo {
+                buffer: &encoded.packed,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(encoded.stride * 4),
+                    rows_per_image: Some(job.height),
+                },
+            },
+            tex.as_image_copy(),
+            wgpu::Extent3d {
+                width: job.width,
+                height: job.height,
+                depth_or_array_layers: 1,
+            },
+        );
+        tex
+    }
+
+    fn output_texture(
+        &self,
+        width: u32,
+        height: u32,
+        format: wgpu::TextureFormat,
+    ) -> wgpu::Texture {
         self.ctx.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("decalbake.baked"),
             size: wgpu::Extent3d {
@@ -1102,7 +1159,7 @@ impl Engine {
             mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba8UnormSrgb,
+            format,
             usage: wgpu::TextureUsages::TEXTURE_BINDING
                 | wgpu::TextureUsages::COPY_SRC
                 | wgpu::TextureUsages::COPY_DST,

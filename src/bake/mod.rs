@@ -55,7 +55,9 @@ mod transfer;
 mod vector;
 pub mod vector_gpu;
 
-pub use engine::{Baked, BakedChannel, BvhBuild, Engine, LoadedMesh, StagePath, StagePaths};
+pub use engine::{
+    Baked, BakedChannel, BakedTextures, BvhBuild, Engine, LoadedMesh, StagePath, StagePaths,
+};
 pub use images::{f32_to_f16, load_raw, upload_image};
 pub use live::{Edit, EditReport, LiveBake};
 pub use param::{size_figures, ParamMap, ParamRow, SizeFigures};
