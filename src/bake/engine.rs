@@ -1092,7 +1092,8 @@ impl Engine {
         let run = super::run(self, mesh, &job8, &|_| {})?;
         let textures = self.ctx.scoped("texture output", || {
             let mut enc = self.ctx.device.create_command_encoder(&Default::default());
-            let color = self.copy_to_texture(&mut enc, &run.encoded, job, srgb);
+            let encoded = (&run.encoded.packed, run.encoded.stride);
+            let color = self.copy_to_texture(&mut enc, encoded, job, srgb);
             let channels = run
                 .channels
                 .iter()
@@ -1101,6 +1102,7 @@ impl Engine {
                         true => wgpu::TextureFormat::Rgba8Unorm,
                         false => srgb,
                     };
+                    let encoded = (&encoded.packed, encoded.stride);
                     (*kind, self.copy_to_texture(&mut enc, encoded, job, format))
                 })
                 .collect();
@@ -1114,22 +1116,22 @@ impl Engine {
         Ok((textures, run.report))
     }
 
-    /// A new `format` texture of the job's size, recorded into `enc` as a copy of `encoded`'s
-    /// 8-bit rows.
+    /// A new `format` texture of the job's size, recorded into `enc` as a copy of an encoded
+    /// texture's 8-bit rows (`packed`, `stride` words a row).
     fn copy_to_texture(
         &self,
         enc: &mut wgpu::CommandEncoder,
-        encoded: &super::finish::Encoded,
+        (packed, stride): (&wgpu::Buffer, u32),
         job: &Job,
         format: wgpu::TextureFormat,
     ) -> wgpu::Texture {
         let tex = self.output_texture(job.width, job.height, format);
         enc.copy_buffer_to_texture(
             wgpu::TexelCopyBufferInfo {
-                buffer: &encoded.packed,
+                buffer: packed,
                 layout: wgpu::TexelCopyBufferLayout {
                     offset: 0,
-                    bytes_per_row: Some(encoded.stride * 4),
+                    bytes_per_row: Some(stride * 4),
                     rows_per_image: Some(job.height),
                 },
             },
