@@ -54,6 +54,19 @@ fn bake(dir: &Path, mirrored: bool, angle: f32, extra: serde_json::Value) -> (Ba
     (engine.bake(&mesh, &job).unwrap(), job)
 }
 
+/// Writes `disc.png` (a colour ramp with a round alpha, 64²) and `bump.png` (the bump's normal
+/// map, 96²) into `dir`.
+fn write_disc_and_bump(dir: &Path) {
+    common::write_raw_png(&dir.join("disc.png"), 64, |s, t| {
+        let r = ((s - 0.5).powi(2) + (t - 0.5).powi(2)).sqrt();
+        [s, 0.4, t, (1.0 - 2.0 * r).clamp(0.0, 1.0)]
+    });
+    common::write_raw_png(&dir.join("bump.png"), 96, |s, t| {
+        let n = bump(s, t) * 0.5 + 0.5;
+        [n.x, n.y, n.z, 1.0]
+    });
+}
+
 /// Channel `kind`'s texel (x, y) as stored, in [0, 1].
 fn texel(b: &Baked, kind: ChannelKind, x: u32, y: u32) -> [f32; 4] {
     let c = b
@@ -491,14 +504,7 @@ fn strokes_and_ribbons_paint_channels() {
 fn fused_channel_passes_give_the_separate_passes_bytes() {
     let dir = common::scratch("channels-fused");
     common::write_plane(&dir.join("plane.glb"), N, true);
-    common::write_raw_png(&dir.join("disc.png"), 64, |s, t| {
-        let r = ((s - 0.5).powi(2) + (t - 0.5).powi(2)).sqrt();
-        [s, 0.4, t, (1.0 - 2.0 * r).clamp(0.0, 1.0)]
-    });
-    common::write_raw_png(&dir.join("bump.png"), 96, |s, t| {
-        let n = bump(s, t) * 0.5 + 0.5;
-        [n.x, n.y, n.z, 1.0]
-    });
+    write_disc_and_bump(&dir);
     common::write_raw_png(&dir.join("ramp.png"), 40, |s, _| [s, s, s, 1.0]);
     common::write_raw_png(&dir.join("mask.png"), 32, |s, t| [s * t, 0.0, 0.0, 1.0]);
     let ribbon: Vec<[f32; 3]> = (0..=16)
@@ -592,14 +598,7 @@ fn fused_channel_passes_give_the_separate_passes_bytes() {
 fn bake_textures_gives_every_channel_on_the_gpu() {
     let dir = common::scratch("channels-textures");
     common::write_plane(&dir.join("plane.glb"), N, false);
-    common::write_raw_png(&dir.join("disc.png"), 64, |s, t| {
-        let r = ((s - 0.5).powi(2) + (t - 0.5).powi(2)).sqrt();
-        [s, 0.4, t, (1.0 - 2.0 * r).clamp(0.0, 1.0)]
-    });
-    common::write_raw_png(&dir.join("bump.png"), 96, |s, t| {
-        let n = bump(s, t) * 0.5 + 0.5;
-        [n.x, n.y, n.z, 1.0]
-    });
+    write_disc_and_bump(&dir);
     let job = json!({
         "mesh": "plane.glb",
         "texture": {"width": 100, "height": 72, "base": [0.5, 0.5, 0.5, 1.0], "padding": 2},
@@ -625,34 +624,7 @@ fn bake_textures_gives_every_channel_on_the_gpu() {
         kinds,
         [ChannelKind::Orm, ChannelKind::Normal, ChannelKind::Emissive]
     );
-    let (device, queue) = (&engine.ctx.device, &engine.ctx.queue);
-    let row = (100 * 4u32).next_multiple_of(256);
-    let read = |texture: &wgpu::Texture| {
-        let buf = device.create_buffer(&wgpu::BufferDescriptor {
-            label: None,
-            size: (row * 72) as u64,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut enc = device.create_command_encoder(&Default::default());
-        enc.copy_texture_to_buffer(
-            texture.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer: &buf,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(row),
-                    rows_per_image: None,
-                },
-            },
-            texture.size(),
-        );
-        queue.submit([enc.finish()]);
-        let bytes = engine.ctx.map_and_read(&buf, "test read-back").unwrap();
-        (0..72usize)
-            .flat_map(|y| bytes[y * row as usize..y * row as usize + 400].to_vec())
-            .collect::<Vec<u8>>()
-    };
+    let read = |texture: &wgpu::Texture| common::read_rgba8_texture(&engine, texture);
     // Values that differ from the PNG's 8-bit texels.
     let differ = |bytes: &[u8], t: &[u16]| {
         assert_eq!(bytes.len(), t.len());

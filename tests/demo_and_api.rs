@@ -204,30 +204,9 @@ fn host_device_api_returns_a_texture_equal_to_the_read_back() {
     );
     assert_eq!(texture.format(), wgpu::TextureFormat::Rgba8UnormSrgb);
     // ...and reads the texture back itself.
-    let row = (200 * 4u32).next_multiple_of(256);
-    let read = |texture: &wgpu::Texture| {
-        let buf = device.create_buffer(&wgpu::BufferDescriptor {
-            label: None,
-            size: (row * 136) as u64,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut enc = device.create_command_encoder(&Default::default());
-        enc.copy_texture_to_buffer(
-            texture.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer: &buf,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(row),
-                    rows_per_image: None,
-                },
-            },
-            texture.size(),
-        );
-        queue.submit([enc.finish()]);
-        engine.ctx.map_and_read(&buf, "test read-back").unwrap()
-    };
+    // Rows of 800 bytes, packed.
+    let row = 800u32;
+    let read = |texture: &wgpu::Texture| read_rgba8_texture(&engine, texture);
     let expected = baked.rgba8();
     // The same texture baked by tiles (assembled on the CPU, then uploaded).
     let mut tiled = job.clone();

@@ -372,12 +372,20 @@ pub(crate) fn compose(
 /// ([`Engine::skip_empty_blocks`]); otherwise ones, never cleared: every block is composed.
 fn block_mask(engine: &Engine) -> wgpu::Buffer {
     let words = (BLOCKS_ROW * (TILE_TARGET / BLOCK)) as usize;
-    let fill = u32::from(!engine.skip_empty_blocks);
-    engine.ctx.storage_init(
-        "bake.blocks",
-        bytemuck::cast_slice(&vec![fill; words]),
-        wgpu::BufferUsages::COPY_DST,
-    )
+    match engine.skip_empty_blocks {
+        // Made zeroed by wgpu, nothing uploaded: each batch clears what it uses.
+        true => engine.ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("bake.blocks"),
+            size: words as u64 * 4,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        }),
+        false => engine.ctx.storage_init(
+            "bake.blocks",
+            bytemuck::cast_slice(&vec![1u32; words]),
+            wgpu::BufferUsages::COPY_DST,
+        ),
+    }
 }
 
 /// Keeps in `batches` the raster jobs this canvas draws, and the batches left with any. A tile's

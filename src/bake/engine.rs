@@ -369,8 +369,8 @@ pub struct Engine {
     /// Compose only the 8 × 8 texel blocks of a raster rectangle in which the raster left
     /// anything (`wgsl/shared/blocks.wgsl`): the texels of the others would compose nothing, so
     /// the bytes are the same either way. `false` composes every texel of every rectangle: the
-    /// reference `tests/compose_vs_cpu.rs` and `decalbake bench` (`compose_every_block_ms`)
-    /// compare with. Default `true`.
+    /// reference `tests/tiles.rs` and `decalbake bench` (`compose_every_block_ms`) compare
+    /// with. Default `true`.
     pub skip_empty_blocks: bool,
     /// Where a prepared mesh's BVH is built ([`BvhBuild`]). Default [`BvhBuild::Auto`].
     pub bvh_build: BvhBuild,

@@ -1010,13 +1010,14 @@ impl Fused {
         }
     }
 
-    /// Whether `limits` hold the fused passes: five colour attachments of `format` and a compose
-    /// with eleven storage buffers and five textures.
+    /// Whether `limits` hold the fused passes: five colour attachments of `format`, twelve
+    /// storage buffers a stage (the fused raster's fragment stage binds twelve, its compose
+    /// eleven) and five textures.
     pub fn fits(limits: &wgpu::Limits, format: wgpu::TextureFormat) -> bool {
         let bytes = format.target_pixel_byte_cost().unwrap_or(u32::MAX);
         limits.max_color_attachments >= 5
             && limits.max_color_attachment_bytes_per_sample >= bytes.saturating_mul(4) + 4
-            && limits.max_storage_buffers_per_shader_stage >= 11
+            && limits.max_storage_buffers_per_shader_stage >= 12
             && limits.max_sampled_textures_per_shader_stage >= 5
     }
 }

@@ -383,3 +383,35 @@ pub fn peak_resident() -> u64 {
         .unwrap()
         * 1024
 }
+
+/// An RGBA8 texture of `engine`'s device read back as a host would (a copy into a mappable
+/// buffer of 256-byte-aligned rows), its rows packed tightly: 4 bytes a texel.
+pub fn read_rgba8_texture(engine: &Engine, texture: &wgpu::Texture) -> Vec<u8> {
+    let (device, queue) = (&engine.ctx.device, &engine.ctx.queue);
+    let [w, h] = [texture.width(), texture.height()];
+    let row = (w * 4).next_multiple_of(256);
+    let buf = device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: (row * h) as u64,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = device.create_command_encoder(&Default::default());
+    enc.copy_texture_to_buffer(
+        texture.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buf,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row),
+                rows_per_image: None,
+            },
+        },
+        texture.size(),
+    );
+    queue.submit([enc.finish()]);
+    let bytes = engine.ctx.map_and_read(&buf, "test read-back").unwrap();
+    (0..h as usize)
+        .flat_map(|y| bytes[y * row as usize..][..w as usize * 4].to_vec())
+        .collect()
+}

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-// The compose's block mask (src/bake/compose.rs, `Blocks`): one word per BLOCK x BLOCK texels of
+// The compose's block mask (src/bake/compose.rs, `block_mask`): one word per BLOCK x BLOCK texels of
 // the layer raster's atlas target, BLOCKS_ROW words a row (TILE_TARGET / BLOCK in
 // src/bake/plan.rs: the widest atlas, one sample a texel). layer_raster.wgsl sets a block's word
 // where a fragment leaves anything the compose reads (an output's alpha not <= 0); compose.wgsl

@@ -121,22 +121,8 @@ pub fn run(
             let unclipped = engine.bake(&loaded, &job);
             engine.unclipped_raster = false;
             let unclipped_compose_ms = unclipped?.report.timings.compose_ms;
-            // The same bake composing every texel of every raster rectangle (no block mask),
-            // alternating with the engine's (pairs in one run: this machine's speed drifts by
-            // more than the difference); the bytes must not change.
-            let mut pairs = (Vec::new(), Vec::new());
-            let mut every_block_identical = true;
-            for _ in 0..opts.reps.max(1) {
-                engine.skip_empty_blocks = false;
-                let every = engine.bake(&loaded, &job);
-                engine.skip_empty_blocks = true;
-                let every = every?;
-                let masked = engine.bake(&loaded, &job)?;
-                every_block_identical &= every.texels == masked.texels;
-                pairs.0.push(every.report.timings.compose_ms);
-                pairs.1.push(masked.report.timings.compose_ms);
-            }
-            let (every_block_ms, block_mask_ms) = (median(pairs.0), median(pairs.1));
+            let (every_block_ms, block_mask_ms, every_block_identical) =
+                block_mask_pairs(engine, &loaded, &job, opts.reps)?;
             let mut cpu_ms = None;
             if (n as u64) * (side as u64).pow(2) <= opts.cpu_budget {
                 let topo = &loaded.topo;
@@ -201,6 +187,31 @@ pub fn run(
     }
     let _ = std::fs::remove_dir_all(&dir);
     Ok(())
+}
+
+/// The bake composing every texel of every raster rectangle (`Engine::skip_empty_blocks` off)
+/// and the engine's, alternating, `reps` pairs in one run (this machine's speed drifts by more
+/// than the difference): the medians of their compose stages, ms, and whether every pair gave the
+/// same bytes.
+fn block_mask_pairs(
+    engine: &mut Engine,
+    loaded: &decalbake::LoadedMesh,
+    job: &decalbake::Job,
+    reps: usize,
+) -> Result<(f64, f64, bool)> {
+    let mut pairs = (Vec::new(), Vec::new());
+    let mut identical = true;
+    for _ in 0..reps.max(1) {
+        engine.skip_empty_blocks = false;
+        let every = engine.bake(loaded, job);
+        engine.skip_empty_blocks = true;
+        let every = every?;
+        let masked = engine.bake(loaded, job)?;
+        identical &= every.texels == masked.texels;
+        pairs.0.push(every.report.timings.compose_ms);
+        pairs.1.push(masked.report.timings.compose_ms);
+    }
+    Ok((median(pairs.0), median(pairs.1), identical))
 }
 
 /// The PNG encode against a file copy of the same samples, in one run (medians of 3, interleaved):
