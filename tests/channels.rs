@@ -652,3 +652,54 @@ fn bake_textures_gives_every_channel_on_the_gpu() {
         );
     }
 }
+
+/// On a model of one texture set, `{set}` and `{channel}` in `output.texture` name every texture
+/// the same way through `decalbake bake` and `decalbake batch`: the colour `…_base_color.png`,
+/// each channel `…_orm.png` and `…_normal.png` (not the colour's resolved name with the channel
+/// appended, nor a file named with the placeholder), and the two commands write the same bytes.
+#[test]
+fn channel_file_names_fill_their_placeholders_in_bake_and_batch() {
+    let mut written = Vec::new();
+    for command in ["bake", "batch"] {
+        let dir = common::scratch(&format!("channels-names-{command}"));
+        common::write_plane(&dir.join("plane.glb"), 8, false);
+        write_disc_and_bump(&dir);
+        let job = json!({
+            "mesh": "plane.glb",
+            "texture": {"width": 64, "height": 64},
+            "layers": [{"image": "disc.png", "normal": "bump.png", "roughness": 0.25,
+                        "at": [0.5, 0.5, 0.0], "size": [0.5, 0.5], "up": [0.0, 1.0, 0.0]}],
+            "output": {"texture": "t_{set}_{channel}.png"}
+        });
+        let path = dir.join("job.json");
+        std::fs::write(&path, job.to_string()).unwrap();
+        let manifest = dir.join("manifest.jsonl");
+        std::fs::write(&manifest, format!("{}\n", json!(path.to_str().unwrap()))).unwrap();
+        let (code, _, err) = match command {
+            "bake" => common::cli(&["bake", path.to_str().unwrap()]),
+            _ => common::cli(&["batch", manifest.to_str().unwrap()]),
+        };
+        assert_eq!(code, 0, "{command}: {err}");
+        let mut names: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with("t_"))
+            .collect();
+        names.sort();
+        assert_eq!(names.len(), 3, "{command} wrote {names:?}");
+        let stem = names[0].strip_suffix("base_color.png");
+        let stem = stem.unwrap_or_else(|| panic!("{command} wrote {names:?}"));
+        assert!(!stem.contains('{'), "{command} wrote {names:?}");
+        assert_eq!(names[1], format!("{stem}normal.png"), "{command}");
+        assert_eq!(names[2], format!("{stem}orm.png"), "{command}");
+        let bytes: Vec<Vec<u8>> = names
+            .iter()
+            .map(|n| std::fs::read(dir.join(n)).unwrap())
+            .collect();
+        written.push((names, bytes));
+    }
+    assert_eq!(
+        written[0], written[1],
+        "bake and batch wrote different files"
+    );
+}

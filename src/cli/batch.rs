@@ -561,7 +561,10 @@ fn prepare_one(cx: WriteCx<'_>, mut j: Job) -> Result<(Arc<LoadedMesh>, Job)> {
         .expect("mesh cache")
         .get(engine, generation, &j)?;
     j.uv_set = uv_set;
-    if let [set] = mesh.mesh.texture_sets(uv_set).as_slice() {
+    let sets = mesh.mesh.texture_sets(uv_set);
+    // `{set}` and `{channel}` named as `decalbake bake` names them for a mesh of one set.
+    j = j.for_single_set(sets.first().map_or("default", |s| s.name.as_str()));
+    if let [set] = sets.as_slice() {
         (j.width, j.height) = decalbake::bake::sets::set_size(&j, &mesh.mesh, set);
     }
     Ok((mesh, j))

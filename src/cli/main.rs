@@ -694,7 +694,7 @@ fn bake(engine: &Engine, job: &Job) -> Result<()> {
         let (mesh, _) = engine.load_mesh_for(job)?;
         let mut baked = Vec::new();
         for &set in &job.uv_list {
-            let j = job.for_uv_set(set);
+            let j = named_for_one_set(&mesh, job.for_uv_set(set));
             baked.push((engine.bake(&mesh, &j)?, j));
         }
         let mut textures = Vec::new();
@@ -723,13 +723,21 @@ fn bake(engine: &Engine, job: &Job) -> Result<()> {
         print_bake(&bakes[0].baked.report, files);
         return Ok(());
     }
-    let mut job = job.for_single_set(sets.first().map_or("default", |s| s.name.as_str()));
+    let mut job = named_for_one_set(&mesh, job);
     if let Some(set) = sets.first() {
         (job.width, job.height) = decalbake::bake::sets::set_size(&job, &mesh.mesh, set);
     }
     let (report, files) = decalbake::output::bake_and_write(engine, &mesh, &job, &|_| {}, &|_| {})?;
     print_bake(&report, files);
     Ok(())
+}
+
+/// `job` with `{set}` and `{channel}` in its texture's name resolved for the first texture set of
+/// its UV set on `mesh` (`Job::for_single_set`): the colour's file, and the name the channels'
+/// files are made from.
+fn named_for_one_set(mesh: &decalbake::LoadedMesh, job: Job) -> Job {
+    let sets = mesh.mesh.texture_sets(job.uv_set);
+    job.for_single_set(sets.first().map_or("default", |s| s.name.as_str()))
 }
 
 /// An animated job: one bake and one set of outputs per frame, written as each frame is baked
@@ -741,7 +749,9 @@ fn bake_frames(
     job: &Job,
     frames: u32,
 ) -> Result<()> {
-    let jobs: Vec<Job> = (0..frames).map(|f| job.for_frame(f)).collect();
+    let jobs: Vec<Job> = (0..frames)
+        .map(|f| named_for_one_set(mesh, job.for_frame(f)))
+        .collect();
     let outputs: Vec<PathBuf> = jobs
         .iter()
         .flat_map(|j| [&j.out_texture, &j.out_glb, &j.out_report, &j.out_preview])

@@ -826,6 +826,10 @@ pub struct Job {
     pub layers: Vec<Layer>,
     /// Output texture path.
     pub out_texture: Option<PathBuf>,
+    /// The name the PBR channels' textures are named from (`output.texture` with its `{channel}`
+    /// kept) where `out_texture` holds the colour's resolved name ([`Job::for_single_set`]);
+    /// `None`: `out_texture` names them.
+    pub channel_texture: Option<PathBuf>,
     /// Bits per PNG sample: 8 or 16.
     pub bit_depth: u8,
     /// Output glb.
@@ -903,7 +907,10 @@ impl Job {
     /// before its extension (for a set), and one without `{channel}` gets `_<channel>` (for a
     /// channel other than the colour): `baked.png` gives `baked.png` and `baked_normal.png`.
     pub fn texture_path(&self, set: Option<&str>, channel: &str) -> Option<PathBuf> {
-        let p = self.out_texture.as_ref()?;
+        let p = self
+            .channel_texture
+            .as_ref()
+            .or(self.out_texture.as_ref())?;
         let text = p.to_string_lossy();
         if text.contains("{set}") || text.contains("{channel}") {
             let full = text
@@ -957,16 +964,16 @@ impl Job {
     }
 
     /// The job for a mesh of one texture set, `set`: `{set}` and `{channel}` in the texture's
-    /// name replaced (`base_color`); the same job where the name has neither.
+    /// name replaced (`base_color`), the name with `{set}` alone replaced kept for the channels'
+    /// textures (`channel_texture`); the same job where the name has neither.
     pub fn for_single_set(&self, set: &str) -> Job {
         let mut job = self.clone();
         if let Some(p) = &self.out_texture {
             let text = p.to_string_lossy();
             if text.contains("{set}") || text.contains("{channel}") {
-                job.out_texture = Some(PathBuf::from(
-                    text.replace("{set}", set)
-                        .replace("{channel}", "base_color"),
-                ));
+                let named = text.replace("{set}", set);
+                job.out_texture = Some(PathBuf::from(named.replace("{channel}", "base_color")));
+                job.channel_texture = Some(PathBuf::from(named));
             }
         }
         job
@@ -1194,6 +1201,7 @@ impl Job {
             tile: t.tile,
             layers,
             out_texture: out(&f.output.texture),
+            channel_texture: None,
             bit_depth: f.output.bit_depth,
             out_glb: out(&f.output.glb),
             out_report: out(&f.output.report),
