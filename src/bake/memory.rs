@@ -202,11 +202,16 @@ pub fn check(engine: &Engine, mesh: &LoadedMesh, job: &Job, streamed: bool) -> R
         Some([tw, th]) => format!("by tiles of {tw}x{th}, the texture in memory"),
         None => "in one pass".to_string(),
     };
+    // Tiled bakes draw the colour only, so they are no way out for a job that paints channels.
+    let tiles = match job.channel_groups() {
+        0 => "use smaller tiles (`texture.tile`; `decalbake bake` streams a tiled bake with a finite padding to its file band by band, the texture never whole in memory)",
+        _ => "bake fewer PBR channels (each channel group adds a canvas and an atlas attachment the size of the colour's; tiled bakes, which need less, draw the colour only)",
+    };
     Err(Error::job(
         &job.source,
         "texture",
         format!(
-            "a {}x{} bake {how} needs about {} ({} on the host, {} on the device{}{}), above {source}: {}; bake a smaller texture or smaller layer images, use smaller tiles (`texture.tile`; `decalbake bake` streams a tiled bake with a finite padding to its file band by band, the texture never whole in memory), or, where the machine has the room (swap, memory other processes will free), give a larger `max_memory` or `--max-memory`",
+            "a {}x{} bake {how} needs about {} ({} on the host, {} on the device{}{}), above {source}: {}; bake a smaller texture or smaller layer images, {tiles}, or, where the machine has the room (swap, memory other processes will free), give a larger `max_memory` or `--max-memory`",
             job.width,
             job.height,
             bytes_text(needed),
