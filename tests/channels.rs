@@ -593,7 +593,7 @@ fn fused_channel_passes_give_the_separate_passes_bytes() {
 /// `Engine::bake_textures`: the colour and every channel group a job paints as GPU textures, each
 /// holding the bytes of the 8-bit PNG `Engine::bake` writes for it (read back here as a host
 /// would), in the formats the glTF material reads them in: emissive and colour sRGB, the
-/// occlusion-roughness-metallic and normal textures linear.
+/// occlusion-roughness-metallic and normal textures linear; whole and by tiles.
 #[test]
 fn bake_textures_gives_every_channel_on_the_gpu() {
     let dir = common::scratch("channels-textures");
@@ -612,44 +612,50 @@ fn bake_textures_gives_every_channel_on_the_gpu() {
     let engine = common::engine();
     let (mesh, job) = engine.load_mesh_for(&job).unwrap();
     let baked = engine.bake(&mesh, &job).unwrap();
-    let (textures, report) = engine.bake_textures(&mesh, &job).unwrap();
-    assert_eq!(
-        report.layers[0].texels_covered,
-        baked.report.layers[0].texels_covered
-    );
-    let kinds: Vec<ChannelKind> = textures.channels.iter().map(|(k, _)| *k).collect();
-    let expected: Vec<ChannelKind> = baked.channels.iter().map(|c| c.kind).collect();
-    assert_eq!(kinds, expected);
-    assert_eq!(
-        kinds,
-        [ChannelKind::Orm, ChannelKind::Normal, ChannelKind::Emissive]
-    );
-    let read = |texture: &wgpu::Texture| common::read_rgba8_texture(&engine, texture);
-    // Values that differ from the PNG's 8-bit texels.
-    let differ = |bytes: &[u8], t: &[u16]| {
-        assert_eq!(bytes.len(), t.len());
-        bytes
-            .iter()
-            .zip(t)
-            .filter(|(b, v)| **b as u16 != **v)
-            .count()
-    };
-    assert_eq!(textures.color.format(), wgpu::TextureFormat::Rgba8UnormSrgb);
-    assert_eq!(differ(&read(&textures.color), &baked.texels), 0, "colour");
-    for ((kind, texture), channel) in textures.channels.iter().zip(&baked.channels) {
-        let format = match kind {
-            ChannelKind::Emissive => wgpu::TextureFormat::Rgba8UnormSrgb,
-            _ => wgpu::TextureFormat::Rgba8Unorm,
-        };
-        assert_eq!(texture.format(), format, "{kind:?}");
-        let bytes = read(texture);
-        assert_eq!(differ(&bytes, &channel.texels), 0, "{kind:?}");
-        // The decal painted something of its own into each channel.
-        let base = &bytes[..4];
-        assert!(
-            bytes.chunks_exact(4).any(|t| t != base),
-            "{kind:?} is one colour"
+    // Whole, and by tiles (assembled on the host and uploaded).
+    for tile in [None, Some(64)] {
+        let mut job = job.clone();
+        job.tile = tile;
+        let (textures, report) = engine.bake_textures(&mesh, &job).unwrap();
+        assert_eq!(report.tiles.is_some(), tile.is_some());
+        assert_eq!(
+            report.layers[0].texels_covered,
+            baked.report.layers[0].texels_covered
         );
+        let kinds: Vec<ChannelKind> = textures.channels.iter().map(|(k, _)| *k).collect();
+        let expected: Vec<ChannelKind> = baked.channels.iter().map(|c| c.kind).collect();
+        assert_eq!(kinds, expected);
+        assert_eq!(
+            kinds,
+            [ChannelKind::Orm, ChannelKind::Normal, ChannelKind::Emissive]
+        );
+        let read = |texture: &wgpu::Texture| common::read_rgba8_texture(&engine, texture);
+        // Values that differ from the PNG's 8-bit texels.
+        let differ = |bytes: &[u8], t: &[u16]| {
+            assert_eq!(bytes.len(), t.len());
+            bytes
+                .iter()
+                .zip(t)
+                .filter(|(b, v)| **b as u16 != **v)
+                .count()
+        };
+        assert_eq!(textures.color.format(), wgpu::TextureFormat::Rgba8UnormSrgb);
+        assert_eq!(differ(&read(&textures.color), &baked.texels), 0, "colour");
+        for ((kind, texture), channel) in textures.channels.iter().zip(&baked.channels) {
+            let format = match kind {
+                ChannelKind::Emissive => wgpu::TextureFormat::Rgba8UnormSrgb,
+                _ => wgpu::TextureFormat::Rgba8Unorm,
+            };
+            assert_eq!(texture.format(), format, "{kind:?}");
+            let bytes = read(texture);
+            assert_eq!(differ(&bytes, &channel.texels), 0, "{kind:?}");
+            // The decal painted something of its own into each channel.
+            let base = &bytes[..4];
+            assert!(
+                bytes.chunks_exact(4).any(|t| t != base),
+                "{kind:?} is one colour"
+            );
+        }
     }
 }
 

@@ -290,3 +290,123 @@ fn skipping_empty_blocks_changes_no_byte() {
         }
     }
 }
+
+/// Spot with four material decals (a normal map, roughness, metallic, and emissive on two of
+/// them) by several methods, in a `side` texture with the texture fields `extra`.
+fn channel_job(dir: &Path, side: [u32; 2], extra: serde_json::Value) -> Job {
+    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
+    std::fs::write(dir.join("a.png"), test_image(32, 32, 5, true).encode_png(8)).unwrap();
+    write_raw_png(&dir.join("n.png"), 48, |s, t| {
+        let (x, y) = (s - 0.5, t - 0.5);
+        let z = (1.0 - 2.0 * (x * x + y * y)).max(0.1);
+        let l = (x * x + y * y + z * z).sqrt();
+        [
+            x / l * 0.5 + 0.5,
+            -y / l * 0.5 + 0.5,
+            z / l * 0.5 + 0.5,
+            1.0,
+        ]
+    });
+    let ray = |o: [f32; 3]| serde_json::json!({ "ray": { "origin": o, "dir": [-o[0], 0.0, 0.2 - o[2]] } });
+    let mut text = serde_json::json!({ "mesh": spot,
+        "texture": { "width": side[0], "height": side[1], "padding": 8 },
+        "layers": [
+            { "image": "a.png", "at": ray([2.0, 0.1, 0.2]), "size": [0.3, 0.3], "method": "expmap",
+              "normal": "n.png", "roughness": 0.2, "metallic": 1.0 },
+            { "image": "a.png", "at": ray([-2.0, 0.2, 0.2]), "size": [0.35, 0.3], "method": "planar",
+              "normal": "n.png", "roughness": 0.7, "emissive": [1.0, 0.5, 0.0] },
+            { "image": "a.png", "at": ray([0.0, 0.0, 2.2]), "size": [0.3, 0.3], "method": "lscm",
+              "angle": 30, "metallic": "a.png" },
+            { "image": "a.png", "at": ray([1.4, 0.25, 1.6]), "size": [0.25, 0.25], "method": "hybrid",
+              "opacity": 0.7, "normal": "n.png", "emissive": "a.png" }
+        ],
+        "output": { "texture": "out.png" } });
+    if let serde_json::Value::Object(m) = extra {
+        for (k, v) in m {
+            text["texture"][k] = v;
+        }
+    }
+    std::fs::write(dir.join("job.json"), text.to_string()).unwrap();
+    Job::parse(&text.to_string(), &dir.join("job.json"), dir, dir).unwrap()
+}
+
+/// PBR channels by tiles: material decals on Spot give every channel's texture byte for byte as
+/// the untiled bake does, for bands with a finite padding (one whose halo spans two bands), a
+/// full padding, and 16 bits; from the command line a tiled job writes each channel's PNG
+/// beside the colour's (baked in memory, not streamed) with the library's bytes, and an EXR
+/// output, which holds the colour only, is refused naming `output.texture`, with nothing written.
+#[test]
+fn tiled_bakes_give_every_channels_untiled_bytes() {
+    let dir = scratch("tiles_channels");
+    let engine = engine();
+    let cases = [
+        (128, serde_json::json!({})),
+        (64, serde_json::json!({ "padding": 80 })),
+        (64, serde_json::json!({ "padding": "full" })),
+    ];
+    for (tile, extra) in cases {
+        let mut j = channel_job(&dir, [256, 256], extra.clone());
+        let mesh = engine.load_mesh(&j.mesh).unwrap();
+        for depth in [8, 16] {
+            j.bit_depth = depth;
+            j.tile = None;
+            let whole = engine.bake(&mesh, &j).unwrap();
+            j.tile = Some(tile);
+            let tiled = engine.bake(&mesh, &j).unwrap();
+            assert!(tiled.report.tiles.is_some() && whole.report.tiles.is_none());
+            let kinds: Vec<_> = whole.channels.iter().map(|c| c.kind.name()).collect();
+            let tiled_kinds: Vec<_> = tiled.channels.iter().map(|c| c.kind.name()).collect();
+            assert_eq!(kinds, ["orm", "normal", "emissive"], "{kinds:?}");
+            assert_eq!(tiled_kinds, kinds);
+            assert!(whole.texels == tiled.texels, "colour, tile {tile} {extra}");
+            for (a, b) in whole.channels.iter().zip(&tiled.channels) {
+                let name = a.kind.name();
+                let differ = a
+                    .texels
+                    .iter()
+                    .zip(&b.texels)
+                    .filter(|(x, y)| x != y)
+                    .count();
+                println!("tile {tile} {extra} {depth}-bit {name}: {differ} values differ");
+                assert_eq!(
+                    differ, 0,
+                    "{name} in tiles of {tile}, {extra}, {depth} bits"
+                );
+                // The decals reach the channel: not a texture of its base alone.
+                let first = &a.texels[..4];
+                assert!(a.texels.chunks(4).any(|t| t != first), "{name} is flat");
+            }
+        }
+    }
+    // The command line: tiled, each channel's file with the library's bytes.
+    let mut j = channel_job(&dir, [256, 256], serde_json::json!({ "tile": 128 }));
+    let mesh = engine.load_mesh(&j.mesh).unwrap();
+    j.tile = None;
+    let whole = engine.bake(&mesh, &j).unwrap();
+    let job_path = dir.join("job.json");
+    let (code, _, err) = cli(&["bake", job_path.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    for c in &whole.channels {
+        let file = dir.join(format!("out_{}.png", c.kind.name()));
+        let png = image::open(&file).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+        let px: Vec<u16> = png
+            .to_rgba8()
+            .into_raw()
+            .into_iter()
+            .map(u16::from)
+            .collect();
+        assert!(px == c.texels, "{} from the command line", c.kind.name());
+    }
+    // An EXR output with channels: refused by name before anything is written.
+    let exr = std::fs::read_to_string(&job_path)
+        .unwrap()
+        .replace("out.png", "fresh.exr");
+    std::fs::write(&job_path, exr).unwrap();
+    let (code, _, err) = cli(&["bake", job_path.to_str().unwrap()]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("output.texture") && err.contains(".exr"),
+        "{err}"
+    );
+    assert!(!dir.join("fresh.exr").exists());
+}

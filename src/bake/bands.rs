@@ -33,6 +33,9 @@ pub struct Band {
     pub rows: u32,
     /// sRGB-encoded RGBA, 4 values a texel, `rows` × the texture's width (as `Baked::texels`).
     pub texels: Vec<u16>,
+    /// Each PBR channel's texels (as `BakedChannel::texels`), in pass order
+    /// (`channels::passes`).
+    pub channels: Vec<Vec<u16>>,
     /// Linear RGBA f32 for a float output (as `Baked::linear`).
     pub linear: Option<Vec<f32>>,
     /// True per island texel.
@@ -111,13 +114,21 @@ fn bake_band(
         y,
         rows,
         texels: vec![0u16; texels_n * 4],
+        channels: super::channels::passes(job)
+            .iter()
+            .map(|_| vec![0u16; texels_n * 4])
+            .collect(),
         linear: job.exr().then(|| vec![0f32; texels_n * 4]),
         mask: vec![false; texels_n],
     };
     let mut report: Option<Report> = None;
     let mut commands = 0;
     for (k, &win) in row.iter().enumerate() {
-        let dest = (&mut band.texels[..], band.linear.as_mut());
+        let dest = tiles::Dest {
+            texels: &mut band.texels[..],
+            channels: band.channels.iter_mut().map(|c| &mut c[..]).collect(),
+            linear: band.linear.as_mut(),
+        };
         let cx = (engine, mesh, job);
         let r = tiles::bake_window(cx, (win, first + k, n), on_stage, y, dest)?;
         report = Some(tiles::merge(report, r));
@@ -155,6 +166,7 @@ fn pad_band(queue: &mut VecDeque<Band>, k: usize, job: &Job, radius: u32) {
     // The halo window, assembled from the queued bands that overlap it.
     let mut mask = Vec::new();
     let mut texels = Vec::new();
+    let mut channels = vec![Vec::new(); queue[k].channels.len()];
     let mut linear = job.exr().then(Vec::new);
     let mut from = top;
     for b in queue.iter() {
@@ -165,6 +177,9 @@ fn pad_band(queue: &mut VecDeque<Band>, k: usize, job: &Job, radius: u32) {
         let (r0, r1) = ((from - a) as usize, (e.min(bottom) - a) as usize);
         mask.extend_from_slice(&b.mask[r0 * w..r1 * w]);
         texels.extend_from_slice(&b.texels[r0 * w * 4..r1 * w * 4]);
+        for (c, src) in channels.iter_mut().zip(&b.channels) {
+            c.extend_from_slice(&src[r0 * w * 4..r1 * w * 4]);
+        }
         if let (Some(l), Some(src)) = (linear.as_mut(), &b.linear) {
             l.extend_from_slice(&src[r0 * w * 4..r1 * w * 4]);
         }
@@ -183,6 +198,10 @@ fn pad_band(queue: &mut VecDeque<Band>, k: usize, job: &Job, radius: u32) {
     let band = &mut queue[k];
     let len = band.texels.len();
     band.texels.copy_from_slice(&texels[at..at + len]);
+    for (dst, mut c) in band.channels.iter_mut().zip(channels) {
+        tiles::pad(&isl, job.width, radius, &mut c, 4);
+        dst.copy_from_slice(&c[at..at + len]);
+    }
     if let (Some(l), Some(dst)) = (linear.as_mut(), band.linear.as_mut()) {
         tiles::pad(&isl, job.width, radius, l, 4);
         dst.copy_from_slice(&l[at..at + len]);

@@ -1048,8 +1048,8 @@ impl Engine {
     /// Bakes `job` onto `mesh` into textures that never leave the GPU: the colour, as
     /// [`Engine::bake_to_texture`] gives it, and one texture per PBR channel group the job's
     /// layers paint ([`BakedTextures`]), 8 bits a channel, each holding the bytes of the PNG
-    /// [`Engine::bake`] would write for it. A job with channels that would go by tiles is refused,
-    /// as [`Engine::bake`] refuses it.
+    /// [`Engine::bake`] would write for it. A texture baked by tiles is assembled on the CPU and
+    /// uploaded, each channel's too.
     pub fn bake_textures(&self, mesh: &LoadedMesh, job: &Job) -> Result<(BakedTextures, Report)> {
         let before = self.pipelines_spent();
         let (textures, mut report) = self.bake_textures_unnoted(mesh, job)?;
@@ -1068,25 +1068,21 @@ impl Engine {
         let srgb = wgpu::TextureFormat::Rgba8UnormSrgb;
         if let Some(tiled) = super::tiled(self, mesh, &job8, &|_| {}) {
             let baked = tiled?;
-            let tex = self.ctx.scoped("texture output", || {
-                let tex = self.output_texture(job.width, job.height, srgb);
-                let bytes: Vec<u8> = baked.texels.iter().map(|&v| v as u8).collect();
-                self.ctx.queue.write_texture(
-                    tex.as_image_copy(),
-                    &bytes,
-                    wgpu::TexelCopyBufferLayout {
-                        offset: 0,
-                        bytes_per_row: Some(job.width * 4),
-                        rows_per_image: Some(job.height),
-                    },
-                    tex.size(),
-                );
-                tex
+            let textures = self.ctx.scoped("texture output", || {
+                let color = self.upload_texels(&baked.texels, job, srgb);
+                let channels = baked
+                    .channels
+                    .iter()
+                    .map(|c| {
+                        let format = match c.kind.linear() {
+                            true => wgpu::TextureFormat::Rgba8Unorm,
+                            false => srgb,
+                        };
+                        (c.kind, self.upload_texels(&c.texels, job, format))
+                    })
+                    .collect();
+                BakedTextures { color, channels }
             })?;
-            let textures = BakedTextures {
-                color: tex,
-                channels: Vec::new(),
-            };
             return Ok((textures, baked.report));
         }
         let run = super::run(self, mesh, &job8, &|_| {})?;
@@ -1114,6 +1110,29 @@ impl Engine {
             .map(|e| e.packed.clone());
         self.return_buffers(packed);
         Ok((textures, run.report))
+    }
+
+    /// A new `format` texture of the job's size holding `texels` (8-bit values, 4 a texel, as
+    /// [`Baked::texels`] holds them), written through the queue.
+    fn upload_texels(
+        &self,
+        texels: &[u16],
+        job: &Job,
+        format: wgpu::TextureFormat,
+    ) -> wgpu::Texture {
+        let tex = self.output_texture(job.width, job.height, format);
+        let bytes: Vec<u8> = texels.iter().map(|&v| v as u8).collect();
+        self.ctx.queue.write_texture(
+            tex.as_image_copy(),
+            &bytes,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(job.width * 4),
+                rows_per_image: Some(job.height),
+            },
+            tex.size(),
+        );
+        tex
     }
 
     /// A new `format` texture of the job's size, recorded into `enc` as a copy of an encoded

@@ -15,7 +15,8 @@
 //!   once for the colour and once per PBR channel group;
 //! - a bake by tiles: [`TILE_DEVICE_PER_TEXEL`] for a tile on the device, [`TILED_HOST_PER_TEXEL`]
 //!   for the whole texture on the host (the assembled texels, the islands and the nearest-island
-//!   map for the padding, the PNG);
+//!   map for the padding, the PNG), and for each PBR channel group the tile's share again on the
+//!   device, one attachment and [`HOST_PER_TEXEL`] a texel on the host;
 //! - a bake by tiles streamed to its file (`output/stream.rs`, band by band, `bands.rs`): the
 //!   tile on the device, and on the host [`BAND_HOST_PER_TEXEL`] for each texel of a band and its
 //!   padding's halo (three bands queued, the halo's copy, its islands and distance transform),
@@ -138,10 +139,14 @@ pub fn estimate(job: &Job, mesh_bytes: u64, tile: Option<[u32; 2]>, streamed: bo
             )
         }
         Some([tw, th]) => {
+            // Each PBR channel group: its tile canvas and fused attachment on the device, its
+            // whole texture on the host.
             let (w, h) = (tw.min(job.width) as u64, th.min(job.height) as u64);
             (
-                w * h * TILE_DEVICE_PER_TEXEL,
-                texels.saturating_mul(TILED_HOST_PER_TEXEL + extra),
+                (w * h * TILE_DEVICE_PER_TEXEL * textures)
+                    .saturating_add((textures - 1) * CHANNEL_TARGET),
+                texels
+                    .saturating_mul(TILED_HOST_PER_TEXEL + extra + (textures - 1) * HOST_PER_TEXEL),
             )
         }
         None => (
@@ -202,10 +207,11 @@ pub fn check(engine: &Engine, mesh: &LoadedMesh, job: &Job, streamed: bool) -> R
         Some([tw, th]) => format!("by tiles of {tw}x{th}, the texture in memory"),
         None => "in one pass".to_string(),
     };
-    // Tiled bakes draw the colour only, so they are no way out for a job that paints channels.
+    // A bake with PBR channels goes by tiles on the device but is not streamed: its textures are
+    // held whole on the host.
     let tiles = match job.channel_groups() {
         0 => "use smaller tiles (`texture.tile`; `decalbake bake` streams a tiled bake with a finite padding to its file band by band, the texture never whole in memory)",
-        _ => "bake fewer PBR channels (each channel group adds a canvas and an atlas attachment the size of the colour's; tiled bakes, which need less, draw the colour only)",
+        _ => "bake fewer PBR channels (each channel group adds a canvas and an attachment on the device and a texture on the host), use smaller tiles (`texture.tile`: the device holds a tile; a bake with PBR channels is not streamed, its textures are held whole on the host)",
     };
     Err(Error::job(
         &job.source,

@@ -98,7 +98,8 @@ pub(crate) fn streamed_shape(engine: &Engine, job: &Job) -> Option<[u32; 2]> {
 
 /// Bakes `job` by tiles of `shape`, handing `sink` each band of rows as soon as it is padded
 /// ([`bands`]); returns the whole bake's report. The caller has checked [`streamed_limits`] and
-/// [`tiles::refuse_channels`] before it began its files.
+/// that the job paints no PBR channel (a streamed bake writes the colour's file alone) before it
+/// began its files.
 pub(crate) fn bake_bands(
     engine: &Engine,
     mesh: &LoadedMesh,
@@ -131,25 +132,39 @@ fn tiled_in_memory(
     shape: [u32; 2],
     on_stage: &dyn Fn(&str),
 ) -> Result<Baked> {
-    tiles::refuse_channels(job, shape)?;
+    tiles::refuse_channels(job)?;
     let (w, h) = (job.width as usize, job.height as usize);
     let mut texels = vec![0u16; w * h * 4];
+    let kinds = channels::passes(job);
+    let mut planes: Vec<Vec<u16>> = kinds.iter().map(|_| vec![0u16; texels.len()]).collect();
     let mut linear = job.exr().then(|| vec![0f32; texels.len()]);
     let report = if finish::padding_radius(job.padding) == u32::MAX {
-        let dest = (&mut texels[..], linear.as_mut());
+        let dest = tiles::Dest {
+            texels: &mut texels[..],
+            channels: planes.iter_mut().map(|c| &mut c[..]).collect(),
+            linear: linear.as_mut(),
+        };
         tiles::bake_whole(engine, mesh, job, shape, on_stage, dest)?
     } else {
         bands::bake(engine, mesh, job, shape, on_stage, &mut |band| {
             let at = band.y as usize * w * 4;
             texels[at..at + band.texels.len()].copy_from_slice(&band.texels);
+            for (all, rows) in planes.iter_mut().zip(&band.channels) {
+                all[at..at + rows.len()].copy_from_slice(rows);
+            }
             if let (Some(all), Some(rows)) = (linear.as_mut(), &band.linear) {
                 all[at..at + rows.len()].copy_from_slice(rows);
             }
             Ok(())
         })?
     };
+    let channels = kinds
+        .into_iter()
+        .zip(planes)
+        .map(|(kind, texels)| BakedChannel { kind, texels })
+        .collect();
     Ok(Baked {
-        channels: Vec::new(),
+        channels,
         width: job.width,
         height: job.height,
         bit_depth: job.bit_depth,

@@ -67,47 +67,59 @@ pub fn windows(w: u32, h: u32, shape: [u32; 2]) -> Vec<[u32; 4]> {
     out
 }
 
-/// Tiles bake the colour only: a job whose layers paint a PBR channel is refused.
-pub(crate) fn refuse_channels(job: &Job, shape: [u32; 2]) -> Result<()> {
+/// A float (EXR) output holds the colour only: a job that writes one and whose layers paint a PBR
+/// channel is refused (the channels' textures are PNGs; bake them to a `.png` name).
+pub(crate) fn refuse_channels(job: &Job) -> Result<()> {
     match super::channels::passes(job).first() {
-        None => Ok(()),
-        Some(kind) => Err(crate::error::Error::job(
+        Some(kind) if job.exr() => Err(crate::error::Error::job(
             &job.source,
-            "texture",
+            "output.texture",
             format!(
-                "this bake goes by tiles (a texture beyond one storage buffer, `texture.tile` or an .exr output), which bake the colour only, and a layer paints the {} channel; bake PBR channels at a size that fits one pass ({}x{} here) to a PNG, without `texture.tile`",
+                "an .exr output holds the colour only, and a layer paints the {} channel; name the texture `.png` to bake the PBR channels (each its own PNG beside the colour's)",
                 kind.name(),
-                shape[0],
-                shape[1]
             ),
         )),
+        _ => Ok(()),
     }
 }
 
-/// Bakes tile `k` of `n`, window `win`, into rows of `w` texels starting at texture row `y0`
-/// (`texels`, and `linear` for a float output), unpadded; returns the tile's report.
+/// Where a tile's texels go: the colour's rows, each PBR channel's (in pass order,
+/// `channels::passes`), and the linear colour for a float output; all rows of the texture's
+/// width, starting at one texture row.
+pub(crate) struct Dest<'a> {
+    pub texels: &'a mut [u16],
+    pub channels: Vec<&'a mut [u16]>,
+    pub linear: Option<&'a mut Vec<f32>>,
+}
+
+/// Bakes tile `k` of `n`, window `win`, into `dest`'s rows of the texture's width starting at
+/// texture row `y0` (the colour, each PBR channel, and the linear colour for a float output),
+/// unpadded; returns the tile's report.
 pub(crate) fn bake_window(
     cx: (&Engine, &LoadedMesh, &Job),
     (win, k, n): ([u32; 4], usize, usize),
     on_stage: &dyn Fn(&str),
     y0: u32,
-    (texels, linear): (&mut [u16], Option<&mut Vec<f32>>),
+    dest: Dest<'_>,
 ) -> Result<Report> {
     let (engine, mesh, job) = cx;
     let w = job.width;
     let stage = |s: &str| on_stage(&format!("tile {}/{n}: {s}", k + 1));
     let run = super::run_in(engine, mesh, job, Some(win), &stage)?;
     let t = Instant::now();
-    let e = &run.encoded;
     let local = [win[0], win[1] - y0, win[2], win[3]];
-    engine
-        .ctx
-        .read_buffer_with(&e.packed, e.packed_size, "encode read-back", |bytes| {
-            let words = bytemuck::cast_slice(bytes);
-            unpack_rows(texels, w, local, words, e.stride, job.bit_depth)
-        })?;
-    engine.return_buffers([run.encoded.packed.clone()]);
-    if let (Some(all), Some(tile)) = (linear, &run.linear) {
+    let encoded = std::iter::once(&run.encoded).chain(run.channels.iter().map(|(_, e)| e));
+    let texels = std::iter::once(dest.texels).chain(dest.channels);
+    for (e, texels) in encoded.zip(texels) {
+        engine
+            .ctx
+            .read_buffer_with(&e.packed, e.packed_size, "encode read-back", |bytes| {
+                let words = bytemuck::cast_slice(bytes);
+                unpack_rows(texels, w, local, words, e.stride, job.bit_depth)
+            })?;
+        engine.return_buffers([e.packed.clone()]);
+    }
+    if let (Some(all), Some(tile)) = (dest.linear, &run.linear) {
         for row in 0..win[3] as usize {
             let src = &tile[row * win[2] as usize * 4..][..win[2] as usize * 4];
             let at = ((local[1] as usize + row) * w as usize + win[0] as usize) * 4;
@@ -127,7 +139,7 @@ pub(crate) fn bake_whole(
     job: &Job,
     shape: [u32; 2],
     on_stage: &dyn Fn(&str),
-    (texels, mut linear): (&mut [u16], Option<&mut Vec<f32>>),
+    mut all: Dest<'_>,
 ) -> Result<Report> {
     let w = job.width;
     let wins = windows(w, job.height, shape);
@@ -135,15 +147,22 @@ pub(crate) fn bake_whole(
     let mut report: Option<Report> = None;
     for (k, &win) in wins.iter().enumerate() {
         let cx = (engine, mesh, job);
-        let dest = (&mut *texels, linear.as_deref_mut());
+        let dest = Dest {
+            texels: &mut *all.texels,
+            channels: all.channels.iter_mut().map(|c| &mut **c).collect(),
+            linear: all.linear.as_deref_mut(),
+        };
         let r = bake_window(cx, (win, k, wins.len()), on_stage, 0, dest)?;
         report = Some(merge(report, r));
     }
     on_stage("padding");
     let radius = super::finish::padding_radius(job.padding);
     let t = Instant::now();
-    pad(&islands, w, radius, texels, 4);
-    if let Some(l) = linear {
+    pad(&islands, w, radius, all.texels, 4);
+    for c in all.channels {
+        pad(&islands, w, radius, c, 4);
+    }
+    if let Some(l) = all.linear {
         pad(&islands, w, radius, l, 4);
     }
     let mut report = report.expect("a texture has at least one tile");

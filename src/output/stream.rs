@@ -8,7 +8,8 @@
 //! What streams: a bake that goes by tiles (`texture.tile`, a texture whose canvas does not fit
 //! one storage buffer, or an EXR output) with a finite padding. `"padding": "full"` (a texel may
 //! take its colour from anywhere in the texture) and the several-set bakes are baked whole in
-//! memory ([`super::write_outputs`]). Where the job asks for a model, the model embeds the PNG's
+//! memory ([`super::write_outputs`]), and so are bakes that paint PBR channels (their textures
+//! are baked tile by tile beside the colour's and written whole). Where the job asks for a model, the model embeds the PNG's
 //! bytes (read back from the temporary file, or, when the job writes no PNG texture, a PNG
 //! written to memory beside the bands), so a model of a huge texture holds its compressed bytes,
 //! not its texels.
@@ -45,9 +46,13 @@ pub fn write_streamed(
     let Some(shape) = crate::bake::streamed_shape(engine, job) else {
         return Ok(None);
     };
+    // The PBR channels' textures are baked beside the colour's tile by tile, and held whole: a
+    // job that paints them is baked in memory (its limits checked for that).
+    if !crate::bake::channels::passes(job).is_empty() {
+        return Ok(None);
+    }
     // Sizes and memory before the file is begun.
     crate::bake::streamed_limits(engine, mesh, job)?;
-    crate::bake::tiles::refuse_channels(job, shape)?;
     let before = engine.pipelines_spent();
     let mut texture = match &job.out_texture {
         Some(p) => Some(Staged::create(p)?),
