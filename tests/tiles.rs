@@ -334,7 +334,7 @@ fn channel_job(dir: &Path, side: [u32; 2], extra: serde_json::Value) -> Job {
 /// the untiled bake does, for bands with a finite padding (one whose halo spans two bands), a
 /// full padding, and 16 bits; from the command line a tiled job writes each channel's PNG
 /// beside the colour's (baked in memory, not streamed) with the library's bytes, and an EXR
-/// output, which holds the colour only, is refused naming `output.texture`, with nothing written.
+/// output writes every channel as linear floats with a 16-bit bake's values.
 #[test]
 fn tiled_bakes_give_every_channels_untiled_bytes() {
     let dir = scratch("tiles_channels");
@@ -397,16 +397,42 @@ fn tiled_bakes_give_every_channels_untiled_bytes() {
             .collect();
         assert!(px == c.texels, "{} from the command line", c.kind.name());
     }
-    // An EXR output with channels: refused by name before anything is written.
+    // An EXR output: every channel's texture as linear floats too, padded, the values of a
+    // 16-bit bake (sRGB-encoded for the emissive, as its PNG is; within a level, the GPU's and
+    // this test's rounding and powers).
+    j.bit_depth = 16;
+    let wide = engine.bake(&mesh, &j).unwrap();
     let exr = std::fs::read_to_string(&job_path)
         .unwrap()
         .replace("out.png", "fresh.exr");
     std::fs::write(&job_path, exr).unwrap();
     let (code, _, err) = cli(&["bake", job_path.to_str().unwrap()]);
-    assert_eq!(code, 2, "{err}");
-    assert!(
-        err.contains("output.texture") && err.contains(".exr"),
-        "{err}"
-    );
-    assert!(!dir.join("fresh.exr").exists());
+    assert_eq!(code, 0, "{err}");
+    let srgb = |v: f32| match v <= 0.0031308 {
+        true => 12.92 * v,
+        false => 1.055 * v.powf(1.0 / 2.4) - 0.055,
+    };
+    for c in &wide.channels {
+        let file = dir.join(format!("fresh_{}.exr", c.kind.name()));
+        let img = image::open(&file).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+        let floats = img.to_rgba32f().into_raw();
+        assert_eq!(floats.len(), c.texels.len(), "{}", c.kind.name());
+        let worst = floats
+            .iter()
+            .zip(&c.texels)
+            .enumerate()
+            .map(|(k, (&f, &t))| {
+                let v = match c.kind.linear() || k % 4 == 3 {
+                    true => f.clamp(0.0, 1.0),
+                    false => srgb(f.clamp(0.0, 1.0)),
+                };
+                (v * 65535.0 - t as f32).abs()
+            })
+            .fold(0.0f32, f32::max);
+        println!(
+            "{}: EXR against the 16-bit PNG, worst {worst} levels",
+            c.kind.name()
+        );
+        assert!(worst <= 1.0, "{}: {worst} levels", c.kind.name());
+    }
 }

@@ -38,6 +38,8 @@ pub struct Band {
     pub channels: Vec<Vec<u16>>,
     /// Linear RGBA f32 for a float output (as `Baked::linear`).
     pub linear: Option<Vec<f32>>,
+    /// Each PBR channel's linear values for a float output (empty otherwise).
+    pub channel_linear: Vec<Vec<f32>>,
     /// True per island texel.
     mask: Vec<bool>,
 }
@@ -119,6 +121,12 @@ fn bake_band(
             .map(|_| vec![0u16; texels_n * 4])
             .collect(),
         linear: job.exr().then(|| vec![0f32; texels_n * 4]),
+        channel_linear: match job.exr() {
+            true => (super::channels::passes(job).iter())
+                .map(|_| vec![0f32; texels_n * 4])
+                .collect(),
+            false => Vec::new(),
+        },
         mask: vec![false; texels_n],
     };
     let mut report: Option<Report> = None;
@@ -128,6 +136,7 @@ fn bake_band(
             texels: &mut band.texels[..],
             channels: band.channels.iter_mut().map(|c| &mut c[..]).collect(),
             linear: band.linear.as_mut(),
+            channel_linear: band.channel_linear.iter_mut().map(|c| &mut c[..]).collect(),
         };
         let cx = (engine, mesh, job);
         let r = tiles::bake_window(cx, (win, first + k, n), on_stage, y, dest)?;
@@ -167,6 +176,7 @@ fn pad_band(queue: &mut VecDeque<Band>, k: usize, job: &Job, radius: u32) {
     let mut mask = Vec::new();
     let mut texels = Vec::new();
     let mut channels = vec![Vec::new(); queue[k].channels.len()];
+    let mut channel_linear = vec![Vec::new(); queue[k].channel_linear.len()];
     let mut linear = job.exr().then(Vec::new);
     let mut from = top;
     for b in queue.iter() {
@@ -178,6 +188,9 @@ fn pad_band(queue: &mut VecDeque<Band>, k: usize, job: &Job, radius: u32) {
         mask.extend_from_slice(&b.mask[r0 * w..r1 * w]);
         texels.extend_from_slice(&b.texels[r0 * w * 4..r1 * w * 4]);
         for (c, src) in channels.iter_mut().zip(&b.channels) {
+            c.extend_from_slice(&src[r0 * w * 4..r1 * w * 4]);
+        }
+        for (c, src) in channel_linear.iter_mut().zip(&b.channel_linear) {
             c.extend_from_slice(&src[r0 * w * 4..r1 * w * 4]);
         }
         if let (Some(l), Some(src)) = (linear.as_mut(), &b.linear) {
@@ -199,6 +212,10 @@ fn pad_band(queue: &mut VecDeque<Band>, k: usize, job: &Job, radius: u32) {
     let len = band.texels.len();
     band.texels.copy_from_slice(&texels[at..at + len]);
     for (dst, mut c) in band.channels.iter_mut().zip(channels) {
+        tiles::pad(&isl, job.width, radius, &mut c, 4);
+        dst.copy_from_slice(&c[at..at + len]);
+    }
+    for (dst, mut c) in band.channel_linear.iter_mut().zip(channel_linear) {
         tiles::pad(&isl, job.width, radius, &mut c, 4);
         dst.copy_from_slice(&c[at..at + len]);
     }

@@ -138,6 +138,9 @@ pub struct BakedChannel {
     pub kind: crate::io::channels::ChannelKind,
     /// RGBA, 4 values a texel, as [`Baked::texels`].
     pub texels: Vec<u16>,
+    /// The channel's canvas, linear RGBA f32 padded like `texels`, for a float (EXR) output, as
+    /// [`Baked::linear`] is the colour's.
+    pub linear: Option<Vec<f32>>,
 }
 
 impl Baked {
@@ -1003,6 +1006,7 @@ impl Engine {
             channels.push(BakedChannel {
                 kind: *kind,
                 texels,
+                linear: None,
             });
         }
         let mut report = run.report;

@@ -140,13 +140,14 @@ pub fn estimate(job: &Job, mesh_bytes: u64, tile: Option<[u32; 2]>, streamed: bo
         }
         Some([tw, th]) => {
             // Each PBR channel group: its tile canvas and fused attachment on the device, its
-            // whole texture on the host.
+            // whole texture (and its floats, for a float output) on the host.
             let (w, h) = (tw.min(job.width) as u64, th.min(job.height) as u64);
+            let floats = if job.exr() { FLOAT_PER_TEXEL } else { 0 };
+            let channel = (textures - 1) * (HOST_PER_TEXEL + floats);
             (
                 (w * h * TILE_DEVICE_PER_TEXEL * textures)
                     .saturating_add((textures - 1) * CHANNEL_TARGET),
-                texels
-                    .saturating_mul(TILED_HOST_PER_TEXEL + extra + (textures - 1) * HOST_PER_TEXEL),
+                texels.saturating_mul(TILED_HOST_PER_TEXEL + extra + channel),
             )
         }
         None => (

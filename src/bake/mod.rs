@@ -74,6 +74,9 @@ pub(crate) struct Run {
     pub encoded: finish::Encoded,
     /// Each channel pass's encoded texture ([`channels`]), in pass order.
     pub channels: Vec<(channels::ChannelKind, finish::Encoded)>,
+    /// Each channel pass's canvas, linear RGBA f32 (unpadded), in pass order, for a float (EXR)
+    /// output; empty otherwise.
+    pub channel_linear: Vec<Vec<f32>>,
     pub report: Report,
     /// The canvas, linear RGBA f32 (unpadded), for a float (EXR) output.
     pub linear: Option<Vec<f32>>,
@@ -132,17 +135,21 @@ fn tiled_in_memory(
     shape: [u32; 2],
     on_stage: &dyn Fn(&str),
 ) -> Result<Baked> {
-    tiles::refuse_channels(job)?;
     let (w, h) = (job.width as usize, job.height as usize);
     let mut texels = vec![0u16; w * h * 4];
     let kinds = channels::passes(job);
     let mut planes: Vec<Vec<u16>> = kinds.iter().map(|_| vec![0u16; texels.len()]).collect();
     let mut linear = job.exr().then(|| vec![0f32; texels.len()]);
+    let mut floats: Vec<Vec<f32>> = match job.exr() {
+        true => kinds.iter().map(|_| vec![0f32; texels.len()]).collect(),
+        false => Vec::new(),
+    };
     let report = if finish::padding_radius(job.padding) == u32::MAX {
         let dest = tiles::Dest {
             texels: &mut texels[..],
             channels: planes.iter_mut().map(|c| &mut c[..]).collect(),
             linear: linear.as_mut(),
+            channel_linear: floats.iter_mut().map(|c| &mut c[..]).collect(),
         };
         tiles::bake_whole(engine, mesh, job, shape, on_stage, dest)?
     } else {
@@ -152,16 +159,24 @@ fn tiled_in_memory(
             for (all, rows) in planes.iter_mut().zip(&band.channels) {
                 all[at..at + rows.len()].copy_from_slice(rows);
             }
+            for (all, rows) in floats.iter_mut().zip(&band.channel_linear) {
+                all[at..at + rows.len()].copy_from_slice(rows);
+            }
             if let (Some(all), Some(rows)) = (linear.as_mut(), &band.linear) {
                 all[at..at + rows.len()].copy_from_slice(rows);
             }
             Ok(())
         })?
     };
+    let mut floats = floats.into_iter();
     let channels = kinds
         .into_iter()
         .zip(planes)
-        .map(|(kind, texels)| BakedChannel { kind, texels })
+        .map(|(kind, texels)| BakedChannel {
+            kind,
+            texels,
+            linear: floats.next(),
+        })
         .collect();
     Ok(Baked {
         channels,
@@ -250,9 +265,13 @@ pub(crate) fn run_in(
     on_stage("padding and encode");
     let encoded = finish::pad_and_encode(cx, &canvas, (window.is_none(), false), &mut log)?;
     let mut encoded_channels = Vec::with_capacity(passes.len());
+    let mut channel_linear = Vec::new();
     for (pass, c) in &passes {
         let pad = (window.is_none(), pass.kind.linear());
         encoded_channels.push((pass.kind, finish::pad_and_encode(cx, c, pad, &mut log)?));
+        if job.exr() {
+            channel_linear.push(c.read_linear(engine)?);
+        }
         engine.return_buffers([c.acc_rg.clone(), c.acc_ba.clone()]);
     }
     let linear = match job.exr() {
@@ -293,6 +312,7 @@ pub(crate) fn run_in(
     Ok(Run {
         encoded,
         channels: encoded_channels,
+        channel_linear,
         report,
         linear,
     })

@@ -67,29 +67,27 @@ pub fn windows(w: u32, h: u32, shape: [u32; 2]) -> Vec<[u32; 4]> {
     out
 }
 
-/// A float (EXR) output holds the colour only: a job that writes one and whose layers paint a PBR
-/// channel is refused (the channels' textures are PNGs; bake them to a `.png` name).
-pub(crate) fn refuse_channels(job: &Job) -> Result<()> {
-    match super::channels::passes(job).first() {
-        Some(kind) if job.exr() => Err(crate::error::Error::job(
-            &job.source,
-            "output.texture",
-            format!(
-                "an .exr output holds the colour only, and a layer paints the {} channel; name the texture `.png` to bake the PBR channels (each its own PNG beside the colour's)",
-                kind.name(),
-            ),
-        )),
-        _ => Ok(()),
-    }
-}
-
 /// Where a tile's texels go: the colour's rows, each PBR channel's (in pass order,
-/// `channels::passes`), and the linear colour for a float output; all rows of the texture's
-/// width, starting at one texture row.
+/// `channels::passes`), and for a float output the linear colour and channels; all rows of the
+/// texture's width, starting at one texture row.
 pub(crate) struct Dest<'a> {
     pub texels: &'a mut [u16],
     pub channels: Vec<&'a mut [u16]>,
     pub linear: Option<&'a mut Vec<f32>>,
+    /// Each channel's linear values for a float output (empty otherwise).
+    pub channel_linear: Vec<&'a mut [f32]>,
+}
+
+impl Dest<'_> {
+    /// The same rows, borrowed again.
+    fn again(&mut self) -> Dest<'_> {
+        Dest {
+            texels: &mut *self.texels,
+            channels: self.channels.iter_mut().map(|c| &mut **c).collect(),
+            linear: self.linear.as_deref_mut(),
+            channel_linear: self.channel_linear.iter_mut().map(|c| &mut **c).collect(),
+        }
+    }
 }
 
 /// Bakes tile `k` of `n`, window `win`, into `dest`'s rows of the texture's width starting at
@@ -119,7 +117,10 @@ pub(crate) fn bake_window(
             })?;
         engine.return_buffers([e.packed.clone()]);
     }
-    if let (Some(all), Some(tile)) = (dest.linear, &run.linear) {
+    let linear = dest.linear.map(|l| &mut l[..]).into_iter();
+    let linear = linear.chain(dest.channel_linear);
+    let tiles = run.linear.iter().chain(&run.channel_linear);
+    for (all, tile) in linear.zip(tiles) {
         for row in 0..win[3] as usize {
             let src = &tile[row * win[2] as usize * 4..][..win[2] as usize * 4];
             let at = ((local[1] as usize + row) * w as usize + win[0] as usize) * 4;
@@ -147,11 +148,7 @@ pub(crate) fn bake_whole(
     let mut report: Option<Report> = None;
     for (k, &win) in wins.iter().enumerate() {
         let cx = (engine, mesh, job);
-        let dest = Dest {
-            texels: &mut *all.texels,
-            channels: all.channels.iter_mut().map(|c| &mut **c).collect(),
-            linear: all.linear.as_deref_mut(),
-        };
+        let dest = all.again();
         let r = bake_window(cx, (win, k, wins.len()), on_stage, 0, dest)?;
         report = Some(merge(report, r));
     }
@@ -160,6 +157,9 @@ pub(crate) fn bake_whole(
     let t = Instant::now();
     pad(&islands, w, radius, all.texels, 4);
     for c in all.channels {
+        pad(&islands, w, radius, c, 4);
+    }
+    for c in all.channel_linear {
         pad(&islands, w, radius, c, 4);
     }
     if let Some(l) = all.linear {

@@ -93,7 +93,11 @@ pub fn write_outputs(
         files.insert(0, (p.clone(), bytes));
         for (c, png) in baked.channels.iter().zip(channel_pngs) {
             if let Some(q) = job.texture_path(None, c.kind.name()) {
-                files.insert(1, (q, png));
+                let bytes = match &c.linear {
+                    Some(linear) if job.exr() => exr_bytes(baked.width, baked.height, linear, &q)?,
+                    _ => png,
+                };
+                files.insert(1, (q, bytes));
             }
         }
     }
@@ -221,7 +225,12 @@ pub fn write_set_outputs(
             files.push((p.clone(), bytes));
             for (c, cpng) in b.baked.channels.iter().zip(cpngs) {
                 if let Some(q) = job.texture_path(Some(&b.set.name), c.kind.name()) {
-                    files.push((q, cpng.clone()));
+                    let (w, h) = (b.baked.width, b.baked.height);
+                    let bytes = match &c.linear {
+                        Some(linear) if job.exr() => exr_bytes(w, h, linear, &q)?,
+                        _ => cpng.clone(),
+                    };
+                    files.push((q, bytes));
                 }
             }
         }
