@@ -57,9 +57,11 @@ fn atlas_texel(t: vec2<u32>) -> vec2<u32> {
     return a;
 }
 
-fn sample_arg(s: u32) -> u32 {
-    var a = 0u;
-    // MSAA: a = s;
+// Signed: naga's GLSL for an unsigned level or sample calls textureSize(sampler2D, uint), which
+// GLSL does not have (wgpu's GL backend).
+fn sample_arg(s: u32) -> i32 {
+    var a = 0i;
+    // MSAA: a = i32(s);
     return a;
 }
 

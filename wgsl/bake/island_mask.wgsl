@@ -17,11 +17,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var any = false;
     for (var s = 0u; s < params.ss * params.ss; s++) {
         var p = gid.xy * params.ss + vec2<u32>(s % params.ss, s / params.ss);
-        var q = 0u;
+        // The mip level, or the sample: signed, because naga's GLSL for an unsigned one calls
+        // textureSize(sampler2D, uint), which GLSL does not have (wgpu's GL backend).
+        var q = 0i;
         // The adaptive bake's variant (`gpu::shaders::msaa_kernel_source`): the texel's four
         // samples in its pixel, as the adaptive layer raster draws them.
         // MSAA: p = gid.xy;
-        // MSAA: q = s;
+        // MSAA: q = i32(s);
         any = any || textureLoad(cov, vec2<i32>(p), q).r > 0.5;
     }
     if (any) {
