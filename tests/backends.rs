@@ -37,7 +37,10 @@ fn the_gl_backend_bakes_the_vulkan_texture_within_a_level() {
         Ok(e) => e,
         Err(e) => {
             // `.ci/run` installs Mesa's EGL, so under CI the backend must be there.
-            assert!(std::env::var_os("CI").is_none(), "no GL adapter under CI: {e}");
+            assert!(
+                std::env::var_os("CI").is_none(),
+                "no GL adapter under CI: {e}"
+            );
             println!("no GL adapter here ({e}); nothing checked");
             return;
         }
