@@ -593,3 +593,58 @@ fn texture_sets_take_their_own_sizes_and_unknown_materials_are_refused() {
     );
     assert!(!out.exists() || std::fs::read_dir(&out).unwrap().next().is_none());
 }
+
+/// An animated ribbon on a model of two texture sets whose UV layouts overlap: each frame bakes a
+/// texture per set it touches, as an unanimated job does, through `decalbake bake` and `decalbake
+/// batch` alike (the same files, the same bytes). The piece lies on the first material in frame 0
+/// and on the second in frame 1, so frame 0 writes the first set's texture and frame 1 the
+/// second's, each painted: a frame baked as one texture for the whole mesh was named after the
+/// first set in both frames, and painted the second material's triangles into it.
+#[test]
+fn animated_frames_bake_a_texture_per_set() {
+    let mut written = Vec::new();
+    for command in ["bake", "batch"] {
+        let dir = common::scratch(&format!("document-frames-{command}"));
+        let src = write_rich_overlapping(&dir);
+        let job = job(&dir, &src, "out.glb");
+        let mut j: Value = serde_json::from_slice(&std::fs::read(&job).unwrap()).unwrap();
+        let route: Vec<[f32; 3]> = (0..=14).map(|k| [0.3 + 0.1 * k as f32, 0.5, 0.0]).collect();
+        j["layers"] = json!([{ "kind": "ribbon", "image": "green.png", "width": 0.2,
+            "animate": { "route": route, "frames": 2, "length": 0.4 } }]);
+        j["output"] = json!({ "texture": "anim_{set}_{frame}.png" });
+        std::fs::write(&job, serde_json::to_vec(&j).unwrap()).unwrap();
+        let manifest = dir.join("manifest.jsonl");
+        std::fs::write(&manifest, format!("{}\n", json!(job.to_str().unwrap()))).unwrap();
+        let (code, _, err) = match command {
+            "bake" => common::cli(&["bake", job.to_str().unwrap()]),
+            _ => common::cli(&["batch", manifest.to_str().unwrap()]),
+        };
+        assert_eq!(code, 0, "{command}: {err}");
+        let mut names: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with("anim_"))
+            .collect();
+        names.sort();
+        let expected = ["anim_glossy_1.png", "anim_painted_0.png"];
+        assert_eq!(names, expected, "{command}");
+        let green = |name: &str| {
+            let img = image::open(dir.join(name)).unwrap().to_rgba8();
+            img.pixels().filter(|p| p.0 == [20, 200, 90, 255]).count()
+        };
+        for name in expected {
+            let n = green(name);
+            println!("{command} {name}: {n} green texels");
+            assert!(n > 0, "{command} {name}: {n} green texels");
+        }
+        let bytes: Vec<Vec<u8>> = names
+            .iter()
+            .map(|n| std::fs::read(dir.join(n)).unwrap())
+            .collect();
+        written.push(bytes);
+    }
+    assert!(
+        written[0] == written[1],
+        "bake and batch wrote different frames"
+    );
+}

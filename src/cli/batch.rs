@@ -669,7 +669,10 @@ fn write_frames(
 ) -> Result<()> {
     undo.prepare(&jobs, outputs)?;
     for j in jobs {
-        write_one(cx, j, outputs, undo)?;
+        // On a mesh of several texture sets, a texture per set, as an unanimated job bakes.
+        if !write_texture_sets(cx, &j, outputs, undo)? {
+            write_one(cx, j, outputs, undo)?;
+        }
     }
     Ok(())
 }

@@ -749,8 +749,14 @@ fn bake_frames(
     job: &Job,
     frames: u32,
 ) -> Result<()> {
+    // On a mesh of several texture sets, each frame bakes a texture per set, as an unanimated
+    // job does.
+    let sets = mesh.mesh.texture_sets(job.uv_set);
     let jobs: Vec<Job> = (0..frames)
-        .map(|f| named_for_one_set(mesh, job.for_frame(f)))
+        .map(|f| match sets.len() > 1 {
+            true => job.for_frame(f),
+            false => named_for_one_set(mesh, job.for_frame(f)),
+        })
         .collect();
     let outputs: Vec<PathBuf> = jobs
         .iter()
@@ -762,7 +768,13 @@ fn bake_frames(
     let write = |undo: &mut batch::Undo| -> Result<()> {
         undo.prepare(&jobs, &outputs)?;
         for j in &jobs {
-            let (_, files) = decalbake::output::bake_and_write(engine, mesh, j, &|_| {}, &|_| {})?;
+            let files = match sets.len() > 1 {
+                true => {
+                    let mut bakes = engine.bake_texture_sets(mesh, j, sets.clone())?;
+                    decalbake::output::write_set_outputs(engine, mesh, j, &mut bakes)?
+                }
+                false => decalbake::output::bake_and_write(engine, mesh, j, &|_| {}, &|_| {})?.1,
+            };
             undo.files.extend(files);
         }
         Ok(())
