@@ -679,19 +679,9 @@ fn channel_file_names_fill_their_placeholders_in_bake_and_batch() {
         });
         let path = dir.join("job.json");
         std::fs::write(&path, job.to_string()).unwrap();
-        let manifest = dir.join("manifest.jsonl");
-        std::fs::write(&manifest, format!("{}\n", json!(path.to_str().unwrap()))).unwrap();
-        let (code, _, err) = match command {
-            "bake" => common::cli(&["bake", path.to_str().unwrap()]),
-            _ => common::cli(&["batch", manifest.to_str().unwrap()]),
-        };
+        let (code, _, err) = common::bake_or_batch(command, &path);
         assert_eq!(code, 0, "{command}: {err}");
-        let mut names: Vec<String> = std::fs::read_dir(&dir)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .filter(|n| n.starts_with("t_"))
-            .collect();
-        names.sort();
+        let names = common::files_starting(&dir, "t_");
         assert_eq!(names.len(), 3, "{command} wrote {names:?}");
         let stem = names[0].strip_suffix("base_color.png");
         let stem = stem.unwrap_or_else(|| panic!("{command} wrote {names:?}"));

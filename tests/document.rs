@@ -613,19 +613,9 @@ fn animated_frames_bake_a_texture_per_set() {
             "animate": { "route": route, "frames": 2, "length": 0.4 } }]);
         j["output"] = json!({ "texture": "anim_{set}_{frame}.png" });
         std::fs::write(&job, serde_json::to_vec(&j).unwrap()).unwrap();
-        let manifest = dir.join("manifest.jsonl");
-        std::fs::write(&manifest, format!("{}\n", json!(job.to_str().unwrap()))).unwrap();
-        let (code, _, err) = match command {
-            "bake" => common::cli(&["bake", job.to_str().unwrap()]),
-            _ => common::cli(&["batch", manifest.to_str().unwrap()]),
-        };
+        let (code, _, err) = common::bake_or_batch(command, &job);
         assert_eq!(code, 0, "{command}: {err}");
-        let mut names: Vec<String> = std::fs::read_dir(&dir)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .filter(|n| n.starts_with("anim_"))
-            .collect();
-        names.sort();
+        let names = common::files_starting(&dir, "anim_");
         let expected = ["anim_glossy_1.png", "anim_painted_0.png"];
         assert_eq!(names, expected, "{command}");
         let green = |name: &str| {

@@ -10,8 +10,19 @@ use common::*;
 use decalbake::{Engine, Error, Job};
 use std::path::Path;
 
-/// Spot with decals by every method and blend mode, and a continuous paint stroke across the back.
-fn job(dir: &Path, side: [u32; 2], extra: serde_json::Value) -> Job {
+/// The ray from outside Spot at `o` towards its middle, as a layer's `at`.
+fn ray(o: [f32; 3]) -> serde_json::Value {
+    serde_json::json!({ "ray": { "origin": o, "dir": [-o[0], 0.0, 0.2 - o[2]] } })
+}
+
+/// A job of `layers` on Spot in a `side` texture (padding 8, the texture fields `extra`), with the
+/// images `a.png` and `b.png` written beside it, and its file `job.json`.
+fn spot_job(
+    dir: &Path,
+    side: [u32; 2],
+    layers: serde_json::Value,
+    extra: serde_json::Value,
+) -> Job {
     let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
     std::fs::write(dir.join("a.png"), test_image(32, 32, 5, true).encode_png(8)).unwrap();
     std::fs::write(
@@ -19,26 +30,32 @@ fn job(dir: &Path, side: [u32; 2], extra: serde_json::Value) -> Job {
         test_image(24, 40, 8, false).encode_png(8),
     )
     .unwrap();
-    let ray = |o: [f32; 3]| serde_json::json!({ "ray": { "origin": o, "dir": [-o[0], 0.0, 0.2 - o[2]] } });
     let mut text = serde_json::json!({ "mesh": spot,
         "texture": { "width": side[0], "height": side[1], "padding": 8 },
-        "layers": [
-            { "image": "a.png", "at": ray([2.0, 0.1, 0.2]), "size": [0.3, 0.3], "method": "expmap" },
-            { "image": "b.png", "at": ray([-2.0, 0.2, 0.2]), "size": [0.35, 0.3], "method": "planar", "blend": "multiply" },
-            { "image": "a.png", "at": ray([0.0, 0.0, 2.2]), "size": [0.3, 0.3], "method": "lscm", "blend": "screen", "angle": 30 },
-            { "image": "b.png", "at": ray([1.4, 0.25, 1.6]), "size": [0.25, 0.25], "method": "hybrid", "opacity": 0.7 },
-            { "kind": "stroke", "image": "a.png", "size": [0.1, 0.1], "spacing": 0.2, "continuity": true,
-              "path": (0..5).map(|k| { let t = k as f32 / 4.0;
-                  serde_json::json!({ "ray": { "origin": [-0.3 + 0.6 * t, 1.5, 0.22 + 0.09 * (std::f32::consts::TAU * t).sin()], "dir": [0, -1, 0] } }) })
-                  .collect::<Vec<_>>() }
-        ],
+        "layers": layers,
         "output": { "texture": "out.png" } });
     if let serde_json::Value::Object(m) = extra {
         for (k, v) in m {
             text["texture"][k] = v;
         }
     }
+    std::fs::write(dir.join("job.json"), text.to_string()).unwrap();
     Job::parse(&text.to_string(), &dir.join("job.json"), dir, dir).unwrap()
+}
+
+/// Spot with decals by every method and blend mode, and a continuous paint stroke across the back.
+fn job(dir: &Path, side: [u32; 2], extra: serde_json::Value) -> Job {
+    let layers = serde_json::json!([
+        { "image": "a.png", "at": ray([2.0, 0.1, 0.2]), "size": [0.3, 0.3], "method": "expmap" },
+        { "image": "b.png", "at": ray([-2.0, 0.2, 0.2]), "size": [0.35, 0.3], "method": "planar", "blend": "multiply" },
+        { "image": "a.png", "at": ray([0.0, 0.0, 2.2]), "size": [0.3, 0.3], "method": "lscm", "blend": "screen", "angle": 30 },
+        { "image": "b.png", "at": ray([1.4, 0.25, 1.6]), "size": [0.25, 0.25], "method": "hybrid", "opacity": 0.7 },
+        { "kind": "stroke", "image": "a.png", "size": [0.1, 0.1], "spacing": 0.2, "continuity": true,
+          "path": (0..5).map(|k| { let t = k as f32 / 4.0;
+              serde_json::json!({ "ray": { "origin": [-0.3 + 0.6 * t, 1.5, 0.22 + 0.09 * (std::f32::consts::TAU * t).sin()], "dir": [0, -1, 0] } }) })
+              .collect::<Vec<_>>() }
+    ]);
+    spot_job(dir, side, layers, extra)
 }
 
 #[test]
@@ -175,7 +192,6 @@ fn a_blur_stamp_across_a_tile_border_is_refused_by_name() {
     let engine = engine();
     let j = job(&dir, [256, 256], serde_json::json!({}));
     let blur: Job = {
-        let ray = |o: [f32; 3]| serde_json::json!({ "ray": { "origin": o, "dir": [-o[0], 0.0, 0.2 - o[2]] } });
         let layer = serde_json::json!({ "kind": "stroke", "tool": "blur", "radius": 0.03, "image": "a.png",
             "size": [0.15, 0.15], "spacing": 0.3, "path": [ray([2.0, 0.1, 0.1]), ray([2.0, 0.15, 0.4])] });
         let text = serde_json::json!({ "mesh": j.mesh, "texture": { "width": 256, "height": 256 },
@@ -294,8 +310,6 @@ fn skipping_empty_blocks_changes_no_byte() {
 /// Spot with four material decals (a normal map, roughness, metallic, and emissive on two of
 /// them) by several methods, in a `side` texture with the texture fields `extra`.
 fn channel_job(dir: &Path, side: [u32; 2], extra: serde_json::Value) -> Job {
-    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/spot.glb");
-    std::fs::write(dir.join("a.png"), test_image(32, 32, 5, true).encode_png(8)).unwrap();
     write_raw_png(&dir.join("n.png"), 48, |s, t| {
         let (x, y) = (s - 0.5, t - 0.5);
         let z = (1.0 - 2.0 * (x * x + y * y)).max(0.1);
@@ -307,27 +321,17 @@ fn channel_job(dir: &Path, side: [u32; 2], extra: serde_json::Value) -> Job {
             1.0,
         ]
     });
-    let ray = |o: [f32; 3]| serde_json::json!({ "ray": { "origin": o, "dir": [-o[0], 0.0, 0.2 - o[2]] } });
-    let mut text = serde_json::json!({ "mesh": spot,
-        "texture": { "width": side[0], "height": side[1], "padding": 8 },
-        "layers": [
-            { "image": "a.png", "at": ray([2.0, 0.1, 0.2]), "size": [0.3, 0.3], "method": "expmap",
-              "normal": "n.png", "roughness": 0.2, "metallic": 1.0 },
-            { "image": "a.png", "at": ray([-2.0, 0.2, 0.2]), "size": [0.35, 0.3], "method": "planar",
-              "normal": "n.png", "roughness": 0.7, "emissive": [1.0, 0.5, 0.0] },
-            { "image": "a.png", "at": ray([0.0, 0.0, 2.2]), "size": [0.3, 0.3], "method": "lscm",
-              "angle": 30, "metallic": "a.png" },
-            { "image": "a.png", "at": ray([1.4, 0.25, 1.6]), "size": [0.25, 0.25], "method": "hybrid",
-              "opacity": 0.7, "normal": "n.png", "emissive": "a.png" }
-        ],
-        "output": { "texture": "out.png" } });
-    if let serde_json::Value::Object(m) = extra {
-        for (k, v) in m {
-            text["texture"][k] = v;
-        }
-    }
-    std::fs::write(dir.join("job.json"), text.to_string()).unwrap();
-    Job::parse(&text.to_string(), &dir.join("job.json"), dir, dir).unwrap()
+    let layers = serde_json::json!([
+        { "image": "a.png", "at": ray([2.0, 0.1, 0.2]), "size": [0.3, 0.3], "method": "expmap",
+          "normal": "n.png", "roughness": 0.2, "metallic": 1.0 },
+        { "image": "a.png", "at": ray([-2.0, 0.2, 0.2]), "size": [0.35, 0.3], "method": "planar",
+          "normal": "n.png", "roughness": 0.7, "emissive": [1.0, 0.5, 0.0] },
+        { "image": "a.png", "at": ray([0.0, 0.0, 2.2]), "size": [0.3, 0.3], "method": "lscm",
+          "angle": 30, "metallic": "a.png" },
+        { "image": "a.png", "at": ray([1.4, 0.25, 1.6]), "size": [0.25, 0.25], "method": "hybrid",
+          "opacity": 0.7, "normal": "n.png", "emissive": "a.png" }
+    ]);
+    spot_job(dir, side, layers, extra)
 }
 
 /// PBR channels by tiles: material decals on Spot give every channel's texture byte for byte as

@@ -752,10 +752,11 @@ fn bake_frames(
     // On a mesh of several texture sets, each frame bakes a texture per set, as an unanimated
     // job does.
     let sets = mesh.mesh.texture_sets(job.uv_set);
+    let first = sets.first().map_or("default", |s| s.name.as_str());
     let jobs: Vec<Job> = (0..frames)
         .map(|f| match sets.len() > 1 {
             true => job.for_frame(f),
-            false => named_for_one_set(mesh, job.for_frame(f)),
+            false => job.for_frame(f).for_single_set(first),
         })
         .collect();
     let outputs: Vec<PathBuf> = jobs

@@ -228,6 +228,31 @@ pub fn cli(args: &[&str]) -> (i32, String, String) {
     cli_env(args, &[])
 }
 
+/// Runs `decalbake bake JOB` (`command` "bake") or `decalbake batch` of a manifest naming `job`
+/// alone, written beside it (`command` "batch"): (exit code, stdout, stderr).
+pub fn bake_or_batch(command: &str, job: &Path) -> (i32, String, String) {
+    match command {
+        "bake" => cli(&["bake", job.to_str().unwrap()]),
+        _ => {
+            let manifest = job.with_extension("manifest.jsonl");
+            let line = serde_json::json!(job.to_str().unwrap());
+            std::fs::write(&manifest, format!("{line}\n")).unwrap();
+            cli(&["batch", manifest.to_str().unwrap()])
+        }
+    }
+}
+
+/// The names of the files in `dir` that start with `prefix`, sorted.
+pub fn files_starting(dir: &Path, prefix: &str) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with(prefix))
+        .collect();
+    names.sort();
+    names
+}
+
 /// Runs the CLI with `envs` added to its environment: (exit code, stdout, stderr).
 pub fn cli_env(args: &[&str], envs: &[(&str, &str)]) -> (i32, String, String) {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_decalbake"))
