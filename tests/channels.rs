@@ -497,8 +497,10 @@ fn strokes_and_ribbons_paint_channels() {
 /// The channel groups drawn and composed beside the colour in one pass give the separate passes'
 /// bytes: every texture of a job whose layers paint different channel sets (one none, one only a
 /// "dx" normal by UDN, one a masked material with a metallic image of another size than its
-/// colour, a ribbon replacing its data), 16 bits a channel, on mirrored UVs; and a job of two
-/// groups with a gap between their attachments (orm and emissive). The separate passes are taken
+/// colour, a ribbon replacing its data), 16 bits a channel, on mirrored UVs; a job of two
+/// groups with a gap between their attachments (orm and emissive); and a job whose groups are all
+/// numbers at their layers' opacities (derived from the colour's samples, no channel
+/// attachment). The separate passes are taken
 /// when asked for and where the device has too few attachments.
 #[test]
 fn fused_channel_passes_give_the_separate_passes_bytes() {
@@ -536,7 +538,15 @@ fn fused_channel_passes_give_the_separate_passes_bytes() {
     let mut separate = common::engine();
     separate.separate_channel_passes = true;
     let few = common::engine_with_limits(|l| l.max_color_attachments = 4);
-    for (name, layers) in [("full", full), ("gap", gap)] {
+    // Every group from numbers at its layer's opacity: the fused raster draws the colour alone
+    // and its compose derives the groups from the colour's samples.
+    let numbers = json!([
+        {"image": "disc.png", "at": [0.5, 0.5, 0.0], "size": [0.6, 0.6], "opacity": 0.7,
+         "roughness": 0.2, "metallic": 1.0, "emissive": [0.0, 1.0, 0.0]},
+        {"image": "disc.png", "at": [0.4, 0.4, 0.0], "size": [0.3, 0.3], "angle": 40,
+         "mask": "mask.png", "occlusion": 0.25, "blend": "multiply"}
+    ]);
+    for (name, layers) in [("full", full), ("gap", gap), ("numbers", numbers)] {
         let job = json!({
             "mesh": "plane.glb",
             "texture": {"width": SIZE, "height": SIZE, "base": [0.5, 0.5, 0.5, 1.0], "padding": 2},

@@ -78,8 +78,12 @@ pub struct Pass {
 /// One raster entry's channel draws in a fused pass (`ChannelDraw` in `wgsl/bake/layer_raster.wgsl`
 /// and `compose.wgsl`): per group (orm, normal, emissive) the opacity, blend and data weights the
 /// separate pass's entry would carry; `bits[0]`: the groups the unit paints, `bits[1]`: its normal
-/// map is "dx", `bits[2]`: the groups drawn from a constant (`value`). A separate pass's raster
-/// reads its group's `value` (at `Params::draw` y) where it has `FLAG_CONSTANT`.
+/// map is "dx", `bits[2]`: the groups drawn from a constant (`value`), `bits[3]`: of those, the
+/// groups at the colour's opacity, whose samples are the colour's alphas times the constant: a
+/// fused raster draws nothing for them and its compose derives them from the colour's samples
+/// (`compose::channel_draws`). A separate pass's raster reads its group's `value` (at
+/// `Params::draw` y) where it has `FLAG_CONSTANT`. Every compose composes a constant group as its
+/// value times its samples' average alpha, so the fused and separate passes agree bit for bit.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct ChannelDraw {
@@ -87,7 +91,7 @@ pub struct ChannelDraw {
     pub opacity: [f32; 4],
     /// Blend id per group.
     pub blend: [u32; 4],
-    /// Painted groups, "dx".
+    /// Painted groups, "dx", constant groups, derived groups.
     pub bits: [u32; 4],
     /// Data weights per group (`Params::chan`).
     pub chan: [[f32; 4]; 3],
@@ -261,7 +265,23 @@ fn draw_params(l: &crate::io::job::Layer, kind: ChannelKind) -> (f32, u32, [f32;
                 DataBlend::Normal => BLEND_DATA_MIX,
                 DataBlend::Replace => BLEND_DATA_REPLACE,
             };
-            (1.0, blend, chan, 0)
+            // Every part at the layer's opacity (the default): the group drawn at it, each part
+            // weighted 1 (the same mix, a * w: the opacity moves from w into a), so its samples'
+            // alphas are the colour's and a constant group is derived from them
+            // (`compose::channel_draws`).
+            let parts = [&c.occlusion, &c.roughness, &c.metallic];
+            match parts
+                .iter()
+                .copied()
+                .flatten()
+                .all(|p| p.opacity == l.opacity)
+            {
+                true => {
+                    let w = parts.map(|p| if p.is_some() { 1.0 } else { 0.0 });
+                    (l.opacity, blend, [w[0], w[1], w[2], 0.0], 0)
+                }
+                false => (1.0, blend, chan, 0),
+            }
         }
         ChannelKind::Normal => {
             let n = c

@@ -270,6 +270,16 @@ pub(crate) fn compose(
         }
     }
     let draws = channel_draws(&mut jp, &jobs, placed, (pass, fused));
+    let attached = match fused.is_empty() {
+        true => 0,
+        false => attached_groups(&draws),
+    };
+    if std::env::var("DECALBAKE_DEBUG").is_ok() && !fused.is_empty() {
+        eprintln!(
+            "channel groups fused {}, drawn {attached:#05b}",
+            fused.len()
+        );
+    }
     let draws = engine.ctx.storage_init(
         "bake.channel_draws",
         bytemuck::cast_slice(&draws),
@@ -330,6 +340,7 @@ pub(crate) fn compose(
             flats: flats.as_ref().map_or(&no_flats, |f| &f.buffer),
             pass,
             fused,
+            attached,
             draws: &draws,
             placeholder: &no_flats,
             spare_planes: &spare_planes,
@@ -477,10 +488,29 @@ fn channel_draws(
         .map(|u| ChannelDraw::of(&passes, placed.origin[u].0))
         .collect();
     draws.resize(jp.len(), ChannelDraw::default());
-    for (i, p) in jp.iter_mut().enumerate() {
+    for (i, (p, d)) in jp.iter_mut().zip(&mut draws).enumerate() {
         p.draw = [i as u32, group, 0, 0];
+        if pass.is_none() {
+            d.bits[3] = derived_groups(d, p.opacity);
+        }
     }
     draws
+}
+
+/// Of a fused entry's channel groups `d`, those whose samples are the colour's alphas times a
+/// constant: drawn from a constant (occlusion-roughness-metallic numbers, an emissive triple) at
+/// exactly the colour's `opacity`, so every sample's alpha is the colour sample's (the raster
+/// writes both as the image's alpha, masked, times the opacity and the sample's share).
+fn derived_groups(d: &ChannelDraw, opacity: f32) -> u32 {
+    (0..3)
+        .filter(|&k| d.bits[2] >> k & 1 == 1 && d.opacity[k].to_bits() == opacity.to_bits())
+        .fold(0, |b, k| b | 1 << k)
+}
+
+/// The channel groups a fused pass draws attachments for: those some entry paints and does not
+/// derive from the colour ([`derived_groups`]; 0: the colour's raster alone).
+fn attached_groups(draws: &[ChannelDraw]) -> u32 {
+    draws.iter().fold(0, |b, d| b | (d.bits[0] & !d.bits[3]))
 }
 
 /// Unit `u`'s opacity, blend and data weights in `pass` (its `Params` `p` in the colour's), and
@@ -590,6 +620,9 @@ struct Recording<'a> {
     pass: Option<&'a Pass>,
     /// The channel groups fused beside the colour, with their canvases (empty: none).
     fused: &'a [(Pass, Canvas)],
+    /// Of those, the groups the raster draws attachments for ([`attached_groups`]; 0 where the
+    /// compose derives every one from the colour, or none is fused).
+    attached: u32,
     /// The fused pass's channel draws ([`channel_draws`]).
     draws: &'a wgpu::Buffer,
     /// A 16-byte storage buffer bound where a fused pass has no normal group (its tangents).
@@ -647,8 +680,7 @@ impl Recording<'_> {
             // decals 394 → 372 ms; one decal the same (a tiled 8192² bake: 1.80 → 1.62 s).
             let mut pass =
                 crate::gpu::render_pass_to(enc, "bake.layer_raster", views, wgpu::LoadOp::Load);
-            let bits = self.fused_bits();
-            let (clear, raster) = match bits {
+            let (clear, raster) = match self.attached {
                 0 => (&pipes.clear, None),
                 b => (
                     &pipes.fused.clear[b as usize - 1],
@@ -711,6 +743,7 @@ impl Recording<'_> {
                     (3, self.canvas.stats.as_entire_binding()),
                     (10, planes[0].as_entire_binding()),
                     (11, planes[1].as_entire_binding()),
+                    (18, self.draws.as_entire_binding()),
                     (19, self.blocks.as_entire_binding()),
                 ],
             )
@@ -777,17 +810,9 @@ impl Recording<'_> {
         n
     }
 
-    /// The fused pass's channel groups as bits (0 occlusion-roughness-metallic, 1 normal, 2
-    /// emissive; 0: not fused).
-    fn fused_bits(&self) -> u32 {
-        self.fused
-            .iter()
-            .fold(0, |b, (p, _)| b | 1 << p.kind.slot())
-    }
-
-    /// The fused pass's channel attachments of `size`, by group (`None` where it has none).
+    /// The fused pass's channel attachments of `size`, by group (`None` where it draws none).
     fn channel_views(&self, size: [u32; 2]) -> [Option<std::sync::Arc<wgpu::TextureView>>; 3] {
-        let bits = self.fused_bits();
+        let bits = self.attached;
         let samples = if self.msaa { 4 } else { 1 };
         std::array::from_fn(|k| {
             (bits >> k & 1 == 1).then(|| self.engine.channel_target(size, k, samples))
@@ -841,7 +866,7 @@ impl Recording<'_> {
     /// Layer `i`'s raster bind group: its triangle list, UVs, coords, image and mask (in a
     /// channel's pass, its channel image; for normals, the mesh's frames too).
     fn layer_bind_group(&self, i: usize) -> wgpu::BindGroup {
-        if !self.fused.is_empty() {
+        if self.attached != 0 {
             return self.fused_bind_group(i);
         }
         let engine = self.engine;
@@ -930,13 +955,47 @@ impl Recording<'_> {
         for (k, view) in images.into_iter().enumerate() {
             entries.push((14 + k as u32, wgpu::BindingResource::TextureView(view)));
         }
-        let bits = self.fused_bits() as usize;
-        let layout = &engine.pipes.family(self.msaa).fused.raster[bits - 1].layout;
+        let layout =
+            &engine.pipes.family(self.msaa).fused.raster[self.attached as usize - 1].layout;
         make_bind_group(
             &engine.ctx.device,
             layout,
             "bake.layer_raster_fused",
             &entries,
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An entry painting `groups`, those in `constant` from numbers, each at `opacity`.
+    fn draw(groups: u32, constant: u32, opacity: [f32; 3]) -> ChannelDraw {
+        ChannelDraw {
+            opacity: [opacity[0], opacity[1], opacity[2], 0.0],
+            bits: [groups, 0, constant, 0],
+            ..Default::default()
+        }
+    }
+
+    /// Only the constant groups at exactly the colour's opacity are derived; a pass draws
+    /// attachments for the groups some entry paints and does not derive.
+    #[test]
+    fn constant_groups_at_the_colours_opacity_are_derived() {
+        let mut numbers = draw(0b101, 0b101, [0.8; 3]);
+        assert_eq!(derived_groups(&numbers, 0.8), 0b101);
+        numbers.bits[3] = derived_groups(&numbers, 0.8);
+        // The roughness at its own opacity: drawn.
+        let mut own = draw(0b001, 0b001, [0.5, 0.8, 0.8]);
+        assert_eq!(derived_groups(&own, 0.8), 0);
+        own.bits[3] = derived_groups(&own, 0.8);
+        // A normal map and a metallic image: drawn.
+        let images = draw(0b011, 0, [0.8; 3]);
+        assert_eq!(derived_groups(&images, 0.8), 0);
+        assert_eq!(attached_groups(&[numbers]), 0);
+        assert_eq!(attached_groups(&[numbers, own]), 0b001);
+        assert_eq!(attached_groups(&[numbers, images]), 0b011);
+        assert_eq!(attached_groups(&[ChannelDraw::default()]), 0);
     }
 }

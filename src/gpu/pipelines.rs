@@ -776,13 +776,14 @@ fn atlas_clear(device: &Builder, format: wgpu::TextureFormat, samples: u32) -> R
 }
 
 /// `compose`'s bindings.
-const COMPOSE_BINDS: [(u32, Bind); 7] = [
+const COMPOSE_BINDS: [(u32, Bind); 8] = [
     (0, Bind::Params),
     (1, Bind::Tex(false)),
     (2, Bind::Tex(false)),
     (3, Bind::Rw),
     (10, Bind::Rw),
     (11, Bind::Rw),
+    (18, Bind::Ro),
     (19, Bind::Ro),
 ];
 

@@ -33,10 +33,22 @@
 // FUSED: @group(0) @binding(15) var<storage, read_write> nrm_ba: array<vec2<f32>>;
 // FUSED: @group(0) @binding(16) var<storage, read_write> emissive_rg: array<vec2<f32>>;
 // FUSED: @group(0) @binding(17) var<storage, read_write> emissive_ba: array<vec2<f32>>;
-// FUSED: struct ChannelDraw { opacity: vec4<f32>, blend: vec4<u32>, bits: vec4<u32>, chan: array<vec4<f32>, 3>, value: array<vec4<f32>, 3> }
-// FUSED: @group(0) @binding(18) var<storage, read> draws: array<ChannelDraw>;
-// FUSED:
 // Written out per group, without arrays indexed at run time (llvmpipe keeps those in memory).
+
+// Each raster entry's channel draws (keep in sync with `ChannelDraw` in layer_raster.wgsl and
+// src/bake/channels.rs): bits.x the groups a unit paints, bits.z those drawn from a constant
+// (`value`), bits.w those whose samples are the colour's alphas times the constant (a constant
+// group at the colour's opacity: the fused raster draws no attachment for it). A group drawn from
+// a constant composes as its value times the average of its samples' alphas, in every pass (a
+// separate pass's entry has FLAG_CONSTANT, its group in params.draw.y), so the fused and separate
+// passes give the same bytes whichever alphas they sum.
+struct ChannelDraw { opacity: vec4<f32>, blend: vec4<u32>, bits: vec4<u32>, chan: array<vec4<f32>, 3>, value: array<vec4<f32>, 3> }
+@group(0) @binding(18) var<storage, read> draws: array<ChannelDraw>;
+
+// The constant `k` over samples whose alphas sum to `a`, averaged over `n` samples.
+fn constant_average(k: vec4<f32>, a: f32, n: f32) -> vec4<f32> {
+    return vec4<f32>(k.rgb * a, a) / n;
+}
 
 // The adaptive variant (`// MSAA: ` lines live and every texture multisampled;
 // `gpu::shaders::msaa_kernel_source`) reads the raster's four samples of a texel from its pixel
@@ -84,7 +96,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (outside_edit(vec2<i32>(gid.xy) + params.rect_origin)) { return; }
     var sum = vec4<f32>(0.0);
     var n = 0.0;
-    // FUSED: let bits = draws[params.draw.x].bits.x;
+    // FUSED: let bits = draws[params.draw.x].bits.x & ~draws[params.draw.x].bits.w;
     // FUSED: var s0 = vec4<f32>(0.0);
     // FUSED: var s1 = vec4<f32>(0.0);
     // FUSED: var s2 = vec4<f32>(0.0);
@@ -108,15 +120,21 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let idx = win_index(vec2<i32>(gid.xy) + params.rect_origin);
     if (idx == 0xffffffffu) { return; }
     // FUSED: let d = &draws[params.draw.x];
-    // FUSED: if ((bits & 1u) != 0u) {
-    // FUSED:     let s = s0 / n;
+    // FUSED: let painted = (*d).bits.x;
+    // FUSED: let derived = (*d).bits.w;
+    // FUSED: let constant = (*d).bits.z;
+    // FUSED: if ((derived & 1u) != 0u) { s0 = vec4<f32>(sum.a); }
+    // FUSED: if ((derived & 4u) != 0u) { s2 = vec4<f32>(sum.a); }
+    // FUSED: if ((painted & 1u) != 0u) {
+    // FUSED:     var s = s0 / n;
+    // FUSED:     if ((constant & 1u) != 0u) { s = constant_average((*d).value[0], s0.a, n); }
     // FUSED:     if (s.a > 0.0) {
     // FUSED:         let c = blend_any((*d).blend.x, vec4<f32>(orm_rg[idx], orm_ba[idx]), s, (*d).chan[0]);
     // FUSED:         orm_rg[idx] = c.rg;
     // FUSED:         orm_ba[idx] = c.ba;
     // FUSED:     }
     // FUSED: }
-    // FUSED: if ((bits & 2u) != 0u) {
+    // FUSED: if ((painted & 2u) != 0u) {
     // FUSED:     let s = s1 / n;
     // FUSED:     if (s.a > 0.0) {
     // FUSED:         let c = blend_any((*d).blend.y, vec4<f32>(nrm_rg[idx], nrm_ba[idx]), s, (*d).chan[1]);
@@ -124,15 +142,19 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     // FUSED:         nrm_ba[idx] = c.ba;
     // FUSED:     }
     // FUSED: }
-    // FUSED: if ((bits & 4u) != 0u) {
-    // FUSED:     let s = s2 / n;
+    // FUSED: if ((painted & 4u) != 0u) {
+    // FUSED:     var s = s2 / n;
+    // FUSED:     if ((constant & 4u) != 0u) { s = constant_average((*d).value[2], s2.a, n); }
     // FUSED:     if (s.a > 0.0) {
     // FUSED:         let c = blend_any((*d).blend.z, vec4<f32>(emissive_rg[idx], emissive_ba[idx]), s, (*d).chan[2]);
     // FUSED:         emissive_rg[idx] = c.rg;
     // FUSED:         emissive_ba[idx] = c.ba;
     // FUSED:     }
     // FUSED: }
-    let src = sum / n;
+    var src = sum / n;
+    if ((params.flags & FLAG_CONSTANT) != 0u) {
+        src = constant_average(draws[params.draw.x].value[params.draw.y], sum.a, n);
+    }
     if (src.a <= 0.0) { return; }
     acc_store(idx, blend_any(params.blend, acc_load(idx), src, params.chan));
     atomicAdd(&stats[params.aux * params.stats_stride + 5u], 1);

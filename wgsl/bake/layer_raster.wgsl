@@ -66,7 +66,8 @@ const FLAT_RES: u32 = 64u;
 // NORMAL: @group(0) @binding(12) var<storage, read> split_nrm: array<f32>;
 // NORMAL: @group(0) @binding(13) var<storage, read> tangents: array<vec4<f32>>;
 // Each raster entry's channel draws (bits.x: which of orm, normal, emissive the layer paints;
-// bits.y: its normal map is "dx"; bits.z: the groups drawn from a constant, `value`; keep in sync
+// bits.y: its normal map is "dx"; bits.z: the groups drawn from a constant, `value`; bits.w: of
+// those, the ones at the colour's opacity, which the compose derives from the colour; keep in sync
 // with `ChannelDraw` in src/bake/channels.rs): the fused variant's, and a separate channel pass's
 // constants (FLAG_CONSTANT: draws[params.draw.x].value[params.draw.y]).
 struct ChannelDraw {
@@ -387,7 +388,10 @@ fn fs_main(in: FsIn) -> FsOut {
     o.color = c * params.opacity * share;
     // FUSED: let bits = draws[params.draw.x].bits;
     // FUSED: let opacity = draws[params.draw.x].opacity;
-    // FUSED: if ((bits.z & 1u) != 0u) {
+    // A group at the colour's opacity drawn from a constant (bits.w) is the colour's alphas
+    // times the constant: the compose derives it from the colour's samples, nothing is drawn.
+    // FUSED: if ((bits.w & 1u) != 0u) {
+    // FUSED: } else if ((bits.z & 1u) != 0u) {
     // FUSED:     o.orm = constant_channel(draws[params.draw.x].value[0], c) * opacity.x * share;
     // FUSED: } else if ((bits.x & 1u) != 0u) {
     // FUSED:     o.orm = masked(textureSampleGrad(orm_image, samp, img, gx, gy), img, gx, gy) * opacity.x * share;
@@ -396,7 +400,8 @@ fn fs_main(in: FsIn) -> FsOut {
     // FUSED:     let n = masked(textureSampleGrad(normal_image, samp, img, gx, gy), img, gx, gy);
     // FUSED:     o.nrm = to_tangent_space(n, bits.y != 0u, dpx, dpy, gx, gy, in.wnrm, in.wtan) * opacity.y * share;
     // FUSED: }
-    // FUSED: if ((bits.z & 4u) != 0u) {
+    // FUSED: if ((bits.w & 4u) != 0u) {
+    // FUSED: } else if ((bits.z & 4u) != 0u) {
     // FUSED:     o.emissive = constant_channel(draws[params.draw.x].value[2], c) * opacity.z * share;
     // FUSED: } else if ((bits.x & 4u) != 0u) {
     // FUSED:     o.emissive = masked(textureSampleGrad(emissive_image, samp, img, gx, gy), img, gx, gy) * opacity.z * share;
