@@ -803,14 +803,35 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         action: "writing",
         source,
     };
-    if let Err(e) = std::fs::write(&tmp, bytes) {
+    if let Err(e) = write_durable(&tmp, bytes) {
         let _ = std::fs::remove_file(&tmp);
         return Err(io(e));
     }
     std::fs::rename(&tmp, path).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
         io(e)
-    })
+    })?;
+    sync_dir(dir);
+    Ok(())
+}
+
+/// Writes `bytes` to `path` and waits until they are on the disk (`File::sync_all`): a file
+/// renamed into place afterwards is never seen empty or short after a crash or power loss, so
+/// a batch that resumes from the outputs it finds never takes a torn file for a finished one.
+pub fn write_durable(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write;
+    let mut f = std::fs::File::create(path)?;
+    f.write_all(bytes)?;
+    f.sync_all()
+}
+
+/// Makes the renames in `dir` durable (the directory's entries synced), where the platform can
+/// open a directory; best effort: a failure here leaves the files written, only perhaps not yet
+/// their names.
+pub fn sync_dir(dir: &Path) {
+    if let Ok(d) = std::fs::File::open(dir) {
+        let _ = d.sync_all();
+    }
 }
 
 #[cfg(test)]

@@ -152,7 +152,7 @@ fn commit(files: &[(PathBuf, Vec<u8>)], mut staged: Vec<(PathBuf, PathBuf)>) -> 
     // Stage everything, then rename.
     for (p, bytes) in files {
         let tmp = tmp_path(p);
-        if let Err(source) = std::fs::write(&tmp, bytes) {
+        if let Err(source) = crate::io::image::write_durable(&tmp, bytes) {
             drop_staged(&staged);
             let _ = std::fs::remove_file(&tmp);
             return Err(Error::Io {
@@ -177,6 +177,17 @@ fn commit(files: &[(PathBuf, Vec<u8>)], mut staged: Vec<(PathBuf, PathBuf)>) -> 
                 source,
             });
         }
+    }
+    // The renames made durable, once per folder.
+    let mut dirs: Vec<&std::path::Path> = staged
+        .iter()
+        .map(|(_, p)| p.parent().filter(|d| !d.as_os_str().is_empty()))
+        .map(|d| d.unwrap_or(std::path::Path::new(".")))
+        .collect();
+    dirs.sort();
+    dirs.dedup();
+    for d in dirs {
+        crate::io::image::sync_dir(d);
     }
     Ok(())
 }

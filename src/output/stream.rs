@@ -252,12 +252,16 @@ impl Staged {
         })
     }
 
+    /// Flushes the file and waits until it is on the disk, before it is renamed into place
+    /// (`io::image::write_durable`).
     fn flush(&mut self) -> Result<()> {
-        self.out.flush().map_err(|source| Error::Io {
+        let io = |source| Error::Io {
             path: self.path.clone(),
             action: "writing",
             source,
-        })
+        };
+        self.out.flush().map_err(io)?;
+        self.out.get_ref().sync_all().map_err(io)
     }
 
     fn remove(self) {
