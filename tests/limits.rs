@@ -107,7 +107,7 @@ fn a_bake_beyond_the_memory_limit_is_refused_before_it_allocates() {
     assert_eq!(code, 2, "{stderr}");
     assert!(stderr.contains("needs about"), "{stderr}");
     assert!(stderr.contains("smaller tiles"), "{stderr}");
-    // A job that paints a channel is told what it costs, and that its tiles are not streamed.
+    // A job that paints a channel is told what it costs, and that its textures stream too.
     let rough = job_text(serde_json::json!({ "width": 64, "height": 64 }), None)
         .replace("\"size\":", "\"roughness\":0.5,\"size\":");
     assert!(rough.contains("roughness"), "{rough}");
@@ -116,7 +116,7 @@ fn a_bake_beyond_the_memory_limit_is_refused_before_it_allocates() {
     let (code, _, stderr) = cli(&["bake", rough_path.to_str().unwrap(), "--max-memory", "1M"]);
     assert_eq!(code, 2, "{stderr}");
     assert!(stderr.contains("fewer PBR channels"), "{stderr}");
-    assert!(stderr.contains("not streamed"), "{stderr}");
+    assert!(stderr.contains("every channel's texture too"), "{stderr}");
     let (code, _, stderr) = cli(&["bake", path.to_str().unwrap(), "--max-memory", "4GiB"]);
     assert_eq!(code, 0, "{stderr}");
     assert!(Path::new(&dir.join("out.png")).exists());

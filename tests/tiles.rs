@@ -440,3 +440,61 @@ fn tiled_bakes_give_every_channels_untiled_bytes() {
         assert!(worst <= 1.0, "{}: {worst} levels", c.kind.name());
     }
 }
+
+/// A material bake by tiles from the command line is streamed band by band into every texture's
+/// file (the report says `streamed`), and writes the files the same job baked whole in memory
+/// writes, byte for byte: the colour's and each channel's PNG at 16 bits, the model embedding
+/// them, and the preview, shaded with the channels (a 256² texture: its reduced copy is the
+/// texture itself).
+#[test]
+fn a_streamed_material_bake_writes_the_files_of_one_held_whole() {
+    let dir = scratch("tiles_channels_streamed");
+    channel_job(&dir, [256, 256], serde_json::json!({}));
+    let job_path = dir.join("job.json");
+    let text = std::fs::read_to_string(&job_path).unwrap();
+    let mut json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let mut bake = |name: &str, tile: Option<u32>| {
+        let out = dir.join(name);
+        json["output"] = serde_json::json!({ "texture": "t.png", "glb": "m.glb",
+            "preview": "p.png", "report": "r.json", "bit_depth": 16 });
+        json["texture"]["tile"] = tile.map_or(serde_json::Value::Null, |t| t.into());
+        std::fs::write(&job_path, json.to_string()).unwrap();
+        let (code, _, err) = cli(&[
+            "bake",
+            job_path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 0, "{err}");
+        let report: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("r.json")).unwrap()).unwrap();
+        (out, report)
+    };
+    let (whole, whole_report) = bake("whole", None);
+    let (streamed, streamed_report) = bake("streamed", Some(64));
+    assert_eq!(streamed_report["streamed"], true, "{streamed_report}");
+    assert!(whole_report.get("streamed").is_none(), "{whole_report}");
+    let files = [
+        "t.png",
+        "t_orm.png",
+        "t_normal.png",
+        "t_emissive.png",
+        "m.glb",
+        "p.png",
+    ];
+    for f in files {
+        let a = std::fs::read(whole.join(f)).unwrap_or_else(|e| panic!("whole {f}: {e}"));
+        let b = std::fs::read(streamed.join(f)).unwrap_or_else(|e| panic!("streamed {f}: {e}"));
+        assert!(a == b, "{f}: the streamed bake's differs");
+    }
+    // Nothing else beside them: no temporary file left.
+    let mut names: Vec<String> = std::fs::read_dir(&streamed)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    let mut expected: Vec<String> = files.iter().map(|f| f.to_string()).collect();
+    expected.push("r.json".into());
+    expected.sort();
+    assert_eq!(names, expected);
+}

@@ -21,7 +21,8 @@
 //!   tile on the device, and on the host [`BAND_HOST_PER_TEXEL`] for each texel of a band and its
 //!   padding's halo (three bands queued, the halo's copy, its islands and distance transform),
 //!   [`FLOAT_BAND_PER_TEXEL`] more for an EXR, plus [`STREAM_HOST`] for the preview's reduced
-//!   copy and the encoders;
+//!   copy and the encoder; each PBR channel group adds its tile's share on the device and
+//!   [`BAND_CHANNEL_PER_TEXEL`] a band texel (and the EXR's floats) and [`STREAM_HOST`] on the host;
 //! - 16-bit outputs add [`WIDE_PER_TEXEL`], float (EXR) outputs [`FLOAT_PER_TEXEL`] (the linear
 //!   canvas and its encoding);
 //! - the layers' bitmap images, read from their files' headers ([`image_pixels`]):
@@ -51,6 +52,11 @@ pub const BAND_HOST_PER_TEXEL: u64 = 48;
 /// Host bytes a texel of a band more for a float (EXR) output: the linear rows of the three
 /// queued bands and of the halo's copy.
 pub const FLOAT_BAND_PER_TEXEL: u64 = 64;
+/// Host bytes a texel of a band (and its halo) of a streamed bake by tiles for each PBR channel
+/// group: its rows in the queued bands and in its writer's queue (measured 2026-11-29 on
+/// lavapipe: the knight's badge at 8192², colour + ORM + normal, by bands of 2,048 rows, peaked
+/// at 2.06 GiB against 1.01 GiB for the colour alone; estimates 2.7 and 1.4 GiB).
+pub const BAND_CHANNEL_PER_TEXEL: u64 = 16;
 /// Host bytes of a streamed bake besides its bands: the preview's reduced copy, the encoder.
 pub const STREAM_HOST: u64 = 96 << 20;
 /// Host bytes a texel more for a 16-bit output.
@@ -132,10 +138,16 @@ pub fn estimate(job: &Job, mesh_bytes: u64, tile: Option<[u32; 2]>, streamed: bo
                 .saturating_add(radius.saturating_mul(2))
                 .min(job.height as u64);
             let band = (job.width as u64).saturating_mul(halo);
+            // Each PBR channel group: its tile canvas and fused attachment on the device; on the
+            // host its rows in the queued bands and its writer's, and its own encoder and
+            // reduced copy.
+            let channels = textures - 1;
+            let channel_band = BAND_CHANNEL_PER_TEXEL + band_extra;
             (
-                w * h * TILE_DEVICE_PER_TEXEL,
-                band.saturating_mul(BAND_HOST_PER_TEXEL + band_extra)
-                    .saturating_add(STREAM_HOST),
+                (w * h * TILE_DEVICE_PER_TEXEL * textures)
+                    .saturating_add(channels * CHANNEL_TARGET),
+                band.saturating_mul(BAND_HOST_PER_TEXEL + band_extra + channels * channel_band)
+                    .saturating_add(STREAM_HOST * textures),
             )
         }
         Some([tw, th]) => {
@@ -208,11 +220,9 @@ pub fn check(engine: &Engine, mesh: &LoadedMesh, job: &Job, streamed: bool) -> R
         Some([tw, th]) => format!("by tiles of {tw}x{th}, the texture in memory"),
         None => "in one pass".to_string(),
     };
-    // A bake with PBR channels goes by tiles on the device but is not streamed: its textures are
-    // held whole on the host.
     let tiles = match job.channel_groups() {
         0 => "use smaller tiles (`texture.tile`; `decalbake bake` streams a tiled bake with a finite padding to its file band by band, the texture never whole in memory)",
-        _ => "bake fewer PBR channels (each channel group adds a canvas and an attachment on the device and a texture on the host), use smaller tiles (`texture.tile`: the device holds a tile; a bake with PBR channels is not streamed, its textures are held whole on the host)",
+        _ => "bake fewer PBR channels (each channel group adds a canvas and an attachment on the device and a texture on the host), use smaller tiles (`texture.tile`; `decalbake bake` streams a tiled bake with a finite padding to its files band by band, every channel's texture too, none whole in memory)",
     };
     Err(Error::job(
         &job.source,

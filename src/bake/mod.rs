@@ -100,9 +100,8 @@ pub(crate) fn streamed_shape(engine: &Engine, job: &Job) -> Option<[u32; 2]> {
 }
 
 /// Bakes `job` by tiles of `shape`, handing `sink` each band of rows as soon as it is padded
-/// ([`bands`]); returns the whole bake's report. The caller has checked [`streamed_limits`] and
-/// that the job paints no PBR channel (a streamed bake writes the colour's file alone) before it
-/// began its files.
+/// ([`bands`]; each band carries every PBR channel's rows too); returns the whole bake's report.
+/// The caller has checked [`streamed_limits`] before it began its files.
 pub(crate) fn bake_bands(
     engine: &Engine,
     mesh: &LoadedMesh,
@@ -307,6 +306,7 @@ pub(crate) fn run_in(
         unwrap: mesh.unwrap.clone(),
         tiles: None,
         tile_size: None,
+        streamed: false,
         texture_sets: Vec::new(),
     };
     Ok(Run {

@@ -208,6 +208,10 @@ pub struct Report {
     /// width across when the texture is tiled because it does not fit one storage buffer).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tile_size: Option<[u32; 2]>,
+    /// A tiled bake written to its files band by band as it was baked (`output/stream.rs`: the
+    /// textures never whole in memory); absent where the textures were held whole.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub streamed: bool,
     /// A bake into several texture sets (`crate::bake::sets`): one entry per set. The report's
     /// layers, timings and island texels are then the first set's, with each layer's
     /// `texels_covered` added up over the sets.
