@@ -269,22 +269,7 @@ pub(crate) fn compose(
             p.flags |= FLAG_DIRTY;
         }
     }
-    let draws = channel_draws(&mut jp, &jobs, placed, (pass, fused));
-    let attached = match fused.is_empty() {
-        true => 0,
-        false => attached_groups(&draws),
-    };
-    if std::env::var("DECALBAKE_DEBUG").is_ok() && !fused.is_empty() {
-        eprintln!(
-            "channel groups fused {}, drawn {attached:#05b}",
-            fused.len()
-        );
-    }
-    let draws = engine.ctx.storage_init(
-        "bake.channel_draws",
-        bytemuck::cast_slice(&draws),
-        wgpu::BufferUsages::empty(),
-    );
+    let (draws, attached) = upload_draws(engine, &mut jp, &jobs, placed, (pass, fused));
     let job_params = params_buffer(dev, "bake.raster_params", &jp);
     // The fused compose binds a canvas's two planes per channel group: 16-byte placeholders where
     // the pass has no such group.
@@ -495,6 +480,34 @@ fn channel_draws(
         }
     }
     draws
+}
+
+/// [`channel_draws`] on the device, with the groups a fused pass draws attachments for
+/// ([`attached_groups`]; 0 in a colour's or a separate channel's pass).
+fn upload_draws(
+    engine: &Engine,
+    jp: &mut [Params],
+    jobs: &[RasterJob],
+    placed: &Placed,
+    (pass, fused): (Option<&Pass>, &[(Pass, Canvas)]),
+) -> (wgpu::Buffer, u32) {
+    let draws = channel_draws(jp, jobs, placed, (pass, fused));
+    let attached = match fused.is_empty() {
+        true => 0,
+        false => attached_groups(&draws),
+    };
+    if std::env::var("DECALBAKE_DEBUG").is_ok() && !fused.is_empty() {
+        eprintln!(
+            "channel groups fused {}, drawn {attached:#05b}",
+            fused.len()
+        );
+    }
+    let buffer = engine.ctx.storage_init(
+        "bake.channel_draws",
+        bytemuck::cast_slice(&draws),
+        wgpu::BufferUsages::empty(),
+    );
+    (buffer, attached)
 }
 
 /// Of a fused entry's channel groups `d`, those whose samples are the colour's alphas times a
