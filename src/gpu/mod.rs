@@ -222,11 +222,8 @@ impl GpuContext {
                 };
             let info = adapter.get_info();
             let downlevel = adapter.get_downlevel_capabilities();
-            if !downlevel
-                .flags
-                .contains(wgpu::DownlevelFlags::COMPUTE_SHADERS)
-            {
-                last_err = format!("adapter {} has no compute shaders", info.name);
+            if let Some(why) = unsuitable(downlevel.flags, &info.name) {
+                last_err = why;
                 continue;
             }
             let folder = cache::folder();
@@ -492,5 +489,42 @@ impl GpuContext {
         drop(view);
         staging.unmap();
         Ok(out)
+    }
+}
+
+/// Why an adapter of these downlevel `flags` cannot bake (`None`: it can): the stages need
+/// compute shaders, and the layer raster's fragment stage writes the compose's block mask
+/// (`wgsl/shared/blocks.wgsl`), a storage buffer. Refused here, by name, rather than failing a
+/// pipeline's validation in the middle of the first bake.
+fn unsuitable(flags: wgpu::DownlevelFlags, adapter: &str) -> Option<String> {
+    if !flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS) {
+        return Some(format!("adapter {adapter} has no compute shaders"));
+    }
+    if !flags.contains(wgpu::DownlevelFlags::FRAGMENT_WRITABLE_STORAGE) {
+        return Some(format!(
+            "adapter {adapter} cannot write storage buffers from fragment shaders, which the layer raster does"
+        ));
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An adapter without compute shaders, or whose fragment stage cannot write storage
+    /// buffers, is refused by name; one with both is taken.
+    #[test]
+    fn adapters_that_cannot_bake_are_named() {
+        use wgpu::DownlevelFlags as F;
+        let both = F::COMPUTE_SHADERS | F::FRAGMENT_WRITABLE_STORAGE;
+        assert_eq!(unsuitable(both, "a"), None);
+        let no_compute = unsuitable(F::FRAGMENT_WRITABLE_STORAGE, "a").unwrap();
+        assert!(no_compute.contains("compute"), "{no_compute}");
+        let no_writes = unsuitable(F::COMPUTE_SHADERS, "gles").unwrap();
+        assert!(
+            no_writes.contains("gles") && no_writes.contains("fragment"),
+            "{no_writes}"
+        );
     }
 }
