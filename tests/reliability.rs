@@ -404,3 +404,31 @@ fn a_bake_builds_only_the_pipelines_it_runs_and_preparing_them_changes_no_byte()
     let prepared = eager.bake(&mesh, &job).unwrap();
     assert!(plain.texels == prepared.texels, "preparing changes no byte");
 }
+
+/// A material decal whose roughness and metallic are numbers at the layer's opacity and whose
+/// normal is an image: the engine prepares the fused pipelines of the normal group alone (the
+/// compose derives the constant group from the colour), and the bake builds no pipeline of those
+/// families beyond them.
+#[test]
+fn preparing_a_material_bake_builds_the_fused_pipelines_it_draws() {
+    let dir = scratch("lazy_fused");
+    let layers = serde_json::json!([{ "image": "img.png", "at": [0.0, 0.3, 0.4],
+        "size": [0.3, 0.3], "method": "planar", "normal": "img.png",
+        "roughness": 0.4, "metallic": 1.0 }]);
+    let text = spot_job_json(&dir, 3, layers, serde_json::json!({ "texture": "out.png" }));
+    let job = Job::parse(&text.to_string(), &dir.join("job.json"), &dir, &dir).unwrap();
+    let eager = engine();
+    eager.prepare_for(&job);
+    let q = eager.pipelines();
+    let fused = &q.grid.fused;
+    // Bits 0b010 (the normal group): index 1.
+    assert!(fused.raster[1].is_built() && fused.clear[1].is_built() && fused.compose.is_built());
+    let mesh = eager.load_mesh(&job.mesh).unwrap();
+    let baked = eager.bake(&mesh, &job).unwrap();
+    assert_eq!(baked.report.paths.channels, "fused");
+    assert_eq!(baked.channels.len(), 2, "orm and normal");
+    for (k, (r, c)) in fused.raster.iter().zip(&fused.clear).enumerate() {
+        assert_eq!(r.is_built(), k == 1, "fused raster {}", k + 1);
+        assert_eq!(c.is_built(), k == 1, "fused clear {}", k + 1);
+    }
+}

@@ -270,12 +270,7 @@ fn draw_params(l: &crate::io::job::Layer, kind: ChannelKind) -> (f32, u32, [f32;
             // alphas are the colour's and a constant group is derived from them
             // (`compose::channel_draws`).
             let parts = [&c.occlusion, &c.roughness, &c.metallic];
-            match parts
-                .iter()
-                .copied()
-                .flatten()
-                .all(|p| p.opacity == l.opacity)
-            {
+            match c.orm_at(l.opacity) {
                 true => {
                     let w = parts.map(|p| if p.is_some() { 1.0 } else { 0.0 });
                     (l.opacity, blend, [w[0], w[1], w[2], 0.0], 0)

@@ -1319,24 +1319,28 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
     if !job.layers.is_empty() && !placed_on_cpu {
         list.extend([&p.place_bvh as &dyn Prepare, &p.place_reduce]);
     }
-    // The channel groups the job paints, as bits, where they are fused beside the colour.
-    let fused = match engine.fuses_channels(job) {
-        true => job.channel_groups(),
-        false => 0,
-    };
+    // Where the channel groups are fused beside the colour: those the raster draws attachments
+    // for, as bits (none: the colour's raster, with the fused compose).
+    let fused = engine.fuses_channels(job);
+    let drawn = job.drawn_channel_groups();
     if !job.layers.is_empty() {
         list.extend([
             &p.select_triangles as &dyn Prepare,
             &p.compact_lists,
             &p.distortion,
         ]);
-        match fused {
-            0 => list.extend([
+        match (fused, drawn) {
+            (false, _) => list.extend([
                 &family.raster as &dyn Prepare,
                 &family.clear,
                 &family.compose,
             ]),
-            g => {
+            (true, 0) => list.extend([
+                &family.raster as &dyn Prepare,
+                &family.clear,
+                &family.fused.compose,
+            ]),
+            (true, g) => {
                 let (f, g) = (&family.fused, g as usize - 1);
                 list.extend([&f.raster[g] as &dyn Prepare, &f.clear[g], &f.compose]);
             }
@@ -1363,7 +1367,7 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
     if any(&|l| l.kind == LayerKind::Ribbon) {
         list.push(&p.ribbon_relax);
     }
-    if fused == 0 && any(&|l| l.channels.normal.is_some()) {
+    if !fused && any(&|l| l.channels.normal.is_some()) {
         list.push(&family.raster_normal);
     }
     if job.out_preview.is_some() {

@@ -96,6 +96,49 @@ pub struct Channels {
 }
 
 impl Channels {
+    /// Whether every occlusion, roughness and metallic part painted is at `opacity` (the
+    /// layer's; the default): the group is then drawn at that opacity with each part weighted 1.
+    pub fn orm_at(&self, opacity: f32) -> bool {
+        [&self.occlusion, &self.roughness, &self.metallic]
+            .into_iter()
+            .flatten()
+            .all(|p| p.opacity == opacity)
+    }
+
+    /// The opacity group `kind` is drawn at by the raster, on a layer of `opacity`: ORM at the
+    /// layer's where [`Channels::orm_at`] it, else 1 (its parts' opacities then weight the mix);
+    /// normal and emissive at their own.
+    pub fn draw_opacity(&self, kind: ChannelKind, opacity: f32) -> f32 {
+        match kind {
+            ChannelKind::Orm => match self.orm_at(opacity) {
+                true => opacity,
+                false => 1.0,
+            },
+            ChannelKind::Normal => self.normal.as_ref().map_or(0.0, |n| n.opacity),
+            ChannelKind::Emissive => self.emissive.as_ref().map_or(0.0, |e| e.opacity),
+        }
+    }
+
+    /// Whether group `kind` is given as numbers only (no image): drawn from the colour's coverage.
+    pub fn is_constant(&self, kind: ChannelKind) -> bool {
+        let number =
+            |p: &Option<Channel>| !matches!(p.as_ref().map(|p| &p.value), Some(Value::Image(_)));
+        match kind {
+            ChannelKind::Orm => [&self.occlusion, &self.roughness, &self.metallic]
+                .into_iter()
+                .all(number),
+            ChannelKind::Normal => false,
+            ChannelKind::Emissive => self.emissive.is_some() && number(&self.emissive),
+        }
+    }
+
+    /// Whether group `kind`, painted on a layer of `opacity`, is derived in the compose from the
+    /// colour's samples (numbers drawn at the colour's opacity: their samples' alphas are the
+    /// colour's), so a fused raster draws no attachment for it.
+    pub fn derived(&self, kind: ChannelKind, opacity: f32) -> bool {
+        self.is_constant(kind) && self.draw_opacity(kind, opacity) == opacity
+    }
+
     /// Whether any channel but colour is painted.
     pub fn any(&self) -> bool {
         self.normal.is_some()

@@ -861,6 +861,22 @@ impl Job {
             .fold(0, |b, k| b | 1 << k.slot())
     }
 
+    /// The channel groups a fused pass of this job draws attachments for, as
+    /// [`Job::channel_groups`]'s bits: those a layer paints other than as numbers at its colour's
+    /// opacity ([`crate::io::channels::Channels::derived`]; the compose derives those from the
+    /// colour, as `bake::compose` decides per raster entry). For preparing pipelines.
+    pub fn drawn_channel_groups(&self) -> u32 {
+        let mut bits = 0;
+        for l in &self.layers {
+            for k in crate::io::channels::ChannelKind::ALL {
+                if l.channels.paints(k) && !l.channels.derived(k, l.opacity) {
+                    bits |= 1 << k.slot();
+                }
+            }
+        }
+        bits
+    }
+
     /// Whether the texture is written as OpenEXR (`output.texture` ends in `.exr`): linear RGBA,
     /// 32-bit float, padded like the PNG; `output.bit_depth` then applies to the `.glb`'s PNG only.
     pub fn exr(&self) -> bool {

@@ -192,16 +192,24 @@ fn commit(files: &[(PathBuf, Vec<u8>)], mut staged: Vec<(PathBuf, PathBuf)>) -> 
     Ok(())
 }
 
-/// Makes the folder `p` goes in, if it has one.
+/// Makes the folder `p` goes in, if it has one; the folders it creates are synced into their
+/// parents (`io::image::sync_dir`), so an output synced inside a new folder is not lost with the
+/// folder's entry after a power loss.
 fn make_parent(p: &std::path::Path) -> Result<()> {
-    match p.parent().filter(|d| !d.as_os_str().is_empty()) {
-        Some(dir) => std::fs::create_dir_all(dir).map_err(|source| Error::Io {
-            path: dir.to_path_buf(),
-            action: "creating the output directory",
-            source,
-        }),
-        None => Ok(()),
+    let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) else {
+        return Ok(());
+    };
+    let made: Vec<&std::path::Path> = dir.ancestors().take_while(|a| !a.exists()).collect();
+    std::fs::create_dir_all(dir).map_err(|source| Error::Io {
+        path: dir.to_path_buf(),
+        action: "creating the output directory",
+        source,
+    })?;
+    for d in made {
+        let parent = d.parent().filter(|d| !d.as_os_str().is_empty());
+        crate::io::image::sync_dir(parent.unwrap_or(std::path::Path::new(".")));
     }
+    Ok(())
 }
 
 /// Writes a bake into several texture sets (`Engine::bake_texture_sets`): the texture of every
