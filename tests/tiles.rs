@@ -337,7 +337,7 @@ fn channel_job(dir: &Path, side: [u32; 2], extra: serde_json::Value) -> Job {
 /// PBR channels by tiles: material decals on Spot give every channel's texture byte for byte as
 /// the untiled bake does, for bands with a finite padding (one whose halo spans two bands), a
 /// full padding, and 16 bits; from the command line a tiled job writes each channel's PNG
-/// beside the colour's (baked in memory, not streamed) with the library's bytes, and an EXR
+/// beside the colour's (streamed band by band) with the library's bytes, and an EXR
 /// output writes every channel as linear floats with a 16-bit bake's values.
 #[test]
 fn tiled_bakes_give_every_channels_untiled_bytes() {

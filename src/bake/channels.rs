@@ -169,7 +169,7 @@ pub(crate) fn pass(
             continue;
         }
         let (opacity, blend, chan, mut flags) = draw_params(l, kind);
-        let constant = constant(&l.channels, kind);
+        let constant = l.channels.constant(kind);
         let key = format!("{:?} {:?}", l.image, l.channels);
         let image = match (constant, made.get(&key)) {
             (Some(_), _) => {
@@ -211,30 +211,6 @@ pub(crate) fn pass(
         base: (base, uv.unwrap_or(job.uv_set)),
         tangents,
     })
-}
-
-/// The value of channel group `kind` where every part of it the layer paints is a number (the
-/// parts it does not paint: 0, which its data weights leave unchanged); `None` where one is an
-/// image, or for normals.
-fn constant(c: &crate::io::channels::Channels, kind: ChannelKind) -> Option<[f32; 4]> {
-    match kind {
-        ChannelKind::Orm => {
-            let mut out = [0.0; 4];
-            for (k, p) in [&c.occlusion, &c.roughness, &c.metallic].iter().enumerate() {
-                match p.as_ref().map(|p| &p.value) {
-                    Some(Value::Constant(v)) => out[k] = v[0],
-                    Some(Value::Image(_)) => return None,
-                    None => {}
-                }
-            }
-            Some(out)
-        }
-        ChannelKind::Normal => None,
-        ChannelKind::Emissive => match c.emissive.as_ref().map(|e| &e.value) {
-            Some(Value::Constant(v)) => Some([v[0], v[1], v[2], 0.0]),
-            _ => None,
-        },
-    }
 }
 
 /// The mesh's material channels (the default material's where it has none or no document).

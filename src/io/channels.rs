@@ -119,16 +119,28 @@ impl Channels {
         }
     }
 
-    /// Whether group `kind` is given as numbers only (no image): drawn from the colour's coverage.
-    pub fn is_constant(&self, kind: ChannelKind) -> bool {
-        let number =
-            |p: &Option<Channel>| !matches!(p.as_ref().map(|p| &p.value), Some(Value::Image(_)));
+    /// The value of group `kind` where every part of it the layer paints is a number (the parts
+    /// it does not paint: 0, which its data weights leave unchanged): drawn from the colour's
+    /// coverage. `None` where one is an image, or for normals.
+    pub fn constant(&self, kind: ChannelKind) -> Option<[f32; 4]> {
         match kind {
-            ChannelKind::Orm => [&self.occlusion, &self.roughness, &self.metallic]
-                .into_iter()
-                .all(number),
-            ChannelKind::Normal => false,
-            ChannelKind::Emissive => self.emissive.is_some() && number(&self.emissive),
+            ChannelKind::Orm => {
+                let mut out = [0.0; 4];
+                let parts = [&self.occlusion, &self.roughness, &self.metallic];
+                for (k, p) in parts.iter().enumerate() {
+                    match p.as_ref().map(|p| &p.value) {
+                        Some(Value::Constant(v)) => out[k] = v[0],
+                        Some(Value::Image(_)) => return None,
+                        None => {}
+                    }
+                }
+                Some(out)
+            }
+            ChannelKind::Normal => None,
+            ChannelKind::Emissive => match self.emissive.as_ref().map(|e| &e.value) {
+                Some(Value::Constant(v)) => Some([v[0], v[1], v[2], 0.0]),
+                _ => None,
+            },
         }
     }
 
@@ -136,7 +148,7 @@ impl Channels {
     /// colour's samples (numbers drawn at the colour's opacity: their samples' alphas are the
     /// colour's), so a fused raster draws no attachment for it.
     pub fn derived(&self, kind: ChannelKind, opacity: f32) -> bool {
-        self.is_constant(kind) && self.draw_opacity(kind, opacity) == opacity
+        self.constant(kind).is_some() && self.draw_opacity(kind, opacity) == opacity
     }
 
     /// Whether any channel but colour is painted.

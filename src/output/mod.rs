@@ -75,7 +75,7 @@ pub fn write_outputs(
             uv_set: job.uv_set,
             from_material: matches!(job.base, crate::io::job::Base::Material),
             set: None,
-            channels: channel_list(job, baked, &channel_pngs),
+            channels: channel_list(job, baked.channels.iter().map(|c| c.kind), &channel_pngs),
         };
         let written = gltf::write_model(&mesh.mesh, &[color], p)?;
         files.extend(written.files);
@@ -110,19 +110,17 @@ pub fn write_outputs(
     Ok(files.into_iter().map(|(p, _)| p).collect())
 }
 
-/// The channels of `baked` with their PNGs, for the model.
+/// The channel textures of `kinds`, with their PNGs, for the model.
 fn channel_list<'a>(
     job: &Job,
-    baked: &Baked,
+    kinds: impl Iterator<Item = crate::bake::channels::ChannelKind>,
     pngs: &'a [Vec<u8>],
 ) -> Vec<gltf::BakedChannelPng<'a>> {
     let occlusion = job.layers.iter().any(|l| l.channels.occlusion.is_some());
-    baked
-        .channels
-        .iter()
+    kinds
         .zip(pngs)
-        .map(|(c, png)| gltf::BakedChannelPng {
-            kind: c.kind,
+        .map(|(kind, png)| gltf::BakedChannelPng {
+            kind,
             png,
             occlusion,
         })
@@ -266,7 +264,7 @@ pub fn write_set_outputs(
                 uv_set: job.uv_set,
                 from_material: matches!(job.base, crate::io::job::Base::Material),
                 set: Some(&b.set),
-                channels: channel_list(job, &b.baked, cpngs),
+                channels: channel_list(job, b.baked.channels.iter().map(|c| c.kind), cpngs),
             })
             .collect();
         let model = gltf::write_model(&mesh.mesh, &colors, p)?;

@@ -48,14 +48,19 @@ impl PreviewChannels {
     pub fn of(baked: &Baked) -> Self {
         let mut out = Self::default();
         for c in &baked.channels {
-            let bytes = Some(rgba8(&c.texels, baked.bit_depth));
-            match c.kind {
-                ChannelKind::Normal => out.normal = bytes,
-                ChannelKind::Orm => out.orm = bytes,
-                ChannelKind::Emissive => out.emissive = bytes,
-            }
+            out.set(c.kind, rgba8(&c.texels, baked.bit_depth));
         }
         out
+    }
+
+    /// Takes `bytes` (RGBA8, the colour texture's size) as the texture of `kind`.
+    pub fn set(&mut self, kind: ChannelKind, bytes: Vec<u8>) {
+        let slot = match kind {
+            ChannelKind::Normal => &mut self.normal,
+            ChannelKind::Orm => &mut self.orm,
+            ChannelKind::Emissive => &mut self.emissive,
+        };
+        *slot = Some(bytes);
     }
 }
 

@@ -327,18 +327,8 @@ fn other_files(
             .iter_mut()
             .map(|t| t.png(job.exr()))
             .collect::<Result<_>>()?;
-        let occlusion = job.layers.iter().any(|l| l.channels.occlusion.is_some());
-        let channels = targets
-            .iter()
-            .zip(&pngs)
-            .filter_map(|(t, png)| {
-                t.kind.map(|kind| gltf::BakedChannelPng {
-                    kind,
-                    png,
-                    occlusion,
-                })
-            })
-            .collect();
+        let kinds = targets.iter().filter_map(|t| t.kind);
+        let channels = super::channel_list(job, kinds, &pngs[1..]);
         let color = gltf::BakedColor {
             png: &pngs[0],
             uv_set: job.uv_set,
@@ -474,13 +464,9 @@ impl Reduction {
             rgba8
         };
         let mut channels = preview::PreviewChannels::default();
-        for (kind, sums) in kinds.iter().zip(&self.sums).skip(1) {
-            let bytes = Some(average(sums));
-            match kind {
-                Some(ChannelKind::Normal) => channels.normal = bytes,
-                Some(ChannelKind::Orm) => channels.orm = bytes,
-                Some(ChannelKind::Emissive) => channels.emissive = bytes,
-                None => {}
+        for (kind, sums) in kinds.iter().zip(&self.sums) {
+            if let Some(kind) = kind {
+                channels.set(*kind, average(sums));
             }
         }
         preview::PreviewTexture {
