@@ -399,7 +399,12 @@ fn a_bake_builds_only_the_pipelines_it_runs_and_preparing_them_changes_no_byte()
     let eager = engine();
     eager.prepare_for(&job);
     let q = eager.pipelines();
-    assert!(q.grid.compose.is_built() && q.encode.is_built() && q.planar_coords.is_built());
+    let encode = q.encode_for(false, false);
+    assert!(q.grid.compose.is_built() && encode.is_built() && q.planar_coords.is_built());
+    assert!(
+        q.encode.iter().filter(|e| e.is_built()).count() == 1,
+        "the 8-bit sRGB encode"
+    );
     let mesh = eager.load_mesh(&job.mesh).unwrap();
     let prepared = eager.bake(&mesh, &job).unwrap();
     assert!(plain.texels == prepared.texels, "preparing changes no byte");
@@ -422,7 +427,9 @@ fn preparing_a_material_bake_builds_the_fused_pipelines_it_draws() {
     let q = eager.pipelines();
     let fused = &q.grid.fused;
     // Bits 0b010 (the normal group): index 1.
-    assert!(fused.raster[1].is_built() && fused.clear[1].is_built() && fused.compose.is_built());
+    // The compose made for the pass's groups: orm and normal present, the normal attached.
+    let compose = fused.compose_for(0b011, 0b010);
+    assert!(fused.raster[1].is_built() && fused.clear[1].is_built() && compose.is_built());
     let mesh = eager.load_mesh(&job.mesh).unwrap();
     let baked = eager.bake(&mesh, &job).unwrap();
     assert_eq!(baked.report.paths.channels, "fused");
@@ -431,4 +438,6 @@ fn preparing_a_material_bake_builds_the_fused_pipelines_it_draws() {
         assert_eq!(r.is_built(), k == 1, "fused raster {}", k + 1);
         assert_eq!(c.is_built(), k == 1, "fused clear {}", k + 1);
     }
+    let built = fused.compose.iter().filter(|c| c.is_built()).count();
+    assert_eq!(built, 1, "fused composes built");
 }

@@ -93,6 +93,31 @@ fn every_wgsl_file_validates() {
             decalbake::gpu::shaders::msaa_kernel_source(name, fused),
         ));
     }
+    // The fused variants as each pass makes them, for its channel groups (present, attached).
+    use decalbake::gpu::shaders::{
+        fused_kernel_source, fused_source, msaa_kernel_source, with_groups,
+    };
+    for present in 1..8u32 {
+        for attached in (0..8).filter(|a| a & !present == 0) {
+            for (kind, text) in [
+                ("", fused_kernel_source("compose")),
+                (", adaptive", msaa_kernel_source("compose", true)),
+            ] {
+                sources.push((
+                    format!("compose (fused {present:#05b} {attached:#05b}{kind})"),
+                    with_groups(text, present, attached),
+                ));
+            }
+        }
+        let raster = with_groups(fused_source(true), present, present);
+        sources.push((format!("layer_raster (fused {present:#05b})"), raster));
+    }
+    for (linear, wide) in [(false, true), (true, false), (true, true)] {
+        sources.push((
+            format!("encode (linear {linear}, 16-bit {wide})"),
+            decalbake::gpu::shaders::encode_source(linear, wide),
+        ));
+    }
     for (name, src) in &sources {
         let src = src.clone();
         let module = match naga::front::wgsl::parse_str(&src) {

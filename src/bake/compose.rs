@@ -766,7 +766,7 @@ impl Recording<'_> {
             true => (bind_compose(&acc), &pipes.compose),
             false => (
                 self.bind_fused_compose(&tg, &channel_views),
-                &pipes.fused.compose,
+                pipes.fused.compose_for(self.present(), self.attached),
             ),
         };
         let bg_stroke = self.canvas.stroke.as_ref().map(bind_compose);
@@ -863,11 +863,19 @@ impl Recording<'_> {
                 entries.push((12 + 2 * k as u32 + j as u32, plane.as_entire_binding()));
             }
         }
-        self.engine.pipes.family(self.msaa).fused.compose.bind(
+        let fused = &self.engine.pipes.family(self.msaa).fused;
+        fused.compose_for(self.present(), self.attached).bind(
             &self.engine.ctx.device,
             "bake.compose_fused",
             &entries,
         )
+    }
+
+    /// The channel groups fused beside the colour, as bits (bit [`super::channels::ChannelKind::slot`]).
+    fn present(&self) -> u32 {
+        self.fused
+            .iter()
+            .fold(0, |b, (pass, _)| b | 1 << pass.kind.slot())
     }
 
     /// Whether unit `i` is drawn in this pass (always in the colour's).

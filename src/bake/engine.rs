@@ -1311,10 +1311,14 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
         &p.base_init,
         &family.island_raster,
         &family.island_mask,
-        &p.encode,
         &p.edt_columns,
         &p.edt_rows,
     ];
+    let wide = job.bit_depth == 16;
+    list.push(p.encode_for(false, wide));
+    if super::channels::passes(job).iter().any(|k| k.linear()) {
+        list.push(p.encode_for(true, wide));
+    }
     let placed_on_cpu = !engine.bvh_on_gpu() && engine.stage_paths.placement_prefers_cpu(engine);
     if !job.layers.is_empty() && !placed_on_cpu {
         list.extend([&p.place_bvh as &dyn Prepare, &p.place_reduce]);
@@ -1323,6 +1327,9 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
     // for, as bits (none: the colour's raster, with the fused compose).
     let fused = engine.fuses_channels(job);
     let drawn = job.drawn_channel_groups();
+    let present = super::channels::passes(job)
+        .iter()
+        .fold(0, |b, k| b | 1 << k.slot());
     if !job.layers.is_empty() {
         list.extend([
             &p.select_triangles as &dyn Prepare,
@@ -1338,11 +1345,15 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
             (true, 0) => list.extend([
                 &family.raster as &dyn Prepare,
                 &family.clear,
-                &family.fused.compose,
+                family.fused.compose_for(present, 0),
             ]),
             (true, g) => {
-                let (f, g) = (&family.fused, g as usize - 1);
-                list.extend([&f.raster[g] as &dyn Prepare, &f.clear[g], &f.compose]);
+                let (f, k) = (&family.fused, g as usize - 1);
+                list.extend([
+                    &f.raster[k] as &dyn Prepare,
+                    &f.clear[k],
+                    f.compose_for(present, g),
+                ]);
             }
         }
     }

@@ -90,11 +90,12 @@ pub(crate) fn encode_regions(
         regions
     };
     let fin_params = params_buffer(dev, "bake.final_params", &entries);
+    let encode = pipes.encode_for(linear, job.bit_depth == 16);
     engine.ctx.scoped("padding and encode", || {
         let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("bake.finish"),
         });
-        let bg_enc = pipes.encode.bind(
+        let bg_enc = encode.bind(
             dev,
             "bake.encode",
             &[
@@ -111,7 +112,7 @@ pub(crate) fn encode_regions(
                 label: Some("bake.finish"),
                 timestamp_writes: None,
             });
-            pass.set_pipeline(&pipes.encode.pipeline);
+            pass.set_pipeline(&encode.pipeline);
             for (k, r) in sizes.iter().enumerate() {
                 let offset = (k as u64 * super::params::PARAMS_STRIDE) as u32;
                 pass.set_bind_group(0, &bg_enc, &[offset]);

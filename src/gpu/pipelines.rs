@@ -224,8 +224,9 @@ pub struct Pipelines {
     pub edt_columns: Lazy<Kernel>,
     /// EDT pass 2: nearest island texel per texel.
     pub edt_rows: Lazy<Kernel>,
-    /// sRGB encode.
-    pub encode: Lazy<Kernel>,
+    /// Padding and encoding, per kind of output: index `linear * 2 + wide`
+    /// ([`Pipelines::encode_for`], `shaders::encode_source`).
+    pub encode: [Lazy<Kernel>; 4],
     /// Exponential-map relaxation, 64 invocations a map.
     pub expmap_relax: Lazy<Kernel>,
     /// The same, 256 invocations a map (`shaders::expmap_wide_source`): maps of many candidates.
@@ -393,10 +394,15 @@ impl Pipelines {
                 "edt_rows",
                 &[(0, Params), (1, Ro), (2, Ro), (3, Rw), (4, Rw), (5, Rw)],
             ),
-            encode: kernel(
-                "encode",
-                &[(0, Params), (1, Rw), (2, Ro), (3, Ro), (10, Rw), (11, Rw)],
-            ),
+            encode: std::array::from_fn(|i| {
+                const NAMES: [&str; 4] =
+                    ["encode", "encode_16", "encode_linear", "encode_linear_16"];
+                let (name, linear, wide) = (NAMES[i], i >= 2, i % 2 == 1);
+                Lazy::new(b, name, move |d| {
+                    let binds = [(0, Params), (1, Rw), (2, Ro), (3, Ro), (10, Rw), (11, Rw)];
+                    Kernel::with_source(d, name, &binds, Some(shaders::encode_source(linear, wide)))
+                })
+            }),
             distortion: kernel(
                 "distortion",
                 &[
@@ -439,6 +445,12 @@ impl Pipelines {
             image_format,
             builder,
         }
+    }
+
+    /// The padding and encoding of an output: `linear` (a data or normal channel) or sRGB, `wide`
+    /// (16 bits a channel) or 8.
+    pub fn encode_for(&self, linear: bool, wide: bool) -> &Lazy<Kernel> {
+        &self.encode[usize::from(linear) * 2 + usize::from(wide)]
     }
 
     /// The layer raster family the bake draws with: at four samples a pixel where `msaa`
@@ -919,8 +931,9 @@ pub struct Fused {
     pub raster: [Lazy<Raster>; 7],
     /// `atlas_clear`'s fused variant.
     pub clear: [Lazy<Raster>; 7],
-    /// `compose`'s fused variant (`shaders::fused_kernel_source`).
-    pub compose: Lazy<Kernel>,
+    /// `compose`'s fused variant (`shaders::fused_kernel_source`) per pass: index
+    /// `present * 8 + attached` ([`Fused::compose_for`]; `shaders::with_groups`).
+    pub compose: [Lazy<Kernel>; 64],
 }
 
 /// Names of the fused pipelines per set of channel groups (then the same at four samples).
@@ -961,7 +974,6 @@ const FUSED_CLEAR: [&str; 14] = [
 impl Fused {
     /// The family at `samples` a pixel (1, or 4: adaptive supersampling, [`Layers`]).
     fn new(b: &Arc<Builder>, format: wgpu::TextureFormat, blending: bool, samples: u32) -> Self {
-        use Bind::*;
         let named = move |k: usize| k + if samples > 1 { 7 } else { 0 };
         Self {
             raster: std::array::from_fn(|k| {
@@ -976,39 +988,25 @@ impl Fused {
                     fused_clear(d, format, (bits, samples))
                 })
             }),
-            compose: Lazy::new(b, FUSED_COMPOSE[named(0) / 7], move |d| {
-                let binds = [
-                    (0, Params),
-                    (1, Tex(false)),
-                    (2, Tex(false)),
-                    (3, Rw),
-                    (4, Tex(false)),
-                    (5, Tex(false)),
-                    (6, Tex(false)),
-                    (10, Rw),
-                    (11, Rw),
-                    (12, Rw),
-                    (13, Rw),
-                    (14, Rw),
-                    (15, Rw),
-                    (16, Rw),
-                    (17, Rw),
-                    (18, Ro),
-                    (19, Ro),
-                ];
-                let name = FUSED_COMPOSE[named(0) / 7];
-                match samples {
-                    1 => {
-                        let text = shaders::fused_kernel_source("compose");
-                        Kernel::with_source(d, name, &binds, Some(text))
-                    }
-                    _ => {
-                        let text = shaders::msaa_kernel_source("compose", true);
-                        Kernel::with_source(d, name, &multisampled_binds(&binds), Some(text))
-                    }
-                }
+            compose: std::array::from_fn(|i| {
+                let (present, attached) = (i as u32 / 8, i as u32 % 8);
+                let name = fused_compose_name(samples, present, attached);
+                Lazy::new(b, name, move |d| {
+                    fused_compose(d, name, samples, (present, attached))
+                })
             }),
         }
+    }
+
+    /// The fused compose of a pass whose channel groups are `present` (bits, as [`Fused`]'s),
+    /// of which the raster drew attachments for `attached` (0: every group derived from the
+    /// colour, [`crate::bake::compose`]).
+    pub fn compose_for(&self, present: u32, attached: u32) -> &Lazy<Kernel> {
+        assert!(
+            attached & !present == 0 && (1..8).contains(&present),
+            "channel groups {present:#b}, attached {attached:#b}"
+        );
+        &self.compose[(present * 8 + attached) as usize]
     }
 
     /// Whether `limits` hold the fused passes: five colour attachments of `format`, twelve
@@ -1047,8 +1045,54 @@ fn fused_targets(
     targets
 }
 
-/// See [`FUSED_RASTER`].
-const FUSED_COMPOSE: [&str; 2] = ["compose_fused", "compose_fused_msaa"];
+/// The fused compose's pipeline name for groups `present`, `attached` at `samples` a pixel
+/// (the names live as long as the process: one table, made once).
+fn fused_compose_name(samples: u32, present: u32, attached: u32) -> &'static str {
+    static NAMES: std::sync::OnceLock<Vec<String>> = std::sync::OnceLock::new();
+    let names = NAMES.get_or_init(|| {
+        (0..128)
+            .map(|i| {
+                let msaa = if i >= 64 { "_msaa" } else { "" };
+                format!("compose_fused{msaa}_{}_{}", i % 64 / 8, i % 8)
+            })
+            .collect()
+    });
+    let i = (present * 8 + attached) as usize + if samples > 1 { 64 } else { 0 };
+    &names[i]
+}
+
+/// `compose`'s fused variant for the channel groups `present`, `attached` (see [`Fused`]).
+fn fused_compose(d: &Builder, name: &str, samples: u32, (present, attached): (u32, u32)) -> Kernel {
+    use Bind::*;
+    let binds = [
+        (0, Params),
+        (1, Tex(false)),
+        (2, Tex(false)),
+        (3, Rw),
+        (4, Tex(false)),
+        (5, Tex(false)),
+        (6, Tex(false)),
+        (10, Rw),
+        (11, Rw),
+        (12, Rw),
+        (13, Rw),
+        (14, Rw),
+        (15, Rw),
+        (16, Rw),
+        (17, Rw),
+        (18, Ro),
+        (19, Ro),
+    ];
+    let (text, binds) = match samples {
+        1 => (shaders::fused_kernel_source("compose"), binds.to_vec()),
+        _ => (
+            shaders::msaa_kernel_source("compose", true),
+            multisampled_binds(&binds),
+        ),
+    };
+    let text = shaders::with_groups(text, present, attached);
+    Kernel::with_source(d, name, &binds, Some(text))
+}
 
 /// `atlas_clear`'s fused variant for the channel groups `bits`, at `samples` a pixel.
 fn fused_clear(
@@ -1085,7 +1129,7 @@ fn fused_raster(
     let name = FUSED_RASTER[bits as usize - 1 + if samples > 1 { 7 } else { 0 }];
     let layer_layout = layout(device, name, &binds, wgpu::ShaderStages::VERTEX_FRAGMENT);
     let clipped = device.features().contains(wgpu::Features::CLIP_DISTANCES);
-    let text = shaders::fused_source(clipped);
+    let text = shaders::with_groups(shaders::fused_source(clipped), bits, bits);
     raster(
         device,
         name,

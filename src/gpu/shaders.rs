@@ -312,6 +312,46 @@ pub fn fused_kernel_source(name: &str) -> String {
     text.replace("// FUSED: ", "")
 }
 
+/// `encode` for one kind of output: `linear` (a data or normal channel, stored values) or sRGB,
+/// `wide` (16 bits a channel) or 8 (`wgsl/bake/encode.wgsl`).
+pub fn encode_source(linear: bool, wide: bool) -> String {
+    let text = source("encode");
+    for name in ["LINEAR", "WIDE"] {
+        let line = format!("const {name}: bool = false;");
+        assert!(text.contains(&line), "encode has no `{line}`");
+    }
+    text.replace(
+        "const LINEAR: bool = false;",
+        &format!("const LINEAR: bool = {linear};"),
+    )
+    .replace(
+        "const WIDE: bool = false;",
+        &format!("const WIDE: bool = {wide};"),
+    )
+}
+
+/// A fused variant (`text`: [`fused_source`], or [`fused_kernel_source`] or
+/// [`msaa_kernel_source`] of `compose`) made for one pass's channel groups (bit 0
+/// occlusion-roughness-metallic, 1 normal, 2 emissive): `attached`, those the raster draws
+/// attachments for, and for the compose `present`, those with a canvas. The sources' defaults
+/// (7: every group) compile every group's code; llvmpipe runs both sides of every branch whose
+/// condition it cannot prove uniform, so a pipeline made for its groups skips the others' loads,
+/// sampling and blends.
+pub fn with_groups(text: String, present: u32, attached: u32) -> String {
+    const ATTACHED: &str = "const ATTACHED: u32 = 7u;";
+    const PRESENT: &str = "const PRESENT: u32 = 7u;";
+    assert!(
+        text.contains(ATTACHED),
+        "a fused source without `{ATTACHED}`"
+    );
+    assert!(
+        attached & !present == 0 && present <= 7,
+        "groups {present:#b} {attached:#b}"
+    );
+    text.replace(ATTACHED, &format!("const ATTACHED: u32 = {attached}u;"))
+        .replace(PRESENT, &format!("const PRESENT: u32 = {present}u;"))
+}
+
 /// The adaptive-supersampling variant of a layer raster source (`text`: `layer_raster` as any of
 /// the functions above make it): its `// MSAA: ` lines live. It draws into targets of four samples
 /// a pixel, once a pixel and triangle (`wgsl/bake/layer_raster.wgsl`).

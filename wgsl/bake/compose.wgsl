@@ -34,6 +34,12 @@
 // FUSED: @group(0) @binding(16) var<storage, read_write> emissive_rg: array<vec2<f32>>;
 // FUSED: @group(0) @binding(17) var<storage, read_write> emissive_ba: array<vec2<f32>>;
 // Written out per group, without arrays indexed at run time (llvmpipe keeps those in memory).
+// Each fused pipeline is made for its pass's groups (`gpu::shaders::with_groups`): PRESENT, those
+// with a canvas; ATTACHED, those the raster drew attachments for. Every group's bits are masked by
+// them, so a pipeline holds no code for a group its pass lacks: llvmpipe runs both sides of a
+// branch it cannot prove uniform, and a group's loads and blend cost every texel otherwise.
+// FUSED: const PRESENT: u32 = 7u;
+// FUSED: const ATTACHED: u32 = 7u;
 
 // Each raster entry's channel draws (keep in sync with `ChannelDraw` in layer_raster.wgsl and
 // src/bake/channels.rs): bits.x the groups a unit paints, bits.z those drawn from a constant
@@ -89,6 +95,15 @@ fn outside_edit(t: vec2<i32>) -> bool {
     return ((w >> (c % 32u)) & 1u) == 0u;
 }
 
+// The canvas's blend: any mode in the plain kernel, which also composes a separate channel pass;
+// a colour mode in the fused one, whose canvas is always the colour's.
+fn blend_canvas(mode: u32, dst: vec4<f32>, src: vec4<f32>, w: vec4<f32>) -> vec4<f32> {
+    var colour = false;
+    // FUSED: colour = true;
+    if (colour) { return blend(mode, dst, src); }
+    return blend_any(mode, dst, src, w);
+}
+
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= params.rect_size.x || gid.y >= params.rect_size.y) { return; }
@@ -96,7 +111,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (outside_edit(vec2<i32>(gid.xy) + params.rect_origin)) { return; }
     var sum = vec4<f32>(0.0);
     var n = 0.0;
-    // FUSED: let bits = draws[params.draw.x].bits.x & ~draws[params.draw.x].bits.w;
+    // FUSED: let bits = draws[params.draw.x].bits.x & ~draws[params.draw.x].bits.w & ATTACHED;
     // FUSED: var s0 = vec4<f32>(0.0);
     // FUSED: var s1 = vec4<f32>(0.0);
     // FUSED: var s2 = vec4<f32>(0.0);
@@ -120,16 +135,16 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let idx = win_index(vec2<i32>(gid.xy) + params.rect_origin);
     if (idx == 0xffffffffu) { return; }
     // FUSED: let d = &draws[params.draw.x];
-    // FUSED: let painted = (*d).bits.x;
-    // FUSED: let derived = (*d).bits.w;
-    // FUSED: let constant = (*d).bits.z;
+    // FUSED: let painted = (*d).bits.x & PRESENT;
+    // FUSED: let derived = (*d).bits.w & PRESENT;
+    // FUSED: let constant = (*d).bits.z & PRESENT;
     // FUSED: if ((derived & 1u) != 0u) { s0 = vec4<f32>(sum.a); }
     // FUSED: if ((derived & 4u) != 0u) { s2 = vec4<f32>(sum.a); }
     // FUSED: if ((painted & 1u) != 0u) {
     // FUSED:     var s = s0 / n;
     // FUSED:     if ((constant & 1u) != 0u) { s = constant_average((*d).value[0], s0.a, n); }
     // FUSED:     if (s.a > 0.0) {
-    // FUSED:         let c = blend_any((*d).blend.x, vec4<f32>(orm_rg[idx], orm_ba[idx]), s, (*d).chan[0]);
+    // FUSED:         let c = blend_data((*d).blend.x, vec4<f32>(orm_rg[idx], orm_ba[idx]), s, (*d).chan[0]);
     // FUSED:         orm_rg[idx] = c.rg;
     // FUSED:         orm_ba[idx] = c.ba;
     // FUSED:     }
@@ -137,7 +152,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     // FUSED: if ((painted & 2u) != 0u) {
     // FUSED:     let s = s1 / n;
     // FUSED:     if (s.a > 0.0) {
-    // FUSED:         let c = blend_any((*d).blend.y, vec4<f32>(nrm_rg[idx], nrm_ba[idx]), s, (*d).chan[1]);
+    // FUSED:         let c = blend_normal((*d).blend.y, vec4<f32>(nrm_rg[idx], nrm_ba[idx]), s);
     // FUSED:         nrm_rg[idx] = c.rg;
     // FUSED:         nrm_ba[idx] = c.ba;
     // FUSED:     }
@@ -146,7 +161,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     // FUSED:     var s = s2 / n;
     // FUSED:     if ((constant & 4u) != 0u) { s = constant_average((*d).value[2], s2.a, n); }
     // FUSED:     if (s.a > 0.0) {
-    // FUSED:         let c = blend_any((*d).blend.z, vec4<f32>(emissive_rg[idx], emissive_ba[idx]), s, (*d).chan[2]);
+    // FUSED:         let c = blend((*d).blend.z, vec4<f32>(emissive_rg[idx], emissive_ba[idx]), s);
     // FUSED:         emissive_rg[idx] = c.rg;
     // FUSED:         emissive_ba[idx] = c.ba;
     // FUSED:     }
@@ -156,6 +171,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         src = constant_average(draws[params.draw.x].value[params.draw.y], sum.a, n);
     }
     if (src.a <= 0.0) { return; }
-    acc_store(idx, blend_any(params.blend, acc_load(idx), src, params.chan));
+    acc_store(idx, blend_canvas(params.blend, acc_load(idx), src, params.chan));
     atomicAdd(&stats[params.aux * params.stats_stride + 5u], 1);
 }

@@ -14,6 +14,13 @@ const FLAG_16BIT: u32 = 4u;
 // A tile of a tiled bake: no padding here (src/bake/tiles.rs pads the whole texture on the CPU).
 const FLAG_NO_PAD: u32 = 32u;
 
+// Each output's pipeline is made with its own (`gpu::shaders::encode_source`): linear (a data or
+// normal channel, FLAG_LINEAR) and 16-bit (FLAG_16BIT). Constants, not the flags, choose: llvmpipe
+// runs both sides of a branch it cannot prove uniform, so a runtime choice costs every texel the
+// sRGB curve and both stores.
+const LINEAR: bool = false;
+const WIDE: bool = false;
+
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read_write> packed: array<u32>;
 @group(0) @binding(2) var<storage, read> mask: array<u32>;
@@ -48,11 +55,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let c = acc_load(src);
     // Row stride of `packed` in u32 words (rows padded to 256 bytes for texture copies).
     let row = g.y * params.rect_size.x;
-    var e = vec4<f32>(to_srgb(c.r), to_srgb(c.g), to_srgb(c.b), clamp(c.a, 0.0, 1.0));
-    if ((params.flags & FLAG_LINEAR) != 0u) {
-        e = clamp(c, vec4<f32>(0.0), vec4<f32>(1.0));
+    var e = clamp(c, vec4<f32>(0.0), vec4<f32>(1.0));
+    if (!LINEAR) {
+        e = vec4<f32>(to_srgb(c.r), to_srgb(c.g), to_srgb(c.b), e.a);
     }
-    if ((params.flags & FLAG_16BIT) != 0u) {
+    if (WIDE) {
         packed[row + 2u * g.x] = pack2x16unorm(e.rg);
         packed[row + 2u * g.x + 1u] = pack2x16unorm(e.ba);
     } else {

@@ -84,6 +84,8 @@ struct ChannelDraw {
 // FUSED: @group(0) @binding(14) var orm_image: texture_2d<f32>;
 // FUSED: @group(0) @binding(15) var normal_image: texture_2d<f32>;
 // FUSED: @group(0) @binding(16) var emissive_image: texture_2d<f32>;
+// The groups this pipeline draws attachments for (bit 0 orm, 1 normal, 2 emissive).
+// FUSED: const ATTACHED: u32 = 7u;
 
 // T(p) = a0 + a1 p.x + a2 p.y + sum_k w_k phi(|p - c_k|), phi(r) = r^2 ln r; in the twin's order of
 // operations, so an identity spline returns p bit for bit.
@@ -315,11 +317,12 @@ fn constant_channel(k: vec4<f32>, c: vec4<f32>) -> vec4<f32> {
     return vec4<f32>(k.rgb * c.a, c.a);
 }
 
-// `c` times the layer's mask at `img` where it has one (mask images are premultiplied like
-// decals: red * alpha is the mask value).
-fn masked(c: vec4<f32>, img: vec2<f32>, gx: vec2<f32>, gy: vec2<f32>) -> vec4<f32> {
-    if ((params.flags & FLAG_MASK) == 0u) { return c; }
-    return c * textureSampleGrad(mask, samp, img, gx, gy).r;
+// The layer's mask at `img`, 1 where it has none (mask images are premultiplied like decals: red *
+// alpha is the mask value). Sampled once a fragment and multiplied into every image sample
+// (`c * 1.0` is `c`): llvmpipe samples a branch's texture whether or not any lane takes it.
+fn mask_at(img: vec2<f32>, gx: vec2<f32>, gy: vec2<f32>) -> f32 {
+    if ((params.flags & FLAG_MASK) == 0u) { return 1.0; }
+    return textureSampleGrad(mask, samp, img, gx, gy).r;
 }
 
 @fragment
@@ -372,7 +375,8 @@ fn fs_main(in: FsIn) -> FsOut {
         o.coverage = vec4<f32>(COVERED_OUTSIDE);
         return o;
     }
-    var c = masked(textureSampleGrad(image, samp, img, gx, gy), img, gx, gy);
+    let m = mask_at(img, gx, gy);
+    var c = textureSampleGrad(image, samp, img, gx, gy) * m;
     if ((params.flags & FLAG_CONSTANT) != 0u) {
         // A separate channel pass of a constant group: `image` is the colour's.
         c = constant_channel(draws[params.draw.x].value[params.draw.y], c);
@@ -386,7 +390,10 @@ fn fs_main(in: FsIn) -> FsOut {
     // NORMAL PASS: let dx = (params.flags & FLAG_NORMAL_DX) != 0u;
     // NORMAL PASS: c = to_tangent_space(c, dx, dpx, dpy, gx, gy, in.wnrm, in.wtan);
     o.color = c * params.opacity * share;
-    // FUSED: let bits = draws[params.draw.x].bits;
+    // The groups this pipeline draws attachments for (ATTACHED, set per pipeline by
+    // `gpu::shaders::with_groups`) mask every group's bits, so a pipeline holds no code for the
+    // others (llvmpipe runs both sides of a branch it cannot prove uniform).
+    // FUSED: let bits = draws[params.draw.x].bits & vec4<u32>(ATTACHED, 0xffffffffu, ATTACHED, 0xffffffffu);
     // FUSED: let opacity = draws[params.draw.x].opacity;
     // A group at the colour's opacity drawn from a constant (bits.w) is the colour's alphas
     // times the constant: the compose derives it from the colour's samples, nothing is drawn.
@@ -394,17 +401,17 @@ fn fs_main(in: FsIn) -> FsOut {
     // FUSED: } else if ((bits.z & 1u) != 0u) {
     // FUSED:     o.orm = constant_channel(draws[params.draw.x].value[0], c) * opacity.x * share;
     // FUSED: } else if ((bits.x & 1u) != 0u) {
-    // FUSED:     o.orm = masked(textureSampleGrad(orm_image, samp, img, gx, gy), img, gx, gy) * opacity.x * share;
+    // FUSED:     o.orm = textureSampleGrad(orm_image, samp, img, gx, gy) * m * opacity.x * share;
     // FUSED: }
     // FUSED: if ((bits.x & 2u) != 0u) {
-    // FUSED:     let n = masked(textureSampleGrad(normal_image, samp, img, gx, gy), img, gx, gy);
+    // FUSED:     let n = textureSampleGrad(normal_image, samp, img, gx, gy) * m;
     // FUSED:     o.nrm = to_tangent_space(n, bits.y != 0u, dpx, dpy, gx, gy, in.wnrm, in.wtan) * opacity.y * share;
     // FUSED: }
     // FUSED: if ((bits.w & 4u) != 0u) {
     // FUSED: } else if ((bits.z & 4u) != 0u) {
     // FUSED:     o.emissive = constant_channel(draws[params.draw.x].value[2], c) * opacity.z * share;
     // FUSED: } else if ((bits.x & 4u) != 0u) {
-    // FUSED:     o.emissive = masked(textureSampleGrad(emissive_image, samp, img, gx, gy), img, gx, gy) * opacity.z * share;
+    // FUSED:     o.emissive = textureSampleGrad(emissive_image, samp, img, gx, gy) * m * opacity.z * share;
     // FUSED: }
     mark_block(in.pos.xy, o);
     return o;

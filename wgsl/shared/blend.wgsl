@@ -83,19 +83,22 @@ fn normal_combine(mode: u32, n1: vec3<f32>, n2: vec3<f32>) -> vec3<f32> {
     }
 }
 
-// Any blend: colour modes (ids 0-8) by `blend`, data and normal channels by their own rules;
-// `w` weighs a data channel's outputs (Params.chan).
-fn blend_any(mode: u32, dst: vec4<f32>, src: vec4<f32>, w: vec4<f32>) -> vec4<f32> {
-    if (mode < 16u) { return blend(mode, dst, src); }
+// A data channel's blend (BLEND_DATA_*), premultiplied `src` over `dst`; `w` weighs its outputs.
+fn blend_data(mode: u32, dst: vec4<f32>, src: vec4<f32>, w: vec4<f32>) -> vec4<f32> {
     let a = src.a;
     if (a <= 0.0) { return dst; }
     let cs = src.rgb / a;
-    if (mode == BLEND_DATA_MIX) {
-        return vec4<f32>(mix(dst.rgb, cs, clamp(a * w.rgb, vec3<f32>(0.0), vec3<f32>(1.0))), dst.a);
-    }
     if (mode == BLEND_DATA_REPLACE) {
         return vec4<f32>(select(dst.rgb, cs, a * w.rgb >= vec3<f32>(0.5)), dst.a);
     }
+    return vec4<f32>(mix(dst.rgb, cs, clamp(a * w.rgb, vec3<f32>(0.0), vec3<f32>(1.0))), dst.a);
+}
+
+// A normal channel's blend (BLEND_NRM_*), premultiplied encoded `src` over encoded `dst`.
+fn blend_normal(mode: u32, dst: vec4<f32>, src: vec4<f32>) -> vec4<f32> {
+    let a = src.a;
+    if (a <= 0.0) { return dst; }
+    let cs = src.rgb / a;
     let n1 = decode_normal(dst.rgb);
     let n2 = decode_normal(cs);
     let r = normalize(normal_combine(mode, n1, n2));
@@ -103,4 +106,14 @@ fn blend_any(mode: u32, dst: vec4<f32>, src: vec4<f32>, w: vec4<f32>) -> vec4<f3
     let l = length(n);
     n = select(r, n / l, l > 1e-6);
     return vec4<f32>(n * 0.5 + 0.5, dst.a);
+}
+
+// Any blend: colour modes (ids 0-8) by `blend`, data and normal channels by their own rules;
+// `w` weighs a data channel's outputs (Params.chan). A kernel that knows its channel calls that
+// channel's function instead: llvmpipe runs both sides of a branch it cannot prove uniform, so
+// every mode here costs every texel that calls this.
+fn blend_any(mode: u32, dst: vec4<f32>, src: vec4<f32>, w: vec4<f32>) -> vec4<f32> {
+    if (mode < 16u) { return blend(mode, dst, src); }
+    if (mode < BLEND_NRM_RNM) { return blend_data(mode, dst, src, w); }
+    return blend_normal(mode, dst, src);
 }
