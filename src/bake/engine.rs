@@ -1316,7 +1316,7 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
     ];
     let wide = job.bit_depth == 16;
     list.push(p.encode_for(false, wide));
-    if super::channels::passes(job).iter().any(|k| k.linear()) {
+    if job.channel_groups() & !(1 << crate::io::channels::ChannelKind::Emissive.slot()) != 0 {
         list.push(p.encode_for(true, wide));
     }
     let placed_on_cpu = !engine.bvh_on_gpu() && engine.stage_paths.placement_prefers_cpu(engine);
@@ -1327,9 +1327,7 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
     // for, as bits (none: the colour's raster, with the fused compose).
     let fused = engine.fuses_channels(job);
     let drawn = job.drawn_channel_groups();
-    let present = super::channels::passes(job)
-        .iter()
-        .fold(0, |b, k| b | 1 << k.slot());
+    let present = job.channel_groups();
     if !job.layers.is_empty() {
         list.extend([
             &p.select_triangles as &dyn Prepare,
