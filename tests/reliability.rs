@@ -386,7 +386,10 @@ fn a_bake_builds_only_the_pipelines_it_runs_and_preparing_them_changes_no_byte()
     let mesh = lazy.load_mesh(&job.mesh).unwrap();
     let plain = lazy.bake(&mesh, &job).unwrap();
     let built = p.builder.spent().1;
-    assert!(p.grid.compose.is_built() && p.grid.raster.is_built() && p.planar_coords.is_built());
+    // A planar decal without a mask: the plain raster, not the general one.
+    let raster = &p.grid.plain.raster;
+    assert!(p.grid.compose.is_built() && raster.is_built() && p.planar_coords.is_built());
+    assert!(!p.grid.raster.is_built(), "the general raster");
     assert!(!p.preview.is_built(), "no preview asked");
     assert!(
         !p.expmap_relax.is_built() && !p.cg_batched.is_built(),
@@ -429,15 +432,21 @@ fn preparing_a_material_bake_builds_the_fused_pipelines_it_draws() {
     // Bits 0b010 (the normal group): index 1.
     // The compose made for the pass's groups: orm and normal present, the normal attached.
     let compose = fused.compose_for(0b011, 0b010);
-    assert!(fused.raster[1].is_built() && fused.clear[1].is_built() && compose.is_built());
+    let raster = &q.grid.plain.fused[1];
+    assert!(raster.is_built() && fused.clear[1].is_built() && compose.is_built());
     let mesh = eager.load_mesh(&job.mesh).unwrap();
     let baked = eager.bake(&mesh, &job).unwrap();
     assert_eq!(baked.report.paths.channels, "fused");
     assert_eq!(baked.channels.len(), 2, "orm and normal");
-    for (k, (r, c)) in fused.raster.iter().zip(&fused.clear).enumerate() {
+    let plain = &q.grid.plain.fused;
+    for (k, (r, c)) in plain.iter().zip(&fused.clear).enumerate() {
         assert_eq!(r.is_built(), k == 1, "fused raster {}", k + 1);
         assert_eq!(c.is_built(), k == 1, "fused clear {}", k + 1);
     }
+    assert!(
+        fused.raster.iter().all(|r| !r.is_built()),
+        "a general fused raster"
+    );
     let built = fused.compose.iter().filter(|c| c.is_built()).count();
     assert_eq!(built, 1, "fused composes built");
 }

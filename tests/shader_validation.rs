@@ -110,7 +110,22 @@ fn every_wgsl_file_validates() {
             }
         }
         let raster = with_groups(fused_source(true), present, present);
-        sources.push((format!("layer_raster (fused {present:#05b})"), raster));
+        sources.push((
+            format!("layer_raster (fused {present:#05b})"),
+            raster.clone(),
+        ));
+        let plain = decalbake::gpu::shaders::plain_layers(raster);
+        sources.push((format!("layer_raster (fused {present:#05b}, plain)"), plain));
+    }
+    // The rasters for layers without a cone, warp, tiled image, stamp, constant or mask.
+    for (name, text) in [
+        ("plain", decalbake::gpu::shaders::source("layer_raster")),
+        ("normal", decalbake::gpu::shaders::normal_source(true)),
+    ] {
+        let plain = decalbake::gpu::shaders::plain_layers(text);
+        sources.push((format!("layer_raster ({name}, plain)"), plain.clone()));
+        let msaa = decalbake::gpu::shaders::msaa_source(plain);
+        sources.push((format!("layer_raster ({name}, plain, adaptive)"), msaa));
     }
     for (linear, wide) in [(false, true), (true, false), (true, true)] {
         sources.push((

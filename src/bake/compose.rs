@@ -19,6 +19,7 @@ use super::plan::{meets, pack_atlas, plan_cells, Batch, BLOCK, BLOCKS_ROW, TILE_
 use super::stage::{Cx, Log};
 use crate::error::Result;
 use crate::gpu::pipelines::make_bind_group;
+use crate::gpu::shaders::GENERAL_LAYER_FLAGS;
 use crate::io::job::Job;
 use crate::maps::distortion::{Distortion, DIST_GROUPS, PARTIAL_VEC4S};
 use std::collections::HashMap;
@@ -271,6 +272,7 @@ pub(crate) fn compose(
     }
     let (draws, attached) = upload_draws(engine, &mut jp, &jobs, placed, (pass, fused));
     let job_params = params_buffer(dev, "bake.raster_params", &jp);
+    let flags: Vec<u32> = jp.iter().map(|p| p.flags).collect();
     // The fused compose binds a canvas's two planes per channel group: 16-byte placeholders where
     // the pass has no such group.
     let spare_planes: Vec<wgpu::Buffer> = match fused.is_empty() {
@@ -331,6 +333,7 @@ pub(crate) fn compose(
             spare_planes: &spare_planes,
             msaa,
             blocks: &blocks,
+            flags: &flags,
         };
         if pass.is_none() && dirty.is_none() {
             log.commands +=
@@ -646,6 +649,9 @@ struct Recording<'a> {
     msaa: bool,
     /// The block mask the raster marks and the compose reads ([`block_mask`]).
     blocks: &'a wgpu::Buffer,
+    /// Each raster entry's flags (a unit whose entry has none of [`GENERAL_LAYER_FLAGS`] is
+    /// drawn by the plain raster, [`crate::gpu::pipelines::Layers::raster_for`]).
+    flags: &'a [u32],
 }
 
 impl Recording<'_> {
@@ -656,7 +662,7 @@ impl Recording<'_> {
     fn record_batch(
         &self,
         (batch, used_h): &Batch,
-        layer_bgs: &mut HashMap<usize, wgpu::BindGroup>,
+        layer_bgs: &mut HashMap<(usize, bool), wgpu::BindGroup>,
         flushed: &mut usize,
         enc: &mut wgpu::CommandEncoder,
     ) -> u32 {
@@ -693,12 +699,9 @@ impl Recording<'_> {
             // decals 394 → 372 ms; one decal the same (a tiled 8192² bake: 1.80 → 1.62 s).
             let mut pass =
                 crate::gpu::render_pass_to(enc, "bake.layer_raster", views, wgpu::LoadOp::Load);
-            let (clear, raster) = match self.attached {
-                0 => (&pipes.clear, None),
-                b => (
-                    &pipes.fused.clear[b as usize - 1],
-                    Some(&pipes.fused.raster[b as usize - 1]),
-                ),
+            let clear = match self.attached {
+                0 => &pipes.clear,
+                b => &pipes.fused.clear[b as usize - 1],
             };
             pass.set_pipeline(&clear.pipeline);
             for &(k, _) in batch {
@@ -707,12 +710,9 @@ impl Recording<'_> {
                 pass.set_scissor_rect(origin[0] + sx, origin[1] + sy, sw, sh);
                 pass.draw(0..3, 0..1);
             }
-            let raster = match (raster, self.pass.map(|p| p.kind)) {
-                (Some(fused), _) => fused,
-                (None, Some(super::channels::ChannelKind::Normal)) => &pipes.raster_normal,
-                (None, _) => &pipes.raster,
-            };
-            pass.set_pipeline(&raster.pipeline);
+            let normal = self.pass.map(|p| p.kind) == Some(super::channels::ChannelKind::Normal);
+            // The pipeline last set: each unit takes the plain variant where it can.
+            let mut set: Option<bool> = None;
             for &(k, _) in batch {
                 let rj = &self.jobs[k];
                 let p = &rj.params;
@@ -734,9 +734,15 @@ impl Recording<'_> {
                     if self.placed.sources[i] || !self.drawn(i) {
                         continue;
                     }
+                    let plain = self.flags[rj.entry + e] & GENERAL_LAYER_FLAGS == 0;
+                    let raster = pipes.raster_for(normal, self.attached, plain);
+                    if set != Some(plain) {
+                        pass.set_pipeline(&raster.pipeline);
+                        set = Some(plain);
+                    }
                     let bg = layer_bgs
-                        .entry(i)
-                        .or_insert_with(|| self.layer_bind_group(i));
+                        .entry((i, plain))
+                        .or_insert_with(|| self.layer_bind_group(i, &raster.layout));
                     let count = (self.canvas.row(self.stats, i)[0].max(0) as u32)
                         .min(self.mesh.gpu.triangle_count);
                     let offset = (rj.entry + e) as u64 * PARAMS_STRIDE;
@@ -886,9 +892,9 @@ impl Recording<'_> {
 
     /// Layer `i`'s raster bind group: its triangle list, UVs, coords, image and mask (in a
     /// channel's pass, its channel image; for normals, the mesh's frames too).
-    fn layer_bind_group(&self, i: usize) -> wgpu::BindGroup {
+    fn layer_bind_group(&self, i: usize, layout: &wgpu::BindGroupLayout) -> wgpu::BindGroup {
         if self.attached != 0 {
-            return self.fused_bind_group(i);
+            return self.fused_bind_group(i, layout);
         }
         let engine = self.engine;
         let colour = &self.images.layers[i].0;
@@ -901,13 +907,9 @@ impl Recording<'_> {
         };
         let tangents = self.pass.and_then(|p| p.tangents.as_ref());
         let mut entries = self.unit_entries(i, &img.view);
-        let layout = match tangents {
-            Some(t) => {
-                entries.extend(self.frames(t));
-                &engine.pipes.family(self.msaa).raster_normal.layout
-            }
-            None => &engine.pipes.family(self.msaa).raster.layout,
-        };
+        if let Some(t) = tangents {
+            entries.extend(self.frames(t));
+        }
         make_bind_group(&engine.ctx.device, layout, "bake.layer_raster", &entries)
     }
 
@@ -955,7 +957,7 @@ impl Recording<'_> {
     /// Unit `i`'s raster bind group in a fused pass: the colour's bindings, the mesh's frames
     /// (the normal group's tangents, or a placeholder), each group's channel image (the dummy
     /// image where its layer or the pass has none) and the channel draws.
-    fn fused_bind_group(&self, i: usize) -> wgpu::BindGroup {
+    fn fused_bind_group(&self, i: usize, layout: &wgpu::BindGroupLayout) -> wgpu::BindGroup {
         let engine = self.engine;
         let colour = &self.images.layers[i].0;
         let mut images = [&self.images.dummy.view; 3];
@@ -976,8 +978,6 @@ impl Recording<'_> {
         for (k, view) in images.into_iter().enumerate() {
             entries.push((14 + k as u32, wgpu::BindingResource::TextureView(view)));
         }
-        let layout =
-            &engine.pipes.family(self.msaa).fused.raster[self.attached as usize - 1].layout;
         make_bind_group(
             &engine.ctx.device,
             layout,

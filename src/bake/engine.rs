@@ -1299,6 +1299,27 @@ pub struct Islands {
     pub count: u64,
 }
 
+/// Which layer rasters `job`'s layers are likely drawn by (plain: none of
+/// [`crate::gpu::shaders::GENERAL_LAYER_FLAGS`]), from what the job says: a mask, a warp, a ribbon
+/// (tiled images) or a stroke (tool stamps) takes the general one. A cone chart, decided while
+/// baking, builds its raster when it is drawn.
+fn raster_variants(job: &Job) -> Vec<bool> {
+    use crate::io::job::LayerKind;
+    let general = |l: &crate::io::job::Layer| {
+        l.mask.is_some()
+            || !l.warp.is_empty()
+            || matches!(l.kind, LayerKind::Ribbon | LayerKind::Stroke)
+    };
+    let mut v = Vec::new();
+    if job.layers.iter().any(|l| !general(l)) {
+        v.push(true);
+    }
+    if job.layers.iter().any(general) {
+        v.push(false);
+    }
+    v
+}
+
 /// The pipelines a bake of `job` will run, for [`Engine::prepare_for`]: those every bake runs
 /// (canvas, islands, selection, raster, compose, padding and encode), placement when it has
 /// layers, each layer kind's and method's, and the preview's when it writes one. A pipeline left
@@ -1334,24 +1355,19 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
             &p.compact_lists,
             &p.distortion,
         ]);
-        match (fused, drawn) {
-            (false, _) => list.extend([
-                &family.raster as &dyn Prepare,
-                &family.clear,
-                &family.compose,
-            ]),
-            (true, 0) => list.extend([
-                &family.raster as &dyn Prepare,
-                &family.clear,
-                family.fused.compose_for(present, 0),
-            ]),
-            (true, g) => {
-                let (f, k) = (&family.fused, g as usize - 1);
-                list.extend([
-                    &f.raster[k] as &dyn Prepare,
-                    &f.clear[k],
-                    f.compose_for(present, g),
-                ]);
+        let (attached, compose) = match (fused, drawn) {
+            (false, _) => (0, &family.compose),
+            (true, g) => (g, family.fused.compose_for(present, g)),
+        };
+        let clear = match attached {
+            0 => &family.clear,
+            g => &family.fused.clear[g as usize - 1],
+        };
+        list.extend([clear as &dyn Prepare, compose]);
+        for plain in raster_variants(job) {
+            list.push(family.raster_for(false, attached, plain));
+            if !fused && job.layers.iter().any(|l| l.channels.normal.is_some()) {
+                list.push(family.raster_for(true, 0, plain));
             }
         }
     }
@@ -1375,9 +1391,6 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
     }
     if any(&|l| l.kind == LayerKind::Ribbon) {
         list.push(&p.ribbon_relax);
-    }
-    if !fused && any(&|l| l.channels.normal.is_some()) {
-        list.push(&family.raster_normal);
     }
     if job.out_preview.is_some() {
         list.push(&p.preview);

@@ -161,3 +161,16 @@ pub fn params_buffer(dev: &wgpu::Device, label: &str, entries: &[Params]) -> wgp
         usage: wgpu::BufferUsages::UNIFORM,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The flags a plain layer raster leaves out (`gpu::shaders`, which the GPU side owns) are
+    /// these: each one's code is in the general raster only.
+    #[test]
+    fn the_plain_rasters_flags_are_the_layer_features() {
+        let features = FLAG_CONE | FLAG_WARP | FLAG_REPEAT | FLAG_TOOL | FLAG_CONSTANT | FLAG_MASK;
+        assert_eq!(crate::gpu::shaders::GENERAL_LAYER_FLAGS, features);
+    }
+}

@@ -814,6 +814,9 @@ pub struct Layers {
     pub clear: Lazy<Raster>,
     /// The colour and the PBR channel groups drawn and composed in one pass ([`Fused`]).
     pub fused: Fused,
+    /// The same rasters for layers with none of [`shaders::GENERAL_LAYER_FLAGS`]
+    /// ([`Layers::raster_for`]).
+    pub plain: PlainRasters,
     /// Layer composition.
     pub compose: Lazy<Kernel>,
     /// The islands drawn at the same samples.
@@ -848,13 +851,14 @@ impl Layers {
         let n = LAYERS_NAMES[usize::from(samples > 1)];
         Self {
             raster: Lazy::new(b, n[0], move |d| {
-                layer_raster(d, format, blending, (false, samples))
+                layer_raster(d, format, blending, (false, samples, false))
             }),
             raster_normal: Lazy::new(b, n[1], move |d| {
-                layer_raster(d, format, blending, (true, samples))
+                layer_raster(d, format, blending, (true, samples, false))
             }),
             clear: Lazy::new(b, n[2], move |d| atlas_clear(d, format, samples)),
             fused: Fused::new(b, format, blending, samples),
+            plain: PlainRasters::new(b, format, blending, samples),
             compose: Lazy::new(b, n[3], move |d| {
                 reading_targets(d, ("compose", n[3]), &COMPOSE_BINDS, samples)
             }),
@@ -864,6 +868,68 @@ impl Layers {
             }),
         }
     }
+
+    /// The layer raster a unit is drawn with: the fused pass's for the channel groups
+    /// `attached` (0: none), else the normal pass's where `normal`, else the colour's; the plain
+    /// variant where the unit has none of [`shaders::GENERAL_LAYER_FLAGS`] (`plain`).
+    pub fn raster_for(&self, normal: bool, attached: u32, plain: bool) -> &Lazy<Raster> {
+        match (attached, normal, plain) {
+            (0, false, false) => &self.raster,
+            (0, false, true) => &self.plain.raster,
+            (0, true, false) => &self.raster_normal,
+            (0, true, true) => &self.plain.raster_normal,
+            (b, _, false) => &self.fused.raster[b as usize - 1],
+            (b, _, true) => &self.plain.fused[b as usize - 1],
+        }
+    }
+}
+
+/// [`Layers`]' rasters made for layers with none of [`shaders::GENERAL_LAYER_FLAGS`]
+/// (`shaders::plain_layers`): the colour's, the normal pass's and the fused pass's per set of
+/// channel groups (as [`Fused::raster`]).
+pub struct PlainRasters {
+    /// `layer_raster`, plain.
+    pub raster: Lazy<Raster>,
+    /// Its normal variant, plain.
+    pub raster_normal: Lazy<Raster>,
+    /// Its fused variants, plain.
+    pub fused: [Lazy<Raster>; 7],
+}
+
+impl PlainRasters {
+    fn new(b: &Arc<Builder>, format: wgpu::TextureFormat, blending: bool, samples: u32) -> Self {
+        let msaa = if samples > 1 { "_msaa" } else { "" };
+        Self {
+            raster: Lazy::new(b, plain_name(&format!("layer_raster{msaa}")), move |d| {
+                layer_raster(d, format, blending, (false, samples, true))
+            }),
+            raster_normal: Lazy::new(
+                b,
+                plain_name(&format!("layer_raster_normal{msaa}")),
+                move |d| layer_raster(d, format, blending, (true, samples, true)),
+            ),
+            fused: std::array::from_fn(|k| {
+                let bits = k as u32 + 1;
+                let name = plain_name(&format!("layer_raster_fused{msaa}_{bits}"));
+                Lazy::new(b, name, move |d| {
+                    fused_raster(d, format, blending, (bits, samples, true))
+                })
+            }),
+        }
+    }
+}
+
+/// The plain variant's pipeline name of the layer raster `name` (made once a process and kept).
+fn plain_name(name: &str) -> &'static str {
+    static NAMES: std::sync::Mutex<Vec<&'static str>> = std::sync::Mutex::new(Vec::new());
+    let plain = format!("{name}_plain");
+    let mut names = NAMES.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(n) = names.iter().find(|n| **n == plain) {
+        return n;
+    }
+    let n: &'static str = Box::leak(plain.into_boxed_str());
+    names.push(n);
+    n
 }
 
 /// Kernel `name` (labelled `label`) that reads raster targets of `samples` a pixel: as written on
@@ -979,7 +1045,7 @@ impl Fused {
             raster: std::array::from_fn(|k| {
                 let bits = k as u32 + 1;
                 Lazy::new(b, FUSED_RASTER[named(k)], move |d| {
-                    fused_raster(d, format, blending, (bits, samples))
+                    fused_raster(d, format, blending, (bits, samples, false))
                 })
             }),
             clear: std::array::from_fn(|k| {
@@ -1000,7 +1066,7 @@ impl Fused {
 
     /// The fused compose of a pass whose channel groups are `present` (bits, as [`Fused`]'s),
     /// of which the raster drew attachments for `attached` (0: every group derived from the
-    /// colour, [`crate::bake::compose`]).
+    /// colour, `bake::compose`).
     pub fn compose_for(&self, present: u32, attached: u32) -> &Lazy<Kernel> {
         assert!(
             attached & !present == 0 && (1..8).contains(&present),
@@ -1119,7 +1185,7 @@ fn fused_raster(
     device: &Builder,
     format: wgpu::TextureFormat,
     blending: bool,
-    (bits, samples): (u32, u32),
+    (bits, samples, plain): (u32, u32, bool),
 ) -> Raster {
     use Bind::*;
     let binds: Vec<(u32, Bind)> = raster_binds()
@@ -1127,9 +1193,15 @@ fn fused_raster(
         .chain([(14, Tex(true)), (15, Tex(true)), (16, Tex(true))])
         .collect();
     let name = FUSED_RASTER[bits as usize - 1 + if samples > 1 { 7 } else { 0 }];
+    let name = if plain { plain_name(name) } else { name };
     let layer_layout = layout(device, name, &binds, wgpu::ShaderStages::VERTEX_FRAGMENT);
     let clipped = device.features().contains(wgpu::Features::CLIP_DISTANCES);
     let text = shaders::with_groups(shaders::fused_source(clipped), bits, bits);
+    let text = if plain {
+        shaders::plain_layers(text)
+    } else {
+        text
+    };
     raster(
         device,
         name,
@@ -1219,7 +1291,7 @@ fn layer_raster(
     device: &Builder,
     format: wgpu::TextureFormat,
     blending: bool,
-    (normal, samples): (bool, u32),
+    (normal, samples, plain): (bool, u32, bool),
 ) -> Raster {
     let extra: &[(u32, Bind)] = if normal { &FRAME_BINDS } else { &[] };
     let binds: Vec<(u32, Bind)> = raster_binds().chain(extra.iter().copied()).collect();
@@ -1229,6 +1301,7 @@ fn layer_raster(
         (false, true) => "layer_raster_msaa",
         (true, true) => "layer_raster_normal_msaa",
     };
+    let name = if plain { plain_name(name) } else { name };
     let layer_layout = layout(device, name, &binds, wgpu::ShaderStages::VERTEX_FRAGMENT);
     // Triangles clipped to their layer's image and a margin where the device clips
     // (`clip_planes` in the shader); GL without the extension draws them whole.
@@ -1236,6 +1309,12 @@ fn layer_raster(
     let text = match normal {
         true => Some(shaders::normal_source(clipped)),
         false => clipped.then(|| shaders::clipped_source("layer_raster")),
+    };
+    let text = match plain {
+        true => Some(shaders::plain_layers(
+            text.unwrap_or_else(|| shaders::source("layer_raster")),
+        )),
+        false => text,
     };
     let text = match samples {
         1 => text,

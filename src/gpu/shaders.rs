@@ -312,6 +312,23 @@ pub fn fused_kernel_source(name: &str) -> String {
     text.replace("// FUSED: ", "")
 }
 
+/// The layer raster's flags a layer drawn by the plain variant ([`plain_layers`]) has none of:
+/// a cone chart, a warp, a tiled image, a tool stamp, a separate pass's constant channel, a mask
+/// (`crate::bake::params`'s `FLAG_*`).
+pub const GENERAL_LAYER_FLAGS: u32 = 16 | 128 | 64 | 8 | 4096 | 2;
+
+/// A `layer_raster` source (any of the variants above) for layers with none of
+/// [`GENERAL_LAYER_FLAGS`]: its `FEATURES` without them, so it holds none of their code
+/// (llvmpipe runs both sides of a branch it cannot prove uniform).
+pub fn plain_layers(text: String) -> String {
+    const ALL: &str = "const FEATURES: u32 = 0xffffffffu;";
+    assert!(text.contains(ALL), "a layer raster without `{ALL}`");
+    text.replace(
+        ALL,
+        &format!("const FEATURES: u32 = {}u;", !GENERAL_LAYER_FLAGS),
+    )
+}
+
 /// `encode` for one kind of output: `linear` (a data or normal channel, stored values) or sRGB,
 /// `wide` (16 bits a channel) or 8 (`wgsl/bake/encode.wgsl`).
 pub fn encode_source(linear: bool, wide: bool) -> String {

@@ -84,6 +84,17 @@ struct ChannelDraw {
 // FUSED: @group(0) @binding(14) var orm_image: texture_2d<f32>;
 // FUSED: @group(0) @binding(15) var normal_image: texture_2d<f32>;
 // FUSED: @group(0) @binding(16) var emissive_image: texture_2d<f32>;
+// The layer flags this pipeline honours: every one, or (`gpu::shaders::plain_layers`, the variant
+// for the many layers with none of them) all but a cone, a warp, a tiled image, a tool stamp, a
+// constant channel and a mask. llvmpipe runs both sides of a branch it cannot prove uniform, so
+// a flag tested at run time costs every fragment its code (a cone's atan2 and pow, a warp's
+// spline, a stamp's four reads), taken or not.
+const FEATURES: u32 = 0xffffffffu;
+
+fn layer_has(flag: u32) -> bool {
+    return (params.flags & FEATURES & flag) != 0u;
+}
+
 // The groups this pipeline draws attachments for (bit 0 orm, 1 normal, 2 emissive).
 // FUSED: const ATTACHED: u32 = 7u;
 
@@ -131,7 +142,7 @@ const SAMPLE_POS = array<vec2<f32>, 4>(vec2<f32>(0.375, 0.125), vec2<f32>(0.875,
 // The image point of the layer's coordinates `u` as the fragment stage maps them (a cone chart's
 // opened), before tiling and warping.
 fn image_of(u: vec2<f32>) -> vec2<f32> {
-    if ((params.flags & FLAG_CONE) != 0u) {
+    if (layer_has(FLAG_CONE)) {
         let z = cone_apply(params.cone_a, params.cone_b, u);
         return vec2<f32>(z.x / params.axis_u.w + 0.5, 0.5 - z.y / params.axis_v.w);
     }
@@ -151,9 +162,9 @@ fn image_share(covered: u32, u: vec2<f32>, ux: vec2<f32>, uy: vec2<f32>) -> f32 
         let o = SAMPLE_POS[i] - 0.5;
         let p = image_of(u + ux * o.x + uy * o.y);
         var inside = in_image(p);
-        if ((params.flags & FLAG_WARP) != 0u) {
+        if (layer_has(FLAG_WARP)) {
             var w = p;
-            if ((params.flags & FLAG_REPEAT) != 0u) {
+            if (layer_has(FLAG_REPEAT)) {
                 w.x = fract(p.x * params.cone_a.w);
             }
             inside = inside && in_image(warp_apply(w));
@@ -230,7 +241,7 @@ fn corner(vi: u32) -> array<vec2<f32>, 2> {
 // the clip costs more than it saves); a tiled ribbon only across its width.
 fn clip_planes(vi: u32, img: vec2<f32>) -> array<f32, 4> {
     var d = array<f32, 4>(1.0, 1.0, 1.0, 1.0);
-    if ((params.flags & (FLAG_CONE | FLAG_NO_CLIP)) != 0u) { return d; }
+    if (layer_has(FLAG_CONE | FLAG_NO_CLIP)) { return d; }
     let b = vi - vi % 3u;
     let c0 = corner(b);
     let c1 = corner(b + 1u);
@@ -238,7 +249,7 @@ fn clip_planes(vi: u32, img: vec2<f32>) -> array<f32, 4> {
     let m = clip_margin(c0[0], c1[0], c2[0],
                         image_point(c0[1]), image_point(c1[1]), image_point(c2[1]));
     if (m.x < 0.0) { return d; }
-    if ((params.flags & FLAG_REPEAT) == 0u) {
+    if (!layer_has(FLAG_REPEAT)) {
         d[0] = img.x + m.x;
         d[1] = 1.0 + m.x - img.x;
     }
@@ -259,7 +270,7 @@ fn vs_main(@builtin(vertex_index) vi: u32) -> VsOut {
     // NORMAL: o.wpos = vec3<f32>(split_pos[3u * sv], split_pos[3u * sv + 1u], split_pos[3u * sv + 2u]);
     // NORMAL: o.wnrm = vec3<f32>(split_nrm[3u * sv], split_nrm[3u * sv + 1u], split_nrm[3u * sv + 2u]);
     // NORMAL: o.wtan = tangents[sv];
-    if ((params.flags & FLAG_CONE) != 0u) {
+    if (layer_has(FLAG_CONE)) {
         o.img = c[1];
     }
     return o;
@@ -321,7 +332,7 @@ fn constant_channel(k: vec4<f32>, c: vec4<f32>) -> vec4<f32> {
 // alpha is the mask value). Sampled once a fragment and multiplied into every image sample
 // (`c * 1.0` is `c`): llvmpipe samples a branch's texture whether or not any lane takes it.
 fn mask_at(img: vec2<f32>, gx: vec2<f32>, gy: vec2<f32>) -> f32 {
-    if ((params.flags & FLAG_MASK) == 0u) { return 1.0; }
+    if (!layer_has(FLAG_MASK)) { return 1.0; }
     return textureSampleGrad(mask, samp, img, gx, gy).r;
 }
 
@@ -335,8 +346,8 @@ fn fs_main(in: FsIn) -> FsOut {
     // derivatives go through the spline's Jacobian: on lavapipe the implicit derivatives of T(img)
     // were wrong along every triangle edge (seen as holes; helper invocations' storage reads, we
     // believe), explicit level 0 was right.
-    let repeat = (params.flags & FLAG_REPEAT) != 0u;
-    let warped = (params.flags & FLAG_WARP) != 0u;
+    let repeat = layer_has(FLAG_REPEAT);
+    let warped = layer_has(FLAG_WARP);
     let unwrapped = img * vec2<f32>(select(1.0, params.cone_a.w, repeat), 1.0);
     var gx = dpdx(unwrapped);
     var gy = dpdy(unwrapped);
@@ -377,17 +388,17 @@ fn fs_main(in: FsIn) -> FsOut {
     }
     let m = mask_at(img, gx, gy);
     var c = textureSampleGrad(image, samp, img, gx, gy) * m;
-    if ((params.flags & FLAG_CONSTANT) != 0u) {
+    if (layer_has(FLAG_CONSTANT)) {
         // A separate channel pass of a constant group: `image` is the colour's.
         c = constant_channel(draws[params.draw.x].value[params.draw.y], c);
     }
-    if ((params.flags & FLAG_TOOL) != 0u) {
+    if (layer_has(FLAG_TOOL)) {
         // What is below, filtered in the stamp's flat space, with the stamp image's alpha as shape.
         let f = flat_at(flat_img);
         let shape = select(0.0, c.a, f.a > 0.0);
         c = vec4<f32>(f.rgb * shape, shape);
     }
-    // NORMAL PASS: let dx = (params.flags & FLAG_NORMAL_DX) != 0u;
+    // NORMAL PASS: let dx = layer_has(FLAG_NORMAL_DX);
     // NORMAL PASS: c = to_tangent_space(c, dx, dpx, dpy, gx, gy, in.wnrm, in.wtan);
     o.color = c * params.opacity * share;
     // The groups this pipeline draws attachments for (ATTACHED, set per pipeline by
