@@ -510,17 +510,24 @@ impl Engine {
     }
 
     /// An engine on the host's device and queue, naming the adapter they came from: the report then
-    /// names it, and backend-specific workarounds (wgpu's GL backend) apply.
+    /// names it, and backend-specific workarounds (wgpu's GL backend) apply. An adapter that
+    /// cannot bake (no compute shaders, or a fragment stage that cannot write storage buffers, as
+    /// `Engine::new` passes over) is refused here with [`crate::Error::DeviceCreation`] naming
+    /// why, not in the middle of the first bake.
     pub fn from_adapter(
         adapter: &wgpu::Adapter,
         device: wgpu::Device,
         queue: wgpu::Queue,
     ) -> Result<Self> {
-        Self::with_context(GpuContext::from_device(
-            device,
-            queue,
-            Some(adapter.get_info()),
-        ))
+        let info = adapter.get_info();
+        let flags = adapter.get_downlevel_capabilities().flags;
+        if let Some(why) = crate::gpu::unsuitable(flags, &info.name) {
+            return Err(crate::Error::DeviceCreation {
+                adapter: info.name,
+                detail: why,
+            });
+        }
+        Self::with_context(GpuContext::from_device(device, queue, Some(info)))
     }
 
     /// An engine on an existing context.

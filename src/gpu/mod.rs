@@ -496,7 +496,7 @@ impl GpuContext {
 /// compute shaders, and the layer raster's fragment stage writes the compose's block mask
 /// (`wgsl/shared/blocks.wgsl`), a storage buffer. Refused here, by name, rather than failing a
 /// pipeline's validation in the middle of the first bake.
-fn unsuitable(flags: wgpu::DownlevelFlags, adapter: &str) -> Option<String> {
+pub(crate) fn unsuitable(flags: wgpu::DownlevelFlags, adapter: &str) -> Option<String> {
     if !flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS) {
         return Some(format!("adapter {adapter} has no compute shaders"));
     }
