@@ -919,15 +919,20 @@ impl PlainRasters {
     }
 }
 
-/// The plain variant's pipeline name of the layer raster `name` (made once a process and kept).
+/// The plain variant's pipeline name of the layer raster `name`.
 fn plain_name(name: &str) -> &'static str {
+    kept_name(format!("{name}_plain"))
+}
+
+/// A pipeline name made at run time (a specialised variant's), kept for the process: each
+/// distinct name is stored once, however many engines ask for it.
+fn kept_name(name: String) -> &'static str {
     static NAMES: std::sync::Mutex<Vec<&'static str>> = std::sync::Mutex::new(Vec::new());
-    let plain = format!("{name}_plain");
     let mut names = NAMES.lock().unwrap_or_else(|e| e.into_inner());
-    if let Some(n) = names.iter().find(|n| **n == plain) {
+    if let Some(n) = names.iter().find(|n| **n == name) {
         return n;
     }
-    let n: &'static str = Box::leak(plain.into_boxed_str());
+    let n: &'static str = Box::leak(name.into_boxed_str());
     names.push(n);
     n
 }
@@ -1111,20 +1116,10 @@ fn fused_targets(
     targets
 }
 
-/// The fused compose's pipeline name for groups `present`, `attached` at `samples` a pixel
-/// (the names live as long as the process: one table, made once).
+/// The fused compose's pipeline name for groups `present`, `attached` at `samples` a pixel.
 fn fused_compose_name(samples: u32, present: u32, attached: u32) -> &'static str {
-    static NAMES: std::sync::OnceLock<Vec<String>> = std::sync::OnceLock::new();
-    let names = NAMES.get_or_init(|| {
-        (0..128)
-            .map(|i| {
-                let msaa = if i >= 64 { "_msaa" } else { "" };
-                format!("compose_fused{msaa}_{}_{}", i % 64 / 8, i % 8)
-            })
-            .collect()
-    });
-    let i = (present * 8 + attached) as usize + if samples > 1 { 64 } else { 0 };
-    &names[i]
+    let msaa = if samples > 1 { "_msaa" } else { "" };
+    kept_name(format!("compose_fused{msaa}_{present}_{attached}"))
 }
 
 /// `compose`'s fused variant for the channel groups `present`, `attached` (see [`Fused`]).

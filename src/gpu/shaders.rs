@@ -321,30 +321,29 @@ pub const GENERAL_LAYER_FLAGS: u32 = 16 | 128 | 64 | 8 | 4096 | 2;
 /// [`GENERAL_LAYER_FLAGS`]: its `FEATURES` without them, so it holds none of their code
 /// (llvmpipe runs both sides of a branch it cannot prove uniform).
 pub fn plain_layers(text: String) -> String {
-    const ALL: &str = "const FEATURES: u32 = 0xffffffffu;";
-    assert!(text.contains(ALL), "a layer raster without `{ALL}`");
-    text.replace(
-        ALL,
-        &format!("const FEATURES: u32 = {}u;", !GENERAL_LAYER_FLAGS),
-    )
+    let features = format!("{}u", !GENERAL_LAYER_FLAGS);
+    set_constant(text, "FEATURES: u32", "0xffffffffu", &features)
+}
+
+/// `text` with its module constant `const {decl} = {default};` set to `value` (a pipeline's
+/// specialisation: the driver drops the code the constant rules out). Panics where the source
+/// lacks the line, so a renamed constant cannot silently leave every variant the same.
+fn set_constant(text: String, decl: &str, default: &str, value: &str) -> String {
+    let line = format!("const {decl} = {default};");
+    assert!(text.contains(&line), "a source without `{line}`");
+    text.replace(&line, &format!("const {decl} = {value};"))
 }
 
 /// `encode` for one kind of output: `linear` (a data or normal channel, stored values) or sRGB,
 /// `wide` (16 bits a channel) or 8 (`wgsl/bake/encode.wgsl`).
 pub fn encode_source(linear: bool, wide: bool) -> String {
-    let text = source("encode");
-    for name in ["LINEAR", "WIDE"] {
-        let line = format!("const {name}: bool = false;");
-        assert!(text.contains(&line), "encode has no `{line}`");
-    }
-    text.replace(
-        "const LINEAR: bool = false;",
-        &format!("const LINEAR: bool = {linear};"),
-    )
-    .replace(
-        "const WIDE: bool = false;",
-        &format!("const WIDE: bool = {wide};"),
-    )
+    let text = set_constant(
+        source("encode"),
+        "LINEAR: bool",
+        "false",
+        &linear.to_string(),
+    );
+    set_constant(text, "WIDE: bool", "false", &wide.to_string())
 }
 
 /// A fused variant (`text`: [`fused_source`], or [`fused_kernel_source`] or
@@ -355,18 +354,16 @@ pub fn encode_source(linear: bool, wide: bool) -> String {
 /// condition it cannot prove uniform, so a pipeline made for its groups skips the others' loads,
 /// sampling and blends.
 pub fn with_groups(text: String, present: u32, attached: u32) -> String {
-    const ATTACHED: &str = "const ATTACHED: u32 = 7u;";
-    const PRESENT: &str = "const PRESENT: u32 = 7u;";
-    assert!(
-        text.contains(ATTACHED),
-        "a fused source without `{ATTACHED}`"
-    );
     assert!(
         attached & !present == 0 && present <= 7,
         "groups {present:#b} {attached:#b}"
     );
-    text.replace(ATTACHED, &format!("const ATTACHED: u32 = {attached}u;"))
-        .replace(PRESENT, &format!("const PRESENT: u32 = {present}u;"))
+    let text = set_constant(text, "ATTACHED: u32", "7u", &format!("{attached}u"));
+    // The raster has no PRESENT (it draws what it has attachments for).
+    match text.contains("const PRESENT: u32 = 7u;") {
+        true => set_constant(text, "PRESENT: u32", "7u", &format!("{present}u")),
+        false => text,
+    }
 }
 
 /// The adaptive-supersampling variant of a layer raster source (`text`: `layer_raster` as any of
