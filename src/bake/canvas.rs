@@ -133,7 +133,7 @@ impl Canvas {
                     job.uv_set,
                     [w, h],
                     sampling,
-                    &mut log.commands,
+                    (&mut log.commands, &mut log.paths.islands),
                 )?
             }
             Some(_) => Arc::new(Islands::none(dev)),

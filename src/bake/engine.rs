@@ -260,6 +260,14 @@ pub struct StagePaths {
     /// 0.42× the twin's charts a second and a 10k-vertex chart in about twice the twin's time
     /// (2026-11-25, "Linear algebra and LSCM charts" in the guide's performance chapter).
     pub charts: StagePath,
+    /// The islands' distance transform (each padding texel's nearest island texel, computed
+    /// once per mesh, UV set, size and sampling and cached on the mesh): the CPU twin
+    /// (`cpu::nearest_island_map`, its rows on every core) over the island mask read back,
+    /// against `edt_columns` and `edt_rows`. On lavapipe the twin takes a small part of the
+    /// kernels' time (most of a one-decal bake's cold start went to them; the guide's
+    /// performance chapter, "Start-up"); on wgpu's GL backend the twin is taken whatever this
+    /// says (`bake::islands`). Both give the same map, bit for bit (`tests/padding_edt.rs`).
+    pub islands: StagePath,
 }
 
 impl StagePaths {
@@ -279,6 +287,17 @@ impl StagePaths {
             StagePath::Cpu => true,
             StagePath::Gpu => false,
         }
+    }
+
+    /// Whether the islands' distance transform runs on the CPU twin (always on wgpu's GL
+    /// backend, whose kernels get it wrong: `bake::islands`).
+    pub(crate) fn islands_on_cpu(&self, engine: &Engine) -> bool {
+        engine.ctx.backend == Some(wgpu::Backend::Gl)
+            || match self.islands {
+                StagePath::Auto => engine.ctx.device_type == Some(wgpu::DeviceType::Cpu),
+                StagePath::Cpu => true,
+                StagePath::Gpu => false,
+            }
     }
 
     /// Whether unwrapping runs the dynamics on the CPU twin.

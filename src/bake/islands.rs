@@ -3,7 +3,9 @@
 //! Euclidean distance transform (every texel's nearest island texel), computed once per mesh, UV set,
 //! size and sampling and cached on the mesh. Kernels `wgsl/bake/island_raster.wgsl`,
 //! `island_mask.wgsl`, `edt_columns.wgsl`, `edt_rows.wgsl`; CPU twin
-//! [`crate::bake::cpu::nearest_island_map`]. The padding stage reads the result.
+//! [`crate::bake::cpu::nearest_island_map`], which computes the transform instead of the two
+//! kernels where `StagePaths::islands` says (a CPU adapter, by default; wgpu's GL backend,
+//! always). The padding stage reads the result.
 
 use super::engine::{Engine, IslandKey, Islands, LoadedMesh};
 use super::params::{params_buffer, pbind, Params, PARAMS_STRIDE};
@@ -15,20 +17,27 @@ use std::sync::Arc;
 /// The islands of `mesh` for a UV set, texture size and sampling (`ss`, and whether the layers
 /// are drawn adaptively, at the four samples of one pixel: [`Engine::adaptive_sampling`]; the
 /// islands are drawn at the same samples), computed on first use and cached on the mesh. Counts
-/// its dispatches and draws into `commands`.
+/// its dispatches and draws into `commands`, and says in `path` where the distance transform ran
+/// (`"gpu"`, `"cpu"`, or `"cached"`: [`crate::bake::report::Paths::islands`]).
 pub fn islands(
     engine: &Engine,
     mesh: &LoadedMesh,
     uv_set: u32,
     size: [u32; 2],
     (ss, msaa): (u32, bool),
-    commands: &mut u32,
+    (commands, path): (&mut u32, &mut &'static str),
 ) -> Result<Arc<Islands>> {
     let key = (uv_set, size[0], size[1], ss, msaa);
     let cache = || mesh.islands.lock().expect("island cache poisoned");
     if let Some(c) = cache().get(&key) {
+        *path = "cached";
         return Ok(c.clone());
     }
+    *path = if engine.stage_paths.islands_on_cpu(engine) {
+        "cpu"
+    } else {
+        "gpu"
+    };
     let islands = Arc::new(compute(engine, mesh, key, commands)?);
     cache().insert(key, islands.clone());
     Ok(islands)
@@ -44,6 +53,7 @@ fn compute(
 ) -> Result<Islands> {
     let dev = &engine.ctx.device;
     let texels = w as u64 * h as u64;
+    let on_cpu = engine.stage_paths.islands_on_cpu(engine);
     let global = Pass::global(mesh, [w, h], ss, [0; 4]);
     let (pass, jobs) = Pass::new(engine, mesh, (uv_set, ss, msaa), global, [texels * 4; 2]);
     let buf = |label, bytes: u64| {
@@ -61,18 +71,20 @@ fn compute(
         enc.clear_buffer(&pass.mask, 0, None);
         enc.clear_buffer(&pass.counter, 0, None);
         *commands += pass.record_raster(&jobs, &mut enc);
-        let edt = [
-            buf("islands.edt.col_near", texels * 4),
-            buf("islands.edt.env_v", texels * 4),
-            buf("islands.edt.env_z", (w as u64 + 1) * h as u64 * 4),
-        ];
-        *commands += pass.record_edt([w, h], &edt, &mut enc);
+        if !on_cpu {
+            let edt = [
+                buf("islands.edt.col_near", texels * 4),
+                buf("islands.edt.env_v", texels * 4),
+                buf("islands.edt.env_z", (w as u64 + 1) * h as u64 * 4),
+            ];
+            *commands += pass.record_edt([w, h], &edt, &mut enc);
+        }
         engine.ctx.queue.submit([enc.finish()]);
     })?;
-    if engine.ctx.backend == Some(wgpu::Backend::Gl) {
-        // wgpu's GL backend (Mesa llvmpipe) gets the GPU distance transform wrong (not yet
-        // understood; Vulkan is exact, see tests/padding_edt.rs). There, compute the same exact
-        // transform with its CPU twin, once per mesh and size, and upload it.
+    if on_cpu {
+        // The same exact transform by its CPU twin, uploaded: the faster on a CPU adapter, and
+        // the only right one on wgpu's GL backend (Mesa llvmpipe there gets the kernels' answer
+        // wrong, not yet understood; Vulkan is exact, see tests/padding_edt.rs).
         let m = engine
             .ctx
             .read_buffer(&pass.mask, texels * 4, "island mask read-back")?;
@@ -304,7 +316,15 @@ impl Engine {
     ) -> Result<(Vec<u32>, Vec<u32>)> {
         let ss = (samples as f32).sqrt().round() as u32;
         let mut commands = 0;
-        let isl = islands(self, mesh, uv_set, size, (ss.max(1), false), &mut commands)?;
+        let mut path = "";
+        let isl = islands(
+            self,
+            mesh,
+            uv_set,
+            size,
+            (ss.max(1), false),
+            (&mut commands, &mut path),
+        )?;
         let bytes = size[0] as u64 * size[1] as u64 * 4;
         let mask = self
             .ctx

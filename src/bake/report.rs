@@ -145,6 +145,11 @@ pub struct Paths {
     /// The layer raster's samples: `"full"` (once a sample) or `"adaptive"` (four samples a
     /// pixel, once a texel and triangle: `texture.sampling`, where the device holds them).
     pub sampling: &'static str,
+    /// The islands' distance transform (the padding's nearest island texel): `edt_columns` and
+    /// `edt_rows` on the GPU, or the CPU twin (`cpu::nearest_island_map`) over the island mask;
+    /// `"cached"` when the mesh already held this bake's islands (an earlier bake of the same
+    /// size), `"none"` for a tiled bake (its tiles are padded on the CPU, `bake::bands`).
+    pub islands: &'static str,
 }
 
 impl Default for Paths {
@@ -155,6 +160,7 @@ impl Default for Paths {
             charts: "none",
             channels: "none",
             sampling: "full",
+            islands: "none",
         }
     }
 }

@@ -123,6 +123,7 @@ pub fn run(
             let unclipped_compose_ms = unclipped?.report.timings.compose_ms;
             let (every_block_ms, block_mask_ms, every_block_identical) =
                 block_mask_pairs(engine, &loaded, &job, opts.reps)?;
+            let islands = islands_paths(engine, &loaded, side, opts.reps)?;
             let mut cpu_ms = None;
             if (n as u64) * (side as u64).pow(2) <= opts.cpu_budget {
                 let topo = &loaded.topo;
@@ -175,6 +176,7 @@ pub fn run(
                 "compose_every_block_ms": every_block_ms,
                 "compose_block_mask_paired_ms": block_mask_ms,
                 "every_block_identical": every_block_identical,
+                "islands_ms": islands,
                 "texels_composed": texels,
                 "composed_texels_per_s": texels as f64 / (compose / 1000.0),
                 "gpu_commands": baked.report.gpu_commands,
@@ -212,6 +214,47 @@ fn block_mask_pairs(
         pairs.1.push(masked.report.timings.compose_ms);
     }
     Ok((median(pairs.0), median(pairs.1), identical))
+}
+
+/// The islands of the mesh at `side`² (4 samples a texel) computed on a fresh copy of the mesh
+/// (nothing cached) by each path of their distance transform, alternating, medians of `reps`,
+/// ms: `Engine::island_maps`, so each figure also holds the read-back of the mask and the map
+/// (the same for both), and whether the two maps were equal.
+fn islands_paths(
+    engine: &mut Engine,
+    loaded: &decalbake::LoadedMesh,
+    side: u32,
+    reps: usize,
+) -> Result<serde_json::Value> {
+    let kept = engine.stage_paths.islands;
+    let (mut gpu, mut cpu, mut same) = (Vec::new(), Vec::new(), true);
+    for _ in 0..reps.max(1) {
+        let mut maps = Vec::new();
+        for (path, times) in [
+            (decalbake::StagePath::Gpu, &mut gpu),
+            (decalbake::StagePath::Cpu, &mut cpu),
+        ] {
+            engine.stage_paths.islands = path;
+            let fresh = engine.prepare(loaded.mesh.clone());
+            let t = Instant::now();
+            let m = fresh.and_then(|f| engine.island_maps(&f, 0, [side, side], 4));
+            times.push(t.elapsed().as_secs_f64() * 1000.0);
+            match m {
+                Ok(m) => maps.push(m),
+                Err(e) => {
+                    engine.stage_paths.islands = kept;
+                    return Err(e);
+                }
+            }
+        }
+        same &= maps[0] == maps[1];
+    }
+    engine.stage_paths.islands = kept;
+    Ok(serde_json::json!({
+        "gpu": median(gpu),
+        "cpu": median(cpu),
+        "identical": same,
+    }))
 }
 
 /// The PNG encode against a file copy of the same samples, in one run (medians of 3, interleaved):
