@@ -672,7 +672,8 @@ fn bake_textures_gives_every_channel_on_the_gpu() {
 /// On a model of one texture set, `{set}` and `{channel}` in `output.texture` name every texture
 /// the same way through `decalbake bake` and `decalbake batch`: the colour `…_base_color.png`,
 /// each channel `…_orm.png` and `…_normal.png` (not the colour's resolved name with the channel
-/// appended, nor a file named with the placeholder), and the two commands write the same bytes.
+/// appended, nor a file named with the placeholder), and the two commands write the same bytes;
+/// `bake` lists the colour's file first, then the channels' in the bake's order.
 #[test]
 fn channel_file_names_fill_their_placeholders_in_bake_and_batch() {
     let mut written = Vec::new();
@@ -689,7 +690,7 @@ fn channel_file_names_fill_their_placeholders_in_bake_and_batch() {
         });
         let path = dir.join("job.json");
         std::fs::write(&path, job.to_string()).unwrap();
-        let (code, _, err) = common::bake_or_batch(command, &path);
+        let (code, out, err) = common::bake_or_batch(command, &path);
         assert_eq!(code, 0, "{command}: {err}");
         let names = common::files_starting(&dir, "t_");
         assert_eq!(names.len(), 3, "{command} wrote {names:?}");
@@ -698,6 +699,16 @@ fn channel_file_names_fill_their_placeholders_in_bake_and_batch() {
         assert!(!stem.contains('{'), "{command} wrote {names:?}");
         assert_eq!(names[1], format!("{stem}normal.png"), "{command}");
         assert_eq!(names[2], format!("{stem}orm.png"), "{command}");
+        if command == "bake" {
+            // Listed as written: the colour, then the channels in the bake's order.
+            let listed: Vec<&str> = out
+                .lines()
+                .filter_map(|l| Path::new(l).file_name()?.to_str())
+                .filter(|n| n.starts_with("t_"))
+                .collect();
+            let expected = ["base_color", "orm", "normal"].map(|c| format!("{stem}{c}.png"));
+            assert_eq!(listed, expected, "{out}");
+        }
         let bytes: Vec<Vec<u8>> = names
             .iter()
             .map(|n| std::fs::read(dir.join(n)).unwrap())

@@ -133,11 +133,12 @@ impl Canvas {
                     job.uv_set,
                     [w, h],
                     sampling,
-                    (&mut log.commands, &mut log.paths.islands),
+                    &mut log.commands,
                 )?
             }
             Some(_) => Arc::new(Islands::none(dev)),
         };
+        log.paths.islands = islands.path;
         let canvas = Self {
             acc_rg,
             acc_ba,

@@ -1246,6 +1246,7 @@ impl Islands {
             mask: buf("islands.none.mask"),
             nearest: buf("islands.none.nearest"),
             count: 0,
+            path: "none",
         }
     }
 }
@@ -1323,6 +1324,9 @@ pub struct Islands {
     pub nearest: wgpu::Buffer,
     /// Island texels.
     pub count: u64,
+    /// Where the distance transform ran: `"gpu"` or `"cpu"` (`report::Paths::islands`; `"none"`
+    /// for a tile's placeholder).
+    pub path: &'static str,
 }
 
 /// Which layer rasters `job`'s layers are likely drawn by (plain: none of

@@ -17,27 +17,21 @@ use std::sync::Arc;
 /// The islands of `mesh` for a UV set, texture size and sampling (`ss`, and whether the layers
 /// are drawn adaptively, at the four samples of one pixel: [`Engine::adaptive_sampling`]; the
 /// islands are drawn at the same samples), computed on first use and cached on the mesh. Counts
-/// its dispatches and draws into `commands`, and says in `path` where the distance transform ran
-/// (`"gpu"`, `"cpu"`, or `"cached"`: [`crate::bake::report::Paths::islands`]).
+/// its dispatches and draws into `commands`; [`Islands::path`] says where the distance transform
+/// ran when they were computed.
 pub fn islands(
     engine: &Engine,
     mesh: &LoadedMesh,
     uv_set: u32,
     size: [u32; 2],
     (ss, msaa): (u32, bool),
-    (commands, path): (&mut u32, &mut &'static str),
+    commands: &mut u32,
 ) -> Result<Arc<Islands>> {
     let key = (uv_set, size[0], size[1], ss, msaa);
     let cache = || mesh.islands.lock().expect("island cache poisoned");
     if let Some(c) = cache().get(&key) {
-        *path = "cached";
         return Ok(c.clone());
     }
-    *path = if engine.stage_paths.islands_on_cpu(engine) {
-        "cpu"
-    } else {
-        "gpu"
-    };
     let islands = Arc::new(compute(engine, mesh, key, commands)?);
     cache().insert(key, islands.clone());
     Ok(islands)
@@ -105,6 +99,7 @@ fn compute(
         count: bytemuck::cast_slice::<u8, u32>(&count_bytes)[0] as u64,
         mask: pass.mask,
         nearest: pass.nearest,
+        path: if on_cpu { "cpu" } else { "gpu" },
     })
 }
 
@@ -316,15 +311,7 @@ impl Engine {
     ) -> Result<(Vec<u32>, Vec<u32>)> {
         let ss = (samples as f32).sqrt().round() as u32;
         let mut commands = 0;
-        let mut path = "";
-        let isl = islands(
-            self,
-            mesh,
-            uv_set,
-            size,
-            (ss.max(1), false),
-            (&mut commands, &mut path),
-        )?;
+        let isl = islands(self, mesh, uv_set, size, (ss.max(1), false), &mut commands)?;
         let bytes = size[0] as u64 * size[1] as u64 * 4;
         let mask = self
             .ctx

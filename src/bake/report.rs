@@ -146,9 +146,10 @@ pub struct Paths {
     /// pixel, once a texel and triangle: `texture.sampling`, where the device holds them).
     pub sampling: &'static str,
     /// The islands' distance transform (the padding's nearest island texel): `edt_columns` and
-    /// `edt_rows` on the GPU, or the CPU twin (`cpu::nearest_island_map`) over the island mask;
-    /// `"cached"` when the mesh already held this bake's islands (an earlier bake of the same
-    /// size), `"none"` for a tiled bake (its tiles are padded on the CPU, `bake::bands`).
+    /// `edt_rows` on the GPU, or the CPU twin (`cpu::nearest_island_map`) over the island mask,
+    /// when the islands were computed (a mesh keeps them for later bakes of the same size, which
+    /// say the same); `"none"` for a tiled bake (its tiles are padded on the CPU,
+    /// `bake::bands`).
     pub islands: &'static str,
 }
 

@@ -91,13 +91,16 @@ pub fn write_outputs(
             _ => png,
         };
         files.insert(0, (p.clone(), bytes));
+        // The channel textures follow the colour's, in the bake's order.
+        let mut next = 1;
         for (c, png) in baked.channels.iter().zip(channel_pngs) {
             if let Some(q) = job.texture_path(None, c.kind.name()) {
                 let bytes = match &c.linear {
                     Some(linear) if job.exr() => exr_bytes(baked.width, baked.height, linear, &q)?,
                     _ => png,
                 };
-                files.insert(1, (q, bytes));
+                files.insert(next, (q, bytes));
+                next += 1;
             }
         }
     }
