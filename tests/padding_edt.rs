@@ -98,6 +98,9 @@ fn a_bake_pads_from_either_distance_transform_with_the_same_bytes() {
         let [cpu, gpu] = [&baked[0], &baked[1]];
         assert_eq!(cpu.report.paths.islands, "cpu");
         assert_eq!(gpu.report.paths.islands, if gl { "cpu" } else { "gpu" });
+        // Counted by `edt_columns` on the GPU, over the mask read back on the CPU.
+        assert_eq!(cpu.report.island_texels, gpu.report.island_texels);
+        assert!(cpu.report.island_texels > 0);
         let (differ, worst) = value_diffs(&cpu.texels, &gpu.texels);
         assert_eq!(
             (differ, worst),

@@ -77,17 +77,14 @@ fn every_wgsl_file_validates() {
         ),
         ("normal", decalbake::gpu::shaders::normal_source(true)),
         ("fused", decalbake::gpu::shaders::fused_source(true)),
+        ("islands", decalbake::gpu::shaders::source("island_raster")),
     ] {
         sources.push((
             format!("layer_raster ({name}, adaptive)"),
             decalbake::gpu::shaders::msaa_source(text),
         ));
     }
-    for (name, fused) in [
-        ("compose", false),
-        ("compose", true),
-        ("island_mask", false),
-    ] {
+    for (name, fused) in [("compose", false), ("compose", true)] {
         sources.push((
             format!("{name} (adaptive, fused {fused})"),
             decalbake::gpu::shaders::msaa_kernel_source(name, fused),

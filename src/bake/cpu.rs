@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
-//! CPU twin of the raster and compose stages (`layer_raster`, `island_raster`, `island_mask`,
+//! CPU twin of the raster and compose stages (`layer_raster`, `island_raster`,
 //! `compose`, `base_init`) and of the padding rule, written plainly as the tests' oracle.
 //!
 //! It follows the GPU's sampling pattern exactly: sample (i, j) of texel (x, y) sits at

@@ -1358,13 +1358,10 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
     use crate::io::job::{LayerKind, Method};
     let p = &engine.pipes;
     let family = p.family(engine.adaptive_sampling(job));
-    let mut list: Vec<&dyn Prepare> = vec![
-        &p.base_init,
-        &family.island_raster,
-        &family.island_mask,
-        &p.edt_columns,
-        &p.edt_rows,
-    ];
+    let mut list: Vec<&dyn Prepare> = vec![&p.base_init, &family.island_raster];
+    if !engine.stage_paths.islands_on_cpu(engine) {
+        list.extend([&p.edt_columns as &dyn Prepare, &p.edt_rows]);
+    }
     let wide = job.bit_depth == 16;
     list.push(p.encode_for(false, wide));
     if job.channel_groups() & !(1 << crate::io::channels::ChannelKind::Emissive.slot()) != 0 {

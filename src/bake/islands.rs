@@ -2,7 +2,7 @@
 //! The UV layout rasterized at a texture size (which texels the islands cover) and its exact
 //! Euclidean distance transform (every texel's nearest island texel), computed once per mesh, UV set,
 //! size and sampling and cached on the mesh. Kernels `wgsl/bake/island_raster.wgsl`,
-//! `island_mask.wgsl`, `edt_columns.wgsl`, `edt_rows.wgsl`; CPU twin
+//! (whose fragments mark the island mask), `edt_columns.wgsl`, `edt_rows.wgsl`; CPU twin
 //! [`crate::bake::cpu::nearest_island_map`], which computes the transform instead of the two
 //! kernels where `StagePaths::islands` says (a CPU adapter, by default; wgpu's GL backend,
 //! always). The padding stage reads the result.
@@ -38,7 +38,8 @@ pub fn islands(
 }
 
 /// The island raster (per UV tile, in target-sized pieces) and the distance transform, in one
-/// submission; then the island count.
+/// submission, with the island count (counted by `edt_columns`, or by the CPU over the mask the
+/// twin reads).
 fn compute(
     engine: &Engine,
     mesh: &LoadedMesh,
@@ -58,24 +59,33 @@ fn compute(
             mapped_at_creation: false,
         })
     };
+    // The island count, added up by `edt_columns` (the kernels' path only).
+    let counter = dev.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("islands.count"),
+        size: 16,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
     engine.ctx.scoped("islands", || {
         let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("islands"),
         });
         enc.clear_buffer(&pass.mask, 0, None);
-        enc.clear_buffer(&pass.counter, 0, None);
         *commands += pass.record_raster(&jobs, &mut enc);
         if !on_cpu {
+            enc.clear_buffer(&counter, 0, None);
             let edt = [
                 buf("islands.edt.col_near", texels * 4),
                 buf("islands.edt.env_v", texels * 4),
                 buf("islands.edt.env_z", (w as u64 + 1) * h as u64 * 4),
             ];
-            *commands += pass.record_edt([w, h], &edt, &mut enc);
+            *commands += pass.record_edt([w, h], (&edt, &counter), &mut enc);
         }
         engine.ctx.queue.submit([enc.finish()]);
     })?;
-    if on_cpu {
+    let count = if on_cpu {
         // The same exact transform by its CPU twin, uploaded: the faster on a CPU adapter, and
         // the only right one on wgpu's GL backend (Mesa llvmpipe there gets the kernels' answer
         // wrong, not yet understood; Vulkan is exact, see tests/padding_edt.rs).
@@ -91,12 +101,15 @@ fn compute(
             .ctx
             .queue
             .write_buffer(&pass.nearest, 0, bytemuck::cast_slice(&near));
-    }
-    let count_bytes = engine
-        .ctx
-        .read_buffer(&pass.counter, 16, "island count read-back")?;
+        island.iter().filter(|i| **i).count() as u64
+    } else {
+        let count = engine
+            .ctx
+            .read_buffer(&counter, 16, "island count read-back")?;
+        bytemuck::cast_slice::<u8, u32>(&count)[0] as u64
+    };
     Ok(Islands {
-        count: bytemuck::cast_slice::<u8, u32>(&count_bytes)[0] as u64,
+        count,
         mask: pass.mask,
         nearest: pass.nearest,
         path: if on_cpu { "cpu" } else { "gpu" },
@@ -125,7 +138,6 @@ pub(crate) fn window_mask(
             label: Some("islands.window"),
         });
         enc.clear_buffer(&pass.mask, 0, None);
-        enc.clear_buffer(&pass.counter, 0, None);
         *commands += pass.record_raster(&jobs, &mut enc);
         engine.ctx.queue.submit([enc.finish()]);
     })?;
@@ -147,7 +159,6 @@ struct Pass<'a> {
     params: wgpu::Buffer,
     mask: wgpu::Buffer,
     nearest: wgpu::Buffer,
-    counter: wgpu::Buffer,
 }
 
 impl<'a> Pass<'a> {
@@ -196,19 +207,18 @@ impl<'a> Pass<'a> {
             params: params_buffer(dev, "islands.params", &entries),
             mask: buf("islands.mask", mask_bytes),
             nearest: buf("islands.nearest", nearest_bytes),
-            counter: buf("islands.count", 16),
         };
         (pass, jobs)
     }
 
-    /// Per raster job: `island_raster` draws every triangle into a coverage target, `island_mask`
-    /// marks the texels with any covered sample. Returns the draws and dispatches recorded.
+    /// Per raster job: `island_raster` draws every triangle, its fragments marking the mask
+    /// (the texels with any covered sample). Its colour target only completes the render pass:
+    /// nothing reads it, so it is neither cleared nor kept. Returns the draws recorded.
     fn record_raster(&self, jobs: &[Params], enc: &mut wgpu::CommandEncoder) -> u32 {
         let (dev, pipes, g) = (&self.engine.ctx.device, &self.engine.pipes, &self.mesh.gpu);
         // Target pixels a texel a side, and samples a pixel.
         let (ss, samples) = if self.msaa { (1, 4) } else { (self.ss, 1) };
-        let family = pipes.family(self.msaa);
-        let (raster, mask) = (&family.island_raster, &family.island_mask);
+        let raster = &pipes.family(self.msaa).island_raster;
         let bg_island = make_bind_group(
             dev,
             &raster.layout,
@@ -218,48 +228,32 @@ impl<'a> Pass<'a> {
                 (1, g.tris.as_entire_binding()),
                 (2, g.split_tris.as_entire_binding()),
                 (3, g.uvs[self.uv_set as usize].as_entire_binding()),
+                (4, self.mask.as_entire_binding()),
             ],
         );
         for (k, j) in jobs.iter().enumerate() {
             let off = ((k + 1) as u64 * PARAMS_STRIDE) as u32;
             let side = target_side(j.rect_size, ss);
             let tg = self.engine.targets([side, side], samples);
-            {
-                let mut pass = crate::gpu::cleared_pass(enc, "islands.raster", &[&tg.cov_view]);
-                pass.set_pipeline(&raster.pipeline);
-                pass.set_bind_group(0, &bg_island, &[off]);
-                let [jw, jh] = j.rect_size.map(|v| (v * ss) as f32);
-                pass.set_viewport(0.0, 0.0, jw, jh, 0.0, 1.0);
-                pass.draw(0..3 * g.triangle_count, 0..1);
-            }
-            let bg_mask = mask.bind(
-                dev,
-                "islands.mask",
-                &[
-                    (0, pbind(&self.params)),
-                    (1, wgpu::BindingResource::TextureView(&tg.cov_view)),
-                    (2, self.mask.as_entire_binding()),
-                    (3, self.counter.as_entire_binding()),
-                ],
-            );
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("islands.mask"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&mask.pipeline);
-            pass.set_bind_group(0, &bg_mask, &[off]);
-            pass.dispatch_workgroups(j.rect_size[0].div_ceil(8), j.rect_size[1].div_ceil(8), 1);
+            let mut pass =
+                crate::gpu::render_pass(enc, "islands.raster", &[&tg.cov_view], wgpu::LoadOp::Load);
+            pass.set_pipeline(&raster.pipeline);
+            pass.set_bind_group(0, &bg_island, &[off]);
+            let [jw, jh] = j.rect_size.map(|v| (v * ss) as f32);
+            pass.set_viewport(0.0, 0.0, jw, jh, 0.0, 1.0);
+            pass.draw(0..3 * g.triangle_count, 0..1);
         }
-        2 * jobs.len() as u32
+        jobs.len() as u32
     }
 
     /// The exact Euclidean distance transform of the mask (Felzenszwalb & Huttenlocher): nearest
     /// island texel per column (`edt_columns`), then the lower envelope along each row
-    /// (`edt_rows`). `scratch`: column nearest, envelope vertices, envelope boundaries.
+    /// (`edt_rows`), the first also counting the island texels into `counter`. `scratch`: column
+    /// nearest, envelope vertices, envelope boundaries.
     fn record_edt(
         &self,
         [w, h]: [u32; 2],
-        scratch: &[wgpu::Buffer; 3],
+        (scratch, counter): (&[wgpu::Buffer; 3], &wgpu::Buffer),
         enc: &mut wgpu::CommandEncoder,
     ) -> u32 {
         let (dev, pipes) = (&self.engine.ctx.device, &self.engine.pipes);
@@ -271,6 +265,7 @@ impl<'a> Pass<'a> {
                 (0, pbind(&self.params)),
                 (1, self.mask.as_entire_binding()),
                 (2, col_near.as_entire_binding()),
+                (3, counter.as_entire_binding()),
             ],
         );
         let bg_rows = pipes.edt_rows.bind(

@@ -389,7 +389,7 @@ impl Pipelines {
                     (11, Rw),
                 ],
             ),
-            edt_columns: kernel("edt_columns", &[(0, Params), (1, Ro), (2, Rw)]),
+            edt_columns: kernel("edt_columns", &[(0, Params), (1, Ro), (2, Rw), (3, Rw)]),
             edt_rows: kernel(
                 "edt_rows",
                 &[(0, Params), (1, Ro), (2, Ro), (3, Rw), (4, Rw), (5, Rw)],
@@ -801,7 +801,7 @@ const COMPOSE_BINDS: [(u32, Bind); 8] = [
 
 /// The layer raster family at `samples` a pixel ([`Pipelines::family`]): 1, the supersampling
 /// grid; 4, adaptive supersampling, where the raster runs once a pixel and triangle (the
-/// `// MSAA: ` lines of `wgsl/bake/layer_raster.wgsl`, `compose.wgsl` and `island_mask.wgsl`),
+/// `// MSAA: ` lines of `wgsl/bake/layer_raster.wgsl`, `compose.wgsl` and `island_raster.wgsl`),
 /// taken for jobs of four samples a texel where the device holds the targets
 /// ([`Pipelines::msaa_ok`]; `Engine::adaptive_sampling`).
 pub struct Layers {
@@ -819,22 +819,19 @@ pub struct Layers {
     pub plain: PlainRasters,
     /// Layer composition.
     pub compose: Lazy<Kernel>,
-    /// The islands drawn at the same samples.
+    /// The islands drawn at the same samples, marking the island mask from the fragment stage.
     pub island_raster: Lazy<Raster>,
-    /// Island mask reduction.
-    pub island_mask: Lazy<Kernel>,
 }
 
-/// The names of [`Layers`]' pipelines (raster, normal, clear, compose, island raster, island
-/// mask) on the grid, then at four samples.
-const LAYERS_NAMES: [[&str; 6]; 2] = [
+/// The names of [`Layers`]' pipelines (raster, normal, clear, compose, island raster) on the
+/// grid, then at four samples.
+const LAYERS_NAMES: [[&str; 5]; 2] = [
     [
         "layer_raster",
         "layer_raster_normal",
         "atlas_clear",
         "compose",
         "island_raster",
-        "island_mask",
     ],
     [
         "layer_raster_msaa",
@@ -842,7 +839,6 @@ const LAYERS_NAMES: [[&str; 6]; 2] = [
         "atlas_clear_msaa",
         "compose_msaa",
         "island_raster_msaa",
-        "island_mask_msaa",
     ],
 ];
 
@@ -863,9 +859,6 @@ impl Layers {
                 reading_targets(d, ("compose", n[3]), &COMPOSE_BINDS, samples)
             }),
             island_raster: Lazy::new(b, n[4], move |d| island_raster(d, samples)),
-            island_mask: Lazy::new(b, n[5], move |d| {
-                reading_targets(d, ("island_mask", n[5]), &ISLAND_MASK_BINDS, samples)
-            }),
         }
     }
 
@@ -1356,29 +1349,22 @@ fn flatten_raster(device: &Builder, format: wgpu::TextureFormat) -> Raster {
     )
 }
 
-/// `island_raster`: island coverage at the texture's samples.
-/// `island_mask`'s bindings.
-const ISLAND_MASK_BINDS: [(u32, Bind); 4] = [
-    (0, Bind::Params),
-    (1, Bind::Tex(false)),
-    (2, Bind::Rw),
-    (3, Bind::Rw),
-];
-
-/// `island_raster` into a coverage target of `samples` a pixel.
+/// `island_raster` into a coverage target of `samples` a pixel (its `// MSAA: ` line live at
+/// four), writing the island mask from the fragment stage.
 fn island_raster(device: &Builder, samples: u32) -> Raster {
     use Bind::*;
     let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
     let island_layout = layout(
         device,
         "island_raster",
-        &[(0, Params), (1, Ro), (2, Ro), (3, Ro)],
+        &[(0, Params), (1, Ro), (2, Ro), (3, Ro), (4, RwFragment)],
         vf,
     );
+    let text = (samples > 1).then(|| shaders::msaa_source(shaders::source("island_raster")));
     raster(
         device,
         "island_raster",
-        None,
+        text,
         island_layout,
         &[],
         &[Some(COVERAGE_FORMAT.into())],

@@ -58,10 +58,6 @@ pub const KERNELS: &[(&str, &str)] = &[
         "island_raster",
         include_str!("../../wgsl/bake/island_raster.wgsl"),
     ),
-    (
-        "island_mask",
-        include_str!("../../wgsl/bake/island_mask.wgsl"),
-    ),
     ("compose", include_str!("../../wgsl/bake/compose.wgsl")),
     (
         "vector_coverage",
@@ -367,12 +363,12 @@ pub fn with_groups(text: String, present: u32, attached: u32) -> String {
 }
 
 /// The adaptive-supersampling variant of a layer raster source (`text`: `layer_raster` as any of
-/// the functions above make it): its `// MSAA: ` lines live. It draws into targets of four samples
-/// a pixel, once a pixel and triangle (`wgsl/bake/layer_raster.wgsl`).
+/// the functions above make it, or `island_raster`): its `// MSAA: ` lines live. It draws into
+/// targets of four samples a pixel, once a pixel and triangle (`wgsl/bake/layer_raster.wgsl`).
 pub fn msaa_source(text: String) -> String {
     assert!(
         text.contains("// MSAA: "),
-        "layer_raster has no `// MSAA: ` lines"
+        "the raster source has no `// MSAA: ` lines"
     );
     text.replace("// MSAA: ", "")
 }
