@@ -213,7 +213,7 @@ impl<'a> Pass<'a> {
 
     /// Per raster job: `island_raster` draws every triangle, its fragments marking the mask
     /// (the texels with any covered sample). Its colour target only completes the render pass:
-    /// nothing reads it, so it is neither cleared nor kept. Returns the draws recorded.
+    /// nothing reads it, so it is not cleared first. Returns the draws recorded.
     fn record_raster(&self, jobs: &[Params], enc: &mut wgpu::CommandEncoder) -> u32 {
         let (dev, pipes, g) = (&self.engine.ctx.device, &self.engine.pipes, &self.mesh.gpu);
         // Target pixels a texel a side, and samples a pixel.
