@@ -235,6 +235,17 @@ pub enum StagePath {
     Gpu,
 }
 
+impl StagePath {
+    /// Whether the stage takes its CPU twin on `engine`: `Auto` does on a CPU adapter.
+    fn on_cpu(self, engine: &Engine) -> bool {
+        match self {
+            StagePath::Auto => engine.ctx.device_type == Some(wgpu::DeviceType::Cpu),
+            StagePath::Cpu => true,
+            StagePath::Gpu => false,
+        }
+    }
+}
+
 /// [`StagePath`] per stage that has a CPU twin in the bake ([`Engine::stage_paths`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub struct StagePaths {
@@ -273,40 +284,23 @@ pub struct StagePaths {
 impl StagePaths {
     /// Whether the bake's conformal charts are solved by the CPU twin.
     pub(crate) fn charts_on_cpu(&self, engine: &Engine) -> bool {
-        match self.charts {
-            StagePath::Auto => engine.ctx.device_type == Some(wgpu::DeviceType::Cpu),
-            StagePath::Cpu => true,
-            StagePath::Gpu => false,
-        }
+        self.charts.on_cpu(engine)
     }
 
     /// Whether the bake's exponential maps come from the CPU twin.
     pub(crate) fn expmap_on_cpu(&self, engine: &Engine) -> bool {
-        match self.expmap {
-            StagePath::Auto => engine.ctx.device_type == Some(wgpu::DeviceType::Cpu),
-            StagePath::Cpu => true,
-            StagePath::Gpu => false,
-        }
+        self.expmap.on_cpu(engine)
     }
 
     /// Whether the islands' distance transform runs on the CPU twin (always on wgpu's GL
     /// backend, whose kernels get it wrong: `bake::islands`).
     pub(crate) fn islands_on_cpu(&self, engine: &Engine) -> bool {
-        engine.ctx.backend == Some(wgpu::Backend::Gl)
-            || match self.islands {
-                StagePath::Auto => engine.ctx.device_type == Some(wgpu::DeviceType::Cpu),
-                StagePath::Cpu => true,
-                StagePath::Gpu => false,
-            }
+        engine.ctx.backend == Some(wgpu::Backend::Gl) || self.islands.on_cpu(engine)
     }
 
     /// Whether unwrapping runs the dynamics on the CPU twin.
     pub(crate) fn unwrap_on_cpu(&self, engine: &Engine) -> bool {
-        match self.unwrap {
-            StagePath::Auto => engine.ctx.device_type == Some(wgpu::DeviceType::Cpu),
-            StagePath::Cpu => true,
-            StagePath::Gpu => false,
-        }
+        self.unwrap.on_cpu(engine)
     }
 
     /// Whether placement runs on the CPU: the twin walks the CPU-built BVH, so a mesh whose
@@ -317,11 +311,7 @@ impl StagePaths {
 
     /// Whether placement asks for the twin, before the mesh's tree is known.
     fn placement_prefers_cpu(&self, engine: &Engine) -> bool {
-        match self.placement {
-            StagePath::Auto => engine.ctx.device_type == Some(wgpu::DeviceType::Cpu),
-            StagePath::Cpu => true,
-            StagePath::Gpu => false,
-        }
+        self.placement.on_cpu(engine)
     }
 }
 

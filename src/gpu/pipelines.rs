@@ -1118,27 +1118,15 @@ fn fused_compose_name(samples: u32, present: u32, attached: u32) -> &'static str
 /// `compose`'s fused variant for the channel groups `present`, `attached` (see [`Fused`]).
 fn fused_compose(d: &Builder, name: &str, samples: u32, (present, attached): (u32, u32)) -> Kernel {
     use Bind::*;
-    let binds = [
-        (0, Params),
-        (1, Tex(false)),
-        (2, Tex(false)),
-        (3, Rw),
-        (4, Tex(false)),
-        (5, Tex(false)),
-        (6, Tex(false)),
-        (10, Rw),
-        (11, Rw),
-        (12, Rw),
-        (13, Rw),
-        (14, Rw),
-        (15, Rw),
-        (16, Rw),
-        (17, Rw),
-        (18, Ro),
-        (19, Ro),
-    ];
+    // The colour compose's bindings, the attachments of the three groups and their canvases' two
+    // planes each.
+    let binds: Vec<(u32, Bind)> = COMPOSE_BINDS
+        .into_iter()
+        .chain([(4, Tex(false)), (5, Tex(false)), (6, Tex(false))])
+        .chain((12..18).map(|b| (b, Rw)))
+        .collect();
     let (text, binds) = match samples {
-        1 => (shaders::fused_kernel_source("compose"), binds.to_vec()),
+        1 => (shaders::fused_kernel_source("compose"), binds),
         _ => (
             shaders::msaa_kernel_source("compose", true),
             multisampled_binds(&binds),
