@@ -69,6 +69,9 @@ pub struct Cut {
     pub exposure: Vec<f32>,
     /// Milliseconds the exposure took here (0 where it was given or not needed).
     pub exposure_ms: f64,
+    /// Pieces the automatic cut left that were not disks, each split into disks by
+    /// [`disk_charts`] (0 for other cuts, which refuse them).
+    pub regrown: usize,
 }
 
 impl Cut {
@@ -103,6 +106,7 @@ impl Cut {
             terminals,
             exposure: Vec::new(),
             exposure_ms: 0.0,
+            regrown: 0,
         }
     }
 
@@ -229,7 +233,30 @@ pub fn cut_exposed(
         .collect();
     edges.sort_unstable();
     edges.dedup();
-    let (pieces, triangle_piece) = split(topo, &faces, &edges);
+    let (mut pieces, mut triangle_piece) = split(topo, &faces, &edges);
+    // The automatic cut should leave disks; where it does not (seen on real models: a small
+    // closed part, a part whose holes the pruned cut graph misses), that piece is cut further
+    // into disks grown triangle by triangle, rather than the model refused. A cut the user
+    // chose (seams, edges) is refused instead, naming the piece, so that they can mend it.
+    let mut regrown = 0;
+    if matches!(spec, CutSpec::Auto) {
+        let extra: Vec<[u32; 2]> = pieces
+            .iter()
+            .filter(|p| !is_disk(p))
+            .inspect(|_| regrown += 1)
+            .flat_map(disk_charts)
+            .collect();
+        if !extra.is_empty() {
+            log::info!(
+                "the automatic cut left {regrown} pieces that are not disks; each is cut into disks grown triangle by triangle ({} more cut edges)",
+                extra.len()
+            );
+            edges.extend(extra);
+            edges.sort_unstable();
+            edges.dedup();
+            (pieces, triangle_piece) = split(topo, &faces, &edges);
+        }
+    }
     for (i, p) in pieces.iter().enumerate() {
         check_disk(topo, p, i, path)?;
     }
@@ -240,7 +267,99 @@ pub fn cut_exposed(
         terminals,
         exposure: measured,
         exposure_ms,
+        regrown,
     })
+}
+
+/// A piece's Euler characteristic V − E + F and its number of boundary loops (a disk: 1 and 1).
+fn disk_shape(p: &Piece) -> (i64, usize) {
+    let mut edges: rustc_hash::FxHashSet<(u32, u32)> = Default::default();
+    for t in &p.triangles {
+        for k in 0..3 {
+            edges.insert(key(t[k], t[(k + 1) % 3]));
+        }
+    }
+    let chi = p.welded.len() as i64 - edges.len() as i64 + p.triangles.len() as i64;
+    (chi, boundary_loops(&p.triangles).len())
+}
+
+fn is_disk(p: &Piece) -> bool {
+    disk_shape(p) == (1, 1)
+}
+
+/// The welded edges that cut piece `p` into disks grown one triangle at a time: from its first
+/// triangle not yet in a chart, across the piece's inner edges in breadth-first order, a
+/// triangle joins the chart where it keeps the chart's Euler characteristic at 1 (it shares one
+/// edge with the chart and brings a new vertex, or shares two and closes the fan between them);
+/// otherwise (it would close a loop round a hole or a handle, or close the surface), or where it
+/// is wound against the chart (a file whose winding flips across an edge), it waits for a chart
+/// of its own. A connected, consistently wound surface with a boundary and characteristic 1 is
+/// a disk, so every chart is one, and the edges between charts are returned (the piece's vertex ids mapped
+/// to the welded ids the cut lists). Deterministic: the order is the piece's.
+pub fn disk_charts(p: &Piece) -> Vec<[u32; 2]> {
+    let mut around: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
+    for (i, t) in p.triangles.iter().enumerate() {
+        for k in 0..3 {
+            around
+                .entry(key(t[k], t[(k + 1) % 3]))
+                .or_default()
+                .push(i as u32);
+        }
+    }
+    let n = p.triangles.len();
+    let mut chart = vec![u32::MAX; n];
+    let mut charts = 0u32;
+    for seed in 0..n {
+        if chart[seed] != u32::MAX {
+            continue;
+        }
+        let c = charts;
+        charts += 1;
+        let mut vertices: rustc_hash::FxHashSet<u32> = p.triangles[seed].into_iter().collect();
+        let mut edges: rustc_hash::FxHashSet<(u32, u32)> = Default::default();
+        let mut walked: rustc_hash::FxHashSet<(u32, u32)> = Default::default();
+        let mut queue = std::collections::VecDeque::from([seed as u32]);
+        let mut first = true;
+        while let Some(t) = queue.pop_front() {
+            if chart[t as usize] != u32::MAX {
+                continue;
+            }
+            let tri = p.triangles[t as usize];
+            let directed = [0, 1, 2].map(|k| (tri[k], tri[(k + 1) % 3]));
+            let sides = directed.map(|(a, b)| key(a, b));
+            let shared = sides.iter().filter(|e| edges.contains(e)).count();
+            let fresh = tri.iter().filter(|v| !vertices.contains(v)).count();
+            // Wound against the chart across a shared edge (the chart holds that edge in the same
+            // direction): the file's winding flips there, and the edge must be cut.
+            let flipped = directed.iter().any(|d| walked.contains(d));
+            let keeps_disk = first || (shared == 1 && fresh == 1) || (shared == 2 && fresh == 0);
+            if !keeps_disk || flipped {
+                continue;
+            }
+            first = false;
+            chart[t as usize] = c;
+            vertices.extend(tri);
+            edges.extend(sides);
+            walked.extend(directed);
+            for e in sides {
+                for &u in &around[&e] {
+                    if chart[u as usize] == u32::MAX {
+                        queue.push_back(u);
+                    }
+                }
+            }
+        }
+    }
+    let mut out: Vec<[u32; 2]> = around
+        .iter()
+        .filter(|(_, f)| f.len() == 2 && chart[f[0] as usize] != chart[f[1] as usize])
+        .map(|(&(a, b), _)| {
+            let (a, b) = key(p.welded[a as usize], p.welded[b as usize]);
+            [a, b]
+        })
+        .collect();
+    out.sort_unstable();
+    out
 }
 
 /// Edges whose two triangles use different split vertices with different UVs in `set`.
@@ -416,14 +535,7 @@ pub fn boundary_loops(triangles: &[[u32; 3]]) -> Vec<Vec<u32>> {
 
 /// A piece must be a disk: V − E + F = 1 and one boundary loop.
 fn check_disk(topo: &Topology, p: &Piece, i: usize, path: &Path) -> Result<()> {
-    let mut edges: rustc_hash::FxHashSet<(u32, u32)> = Default::default();
-    for t in &p.triangles {
-        for k in 0..3 {
-            edges.insert(key(t[k], t[(k + 1) % 3]));
-        }
-    }
-    let chi = p.welded.len() as i64 - edges.len() as i64 + p.triangles.len() as i64;
-    let loops = boundary_loops(&p.triangles).len();
+    let (chi, loops) = disk_shape(p);
     if chi == 1 && loops == 1 {
         return Ok(());
     }

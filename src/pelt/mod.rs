@@ -122,6 +122,10 @@ pub struct UnwrapReport {
     pub pieces: Vec<PieceReport>,
     /// Pieces split in two because their pelt folded or stretched too far ([`folds`]).
     pub splits: usize,
+    /// Pieces the automatic cut left that were not disks (a small closed part whose cut path is
+    /// one edge, a part whose winding flips), each cut further into disks grown triangle by
+    /// triangle ([`cut::disk_charts`]).
+    pub regrown: usize,
     /// Opened edges (the automatic cut's and the splits' seams).
     pub seam_edges: usize,
     /// Summed 3D length of the opened edges.
@@ -195,6 +199,7 @@ pub fn unwrap(
         cut_ms: ms(t),
         exposure: first.exposure,
         exposure_ms: first.exposure_ms,
+        regrown: first.regrown,
     };
     layout(device, topo, first.pieces, prior, opts, path)
 }
@@ -219,6 +224,8 @@ pub struct Prior {
     pub exposure: Vec<f32>,
     /// Milliseconds the exposure took (part of `cut_ms`).
     pub exposure_ms: f64,
+    /// Pieces the cut left that were not disks, cut further ([`cut::Cut::regrown`]).
+    pub regrown: usize,
 }
 
 /// Pelts, refines, splits and packs `pieces` (disks, in `topo`'s welded ids) as
@@ -236,7 +243,7 @@ pub fn layout(
         exposure: prior.exposure_ms,
         ..Timings::default()
     };
-    let (terminals, mut exposure) = (prior.terminals, prior.exposure);
+    let (terminals, mut exposure, regrown) = (prior.terminals, prior.exposure, prior.regrown);
     let mut todo = pieces;
     let mut done: Vec<Done> = Vec::new();
     let mut splits = 0;
@@ -274,7 +281,8 @@ pub fn layout(
         flat.push(f);
         refined.push(rf);
     }
-    let cut = cut::Cut::assemble(topo, pieces, terminals);
+    let mut cut = cut::Cut::assemble(topo, pieces, terminals);
+    cut.regrown = regrown;
     let t = Instant::now();
     let uv = packed.unwrap_or_else(|| {
         let pieces: Vec<&cut::Piece> = cut.pieces.iter().collect();
@@ -306,6 +314,7 @@ pub fn layout(
             })
             .collect(),
         splits,
+        regrown,
         seam_edges: cut.edges.len(),
         seam_length: cut.seam_length(topo),
         terminals: cut.terminals.clone(),
