@@ -393,3 +393,44 @@ fn placement_of(topo: &Topology, query: Query, best: Option<(f32, u32)>) -> Plac
         found: 1,
     }
 }
+
+/// `p` with the model's shading normal at its point, as a viewer shades the model there: the
+/// normals of its triangle's split vertices (the file's `NORMAL`) interpolated at the point, or,
+/// in a primitive without normals, the triangle's own (glTF: "client implementations MUST
+/// calculate flat normals"). The placements above interpolate the welded normals, each summed
+/// over every face around a position, so on a hard-edged model (a box, a machined part) a point
+/// on a flat face got a normal leaning towards the faces around the face's corners: a planar
+/// decal there was projected along that slant, its depth limit cut the face's corners out, and a
+/// decal off the face's centre covered nothing. Where the split normals cancel out or face away
+/// from the triangle (a file's bad normals), the triangle's own; `p.normal` kept for a degenerate
+/// triangle and where nothing was found. A mesh made in code (no primitives) uses its `normals`
+/// as given.
+pub fn with_shading_normal(mesh: &crate::mesh::Mesh, mut p: Placement) -> Placement {
+    let t = p.triangle;
+    let Some(tri) = mesh.triangles.get(t as usize).filter(|_| p.found != 0) else {
+        return p;
+    };
+    let [a, b, c] = tri.map(|v| mesh.positions[v as usize]);
+    let face = (b - a).cross(c - a);
+    let flat = mesh
+        .primitives
+        .iter()
+        .find(|q| (q.first_triangle..q.first_triangle + q.triangles).contains(&t))
+        .is_some_and(|q| !q.has_normals);
+    let n = match flat {
+        true => face,
+        false => tri
+            .iter()
+            .zip(p.bary)
+            .fold(Vec3::ZERO, |n, (&v, w)| n + w * mesh.normals[v as usize]),
+    };
+    // Split normals that cancel out or face away from the triangle (a file's bad normals): the
+    // triangle's own, which is what a viewer would have to fall back on too.
+    let n = Some(n.normalize_or_zero())
+        .filter(|n| n.dot(face) > 0.0)
+        .unwrap_or_else(|| face.normalize_or_zero());
+    if n != Vec3::ZERO {
+        p.normal = n.to_array();
+    }
+    p
+}

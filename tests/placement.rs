@@ -9,7 +9,7 @@
 mod common;
 use common::*;
 use decalbake::mesh::{Mesh, Topology, DEFAULT_WELD_TOLERANCE};
-use decalbake::place::{place_cpu, place_cpu_bvh, place_gpu, Query};
+use decalbake::place::{place_cpu, place_cpu_bvh, place_gpu, with_shading_normal, Query};
 use glam::Vec3;
 use std::path::Path;
 
@@ -43,7 +43,8 @@ fn gpu_placement_matches_cpu_twin_on_spot() {
         .expect("placement on the GPU");
     let mut rays_hit = 0;
     for (q, g) in queries.iter().zip(&gpu) {
-        let c = place_cpu(&topo, *q);
+        // Both with the model's shading normal, as a bake places its layers.
+        let c = with_shading_normal(&loaded.mesh, place_cpu(&topo, *q));
         assert_eq!(g.found, c.found, "{q:?}");
         if c.found == 0 {
             continue;
@@ -504,4 +505,142 @@ fn a_bake_places_on_the_faster_path_and_both_paths_agree() {
         "{differ} of {} texel channels differ between the paths",
         cpu.texels.len()
     );
+}
+
+/// A cube's split vertices (positions, flat normals, UVs), its indices, and its top face's (+y)
+/// UV cell (u0, v0, u1, v1).
+struct Cube {
+    pos: Vec<[f32; 3]>,
+    flat: Vec<[f32; 3]>,
+    uv: Vec<[f32; 2]>,
+    idx: Vec<u32>,
+    top: [f32; 4],
+}
+
+/// A cube of side 1 about the origin, each face its own two triangles (split along the diagonal
+/// from its (0, 0) corner to its (1, 1) corner) and its own cell of a 3 × 2 UV atlas.
+fn cube_faces() -> Cube {
+    let (mut pos, mut nrm, mut uv, mut idx) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (m, mut top) = (0.02f32, [0.0; 4]);
+    for axis in 0..3 {
+        for side in [-0.5f32, 0.5] {
+            let f = pos.len() / 4;
+            let (u0, v0) = ((f % 3) as f32 / 3.0 + m, (f / 3) as f32 / 2.0 + m);
+            let (w, h) = (1.0 / 3.0 - 2.0 * m, 0.5 - 2.0 * m);
+            if axis == 1 && side > 0.0 {
+                top = [u0, v0, u0 + w, v0 + h];
+            }
+            let (a, b) = ((axis + 1) % 3, (axis + 2) % 3);
+            let base = pos.len() as u32;
+            for (i, j) in [(0.0f32, 0.0f32), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)] {
+                let mut p = [0.0f32; 3];
+                p[axis] = side;
+                p[a] = i - 0.5;
+                p[b] = j - 0.5;
+                let mut n = [0.0f32; 3];
+                n[axis] = side.signum();
+                pos.push(p);
+                nrm.push(n);
+                uv.push([u0 + i * w, v0 + j * h]);
+            }
+            // Outward winding: (a, b, axis) is right-handed; turned on the negative side.
+            let quad = match side > 0.0 {
+                true => [0, 1, 2, 0, 2, 3],
+                false => [0, 2, 1, 0, 3, 2],
+            };
+            idx.extend(quad.map(|k| base + k));
+        }
+    }
+    Cube {
+        pos,
+        flat: nrm,
+        uv,
+        idx,
+        top,
+    }
+}
+
+/// A planar decal off the centre of a hard-edged cube's top face lies flat on that face: its
+/// frame's normal is the face's, as a viewer shades it, whether the file gives flat normals or
+/// none (glTF's flat normals), and it paints its whole square there and nothing of the other
+/// faces. The welded normals, summed over the three faces at each corner, lean across the face:
+/// placed by them, this decal's projection slanted, its depth limit cut off every corner of the
+/// face and the bake was refused ("the decal covers no triangle facing it"; checked by keeping
+/// the welded normal). Where the file's normals are smooth (every corner's the mean of its three
+/// faces'), the placement takes them, interpolated at its point (a planar decal there is still cut
+/// by its depth limit at the corners: the limit is tested per vertex).
+#[test]
+fn a_planar_decal_off_a_box_faces_centre_lies_flat_on_it() {
+    let dir = scratch("place-box");
+    let Cube {
+        pos,
+        flat,
+        uv,
+        idx,
+        top,
+    } = cube_faces();
+    let smooth: Vec<[f32; 3]> = pos
+        .iter()
+        .map(|p| (Vec3::from(*p) * 2.0).normalize().to_array())
+        .collect();
+    write_raw_png(&dir.join("white.png"), 16, |_, _| [1.0; 4]);
+    let engine = engine();
+    let (side, size) = (512u32, 0.35f32);
+    for (name, normals) in [
+        ("flat", Some(&flat)),
+        ("none", None),
+        ("smooth", Some(&smooth)),
+    ] {
+        let model = dir.join(format!("{name}.glb"));
+        write_glb_with_normals(&model, &pos, normals.map(|n| &n[..]), Some(&uv), &idx);
+        let job = serde_json::json!({
+            "mesh": model, "texture": {"width": side, "height": side, "padding": 0},
+            "layers": [{"image": "white.png", "at": [0.1, 0.5, 0.2], "size": [size, size], "method": "planar"}],
+            "output": {"texture": "out.png"}
+        });
+        std::fs::write(dir.join("job.json"), job.to_string()).unwrap();
+        let job = decalbake::io::job::Job::load(&dir.join("job.json"), None).unwrap();
+        let mesh = engine.load_mesh(&model).unwrap();
+        if name == "smooth" {
+            // The file's corner normals interpolated at the point (its triangle and weights).
+            let p = engine
+                .place(&mesh, &[Query::Point(Vec3::new(0.1, 0.5, 0.2))])
+                .unwrap()[0];
+            let t = &idx[3 * p.triangle as usize..][..3];
+            let want = t
+                .iter()
+                .zip(p.bary)
+                .fold(Vec3::ZERO, |s, (&v, w)| {
+                    s + w * Vec3::from(smooth[v as usize])
+                })
+                .normalize();
+            let n = Vec3::from(p.normal);
+            assert!(n.distance(want) < 1e-5, "{name}: {n} against {want}");
+            assert!(n.angle_between(Vec3::Y) > 0.05, "{name}: leans: {n}");
+            continue;
+        }
+        let baked = engine.bake(&mesh, &job);
+        let layer = &baked.as_ref().expect(name).report.layers[0];
+        let n = Vec3::from(layer.placement.normal);
+        assert!(n.distance(Vec3::Y) < 1e-6, "{name}: normal {n}");
+        assert_eq!(layer.triangles_covered, 2, "{name}");
+        // Every painted texel in the top face's cell; the square's area within its edge texels.
+        let cell = top.map(|c| c * side as f32);
+        let b = layer.texel_box.map(|v| v as f32);
+        assert!(
+            b[0] >= cell[0] - 1.0
+                && b[1] >= cell[1] - 1.0
+                && b[2] <= cell[2] + 1.0
+                && b[3] <= cell[3] + 1.0,
+            "{name}: texels {b:?} outside the top face's cell {cell:?}"
+        );
+        // The face is a unit square: its cell's sides are texels per unit along u and v.
+        let (wu, wv) = (cell[2] - cell[0], cell[3] - cell[1]);
+        let area = size * size * wu * wv;
+        let painted = layer.texels_covered as f32;
+        assert!(
+            painted > 0.95 * area && painted < area + 2.0 * size * (wu + wv) + 4.0,
+            "{name}: {painted} texels painted, the square covers {area}"
+        );
+    }
 }

@@ -598,13 +598,18 @@ impl Engine {
         crate::maps::chart::Solver::Gpu(&self.ctx, &self.pipes)
     }
 
-    /// Places `queries` on `mesh` on the GPU (see [`crate::place::place_gpu`]).
+    /// Places `queries` on `mesh` on the GPU (see [`crate::place::place_gpu`]), each with the
+    /// model's shading normal at its point ([`crate::place::with_shading_normal`]), as a bake does.
     pub fn place(
         &self,
         mesh: &LoadedMesh,
         queries: &[Query],
     ) -> Result<Vec<crate::place::Placement>> {
-        place_gpu(&self.ctx, &self.pipes, &mesh.gpu, queries)
+        let placed = place_gpu(&self.ctx, &self.pipes, &mesh.gpu, queries)?;
+        Ok(placed
+            .into_iter()
+            .map(|p| crate::place::with_shading_normal(&mesh.mesh, p))
+            .collect())
     }
 
     /// Computes exponential maps on the GPU and reads them back (tests, `decalbake param`,

@@ -107,7 +107,10 @@ impl Engine {
                 Query::Ray(Vec3::from(ray.origin), Vec3::from(ray.dir))
             }
         };
-        let placement = place_gpu(&self.ctx, &self.pipes, &mesh.gpu, &[query])?[0];
+        let placement = crate::place::with_shading_normal(
+            &mesh.mesh,
+            place_gpu(&self.ctx, &self.pipes, &mesh.gpu, &[query])?[0],
+        );
         if placement.found == 0 {
             return Err(Error::Placement {
                 path: job.source.clone(),

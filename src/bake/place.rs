@@ -10,7 +10,7 @@ use super::stage::{Cx, Log};
 use crate::error::{Error, Result};
 use crate::io::job::{BlendMode, Job};
 use crate::maps::Frame;
-use crate::place::{place_cpu_bvh, place_gpu, Placement};
+use crate::place::{place_cpu_bvh, place_gpu, with_shading_normal, Placement};
 use std::ops::Range;
 
 /// Where every unit landed, and its frame there.
@@ -73,6 +73,10 @@ pub(crate) fn place(cx: Cx<'_>, log: &mut Log) -> Result<Placed> {
         log.commands += 2;
         place_gpu(&engine.ctx, &engine.pipes, &mesh.gpu, &queries)?
     };
+    let all: Vec<Placement> = all
+        .into_iter()
+        .map(|p| with_shading_normal(&mesh.mesh, p))
+        .collect();
     let mut placed = Placed {
         placements: Vec::new(),
         frames: Vec::new(),

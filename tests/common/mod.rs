@@ -63,6 +63,17 @@ pub fn write_fin(path: &Path) {
 
 /// Writes a minimal GLB: one primitive, no material.
 pub fn write_glb(path: &Path, positions: &[[f32; 3]], uvs: Option<&[[f32; 2]]>, indices: &[u32]) {
+    write_glb_with_normals(path, positions, None, uvs, indices);
+}
+
+/// [`write_glb`] with a `NORMAL` attribute where `normals` is given.
+pub fn write_glb_with_normals(
+    path: &Path,
+    positions: &[[f32; 3]],
+    normals: Option<&[[f32; 3]]>,
+    uvs: Option<&[[f32; 2]]>,
+    indices: &[u32],
+) {
     let mut bin: Vec<u8> = Vec::new();
     let pos_bytes: &[u8] = bytemuck::cast_slice(positions);
     bin.extend_from_slice(pos_bytes);
@@ -80,6 +91,14 @@ pub fn write_glb(path: &Path, positions: &[[f32; 3]], uvs: Option<&[[f32; 2]]>, 
         serde_json::json!({"bufferView": 0, "componentType": 5126, "count": positions.len(), "type": "VEC3", "min": lo, "max": hi}),
     ];
     let mut attributes = serde_json::json!({"POSITION": 0});
+    if let Some(n) = normals {
+        let off = bin.len();
+        let b: &[u8] = bytemuck::cast_slice(n);
+        bin.extend_from_slice(b);
+        views.push(serde_json::json!({"buffer": 0, "byteOffset": off, "byteLength": b.len()}));
+        accessors.push(serde_json::json!({"bufferView": views.len() - 1, "componentType": 5126, "count": n.len(), "type": "VEC3"}));
+        attributes["NORMAL"] = serde_json::json!(accessors.len() - 1);
+    }
     if let Some(uv) = uvs {
         let off = bin.len();
         let b: &[u8] = bytemuck::cast_slice(uv);
