@@ -7,7 +7,8 @@
 //! `place_candidates` tests every (non-degenerate) triangle against the queries whose walk was cut
 //! short (a point equidistant from much of the mesh) and reduces per workgroup in a fixed order;
 //! `place_reduce` finishes the reduction per layer and computes the point, barycentric coordinates
-//! and the smooth normal there. [`place_gpu_brute`] runs the brute-force test for every query (the
+//! and the smooth normal there (the welded normals interpolated; a bake then takes the model's
+//! shading normal, [`with_shading_normal`]). [`place_gpu_brute`] runs the brute-force test for every query (the
 //! reference the tests and `decalbake bench` compare with); [`place_cpu`] is the plain CPU twin.
 
 use crate::error::Result;
@@ -50,7 +51,8 @@ pub struct Placement {
     pub bary: [f32; 3],
     /// Distance from the query point to the surface, or along the ray to the hit.
     pub distance: f32,
-    /// Unit normal (interpolated vertex normals).
+    /// Unit normal: the welded vertex normals interpolated, or after [`with_shading_normal`] (every
+    /// placement a bake uses) the model's shading normal.
     pub normal: [f32; 3],
     /// 1 if anything was found (a ray can miss).
     pub found: u32,

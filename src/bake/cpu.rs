@@ -832,6 +832,35 @@ impl Default for Selection {
     }
 }
 
+/// Twin of `planar_part_within_depth` in `wgsl/bake/select_triangles.wgsl`: whether the part of
+/// the triangle with decal-frame corners `c` (x, y, depth) under the rectangle of half sides
+/// `hx`, `hy` lies within `depth` everywhere (at that part's corners: the triangle clipped to the
+/// rectangle in the kernel's order, each new corner `a + (b - a) * t` as WGSL's `mix`).
+pub fn planar_part_within_depth(c: [[f32; 4]; 3], hx: f32, hy: f32, depth: f32) -> bool {
+    // (depth, x, y), clipped by sgn * p[axis] + off >= 0 as `clip_side` does.
+    let clip = |inp: &[[f32; 3]], axis: usize, sgn: f32, off: f32| -> Vec<[f32; 3]> {
+        let mut out = Vec::with_capacity(inp.len() + 1);
+        for i in 0..inp.len() {
+            let (a, b) = (inp[i], inp[(i + 1) % inp.len()]);
+            let (da, db) = (sgn * a[1 + axis] + off, sgn * b[1 + axis] + off);
+            if da >= 0.0 {
+                out.push(a);
+            }
+            if (da >= 0.0) != (db >= 0.0) {
+                let t = da / (da - db);
+                out.push([0, 1, 2].map(|k| a[k] * (1.0 - t) + b[k] * t));
+            }
+        }
+        out
+    };
+    let p: Vec<[f32; 3]> = c.iter().map(|c| [c[2], c[0], c[1]]).collect();
+    let p = clip(&p, 0, 1.0, hx);
+    let p = clip(&p, 0, -1.0, hx);
+    let p = clip(&p, 1, 1.0, hy);
+    let p = clip(&p, 1, -1.0, hy);
+    !p.is_empty() && p.iter().all(|q| q[0].abs() <= depth)
+}
+
 /// CPU twin of `select_triangles.wgsl`.
 pub fn select_triangles(
     mesh: &Mesh,
@@ -852,7 +881,8 @@ pub fn select_triangles(
             continue;
         }
         let c = tri.map(|v| coords[v as usize]);
-        if c.iter().any(|c| c[3] < 0.5) {
+        let part = |c: [[f32; 4]; 3]| planar_part_within_depth(c, hx, hy, f.depth);
+        if c.iter().any(|c| c[3] < 0.5) && !(facing && part(c)) {
             continue;
         }
         let mut z = c.map(|c| Vec2::new(c[0], c[1]));

@@ -251,7 +251,11 @@ pub fn cut_exposed(
                 "the automatic cut left {regrown} pieces that are not disks; each is cut into disks grown triangle by triangle ({} more cut edges)",
                 extra.len()
             );
-            edges.extend(extra);
+            edges.extend(
+                extra
+                    .into_iter()
+                    .filter(|e| faces.get(&(e[0], e[1])).is_some_and(|f| f.len() == 2)),
+            );
             edges.sort_unstable();
             edges.dedup();
             (pieces, triangle_piece) = split(topo, &faces, &edges);

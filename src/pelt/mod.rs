@@ -122,9 +122,9 @@ pub struct UnwrapReport {
     pub pieces: Vec<PieceReport>,
     /// Pieces split in two because their pelt folded or stretched too far ([`folds`]).
     pub splits: usize,
-    /// Pieces the automatic cut left that were not disks (a small closed part whose cut path is
-    /// one edge, a part whose winding flips), each cut further into disks grown triangle by
-    /// triangle ([`cut::disk_charts`]).
+    /// Pieces the first automatic cut left that were not disks (a small closed part whose cut
+    /// path is one edge, a part whose winding flips), each cut further into disks grown triangle
+    /// by triangle ([`cut::disk_charts`]); the splits' own cuts are not counted.
     pub regrown: usize,
     /// Opened edges (the automatic cut's and the splits' seams).
     pub seam_edges: usize,

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 // Chooses the triangles a layer covers, for any placement method: all three vertices have valid layer
-// coordinates, the triangle's coordinate box overlaps the decal rectangle, and (planar projection only)
-// the triangle faces the projection. Marks them at their tested position in `marks` (id, or NONE),
+// coordinates (a planar decal: or its part under the rectangle within the depth limit,
+// `planar_part_within_depth`), the triangle's coordinate box overlaps the decal rectangle, and
+// (planar projection only) the triangle faces the projection. Marks them at their tested position in `marks` (id, or NONE),
 // which `compact_lists` turns into the layer's list in the tested order (an atomic only counts
 // them: the list's order never depends on the invocations' timing), and grows the layer's texel
 // bounding box in the output texture; marks the cells of the part the layer raster draws (the
@@ -24,7 +25,8 @@
 @group(0) @binding(5) var<storage, read> coords: array<vec4<f32>>;
 @group(0) @binding(6) var<storage, read_write> marks: array<u32>;
 // Per layer (params.aux), `stats_stride` words: count, min x, min y, max x, max y (texels), texels
-// composed, triangles with all three coordinates valid (reached by the layer's map), 1 unused, then
+// composed, triangles with all three coordinates valid (reached by the layer's map; a planar
+// decal's, or its part under the rectangle within the depth limit), 1 unused, then
 // the cell mask: the texel blocks this layer's triangles touch, wrapped into
 // the texture (UV repeat), so rasterization only visits blocks that can change.
 @group(0) @binding(7) var<storage, read_write> stats: array<atomic<i32>>;
@@ -84,6 +86,31 @@ fn drawn_box(t0: vec2<f32>, t1: vec2<f32>, t2: vec2<f32>, i0: vec2<f32>, i1: vec
     return vec4<f32>(lo, hi);
 }
 
+// A planar decal's triangle with corners `c0..c2` in the decal's frame (x, y, depth) whose part
+// under the decal's rectangle (half sides hx, hy) lies within the depth limit (params.normal.w)
+// everywhere: depth is affine over the triangle, so it is checked at that part's corners (the
+// triangle clipped to the rectangle, `clip_side` on (depth, 0, x, y)). Such a triangle is drawn
+// though a far corner leaves the projector's box: what the raster paints of it lies under the
+// rectangle. A large triangle under a small decal on a smooth-shaded low-poly model (its normal
+// leaning across the face) was dropped otherwise, and with it every texel under the decal.
+// CPU twin: `planar_part_within_depth` in src/bake/cpu.rs.
+fn planar_part_within_depth(c0: vec3<f32>, c1: vec3<f32>, c2: vec3<f32>, hx: f32, hy: f32) -> bool {
+    var a = array<vec4<f32>, 8>();
+    var b = array<vec4<f32>, 8>();
+    a[0] = vec4<f32>(c0.z, 0.0, c0.xy);
+    a[1] = vec4<f32>(c1.z, 0.0, c1.xy);
+    a[2] = vec4<f32>(c2.z, 0.0, c2.xy);
+    var n = clip_side(a, 3u, 0u, 1.0, hx, &b);
+    n = clip_side(b, n, 0u, -1.0, hx, &a);
+    n = clip_side(a, n, 1u, 1.0, hy, &b);
+    n = clip_side(b, n, 1u, -1.0, hy, &a);
+    if (n == 0u) { return false; }
+    for (var i = 0u; i < n; i++) {
+        if (abs(a[i].x) > params.normal.w) { return false; }
+    }
+    return true;
+}
+
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let range = ranges[params.slot];
@@ -101,11 +128,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let c0 = coords[base + tri.x];
     let c1 = coords[base + tri.y];
     let c2 = coords[base + tri.z];
-    if (c0.w < 0.5 || c1.w < 0.5 || c2.w < 0.5) { return; }
-    let s = params.aux * params.stats_stride;
-    atomicAdd(&stats[s + 6u], 1);
     var hx = 0.5 * params.axis_u.w;
     var hy = 0.5 * params.axis_v.w;
+    if (c0.w < 0.5 || c1.w < 0.5 || c2.w < 0.5) {
+        let planar = (params.flags & FLAG_FACING) != 0u;
+        if (!planar || !planar_part_within_depth(c0.xyz, c1.xyz, c2.xyz, hx, hy)) { return; }
+    }
+    let s = params.aux * params.stats_stride;
+    atomicAdd(&stats[s + 6u], 1);
     var z0 = c0.xy;
     var z1 = c1.xy;
     var z2 = c2.xy;

@@ -9,15 +9,15 @@
 
 use super::stamps::placement_at;
 use crate::bake::kinds::Unit;
+use crate::bake::LoadedMesh;
 use crate::error::{Error, Result};
 use crate::maps::Frame;
-use crate::mesh::Topology;
 use crate::place::Placement;
 use glam::Vec3;
 
 /// The source unit of each stamp, in order (hidden from drawing, flattened for its stamp).
 pub fn sources(
-    topo: &Topology,
+    mesh: &LoadedMesh,
     stamps: &[Unit],
     source: &Placement,
     edge: f32,
@@ -44,7 +44,7 @@ pub fn sources(
             let parts = (step.length() / (0.5 * edge)).ceil().max(1.0) as usize;
             for _ in 0..parts {
                 let q = Vec3::from(at.point) + step / parts as f32;
-                at = placement_at(topo, at.triangle, q);
+                at = placement_at(mesh, at.triangle, q);
                 if (Vec3::from(at.point) - q).length() > 0.5 * edge + 1e-6 {
                     return Err(err(format!(
                         "`source`: the clone's source runs off the mesh at stamp {k}; move `source` so that the whole stroke fits beside it"

@@ -80,11 +80,11 @@ impl Kind for StrokeKind {
             }
         }
         let surface_path = join_path(cx, (placements, stroke.interpolate), edge, &err)?;
-        let units = stamps::stamps(topo, layer, stroke, &surface_path, &placements[0], &err)?;
+        let units = stamps::stamps(mesh, layer, stroke, &surface_path, &placements[0], &err)?;
         let stamps = units.len();
         let (units, pairs) = match source.first() {
             Some(src) => {
-                let sources = clone::sources(topo, &units, src, edge, &err)?;
+                let sources = clone::sources(mesh, &units, src, edge, &err)?;
                 // Each stamp follows its source, in one block (one chunk flattens both).
                 let mut out = Vec::with_capacity(2 * units.len());
                 for (s, mut u) in sources.into_iter().zip(units) {

@@ -6,6 +6,7 @@
 
 use super::path::SurfacePath;
 use crate::bake::kinds::Unit;
+use crate::bake::LoadedMesh;
 use crate::error::{Error, Result};
 use crate::io::job::{AtSpec, BlendMode, Layer, LayerKind, Orient, Stroke};
 use crate::io::stroke::MAX_STAMPS;
@@ -37,7 +38,7 @@ pub fn pressure_at(knots: &[f32], pressure: &[f32], s: f32) -> f32 {
 
 /// The stamps of `layer` (a stroke) along `path`, as units; `err` makes an error naming the layer.
 pub fn stamps(
-    topo: &Topology,
+    mesh: &LoadedMesh,
     layer: &Layer,
     stroke: &Stroke,
     path: &SurfacePath,
@@ -69,7 +70,7 @@ pub fn stamps(
         let f = size_factor(p);
         if f >= MIN_SIZE_FACTOR {
             units.push(stamp(
-                topo,
+                mesh,
                 (layer, stroke),
                 path,
                 first,
@@ -93,7 +94,7 @@ pub fn stamps(
 /// One stamp at arc length `s` with size and flow factors `[f, g]` (`first`: the placement of a
 /// one-point path).
 fn stamp(
-    topo: &Topology,
+    mesh: &LoadedMesh,
     (layer, stroke): (&Layer, &Stroke),
     path: &SurfacePath,
     first: &Placement,
@@ -109,7 +110,7 @@ fn stamp(
         (p, None)
     } else {
         let d = path.points[k + 1] - path.points[k];
-        let p = placement_at(topo, path.triangles[k], on_path);
+        let p = placement_at(mesh, path.triangles[k], on_path);
         (p, Some(d.normalize_or_zero()))
     };
     let point = Vec3::from(placement.point);
@@ -150,9 +151,11 @@ fn stamp(
 /// The placement of a point of the path near triangle `t` (the path's piece there; a point between
 /// two samples can lie just across an edge, so the triangle containing it is found by a short walk
 /// over neighbours): the point projected into that triangle, its barycentric coordinates there and
-/// the interpolated normal. The point returned is the one the barycentric coordinates give, so the
-/// stamp's point and its triangle agree exactly.
-pub fn placement_at(topo: &Topology, mut t: u32, p: Vec3) -> Placement {
+/// the model's shading normal there ([`crate::place::with_shading_normal`], as every placement of
+/// a bake). The point returned is the one the barycentric coordinates give, so the stamp's point
+/// and its triangle agree exactly.
+pub fn placement_at(mesh: &LoadedMesh, mut t: u32, p: Vec3) -> Placement {
+    let topo = &mesh.topo;
     let mut bary = barycentric(topo, t, p);
     for _ in 0..8 {
         let (k, worst) =
@@ -188,14 +191,15 @@ pub fn placement_at(topo: &Topology, mut t: u32, p: Vec3) -> Placement {
     } else {
         (b - a).cross(c - a).normalize_or_zero()
     };
-    Placement {
+    let placed = Placement {
         point: q.to_array(),
         triangle: t,
         bary,
         distance: 0.0,
         normal: n.to_array(),
         found: 1,
-    }
+    };
+    crate::place::with_shading_normal(&mesh.mesh, placed)
 }
 
 /// Barycentric coordinates of `p` projected into triangle `t`'s plane (not clamped).
