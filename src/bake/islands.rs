@@ -59,14 +59,17 @@ fn compute(
             mapped_at_creation: false,
         })
     };
-    // The island count, added up by `edt_columns` (the kernels' path only).
-    let counter = dev.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("islands.count"),
-        size: 16,
-        usage: wgpu::BufferUsages::STORAGE
-            | wgpu::BufferUsages::COPY_SRC
-            | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
+    // The island count, added up by `edt_columns` (the kernels' path only: the twin counts the
+    // mask it reads back).
+    let counter = (!on_cpu).then(|| {
+        dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("islands.count"),
+            size: 16,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
     });
     engine.ctx.scoped("islands", || {
         let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -74,18 +77,23 @@ fn compute(
         });
         enc.clear_buffer(&pass.mask, 0, None);
         *commands += pass.record_raster(&jobs, &mut enc);
-        if !on_cpu {
-            enc.clear_buffer(&counter, 0, None);
+        if let Some(counter) = &counter {
+            enc.clear_buffer(counter, 0, None);
             let edt = [
                 buf("islands.edt.col_near", texels * 4),
                 buf("islands.edt.env_v", texels * 4),
                 buf("islands.edt.env_z", (w as u64 + 1) * h as u64 * 4),
             ];
-            *commands += pass.record_edt([w, h], (&edt, &counter), &mut enc);
+            *commands += pass.record_edt([w, h], (&edt, counter), &mut enc);
         }
         engine.ctx.queue.submit([enc.finish()]);
     })?;
-    let count = if on_cpu {
+    let count = if let Some(counter) = &counter {
+        let count = engine
+            .ctx
+            .read_buffer(counter, 16, "island count read-back")?;
+        bytemuck::cast_slice::<u8, u32>(&count)[0] as u64
+    } else {
         // The same exact transform by its CPU twin, uploaded: the faster on a CPU adapter, and
         // the only right one on wgpu's GL backend (Mesa llvmpipe there gets the kernels' answer
         // wrong, not yet understood; Vulkan is exact, see tests/padding_edt.rs).
@@ -102,11 +110,6 @@ fn compute(
             .queue
             .write_buffer(&pass.nearest, 0, bytemuck::cast_slice(&near));
         island.iter().filter(|i| **i).count() as u64
-    } else {
-        let count = engine
-            .ctx
-            .read_buffer(&counter, 16, "island count read-back")?;
-        bytemuck::cast_slice::<u8, u32>(&count)[0] as u64
     };
     Ok(Islands {
         count,

@@ -91,21 +91,19 @@ pub fn write_glb_with_normals(
         serde_json::json!({"bufferView": 0, "componentType": 5126, "count": positions.len(), "type": "VEC3", "min": lo, "max": hi}),
     ];
     let mut attributes = serde_json::json!({"POSITION": 0});
-    if let Some(n) = normals {
+    // A float attribute: its bytes, view and accessor appended, named in `attributes`.
+    let mut attribute = |name: &str, b: &[u8], count: usize, ty: &str| {
         let off = bin.len();
-        let b: &[u8] = bytemuck::cast_slice(n);
         bin.extend_from_slice(b);
         views.push(serde_json::json!({"buffer": 0, "byteOffset": off, "byteLength": b.len()}));
-        accessors.push(serde_json::json!({"bufferView": views.len() - 1, "componentType": 5126, "count": n.len(), "type": "VEC3"}));
-        attributes["NORMAL"] = serde_json::json!(accessors.len() - 1);
+        accessors.push(serde_json::json!({"bufferView": views.len() - 1, "componentType": 5126, "count": count, "type": ty}));
+        attributes[name] = serde_json::json!(accessors.len() - 1);
+    };
+    if let Some(n) = normals {
+        attribute("NORMAL", bytemuck::cast_slice(n), n.len(), "VEC3");
     }
     if let Some(uv) = uvs {
-        let off = bin.len();
-        let b: &[u8] = bytemuck::cast_slice(uv);
-        bin.extend_from_slice(b);
-        views.push(serde_json::json!({"buffer": 0, "byteOffset": off, "byteLength": b.len()}));
-        accessors.push(serde_json::json!({"bufferView": views.len() - 1, "componentType": 5126, "count": uv.len(), "type": "VEC2"}));
-        attributes["TEXCOORD_0"] = serde_json::json!(accessors.len() - 1);
+        attribute("TEXCOORD_0", bytemuck::cast_slice(uv), uv.len(), "VEC2");
     }
     let off = bin.len();
     let ib: &[u8] = bytemuck::cast_slice(indices);
