@@ -206,21 +206,21 @@ fn pad_band(queue: &mut VecDeque<Band>, k: usize, job: &Job, radius: u32) {
         nearest,
         count: 0,
     };
-    tiles::pad(&isl, job.width, radius, &mut texels, 4);
+    super::finish::pad(&isl, job.width, radius, &mut texels, 4);
     let at = (y0 - top) as usize * w * 4;
     let band = &mut queue[k];
     let len = band.texels.len();
     band.texels.copy_from_slice(&texels[at..at + len]);
     for (dst, mut c) in band.channels.iter_mut().zip(channels) {
-        tiles::pad(&isl, job.width, radius, &mut c, 4);
+        super::finish::pad(&isl, job.width, radius, &mut c, 4);
         dst.copy_from_slice(&c[at..at + len]);
     }
     for (dst, mut c) in band.channel_linear.iter_mut().zip(channel_linear) {
-        tiles::pad(&isl, job.width, radius, &mut c, 4);
+        super::finish::pad(&isl, job.width, radius, &mut c, 4);
         dst.copy_from_slice(&c[at..at + len]);
     }
     if let (Some(l), Some(dst)) = (linear.as_mut(), band.linear.as_mut()) {
-        tiles::pad(&isl, job.width, radius, l, 4);
+        super::finish::pad(&isl, job.width, radius, l, 4);
         dst.copy_from_slice(&l[at..at + len]);
     }
 }

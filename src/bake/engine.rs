@@ -279,6 +279,13 @@ pub struct StagePaths {
     /// performance chapter, "Start-up"); on wgpu's GL backend the twin is taken whatever this
     /// says (`bake::islands`). Both give the same map, bit for bit (`tests/padding_edt.rs`).
     pub islands: StagePath,
+    /// Padding and encoding an 8-bit texture baked whole: the canvas read back band by band,
+    /// quantised and padded on every core (`finish::pad_and_encode`), against the `encode`
+    /// kernel, which costs llvmpipe about 40 ns a texel; it needs the islands on the CPU
+    /// (`islands` on the twin), and takes the kernel otherwise (16-bit and tiled bakes, live
+    /// bakes). Both give the same bytes: one exact quantisation by thresholds
+    /// (`finish::Quantiser`; `tests/padding_edt.rs`).
+    pub padding: StagePath,
 }
 
 impl StagePaths {
@@ -296,6 +303,11 @@ impl StagePaths {
     /// backend, whose kernels get it wrong: `bake::islands`).
     pub(crate) fn islands_on_cpu(&self, engine: &Engine) -> bool {
         engine.ctx.backend == Some(wgpu::Backend::Gl) || self.islands.on_cpu(engine)
+    }
+
+    /// Whether padding and encoding run on the CPU (where the islands are there too).
+    pub(crate) fn padding_on_cpu(&self, engine: &Engine) -> bool {
+        self.padding.on_cpu(engine)
     }
 
     /// Whether unwrapping runs the dynamics on the CPU twin.
@@ -1019,13 +1031,12 @@ impl Engine {
         let run = super::run(self, mesh, job, on_stage)?;
         on_stage("read-back");
         let t = Instant::now();
-        let e = &run.encoded;
-        let texels = self.read_encoded((&e.packed, e.packed_size, e.stride), job)?;
+        let texels = self.read_finished(run.encoded, job)?;
         let mut channels = Vec::with_capacity(run.channels.len());
-        for (kind, e) in &run.channels {
-            let texels = self.read_encoded((&e.packed, e.packed_size, e.stride), job)?;
+        for (kind, e) in run.channels {
+            let texels = self.read_finished(e, job)?;
             channels.push(BakedChannel {
-                kind: *kind,
+                kind,
                 texels,
                 linear: None,
             });
@@ -1041,6 +1052,15 @@ impl Engine {
             channels,
             report,
         })
+    }
+
+    /// A finished texture's texels: read back from the GPU ([`Engine::read_encoded`]) or as the
+    /// CPU's padding left them.
+    fn read_finished(&self, finished: super::Finished, job: &Job) -> Result<Vec<u16>> {
+        match finished {
+            super::Finished::Gpu(e) => self.read_encoded((&e.packed, e.packed_size, e.stride), job),
+            super::Finished::Host(texels) => Ok(texels),
+        }
     }
 
     /// An encoded texture (packed buffer, its bytes, words a row) read back into texels (the
@@ -1113,8 +1133,13 @@ impl Engine {
         let run = super::run(self, mesh, &job8, &|_| {})?;
         let textures = self.ctx.scoped("texture output", || {
             let mut enc = self.ctx.device.create_command_encoder(&Default::default());
-            let encoded = (&run.encoded.packed, run.encoded.stride);
-            let color = self.copy_to_texture(&mut enc, encoded, job, srgb);
+            let mut texture = |finished: &super::Finished, format| match finished {
+                super::Finished::Gpu(e) => {
+                    self.copy_to_texture(&mut enc, (&e.packed, e.stride), job, format)
+                }
+                super::Finished::Host(texels) => self.upload_texels(texels, job, format),
+            };
+            let color = texture(&run.encoded, srgb);
             let channels = run
                 .channels
                 .iter()
@@ -1123,8 +1148,7 @@ impl Engine {
                         true => wgpu::TextureFormat::Rgba8Unorm,
                         false => srgb,
                     };
-                    let encoded = (&encoded.packed, encoded.stride);
-                    (*kind, self.copy_to_texture(&mut enc, encoded, job, format))
+                    (*kind, texture(encoded, format))
                 })
                 .collect();
             self.ctx.queue.submit([enc.finish()]);
@@ -1132,7 +1156,10 @@ impl Engine {
         })?;
         let packed = std::iter::once(&run.encoded)
             .chain(run.channels.iter().map(|(_, e)| e))
-            .map(|e| e.packed.clone());
+            .filter_map(|e| match e {
+                super::Finished::Gpu(e) => Some(e.packed.clone()),
+                super::Finished::Host(_) => None,
+            });
         self.return_buffers(packed);
         Ok((textures, run.report))
     }
@@ -1242,12 +1269,14 @@ impl Islands {
             nearest: buf("islands.none.nearest"),
             count: 0,
             path: "none",
+            host: None,
         }
     }
 }
 
-/// The islands of a texture assembled from its tiles (`bake/tiles.rs`), on the CPU: the mask and
-/// every texel's nearest island texel (`u32::MAX`: none), over the whole texture.
+/// The islands of a texture on the CPU, assembled from its tiles (`bake/tiles.rs`) or computed
+/// by the distance transform's twin ([`Islands::host`]): the mask and every texel's nearest
+/// island texel (`u32::MAX`: none), over the whole texture.
 pub struct TiledIslands {
     /// True per island texel.
     pub mask: Vec<bool>,
@@ -1322,6 +1351,9 @@ pub struct Islands {
     /// Where the distance transform ran: `"gpu"` or `"cpu"` (`report::Paths::islands`; `"none"`
     /// for a tile's placeholder).
     pub path: &'static str,
+    /// The mask and the nearest map on the CPU too, where the twin computed them: what the
+    /// padding's CPU path reads (`finish::pad_and_encode`).
+    pub host: Option<TiledIslands>,
 }
 
 /// Which layer rasters `job`'s layers are likely drawn by (plain: none of

@@ -7,7 +7,7 @@
 //! kernels where `StagePaths::islands` says (a CPU adapter, by default; wgpu's GL backend,
 //! always). The padding stage reads the result.
 
-use super::engine::{Engine, IslandKey, Islands, LoadedMesh};
+use super::engine::{Engine, IslandKey, Islands, LoadedMesh, TiledIslands};
 use super::params::{params_buffer, pbind, Params, PARAMS_STRIDE};
 use super::plan::{raster_jobs, target_side};
 use crate::error::Result;
@@ -88,11 +88,11 @@ fn compute(
         }
         engine.ctx.queue.submit([enc.finish()]);
     })?;
-    let count = if let Some(counter) = &counter {
+    let (count, host) = if let Some(counter) = &counter {
         let count = engine
             .ctx
             .read_buffer(counter, 16, "island count read-back")?;
-        bytemuck::cast_slice::<u8, u32>(&count)[0] as u64
+        (bytemuck::cast_slice::<u8, u32>(&count)[0] as u64, None)
     } else {
         // The same exact transform by its CPU twin, uploaded: the faster on a CPU adapter, and
         // the only right one on wgpu's GL backend (Mesa llvmpipe there gets the kernels' answer
@@ -109,13 +109,20 @@ fn compute(
             .ctx
             .queue
             .write_buffer(&pass.nearest, 0, bytemuck::cast_slice(&near));
-        island.iter().filter(|i| **i).count() as u64
+        let count = island.iter().filter(|i| **i).count() as u64;
+        let host = TiledIslands {
+            mask: island,
+            nearest: near,
+            count,
+        };
+        (count, Some(host))
     };
     Ok(Islands {
         count,
         mask: pass.mask,
         nearest: pass.nearest,
         path: if on_cpu { "cpu" } else { "gpu" },
+        host,
     })
 }
 

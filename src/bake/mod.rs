@@ -58,6 +58,7 @@ pub mod vector_gpu;
 pub use engine::{
     Baked, BakedChannel, BakedTextures, BvhBuild, Engine, LoadedMesh, StagePath, StagePaths,
 };
+pub(crate) use finish::Finished;
 pub use images::{f32_to_f16, load_raw, upload_image};
 pub use live::{Edit, EditReport, LiveBake};
 pub use param::{size_figures, ParamMap, ParamRow, SizeFigures};
@@ -69,11 +70,12 @@ use report::{LayerReport, Report, Timings};
 use stage::{ms, Cx, Log};
 use std::time::Instant;
 
-/// A bake on the GPU before read-back: the encoded texture and the report.
+/// A bake before read-back: the encoded texture (on the GPU, or on the CPU where padding ran
+/// there) and the report.
 pub(crate) struct Run {
-    pub encoded: finish::Encoded,
+    pub encoded: finish::Finished,
     /// Each channel pass's encoded texture ([`channels`]), in pass order.
-    pub channels: Vec<(channels::ChannelKind, finish::Encoded)>,
+    pub channels: Vec<(channels::ChannelKind, finish::Finished)>,
     /// Each channel pass's canvas, linear RGBA f32 (unpadded), in pass order, for a float (EXR)
     /// output; empty otherwise.
     pub channel_linear: Vec<Vec<f32>>,
@@ -262,12 +264,12 @@ pub(crate) fn run_in(
 
     let t = Instant::now();
     on_stage("padding and encode");
-    let encoded = finish::pad_and_encode(cx, &canvas, (window.is_none(), false), &mut log)?;
+    let encoded = finish::finish(cx, &canvas, (window.is_none(), false), &mut log)?;
     let mut encoded_channels = Vec::with_capacity(passes.len());
     let mut channel_linear = Vec::new();
     for (pass, c) in &passes {
         let pad = (window.is_none(), pass.kind.linear());
-        encoded_channels.push((pass.kind, finish::pad_and_encode(cx, c, pad, &mut log)?));
+        encoded_channels.push((pass.kind, finish::finish(cx, c, pad, &mut log)?));
         if job.exr() {
             channel_linear.push(c.read_linear(engine)?);
         }

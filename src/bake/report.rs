@@ -151,6 +151,10 @@ pub struct Paths {
     /// say the same); `"none"` for a tiled bake (its tiles are padded on the CPU,
     /// `bake::bands`).
     pub islands: &'static str,
+    /// Padding and encoding: the `encode` kernel on the GPU, or the canvas read back and padded
+    /// on the CPU (an 8-bit texture baked whole on a CPU adapter, `StagePaths::padding`): the
+    /// same bytes either way.
+    pub padding: &'static str,
 }
 
 impl Default for Paths {
@@ -162,6 +166,7 @@ impl Default for Paths {
             channels: "none",
             sampling: "full",
             islands: "none",
+            padding: "gpu",
         }
     }
 }

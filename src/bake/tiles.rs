@@ -109,6 +109,14 @@ pub(crate) fn bake_window(
     let encoded = std::iter::once(&run.encoded).chain(run.channels.iter().map(|(_, e)| e));
     let texels = std::iter::once(dest.texels).chain(dest.channels);
     for (e, texels) in encoded.zip(texels) {
+        let e = match e {
+            super::Finished::Gpu(e) => e,
+            // Not taken today: a tile is never padded where it is baked (`finish::finish`).
+            super::Finished::Host(tile) => {
+                copy_rows(texels, w, local, tile, 4);
+                continue;
+            }
+        };
         engine
             .ctx
             .read_buffer_with(&e.packed, e.packed_size, "encode read-back", |bytes| {
@@ -121,15 +129,21 @@ pub(crate) fn bake_window(
     let linear = linear.chain(dest.channel_linear);
     let tiles = run.linear.iter().chain(&run.channel_linear);
     for (all, tile) in linear.zip(tiles) {
-        for row in 0..win[3] as usize {
-            let src = &tile[row * win[2] as usize * 4..][..win[2] as usize * 4];
-            let at = ((local[1] as usize + row) * w as usize + win[0] as usize) * 4;
-            all[at..at + src.len()].copy_from_slice(src);
-        }
+        copy_rows(all, w, local, tile, 4);
     }
     let mut r = run.report;
     r.timings.encode_ms += t.elapsed().as_secs_f64() * 1000.0;
     Ok(r)
+}
+
+/// Copies a window's rows (`n` values a texel, `tile`) into the texture's (`all`, `w` texels a
+/// row) at `win` (x, y, w, h).
+fn copy_rows<T: Copy>(all: &mut [T], w: u32, win: [u32; 4], tile: &[T], n: usize) {
+    let row = win[2] as usize * n;
+    for (r, src) in tile.chunks_exact(row).take(win[3] as usize).enumerate() {
+        let at = ((win[1] as usize + r) * w as usize + win[0] as usize) * n;
+        all[at..at + row].copy_from_slice(src);
+    }
 }
 
 /// Every tile, then the padding over the whole texture (`"padding": "full"`: a background texel
@@ -155,15 +169,15 @@ pub(crate) fn bake_whole(
     on_stage("padding");
     let radius = super::finish::padding_radius(job.padding);
     let t = Instant::now();
-    pad(&islands, w, radius, all.texels, 4);
+    super::finish::pad(&islands, w, radius, all.texels, 4);
     for c in all.channels {
-        pad(&islands, w, radius, c, 4);
+        super::finish::pad(&islands, w, radius, c, 4);
     }
     for c in all.channel_linear {
-        pad(&islands, w, radius, c, 4);
+        super::finish::pad(&islands, w, radius, c, 4);
     }
     if let Some(l) = all.linear {
-        pad(&islands, w, radius, l, 4);
+        super::finish::pad(&islands, w, radius, l, 4);
     }
     let mut report = report.expect("a texture has at least one tile");
     report.timings.padding_ms += t.elapsed().as_secs_f64() * 1000.0;
@@ -193,68 +207,6 @@ pub(crate) fn merge(a: Option<Report>, b: Report) -> Report {
     a.gpu_commands += b.gpu_commands;
     a
 }
-
-/// Pads `values` (`n` per texel) in place: each background texel whose nearest island texel lies
-/// within `radius` (`u32::MAX`: any distance) takes that texel's values, as `encode.wgsl` does.
-/// Rows are split between the cores (an 8192² texture has 64M texels).
-pub(crate) fn pad<T: Copy + Send + Sync>(
-    isl: &TiledIslands,
-    w: u32,
-    radius: u32,
-    values: &mut [T],
-    n: usize,
-) {
-    let r2 = radius as u64 * radius as u64;
-    // |src − i| = |dy·w + dx| with |dx| < w: beyond (radius + 1)·w − 1, |dy| > radius.
-    let far = (radius as u64 + 1)
-        .saturating_mul(w as u64)
-        .saturating_sub(1);
-    let texels = isl.mask.len();
-    let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
-    let band = texels.div_ceil(threads).max(1);
-    let base = Shared(values.as_mut_ptr());
-    std::thread::scope(|s| {
-        for start in (0..texels).step_by(band) {
-            let base = &base;
-            s.spawn(move || {
-                for i in start..(start + band).min(texels) {
-                    let src = isl.nearest[i];
-                    if isl.mask[i] || src == u32::MAX {
-                        continue;
-                    }
-                    // Indices further apart than `far` are more than `radius` rows apart: no
-                    // division needed to reject them (most background texels, for small radii).
-                    if (src as i64 - i as i64).unsigned_abs() > far {
-                        continue;
-                    }
-                    let (sy, y) = (src / w, i as u32 / w);
-                    let (dx, dy) = (
-                        (src - sy * w) as i64 - (i as u32 - y * w) as i64,
-                        sy as i64 - y as i64,
-                    );
-                    if radius == u32::MAX || (dx * dx + dy * dy) as u64 <= r2 {
-                        // SAFETY: `src` is an island texel (the distance transform points only at
-                        // those) and `i` a background texel: no thread writes an island texel,
-                        // each background texel is written by the one thread whose band holds
-                        // it, and both lie inside `values` (texels × n).
-                        unsafe {
-                            std::ptr::copy_nonoverlapping(
-                                base.0.add(src as usize * n),
-                                base.0.add(i * n),
-                                n,
-                            )
-                        };
-                    }
-                }
-            });
-        }
-    });
-}
-
-/// A pointer the padding threads share (see the safety note in [`pad`]).
-struct Shared<T>(*mut T);
-// SAFETY: the threads read and write disjoint texels (see `pad`).
-unsafe impl<T: Send> Sync for Shared<T> {}
 
 /// The texture's islands, assembled from every window's mask (cached on the mesh).
 fn islands(

@@ -467,7 +467,7 @@ impl GpuContext {
     }
 
     /// Maps an already-filled `MAP_READ` buffer and hands its contents to `f`.
-    fn map_with<R>(
+    pub(crate) fn map_with<R>(
         &self,
         staging: &wgpu::Buffer,
         stage: &str,

@@ -399,7 +399,15 @@ impl Pipelines {
                     ["encode", "encode_16", "encode_linear", "encode_linear_16"];
                 let (name, linear, wide) = (NAMES[i], i >= 2, i % 2 == 1);
                 Lazy::new(b, name, move |d| {
-                    let binds = [(0, Params), (1, Rw), (2, Ro), (3, Ro), (10, Rw), (11, Rw)];
+                    let binds = [
+                        (0, Params),
+                        (1, Rw),
+                        (2, Ro),
+                        (3, Ro),
+                        (4, Ro),
+                        (10, Rw),
+                        (11, Rw),
+                    ];
                     Kernel::with_source(d, name, &binds, Some(shaders::encode_source(linear, wide)))
                 })
             }),
