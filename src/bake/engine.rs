@@ -1265,12 +1265,29 @@ impl Islands {
             })
         };
         Self {
-            mask: buf("islands.none.mask"),
-            nearest: buf("islands.none.nearest"),
+            gpu: [buf("islands.none.mask"), buf("islands.none.nearest")].into(),
             count: 0,
             path: "none",
             host: None,
         }
+    }
+
+    /// The mask (a word per texel) and the nearest map on the GPU, for the `encode` kernel:
+    /// uploaded from [`Islands::host`] on first use where the twin computed them (a CPU path
+    /// pads from the host copy and never needs them).
+    pub(crate) fn gpu(&self, ctx: &crate::gpu::GpuContext) -> &[wgpu::Buffer; 2] {
+        self.gpu.get_or_init(|| {
+            let host = self
+                .host
+                .as_ref()
+                .expect("islands without buffers have a host copy");
+            let mask: Vec<u32> = host.mask.iter().map(|&m| u32::from(m)).collect();
+            let none = wgpu::BufferUsages::empty();
+            [
+                ctx.storage_init("islands.mask", bytemuck::cast_slice(&mask), none),
+                ctx.storage_init("islands.nearest", bytemuck::cast_slice(&host.nearest), none),
+            ]
+        })
     }
 }
 
@@ -1342,10 +1359,9 @@ pub type IslandKey = (u32, u32, u32, u32, bool);
 /// A UV layout rasterized at one texture size: which texels the islands cover, and for every texel
 /// the index of its nearest island texel (exact Euclidean distance transform).
 pub struct Islands {
-    /// 1 per island texel.
-    pub mask: wgpu::Buffer,
-    /// Index of the nearest island texel, per texel.
-    pub nearest: wgpu::Buffer,
+    /// On the GPU: 1 per island texel, and the index of the nearest island texel per texel
+    /// ([`Islands::gpu`]).
+    pub(crate) gpu: std::sync::OnceLock<[wgpu::Buffer; 2]>,
     /// Island texels.
     pub count: u64,
     /// Where the distance transform ran: `"gpu"` or `"cpu"` (`report::Paths::islands`; `"none"`
@@ -1390,9 +1406,16 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
         list.extend([&p.edt_columns as &dyn Prepare, &p.edt_rows]);
     }
     let wide = job.bit_depth == 16;
-    list.push(p.encode_for(false, wide));
-    if job.channel_groups() & !(1 << crate::io::channels::ChannelKind::Emissive.slot()) != 0 {
-        list.push(p.encode_for(true, wide));
+    // Padded on the CPU (`finish::finish`: 8 bits, whole, the twin's islands): no encode kernel.
+    let pads_on_cpu = !wide
+        && engine.stage_paths.islands_on_cpu(engine)
+        && engine.stage_paths.padding_on_cpu(engine)
+        && super::tile_shape(engine, job).is_none();
+    if !pads_on_cpu {
+        list.push(p.encode_for(false, wide));
+        if job.channel_groups() & !(1 << crate::io::channels::ChannelKind::Emissive.slot()) != 0 {
+            list.push(p.encode_for(true, wide));
+        }
     }
     let placed_on_cpu = !engine.bvh_on_gpu() && engine.stage_paths.placement_prefers_cpu(engine);
     if !job.layers.is_empty() && !placed_on_cpu {

@@ -55,7 +55,7 @@ fn host_path<'a>(cx: Cx<'_>, canvas: &'a Canvas, pad: bool) -> Option<&'a TiledI
 }
 
 /// Canvas bytes read back at a time by the CPU path (both planes together).
-const BAND_BYTES: u64 = 32 << 20;
+const BAND_BYTES: u64 = 8 << 20;
 
 /// The CPU path: the two planes read back in bands of rows, each texel quantised as the kernel
 /// does ([`Quantiser`]), then every background texel within `radius` of an island takes its
@@ -366,6 +366,7 @@ pub(crate) fn encode_regions(
         wgpu::BufferUsages::empty(),
     );
     let encode = pipes.encode_for(linear, job.bit_depth == 16);
+    let islands = canvas.islands.gpu(&engine.ctx);
     engine.ctx.scoped("padding and encode", || {
         let mut enc = dev.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("bake.finish"),
@@ -376,8 +377,8 @@ pub(crate) fn encode_regions(
             &[
                 (0, pbind(&fin_params)),
                 (1, encoded.packed.as_entire_binding()),
-                (2, canvas.islands.mask.as_entire_binding()),
-                (3, canvas.islands.nearest.as_entire_binding()),
+                (2, islands[0].as_entire_binding()),
+                (3, islands[1].as_entire_binding()),
                 (4, table.as_entire_binding()),
                 (10, canvas.acc_rg.as_entire_binding()),
                 (11, canvas.acc_ba.as_entire_binding()),

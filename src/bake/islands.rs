@@ -50,7 +50,15 @@ fn compute(
     let texels = w as u64 * h as u64;
     let on_cpu = engine.stage_paths.islands_on_cpu(engine);
     let global = Pass::global(mesh, [w, h], ss, [0; 4]);
-    let (pass, jobs) = Pass::new(engine, mesh, (uv_set, ss, msaa), global, [texels * 4; 2]);
+    // The twin's nearest map stays on the CPU (`Islands::gpu` uploads it where a kernel needs it).
+    let nearest_bytes = if on_cpu { 16 } else { texels * 4 };
+    let (pass, jobs) = Pass::new(
+        engine,
+        mesh,
+        (uv_set, ss, msaa),
+        global,
+        [texels * 4, nearest_bytes],
+    );
     let buf = |label, bytes: u64| {
         dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
@@ -105,10 +113,6 @@ fn compute(
             .map(|v| *v != 0)
             .collect();
         let near = crate::bake::cpu::nearest_island_map(&island, w, h);
-        engine
-            .ctx
-            .queue
-            .write_buffer(&pass.nearest, 0, bytemuck::cast_slice(&near));
         let count = island.iter().filter(|i| **i).count() as u64;
         let host = TiledIslands {
             mask: island,
@@ -117,10 +121,13 @@ fn compute(
         };
         (count, Some(host))
     };
+    let gpu = std::sync::OnceLock::new();
+    if host.is_none() {
+        let _ = gpu.set([pass.mask, pass.nearest]);
+    }
     Ok(Islands {
         count,
-        mask: pass.mask,
-        nearest: pass.nearest,
+        gpu,
         path: if on_cpu { "cpu" } else { "gpu" },
         host,
     })
@@ -317,13 +324,16 @@ impl Engine {
         let ss = (samples as f32).sqrt().round() as u32;
         let mut commands = 0;
         let isl = islands(self, mesh, uv_set, size, (ss.max(1), false), &mut commands)?;
+        if let Some(host) = &isl.host {
+            let mask = host.mask.iter().map(|&m| u32::from(m)).collect();
+            return Ok((mask, host.nearest.clone()));
+        }
         let bytes = size[0] as u64 * size[1] as u64 * 4;
-        let mask = self
-            .ctx
-            .read_buffer(&isl.mask, bytes, "island mask read-back")?;
+        let [mask, nearest] = isl.gpu(&self.ctx);
+        let mask = self.ctx.read_buffer(mask, bytes, "island mask read-back")?;
         let nearest = self
             .ctx
-            .read_buffer(&isl.nearest, bytes, "nearest map read-back")?;
+            .read_buffer(nearest, bytes, "nearest map read-back")?;
         Ok((
             bytemuck::cast_slice(&mask).to_vec(),
             bytemuck::cast_slice(&nearest).to_vec(),

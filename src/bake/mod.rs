@@ -63,6 +63,7 @@ pub use images::{f32_to_f16, load_raw, upload_image};
 pub use live::{Edit, EditReport, LiveBake};
 pub use param::{size_figures, ParamMap, ParamRow, SizeFigures};
 pub use place::Units;
+pub(crate) use tiles::tile_shape;
 
 use crate::error::Result;
 use crate::io::job::Job;
