@@ -281,7 +281,8 @@ pub struct StagePaths {
     pub islands: StagePath,
     /// Padding and encoding an 8-bit texture baked whole: the canvas read back band by band,
     /// quantised and padded on every core (`finish::pad_and_encode`), against the `encode`
-    /// kernel, which costs llvmpipe about 40 ns a texel; it needs the islands on the CPU
+    /// kernel, which costs llvmpipe about 40 ns a texel (0.65 s at 4096², 2026-11-29, the guide's
+    /// performance chapter); it needs the islands on the CPU
     /// (`islands` on the twin), and takes the kernel otherwise (16-bit and tiled bakes, live
     /// bakes). Both give the same bytes: one exact quantisation by thresholds
     /// (`finish::Quantiser`; `tests/padding_edt.rs`).
@@ -305,9 +306,11 @@ impl StagePaths {
         engine.ctx.backend == Some(wgpu::Backend::Gl) || self.islands.on_cpu(engine)
     }
 
-    /// Whether padding and encoding run on the CPU (where the islands are there too).
-    pub(crate) fn padding_on_cpu(&self, engine: &Engine) -> bool {
-        self.padding.on_cpu(engine)
+    /// Whether an output of `bit_depth` bits, baked whole, is padded and encoded on the CPU:
+    /// 8 bits, the islands on the twin (the CPU pads from its copy) and `padding` on the CPU.
+    /// `finish::finish` decides by it (with the islands' copy at hand), `prepare_for` too.
+    pub(crate) fn pads_on_cpu(&self, engine: &Engine, bit_depth: u8) -> bool {
+        bit_depth == 8 && self.islands_on_cpu(engine) && self.padding.on_cpu(engine)
     }
 
     /// Whether unwrapping runs the dynamics on the CPU twin.
@@ -378,6 +381,9 @@ pub struct Engine {
     /// The fused channel passes' attachments, by size, channel group (0 occlusion-roughness-
     /// metallic, 1 normal, 2 emissive) and samples a pixel, made when a bake first needs them.
     channel_targets: Mutex<HashMap<ChannelTarget, Arc<wgpu::TextureView>>>,
+    /// The 8-bit quantiser's table on the GPU (`finish::Quantiser`), uploaded once, when the
+    /// `encode` kernel first runs.
+    pub(crate) quantiser: std::sync::OnceLock<wgpu::Buffer>,
     pub(crate) linear_sampler: wgpu::Sampler,
     /// Select every layer's triangles from the whole mesh instead of from the vertices its map can
     /// reach (`bake::maps::LayerMaps::candidate_triangles`). The results are the same; this is the
@@ -573,6 +579,7 @@ impl Engine {
             pipes,
             targets: Mutex::new(HashMap::new()),
             channel_targets: Mutex::new(HashMap::new()),
+            quantiser: std::sync::OnceLock::new(),
             separate_channel_passes: false,
             buffers: Mutex::new(BufferPool::default()),
             linear_sampler,
@@ -1407,9 +1414,7 @@ fn pipelines_for<'p>(engine: &'p Engine, job: &Job) -> Vec<&'p dyn Prepare> {
     }
     let wide = job.bit_depth == 16;
     // Padded on the CPU (`finish::finish`: 8 bits, whole, the twin's islands): no encode kernel.
-    let pads_on_cpu = !wide
-        && engine.stage_paths.islands_on_cpu(engine)
-        && engine.stage_paths.padding_on_cpu(engine)
+    let pads_on_cpu = engine.stage_paths.pads_on_cpu(engine, job.bit_depth)
         && super::tile_shape(engine, job).is_none();
     if !pads_on_cpu {
         list.push(p.encode_for(false, wide));

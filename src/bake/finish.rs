@@ -49,7 +49,7 @@ pub(crate) fn finish(
 fn host_path<'a>(cx: Cx<'_>, canvas: &'a Canvas, pad: bool) -> Option<&'a TiledIslands> {
     let Cx { engine, job, .. } = cx;
     let whole = canvas.global.window() == [0, 0, job.width, job.height];
-    (pad && whole && job.bit_depth == 8 && engine.stage_paths.padding_on_cpu(engine))
+    (pad && whole && engine.stage_paths.pads_on_cpu(engine, job.bit_depth))
         .then_some(canvas.islands.host.as_ref())
         .flatten()
 }
@@ -173,12 +173,10 @@ unsafe impl<T: Send> Sync for Shared<T> {}
 /// curve, sRGB's linear foot, moves 3,295 bytes a unit). The GPU reads the same words
 /// (`encode.wgsl`'s `quantise`), so the bytes do not depend on a `pow` or a rounding mode.
 pub struct Quantiser {
-    /// [`THRESHOLDS`] words per curve (sRGB, then linear) of f32 bits, then [`CELLS`] + 1 bytes
-    /// per curve: the GPU's table.
-    words: Vec<u32>,
-    /// The same thresholds and bytes, compact for the CPU (about 10 KB, within a core's first
-    /// cache).
+    /// Per curve (sRGB, then linear): byte 0's threshold (0), bytes 1 to 255's, and +∞.
     thresholds: [[f32; THRESHOLDS as usize]; 2],
+    /// Per curve: the byte at the start of each cell, and at 1 (about 10 KB with the
+    /// thresholds, within a core's first cache).
     cells: [[u8; CELLS as usize + 1]; 2],
 }
 
@@ -221,18 +219,15 @@ impl Quantiser {
                     .count() as u8
             })
         });
-        let mut words: Vec<u32> = thresholds.iter().flatten().map(|t| t.to_bits()).collect();
-        words.extend(cells.iter().flatten().map(|&b| b as u32));
-        Self {
-            words,
-            thresholds,
-            cells,
-        }
+        Self { thresholds, cells }
     }
 
-    /// The table's words, as `encode.wgsl` binds them.
-    pub fn words(&self) -> &[u32] {
-        &self.words
+    /// The table as `encode.wgsl` binds it: [`THRESHOLDS`] words per curve of f32 bits, then
+    /// [`CELLS`] + 1 bytes per curve, a word each.
+    pub fn words(&self) -> Vec<u32> {
+        let thresholds = self.thresholds.iter().flatten().map(|t| t.to_bits());
+        let cells = self.cells.iter().flatten().map(|&b| b as u32);
+        thresholds.chain(cells).collect()
     }
 
     /// `x`'s byte: sRGB-encoded unless `linear`, clamped to [0, 1].
@@ -360,11 +355,13 @@ pub(crate) fn encode_regions(
         regions
     };
     let fin_params = params_buffer(dev, "bake.final_params", &entries);
-    let table = engine.ctx.storage_init(
-        "bake.quantiser",
-        bytemuck::cast_slice(Quantiser::get().words()),
-        wgpu::BufferUsages::empty(),
-    );
+    let table = engine.quantiser.get_or_init(|| {
+        let words = Quantiser::get().words();
+        let none = wgpu::BufferUsages::empty();
+        engine
+            .ctx
+            .storage_init("bake.quantiser", bytemuck::cast_slice(&words), none)
+    });
     let encode = pipes.encode_for(linear, job.bit_depth == 16);
     let islands = canvas.islands.gpu(&engine.ctx);
     engine.ctx.scoped("padding and encode", || {
