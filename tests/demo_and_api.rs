@@ -76,7 +76,7 @@ fn demo_writes_decodable_outputs_and_a_glb_that_loads_back() {
         serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
     let layers = report["layers"].as_array().unwrap();
     assert_eq!(layers.len(), 10);
-    // The SVG logo and the text along the flank, rendered at the density where they landed.
+    // The SVG logo and the text along the flank, rendered at the sizes their maps need.
     assert!(layers[8]["image"].as_str().unwrap().ends_with("logo.svg"));
     assert_eq!(layers[9]["kind"], "ribbon");
     for l in &layers[8..] {

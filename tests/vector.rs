@@ -887,10 +887,13 @@ fn svg_tree(text: &str) -> resvg::usvg::Tree {
     resvg::usvg::Tree::from_data(text.as_bytes(), &resvg::usvg::Options::default()).unwrap()
 }
 
-/// A vector decal is rendered at the densest texel layout its image rectangle reaches: on a plane
-/// whose UVs run four times as fast left of x = 0.5 as right of it, a decal placed right of the
-/// line but reaching across it gets the left's density (rendered at the density where it landed,
-/// it would get half the pixels a side), and one wholly on the right keeps the right's.
+/// A vector decal is rendered at what its own map needs on every triangle it paints (the
+/// Jacobian of texel → image coordinates), along each image axis: on a plane whose u runs four
+/// times as fast left of x = 0.5 as right of it (1.6 and 0.4 texture widths a model unit; v runs
+/// one texture height a unit on both halves), a decal placed right of the line but reaching across
+/// it gets the left's density along x and the plane's along y (rendered at the density where it
+/// landed, it would get a quarter of the pixels along x; at the isotropic mean of the two axes,
+/// 0.79 of them and 1.26 times those along y); one wholly on the right keeps the right's.
 #[test]
 fn vector_raster_follows_the_densest_part_a_decal_reaches() {
     let engine = common::engine();
@@ -909,11 +912,85 @@ fn vector_raster_follows_the_densest_part_a_decal_reaches() {
     let mesh = engine.load_mesh(&job.mesh).unwrap();
     let baked = engine.bake(&mesh, &job).unwrap();
     let px = |l: usize| baked.report.layers[l].raster_px.unwrap();
-    // Texels per model unit: sqrt(texels in u × texels in v) per unit square.
-    let (dense, coarse) = ((1.6 * side * side).sqrt(), (0.4 * side * side).sqrt());
+    // Texels per model unit along x on each half, and along y.
+    let (dense, coarse, along_y) = (1.6 * side, 0.4 * side, side);
     let want = |size: f32, density: f32| (size * density * 2.0).ceil() as u32;
-    assert_eq!(px(0), [want(0.32, dense); 2], "reaching the dense half");
-    assert_eq!(px(1), [want(0.2, coarse); 2], "wholly on the coarse half");
+    assert_eq!(
+        px(0),
+        [want(0.32, dense), want(0.32, along_y)],
+        "reaching the dense half"
+    );
+    assert_eq!(
+        px(1),
+        [want(0.2, coarse), want(0.2, along_y)],
+        "wholly on the coarse half"
+    );
+}
+
+/// A planar decal over a fold: the plane's right half turns down by 60°, its UVs laid out by
+/// length on the surface (one texture width a model unit on both halves). Projected from the
+/// flat half, the image's x spans twice the surface, and so twice the texels, on the slope, which
+/// holds most of what the decal paints: its vector image gets twice the pixels along x as along
+/// y. The same decal mapped by its exponential map, which follows the surface, gets the same along
+/// both (the texel density where it lands, the old rule, gives the planar decal the same too).
+#[test]
+fn a_planar_vector_decal_gets_the_pixels_its_slope_needs() {
+    let engine = common::engine();
+    let dir = common::scratch("vector_slope");
+    write_folded_plane(&dir.join("fold.glb"), 60f32.to_radians());
+    std::fs::write(dir.join("shapes.svg"), SHAPES).unwrap();
+    let decal = |method: &str| {
+        serde_json::json!({ "image": "shapes.svg", "at": [0.45, 0.5, 0.0], "size": [0.4, 0.4],
+            "up": [0, 1, 0], "method": method, "depth": 1.0 })
+    };
+    let job = serde_json::json!({ "mesh": "fold.glb",
+        "texture": { "width": 512, "height": 512, "padding": 0, "base": [1.0, 1.0, 1.0, 1.0] },
+        "layers": [decal("planar"), decal("expmap")] })
+    .to_string();
+    let job = decalbake::Job::parse(&job, &dir.join("job.json"), &dir, &dir).unwrap();
+    let mesh = engine.load_mesh(&job.mesh).unwrap();
+    let baked = engine.bake(&mesh, &job).unwrap();
+    let px = |l: usize| baked.report.layers[l].raster_px.unwrap().map(|p| p as f32);
+    let (planar, expmap) = (px(0), px(1));
+    let along_y = (0.4f32 * 512.0 * 2.0).ceil();
+    assert_eq!(planar[1], along_y, "{planar:?}");
+    let ratio = planar[0] / planar[1];
+    assert!(
+        (ratio - 2.0).abs() < 0.02,
+        "planar over the slope: {planar:?}"
+    );
+    let ratio = expmap[0] / expmap[1];
+    assert!(
+        (ratio - 1.0).abs() < 0.02,
+        "the exponential map follows the slope: {expmap:?}"
+    );
+}
+
+/// A plane of 32 × 16 cells over x, y in [0, 1], flat for x ≤ 0.5 and turned down by `angle`
+/// beyond, its u the length along the surface (so texel density is the same on both halves).
+fn write_folded_plane(path: &Path, angle: f32) {
+    let (nx, ny) = (32, 16);
+    let (mut pos, mut uv, mut idx) = (Vec::new(), Vec::new(), Vec::new());
+    for j in 0..=ny {
+        for i in 0..=nx {
+            let (s, y) = (i as f32 / nx as f32, j as f32 / ny as f32);
+            let p = if s <= 0.5 {
+                [s, y, 0.0]
+            } else {
+                let d = s - 0.5;
+                [0.5 + d * angle.cos(), y, -d * angle.sin()]
+            };
+            pos.push(p);
+            uv.push([s, 1.0 - y]);
+        }
+    }
+    for j in 0..ny {
+        for i in 0..nx {
+            let a = j * (nx + 1) + i;
+            idx.extend([a, a + 1, a + nx + 2, a, a + nx + 2, a + nx + 1]);
+        }
+    }
+    common::write_glb(path, &pos, Some(&uv), &idx);
 }
 
 /// The unit square in 16 × 16 cells whose UVs run four times as fast left of x = 0.5 (u = 1.6 x)
@@ -945,8 +1022,10 @@ fn write_uneven_plane(path: &Path) {
 }
 
 /// Text along a curve that starts on the coarse half of that plane and runs into the dense half
-/// is rendered at the dense half's density: its strip gets twice the pixels across (at the density
-/// where the curve starts it gets the same as a line wholly on the coarse half).
+/// is rendered at the dense half's density along the curve (four times the pixels a model unit
+/// of a line wholly on the coarse half) and at the plane's across it, where v runs the same on
+/// both halves (the same pixels across as that line; at the isotropic density the old rule took,
+/// twice them).
 #[test]
 fn text_along_a_curve_follows_the_densest_part_it_crosses() {
     let engine = common::engine();
@@ -966,12 +1045,16 @@ fn text_along_a_curve_follows_the_densest_part_it_crosses() {
     let job = decalbake::Job::parse(&job, &dir.join("job.json"), &dir, &dir).unwrap();
     let mesh = engine.load_mesh(&job.mesh).unwrap();
     let baked = engine.bake(&mesh, &job).unwrap();
-    let across = |l: usize| baked.report.layers[l].raster_px.unwrap()[1] as f32;
-    let ratio = across(0) / across(1);
+    let px = |l: usize| baked.report.layers[l].raster_px.unwrap().map(|p| p as f32);
+    // Pixels a model unit along each line (0.8 and 0.35 units long).
+    let along = [px(0)[0] / 0.8, px(1)[0] / 0.35];
+    let ratio = along[0] / along[1];
+    assert!((ratio - 4.0).abs() < 0.1, "along: {along:?}");
+    let ratio = px(0)[1] / px(1)[1];
     assert!(
-        (ratio - 2.0).abs() < 0.05,
-        "{} against {} pixels across",
-        across(0),
-        across(1)
+        (ratio - 1.0).abs() < 0.05,
+        "{:?} against {:?} pixels across",
+        px(0),
+        px(1)
     );
 }

@@ -54,6 +54,7 @@ pub mod tools;
 mod transfer;
 mod vector;
 pub mod vector_gpu;
+mod vector_maps;
 
 pub use engine::{
     Baked, BakedChannel, BakedTextures, BvhBuild, Engine, LoadedMesh, StagePath, StagePaths,
@@ -229,7 +230,7 @@ pub(crate) fn run_in(
     on_stage("placement");
     let mut placed = place::place(cx, &mut log)?;
     log.timings.placement_ms = ms(t);
-    // Images after placement: vector images are rendered at the texel density where they land.
+    // Images after placement: vector images are rendered at the sizes their maps need.
     let t = Instant::now();
     on_stage("images");
     let job = &*vector::set_rasters(engine, mesh, job, &mut placed, &mut log.warnings);

@@ -1,17 +1,16 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! The pixel size each layer's vector images (SVG files, text, `crate::io::vector`) are rendered
-//! at, decided after placement from the largest texel density each unit's image reaches
-//! ([`set_rasters`]), and a text layer's warnings (missing glyphs, text cut at its curve's end).
+//! at, decided after placement from what each unit's map needs on the triangles it paints
+//! (`super::vector_maps`; a stroke's stamps from the texel density where they land), within the
+//! bake's budget ([`set_rasters`]), and a text layer's warnings (missing glyphs, text cut at its
+//! curve's end).
 //! The images stage ([`super::images`]) then renders them at that size.
 
 use super::engine::{Engine, LoadedMesh};
 use super::place::Placed;
 use crate::io::job::{Job, Layer};
 
-/// How many image pixels a vector image gets per texel it covers, along each side: its samples
-/// then read the first mipmap level, a box over 2 × 2 pixels, and edges keep the bake's own
-/// anti-aliasing.
-pub const VECTOR_OVERSAMPLE: f32 = 2.0;
+pub use super::vector_maps::VECTOR_OVERSAMPLE;
 
 /// The longest side a vector image is rendered at (the adapter's texture limit may be lower).
 pub const VECTOR_MAX_SIDE: u32 = crate::io::vector::MAX_SIDE;
@@ -86,7 +85,8 @@ type Densities = std::cell::RefCell<std::collections::HashMap<u32, Option<f32>>>
 /// rectangle and that face the side it was placed on (not the far side of a thin part), so a
 /// decal that reaches parts of the texture laid out denser than where it landed is drawn at their
 /// density; a ribbon and text along a curve take the largest over the triangles their curve runs
-/// through (the strip follows the curve, not a ball).
+/// through (the strip follows the curve, not a ball). For the units without a map's needs
+/// (`super::vector_maps::unit_pixels`): a stroke's stamps, and a unit whose map paints nothing.
 fn unit_density(
     (mesh, job, densities): (&LoadedMesh, &Job, &Densities),
     placed: &Placed,
@@ -133,16 +133,17 @@ fn unit_density(
     )
 }
 
-/// The pixel size a unit's vector images are rendered at: its image rectangle (`size`, model
-/// units) at the texel density it needs ([`unit_density`]), [`VECTOR_OVERSAMPLE`] pixels a texel, within
-/// the limits above and the adapter's.
-fn raster_size(size: [f32; 2], density: f32, max_side: u32) -> [u32; 2] {
-    let side = |s: f32| {
-        (s * density * VECTOR_OVERSAMPLE)
-            .ceil()
-            .clamp(8.0, max_side as f32)
-    };
-    let (mut w, mut h) = (side(size[0]), side(size[1]));
+/// The pixels along the image's x and y that a unit's image rectangle (`size`, model units) needs
+/// at texel density `density` ([`unit_density`]): [`VECTOR_OVERSAMPLE`] pixels a texel.
+fn density_pixels(size: [f32; 2], density: f32) -> [f32; 2] {
+    size.map(|s| s * density * VECTOR_OVERSAMPLE)
+}
+
+/// The pixel size a unit's vector images are rendered at, for `need` pixels along x and y
+/// ([`map_pixels`], [`density_pixels`]), within the limits above and the adapter's.
+fn raster_size(need: [f32; 2], max_side: u32) -> [u32; 2] {
+    let side = |s: f32| s.ceil().clamp(8.0, max_side as f32);
+    let (mut w, mut h) = (side(need[0]), side(need[1]));
     let pixels = w as f64 * h as f64;
     if pixels > VECTOR_MAX_PIXELS as f64 {
         let k = (VECTOR_MAX_PIXELS as f64 / pixels).sqrt() as f32;
@@ -153,9 +154,13 @@ fn raster_size(size: [f32; 2], density: f32, max_side: u32) -> [u32; 2] {
 }
 
 /// Sets [`Layer::raster`] of every layer with vector images (SVG files, text) in `job` and in
-/// the units of `placed`: per job layer, the largest any of its units needs at the largest texel
-/// density its image rectangle reaches ([`unit_density`]). Returns the job with the rasters set (`job` itself when no layer
-/// has vectors), and warns of a text's missing glyphs and of text cut at its curve's end.
+/// the units of `placed`: per job layer, the largest any of its units needs, from the unit's map
+/// (`super::vector_maps::Needs`: the size that gives a share of its texels two pixels a texel)
+/// or, for a stroke's stamps, from the densest texel layout its rectangle reaches
+/// ([`unit_density`]). The share is the largest of `super::vector_maps::SHARES` whose sizes fit
+/// [`VECTOR_BUDGET_PIXELS`]; past the last, [`within_budget`] scales them. Returns the job with
+/// the rasters set (`job` itself when no layer has vectors), and warns of a lowered share, of a
+/// text's missing glyphs and of text cut at its curve's end.
 pub(crate) fn set_rasters<'a>(
     engine: &Engine,
     mesh: &LoadedMesh,
@@ -170,21 +175,47 @@ pub(crate) fn set_rasters<'a>(
     let mean = std::sync::OnceLock::new();
     // Each triangle's density, computed once for the bake's units.
     let densities = std::cell::RefCell::new(std::collections::HashMap::new());
-    let mut sizes: Vec<Option<[u32; 2]>> = job
-        .layers
-        .iter()
-        .enumerate()
-        .map(|(l, layer)| {
-            layer.has_vectors().then(|| {
-                placed.units_of[l].clone().fold([0u32; 2], |px, u| {
-                    let density = unit_density((mesh, job, &densities), placed, u)
-                        .unwrap_or_else(|| *mean.get_or_init(|| mean_density(mesh, job)));
-                    let r = raster_size(placed.job.layers[u].size, density, max_side);
-                    [px[0].max(r[0]), px[1].max(r[1])]
-                })
+    let from_maps = super::vector_maps::unit_pixels(mesh, job, placed);
+    // Units without a map's needs (a stroke's stamps) take the density where they land.
+    let fixed: Vec<Option<[f32; 2]>> = (0..placed.job.layers.len())
+        .map(|u| {
+            let vectors = job.layers[placed.origin[u].0].has_vectors();
+            (vectors && from_maps[u].is_none()).then(|| {
+                let density = unit_density((mesh, job, &densities), placed, u)
+                    .unwrap_or_else(|| *mean.get_or_init(|| mean_density(mesh, job)));
+                density_pixels(placed.job.layers[u].size, density)
             })
         })
         .collect();
+    let sizes_at = |share: f64| -> Vec<Option<[u32; 2]>> {
+        let need = |u: usize| match &from_maps[u] {
+            Some(needs) => needs.at(share),
+            None => fixed[u].unwrap_or([0.0; 2]),
+        };
+        job.layers
+            .iter()
+            .enumerate()
+            .map(|(l, layer)| {
+                layer.has_vectors().then(|| {
+                    placed.units_of[l].clone().fold([0u32; 2], |px, u| {
+                        let r = raster_size(need(u), max_side);
+                        [px[0].max(r[0]), px[1].max(r[1])]
+                    })
+                })
+            })
+            .collect()
+    };
+    let (share, mut sizes) = largest_share(&sizes_at);
+    let shares = super::vector_maps::SHARES;
+    if share < shares[0] {
+        let percent = |s: f64| s * 100.0;
+        warnings.push(format!(
+            "the layers' vector images need {} pixels to give {:.0} % of the texels they paint two pixels a texel, above {VECTOR_BUDGET_PIXELS}; they are rendered for {:.0} % of them (fewer or smaller vector layers keep them sharp)",
+            total_pixels(&sizes_at(shares[0])),
+            percent(shares[0]),
+            percent(share)
+        ));
+    }
     within_budget(&mut sizes, warnings);
     let mut out = job.clone();
     for (l, (layer, px)) in out.layers.iter_mut().zip(sizes).enumerate() {
@@ -212,11 +243,7 @@ pub const VECTOR_BUDGET_PIXELS: u64 = 1 << 25;
 /// Scales every raster size down by one factor when together they pass
 /// [`VECTOR_BUDGET_PIXELS`], and warns.
 fn within_budget(sizes: &mut [Option<[u32; 2]>], warnings: &mut Vec<String>) {
-    let total: u64 = sizes
-        .iter()
-        .flatten()
-        .map(|p| p[0] as u64 * p[1] as u64)
-        .sum();
+    let total = total_pixels(sizes);
     if total <= VECTOR_BUDGET_PIXELS {
         return;
     }
@@ -228,6 +255,30 @@ fn within_budget(sizes: &mut [Option<[u32; 2]>], warnings: &mut Vec<String>) {
         "the layers' vector images need {total} pixels together, above {VECTOR_BUDGET_PIXELS}; each is rendered at {:.0} % of its size (fewer or smaller vector layers keep them sharp)",
         k * 100.0
     ));
+}
+
+/// The largest share of the texels the layers paint (`super::vector_maps::SHARES`) whose sizes
+/// (`sizes_at`) fit [`VECTOR_BUDGET_PIXELS`] together, with those sizes; the smallest share and
+/// its sizes when none does.
+fn largest_share(sizes_at: &dyn Fn(f64) -> Vec<Option<[u32; 2]>>) -> (f64, Vec<Option<[u32; 2]>>) {
+    let shares = super::vector_maps::SHARES;
+    for &s in &shares[..shares.len() - 1] {
+        let at = sizes_at(s);
+        if total_pixels(&at) <= VECTOR_BUDGET_PIXELS {
+            return (s, at);
+        }
+    }
+    let last = shares[shares.len() - 1];
+    (last, sizes_at(last))
+}
+
+/// The pixels of `sizes` together.
+fn total_pixels(sizes: &[Option<[u32; 2]>]) -> u64 {
+    sizes
+        .iter()
+        .flatten()
+        .map(|p| p[0] as u64 * p[1] as u64)
+        .sum()
 }
 
 /// Warnings of text layer `l`: characters its font lacks, and text cut at its curve's end.
@@ -280,11 +331,31 @@ mod tests {
         assert_eq!(warnings.len(), 1);
     }
 
+    /// Over the budget, the share of texels given two pixels a texel is lowered for all layers at
+    /// once: a layer whose needs spread (a planar decal over steep parts) shrinks, one whose
+    /// needs are even keeps its size (scaling both by one factor would shrink it too).
+    #[test]
+    fn a_lower_share_shrinks_the_spread_needs_first() {
+        // Layer 0: 95 % of its texels need 2,048 pixels a side, 5 % need 8,192; layer 1: 3,000.
+        let sizes_at = |share: f64| {
+            let spread = if share > 0.95 { 8192 } else { 2048 };
+            vec![Some([spread, spread]), None, Some([3000, 3000])]
+        };
+        assert!(total_pixels(&sizes_at(0.99)) > VECTOR_BUDGET_PIXELS);
+        let (share, sizes) = largest_share(&sizes_at);
+        assert_eq!(share, 0.95);
+        assert_eq!(sizes, [Some([2048, 2048]), None, Some([3000, 3000])]);
+        // Needs that fit at the first share keep it.
+        let small = |_: f64| vec![Some([1024, 1024])];
+        assert_eq!(largest_share(&small), (0.99, vec![Some([1024, 1024])]));
+    }
+
     /// A raster covers its rectangle at two pixels a texel, within the side limit.
     #[test]
     fn raster_sizes_follow_the_density() {
-        assert_eq!(raster_size([0.5, 0.25], 256.0, 8192), [256, 128]);
-        assert_eq!(raster_size([100.0, 1.0], 256.0, 8192), [8192, 512]);
-        assert_eq!(raster_size([0.001, 0.001], 256.0, 8192), [8, 8]);
+        let px = |size, density| raster_size(density_pixels(size, density), 8192);
+        assert_eq!(px([0.5, 0.25], 256.0), [256, 128]);
+        assert_eq!(px([100.0, 1.0], 256.0), [8192, 512]);
+        assert_eq!(px([0.001, 0.001], 256.0), [8, 8]);
     }
 }

@@ -3,7 +3,7 @@
 //! decals generated in code, one per blend style, a conformal decal on a horn tip (a cone chart), a painted stroke over the UV seam along its back,
 //! a blur stroke across the edges of the badge and a black patch beside it, and a ribbon of
 //! stripes tiled along a wave on the other flank, an SVG logo on the rump and a line of text
-//! along a flank (rendered from vectors at the texel density where they land). The badge is warped by a thin-plate spline; the
+//! along a flank (rendered from vectors at the sizes their maps need). The badge is warped by a thin-plate spline; the
 //! ribbon is also animated along its wave (`frames.json`), and the badge extracted back from the
 //! baked texture (`decalbake extract`). `decalbake demo` writes the scene's files (mesh,
 //! decal PNGs, job file) next to its outputs, so the job can be edited and re-run with `decalbake bake`.
@@ -12,7 +12,7 @@ use decalbake::io::image::{srgb_to_linear, LinearImage};
 use std::f32::consts::PI;
 
 /// The demo's vector logo (`decals/logo.svg`): a gradient disc with a tick and a ring, drawn by
-/// the bake at the texel density where it lands, not from a bitmap.
+/// the bake at the size its map needs, not from a bitmap.
 pub const LOGO_SVG: &str = r##"<svg xmlns="http://www.w3.org/2000/svg" width="100" height="100" viewBox="0 0 100 100">
   <defs>
     <linearGradient id="disc" x1="0" y1="0" x2="1" y2="1">

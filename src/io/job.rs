@@ -677,7 +677,8 @@ pub struct Layer {
     /// `path`; its image is the text's, [`super::text`]).
     pub text: Option<std::sync::Arc<super::text::Text>>,
     /// The pixel size its vector images (SVG files, text) are rendered at, set by the bake after
-    /// placement from the texel density where it lands; `None` before (their own size).
+    /// placement from what its map needs on the triangles it paints; `None` before (their own
+    /// size).
     pub raster: Option<[u32; 2]>,
 }
 

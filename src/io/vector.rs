@@ -3,8 +3,8 @@
 //! into paths with the bundled font) and rendered by `resvg` at the pixel size the bake asks for.
 //!
 //! A layer whose image, mask or channel image is an SVG (or whose kind is `"text"`, [`super::text`])
-//! is rendered after placement at the surface's texel density where it lands
-//! (`bake::place::vector_rasters`): twice the texels its image covers along each side, so each
+//! is rendered after placement at the size its map needs on the triangles it paints
+//! (`bake::vector::set_rasters`): twice the texels its image covers along each side, so each
 //! texel's samples read the image's first mipmap level and edges carry the bake's own
 //! anti-aliasing, never a fixed bitmap's blur. Before placement (the intrinsic size, e.g. a ribbon's
 //! aspect) the SVG's own `width` and `height` are used.

@@ -1,0 +1,228 @@
+// SPDX-License-Identifier: MIT OR Apache-2.0
+//! The pixels a unit's vector images need, from the unit's own map: the Jacobian of texel →
+//! image coordinates on every triangle the unit paints ([`unit_pixels`]). The map is the one the
+//! map stage computes, by its CPU twin ([`crate::bake::cpu::layer_coords_cpu`],
+//! [`crate::bake::cpu::ribbon_coords_cpu`]), and the triangles are the selection's
+//! ([`crate::bake::cpu::select_triangles`]), so a planar projection that compresses the image on a
+//! slope, a chart whose scale grows away from its centre, a warp and a denser part of the UV
+//! layout all raise the size where they do, and along the axis where they do.
+
+use super::cpu::{layer_coords_cpu, ribbon_coords_cpu, select_triangles};
+use super::engine::LoadedMesh;
+use super::place::Placed;
+use crate::io::job::Job;
+use glam::Vec2;
+use rayon::prelude::*;
+
+/// How many image pixels a vector image gets per texel it covers, along each side: its samples
+/// then read the first mipmap level, a box over 2 × 2 pixels, and edges keep the bake's own
+/// anti-aliasing.
+pub const VECTOR_OVERSAMPLE: f32 = 2.0;
+
+/// The shares of the texels a unit paints whose triangles get [`VECTOR_OVERSAMPLE`] pixels a
+/// texel, tried in order until the bake's vector images fit their budget
+/// (`super::vector::VECTOR_BUDGET_PIXELS`): never all of them, so that the steepest slopes of a
+/// planar projection and slivers do not decide the size of a whole image for a few texels.
+pub const SHARES: [f64; 8] = [0.99, 0.98, 0.95, 0.9, 0.8, 0.7, 0.6, 0.5];
+
+/// What one unit's triangles need ([`triangle_pixels`]): along x and along y, each need with
+/// the triangle's texels, ascending.
+#[derive(Debug, Clone)]
+pub(crate) struct Needs {
+    axes: [Vec<(f32, f64)>; 2],
+    texels: f64,
+}
+
+impl Needs {
+    /// From (need along x and y, texels) per triangle; `None` when there are none.
+    fn new(needs: &[([f32; 2], f64)]) -> Option<Needs> {
+        if needs.is_empty() {
+            return None;
+        }
+        let axes = [0, 1].map(|a| {
+            let mut v: Vec<(f32, f64)> = needs.iter().map(|n| (n.0[a], n.1)).collect();
+            v.sort_by(|p, q| p.0.total_cmp(&q.0));
+            v
+        });
+        let texels = needs.iter().map(|n| n.1).sum();
+        Some(Needs { axes, texels })
+    }
+
+    /// The least size along x and y that `share` of the unit's texels are content with.
+    pub(crate) fn at(&self, share: f64) -> [f32; 2] {
+        [0, 1].map(|a| covering(&self.axes[a], self.texels * share))
+    }
+}
+
+/// Per unit of `placed`: what its triangles need along the image's x and y, from its map
+/// ([`map_pixels`]); `None` for a unit of a layer without vector images, a stroke's stamp
+/// (its stamps are many and small: the texel density where they land decides,
+/// `super::vector::unit_density`), and a unit whose map paints nothing. The units are mapped in
+/// parallel, each on its own.
+pub(crate) fn unit_pixels(mesh: &LoadedMesh, job: &Job, placed: &Placed) -> Vec<Option<Needs>> {
+    let mapped = |u: usize| {
+        let (l, _) = placed.origin[u];
+        job.layers[l].has_vectors() && !placed.strokes.iter().any(|s| s.units.contains(&u))
+    };
+    (0..placed.job.layers.len())
+        .into_par_iter()
+        .map(|u| mapped(u).then(|| map_pixels(mesh, placed, u)).flatten())
+        .collect()
+}
+
+/// Unit `u`'s map by the CPU twin of the map stage: (x, y, extra, valid) per welded vertex, and
+/// a cone chart's cone.
+fn unit_map(
+    mesh: &LoadedMesh,
+    placed: &Placed,
+    u: usize,
+) -> (Vec<[f32; 4]>, Option<crate::maps::chart::cone::Cone>) {
+    match placed.ribbons.get(u).and_then(Option::as_ref) {
+        Some(r) => (ribbon_coords_cpu(&mesh.topo, r), None),
+        None => {
+            let (layer, frame) = (&placed.job.layers[u], &placed.frames[u]);
+            let c = layer_coords_cpu(
+                &mesh.topo,
+                &mesh.surface,
+                layer,
+                frame,
+                &placed.placements[u],
+                true,
+            );
+            (c.coords, c.cone)
+        }
+    }
+}
+
+/// The pixels along the image's x and y that unit `u`'s vector images need: on each triangle it
+/// paints, the map from image coordinates to texels is affine, J = E D⁻¹ (E the triangle's texel
+/// edges, D its image edges); one image pixel along x spans |J e_x| / width texels, so two pixels a
+/// texel need a width of 2 |J e_x|, and likewise a height of 2 |J e_y|. A tiled ribbon's image
+/// repeats along x, a warp samples it at T(image point) (the triangle's corners turned by T).
+/// `None` when it paints no triangle.
+pub(crate) fn map_pixels(mesh: &LoadedMesh, placed: &Placed, u: usize) -> Option<Needs> {
+    let job = &placed.job;
+    let (layer, frame) = (&job.layers[u], &placed.frames[u]);
+    let uvs = mesh.mesh.uv_sets.get(job.uv_set as usize)?;
+    let (coords, cone) = unit_map(mesh, placed, u);
+    let facing = crate::maps::method(layer.method).front_facing();
+    let tex = [job.width, job.height];
+    let sel = select_triangles(
+        &mesh.mesh,
+        &mesh.topo,
+        uvs,
+        (&coords, cone.as_ref()),
+        frame,
+        facing,
+        tex,
+    );
+    let repeats = placed
+        .ribbons
+        .get(u)
+        .and_then(Option::as_ref)
+        .map_or(0.0, |r| r.repeats);
+    let warp = (repeats <= 0.0)
+        .then(|| crate::maps::warp::Tps::fit(&layer.warp))
+        .flatten();
+    let scale = Vec2::new(tex[0] as f32, tex[1] as f32);
+    let image_point = |c: [f32; 4]| {
+        let (mut x, mut y) = (c[0], c[1]);
+        if let Some(cone) = &cone {
+            let z = cone.apply(glam::DVec2::new(x as f64, y as f64));
+            (x, y) = (z.x as f32, z.y as f32);
+        }
+        let p = [x / layer.size[0] + 0.5, 0.5 - y / layer.size[1]];
+        Vec2::from(warp.as_ref().map_or(p, |t| t.eval(p)))
+    };
+    let mut needs: Vec<([f32; 2], f64)> = Vec::with_capacity(sel.triangles.len());
+    for &t in &sel.triangles {
+        let welded = mesh.topo.triangles[t as usize].map(|v| coords[v as usize]);
+        if welded.iter().any(|c| c[3] < 0.5) {
+            continue;
+        }
+        let i = welded.map(image_point);
+        let e = mesh.mesh.triangles[t as usize].map(|v| uvs[v as usize] * scale);
+        if let Some(need) = triangle_pixels(e, i) {
+            let texels = ((e[1] - e[0]).perp_dot(e[2] - e[0]).abs() * 0.5) as f64;
+            let need = match repeats > 0.0 {
+                true => [need[0] / repeats, need[1]],
+                false => need,
+            };
+            needs.push((need, texels));
+        }
+    }
+    Needs::new(&needs)
+}
+
+/// The pixels along x and y a triangle with texel corners `e` and image corners `i` needs:
+/// [`VECTOR_OVERSAMPLE`] times the texels one image unit spans along each axis (the columns of
+/// J = E D⁻¹); `None` for a triangle degenerate in either space.
+pub fn triangle_pixels(e: [Vec2; 3], i: [Vec2; 3]) -> Option<[f32; 2]> {
+    let (e1, e2) = (e[1] - e[0], e[2] - e[0]);
+    let (d1, d2) = (i[1] - i[0], i[2] - i[0]);
+    let det = d1.perp_dot(d2);
+    if e1.perp_dot(e2) == 0.0 || !det.is_normal() {
+        return None;
+    }
+    // D⁻¹ = [d2.y, −d2.x; −d1.y, d1.x] / det; J's columns are E times D⁻¹'s columns.
+    let jx = (e1 * d2.y - e2 * d1.y) / det;
+    let jy = (e2 * d1.x - e1 * d2.x) / det;
+    let need = [jx.length(), jy.length()].map(|s| s * VECTOR_OVERSAMPLE);
+    need.iter().all(|n| n.is_finite()).then_some(need)
+}
+
+/// The least need in `sorted` (need, texels, ascending) whose texels and those of every smaller
+/// need reach `texels`; 0 when there are none.
+fn covering(sorted: &[(f32, f64)], texels: f64) -> f32 {
+    let mut below = 0.0;
+    for &(need, t) in sorted {
+        below += t;
+        if below >= texels {
+            return need;
+        }
+    }
+    sorted.last().map_or(0.0, |n| n.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An image stretched twice as fast along x as y over texels: x needs half the pixels of y;
+    /// a turned map gives the same lengths; a degenerate triangle none.
+    #[test]
+    fn triangle_pixels_are_the_jacobians_columns() {
+        let e = [Vec2::ZERO, Vec2::new(100.0, 0.0), Vec2::new(0.0, 100.0)];
+        let i = [Vec2::ZERO, Vec2::new(0.5, 0.0), Vec2::new(0.0, 0.25)];
+        let need = triangle_pixels(e, i).unwrap();
+        assert_eq!(need, [400.0, 800.0]);
+        // Texels turned by 90°: the same spans.
+        let turned = e.map(|p| Vec2::new(-p.y, p.x));
+        let t = triangle_pixels(turned, i).unwrap();
+        assert!(
+            (t[0] - 400.0).abs() < 1e-3 && (t[1] - 800.0).abs() < 1e-3,
+            "{t:?}"
+        );
+        let flat = [Vec2::ZERO, Vec2::new(0.5, 0.0), Vec2::new(1.0, 0.0)];
+        assert_eq!(triangle_pixels(e, flat), None);
+    }
+
+    /// The size at a share leaves out the last texels, not the last triangle; each axis is sorted
+    /// on its own.
+    #[test]
+    fn the_size_at_a_share_leaves_out_the_last_texels() {
+        let needs = Needs::new(&[
+            ([10.0, 3.0], 98.0),
+            ([20.0, 2.0], 1.5),
+            ([1000.0, 1.0], 0.5),
+        ])
+        .unwrap();
+        assert_eq!(needs.at(0.99), [20.0, 3.0]);
+        assert_eq!(needs.at(0.5), [10.0, 3.0]);
+        assert_eq!(needs.at(1.0), [1000.0, 3.0]);
+        let big = Needs::new(&[([10.0, 1.0], 90.0), ([1000.0, 3.0], 10.0)]).unwrap();
+        assert_eq!(big.at(0.99), [1000.0, 3.0]);
+        assert_eq!(big.at(0.85), [10.0, 1.0]);
+        assert!(Needs::new(&[]).is_none());
+    }
+}
