@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: MIT OR Apache-2.0
 //! Vector graphics and text on the surface (Schmidt et al. 2006, §6.2): SVG images rendered at the
-//! texel density where they land, and text layers shaped by rustybuzz, as decals and along curves.
+//! sizes their maps need, and text layers shaped by rustybuzz, as decals and along curves.
 mod common;
 
 use decalbake::io::image::{linear_to_srgb, srgb_to_linear};
@@ -893,7 +893,8 @@ fn svg_tree(text: &str) -> resvg::usvg::Tree {
 /// one texture height a unit on both halves), a decal placed right of the line but reaching across
 /// it gets the left's density along x and the plane's along y (rendered at the density where it
 /// landed, it would get a quarter of the pixels along x; at the isotropic mean of the two axes,
-/// 0.79 of them and 1.26 times those along y); one wholly on the right keeps the right's.
+/// 0.79 of them and 1.26 times those along y); one wholly on the right keeps the right's. The
+/// same decal by the default method (an exponential map) gets what the planar one gets.
 #[test]
 fn vector_raster_follows_the_densest_part_a_decal_reaches() {
     let engine = common::engine();
@@ -905,7 +906,8 @@ fn vector_raster_follows_the_densest_part_a_decal_reaches() {
         "texture": { "width": 512, "height": 512, "padding": 0, "base": [1.0, 1.0, 1.0, 1.0] },
         "layers": [
             { "image": "shapes.svg", "at": [0.6, 0.5, 0.0], "size": [0.32, 0.32], "up": [0, 1, 0], "method": "planar" },
-            { "image": "shapes.svg", "at": [0.85, 0.5, 0.0], "size": [0.2, 0.2], "up": [0, 1, 0], "method": "planar" }
+            { "image": "shapes.svg", "at": [0.85, 0.5, 0.0], "size": [0.2, 0.2], "up": [0, 1, 0], "method": "planar" },
+            { "image": "shapes.svg", "at": [0.6, 0.5, 0.0], "size": [0.32, 0.32], "up": [0, 1, 0] }
         ] })
     .to_string();
     let job = decalbake::Job::parse(&job, &dir.join("job.json"), &dir, &dir).unwrap();
@@ -925,6 +927,22 @@ fn vector_raster_follows_the_densest_part_a_decal_reaches() {
         [want(0.2, coarse), want(0.2, along_y)],
         "wholly on the coarse half"
     );
+    // The default method's exponential map is the plane's own length: the same as planar.
+    assert_eq!(px(2), px(0), "by the exponential map");
+    // The mesh keeps each unit's needs: the same layers moved, on the same mesh, are mapped
+    // again (both now wholly on the coarse half), not read back from the first bake.
+    let moved = serde_json::json!({ "mesh": "plane.glb",
+        "texture": { "width": 512, "height": 512, "padding": 0, "base": [1.0, 1.0, 1.0, 1.0] },
+        "layers": [
+            { "image": "shapes.svg", "at": [0.85, 0.5, 0.0], "size": [0.32, 0.32], "up": [0, 1, 0], "method": "planar" },
+            { "image": "shapes.svg", "at": [0.62, 0.5, 0.0], "size": [0.2, 0.2], "up": [0, 1, 0], "method": "planar" }
+        ] })
+    .to_string();
+    let moved = decalbake::Job::parse(&moved, &dir.join("moved.json"), &dir, &dir).unwrap();
+    let again = engine.bake(&mesh, &moved).unwrap();
+    let px = |l: usize| again.report.layers[l].raster_px.unwrap();
+    assert_eq!(px(0), [want(0.32, coarse), want(0.32, along_y)], "moved");
+    assert_eq!(px(1), [want(0.2, coarse), want(0.2, along_y)], "moved");
 }
 
 /// A planar decal over a fold: the plane's right half turns down by 60°, its UVs laid out by

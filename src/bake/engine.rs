@@ -60,9 +60,23 @@ pub struct LoadedMesh {
     pub(crate) islands: Mutex<HashMap<IslandKey, Arc<Islands>>>,
     /// The same for tiled bakes, on the CPU (`bake/tiles.rs`).
     pub(crate) tiled_islands: Mutex<HashMap<IslandKey, Arc<TiledIslands>>>,
+    /// What each vector unit's map needs (`bake/vector_maps.rs`), by a key that names everything
+    /// the map depends on, so that a bake's tile windows and a live bake's edits map each unit
+    /// once.
+    pub(crate) vector_needs: Mutex<HashMap<String, Option<Arc<VectorNeeds>>>>,
 }
 
+/// One unit's needs along the image's x and y (pixels, with the texels that need them),
+/// ascending ([`LoadedMesh::vector_needs`]).
+pub(crate) type VectorNeeds = [Vec<(f32, f64)>; 2];
+
 impl LoadedMesh {
+    /// Forgets what its vector layers' maps needed (kept so that tile windows and live edits map
+    /// each unit once), so that the next bake maps them as a one-off bake does: for benchmarks.
+    pub fn forget_vector_needs(&self) {
+        self.vector_needs.lock().expect("vector needs").clear();
+    }
+
     /// The welded surface as the map kernels read it.
     pub fn surface_ref(&self) -> crate::mesh::SurfaceRef<'_> {
         crate::mesh::SurfaceRef {
@@ -779,6 +793,7 @@ impl Engine {
             material_texture: std::sync::OnceLock::new(),
             islands: Mutex::new(HashMap::new()),
             tiled_islands: Mutex::new(HashMap::new()),
+            vector_needs: Mutex::new(HashMap::new()),
         })
     }
 

@@ -829,8 +829,8 @@ impl<'a> LiveBake<'a> {
     }
 }
 
-/// Places `job` and loads its images, as a bake does (vector images at the density where they
-/// land), refusing a layer of more than one unit and more units than the slots hold.
+/// Places `job` and loads its images, as a bake does (vector images at the sizes their maps
+/// need), refusing a layer of more than one unit and more units than the slots hold.
 fn place_and_load(
     engine: &Engine,
     mesh: &LoadedMesh,
@@ -854,7 +854,7 @@ fn place_and_load(
             detail: format!("a live bake on this mesh holds at most {capacity} layers"),
         });
     }
-    let job = &*super::vector::set_rasters(engine, mesh, job, &mut placed, &mut log.warnings);
+    let job = &*super::vector::set_rasters(engine, mesh, job, &mut placed, log);
     let images = images::load(engine, mesh, job)?.for_units(&placed.origin);
     Ok((placed, images))
 }

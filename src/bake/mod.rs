@@ -233,7 +233,7 @@ pub(crate) fn run_in(
     // Images after placement: vector images are rendered at the sizes their maps need.
     let t = Instant::now();
     on_stage("images");
-    let job = &*vector::set_rasters(engine, mesh, job, &mut placed, &mut log.warnings);
+    let job = &*vector::set_rasters(engine, mesh, job, &mut placed, &mut log);
     let images = images::load(engine, mesh, job)?;
     log.timings.images_ms = ms(t);
     // From here on the stages work on units (a decal is one, a stroke one per stamp).

@@ -104,8 +104,12 @@ pub struct Timings {
     pub weld_ms: f64,
     /// Uploading the mesh.
     pub upload_ms: f64,
-    /// Decoding images and uploading them.
+    /// Decoding images and uploading them (vector images: rendering them), and sizing the
+    /// vector images (`vector_maps_ms`).
     pub images_ms: f64,
+    /// Mapping the vector layers' units on the CPU to size their images, included in
+    /// `images_ms` (0 without vector layers, and for units the mesh has mapped before).
+    pub vector_maps_ms: f64,
     /// Placement on the GPU.
     pub placement_ms: f64,
     /// Conformal charts (selection, refinement, GPU solves), included in `compose_ms`.

@@ -200,6 +200,7 @@ pub(crate) fn merge(a: Option<Report>, b: Report) -> Report {
     }
     let (ta, tb) = (&mut a.timings, &b.timings);
     ta.images_ms += tb.images_ms;
+    ta.vector_maps_ms += tb.vector_maps_ms;
     ta.placement_ms += tb.placement_ms;
     ta.compose_ms += tb.compose_ms;
     ta.padding_ms += tb.padding_ms;

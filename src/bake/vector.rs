@@ -166,8 +166,9 @@ pub(crate) fn set_rasters<'a>(
     mesh: &LoadedMesh,
     job: &'a Job,
     placed: &mut Placed,
-    warnings: &mut Vec<String>,
+    log: &mut super::stage::Log,
 ) -> std::borrow::Cow<'a, Job> {
+    let warnings = &mut log.warnings;
     if !job.layers.iter().any(Layer::has_vectors) {
         return std::borrow::Cow::Borrowed(job);
     }
@@ -175,7 +176,9 @@ pub(crate) fn set_rasters<'a>(
     let mean = std::sync::OnceLock::new();
     // Each triangle's density, computed once for the bake's units.
     let densities = std::cell::RefCell::new(std::collections::HashMap::new());
+    let t = std::time::Instant::now();
     let from_maps = super::vector_maps::unit_pixels(mesh, job, placed);
+    log.timings.vector_maps_ms = super::stage::ms(t);
     // Units without a map's needs (a stroke's stamps) take the density where they land.
     let fixed: Vec<Option<[f32; 2]>> = (0..placed.job.layers.len())
         .map(|u| {

@@ -8,7 +8,7 @@
 //! layout all raise the size where they do, and along the axis where they do.
 
 use super::cpu::{layer_coords_cpu, ribbon_coords_cpu, select_triangles};
-use super::engine::LoadedMesh;
+use super::engine::{LoadedMesh, VectorNeeds};
 use super::place::Placed;
 use crate::io::job::Job;
 use glam::Vec2;
@@ -29,7 +29,7 @@ pub const SHARES: [f64; 8] = [0.99, 0.98, 0.95, 0.9, 0.8, 0.7, 0.6, 0.5];
 /// the triangle's texels, ascending.
 #[derive(Debug, Clone)]
 pub(crate) struct Needs {
-    axes: [Vec<(f32, f64)>; 2],
+    axes: std::sync::Arc<VectorNeeds>,
     texels: f64,
 }
 
@@ -44,8 +44,13 @@ impl Needs {
             v.sort_by(|p, q| p.0.total_cmp(&q.0));
             v
         });
-        let texels = needs.iter().map(|n| n.1).sum();
-        Some(Needs { axes, texels })
+        Some(Needs::of(std::sync::Arc::new(axes)))
+    }
+
+    /// From the needs kept for a unit.
+    fn of(axes: std::sync::Arc<VectorNeeds>) -> Needs {
+        let texels = axes[0].iter().map(|n| n.1).sum();
+        Needs { axes, texels }
     }
 
     /// The least size along x and y that `share` of the unit's texels are content with.
@@ -66,8 +71,38 @@ pub(crate) fn unit_pixels(mesh: &LoadedMesh, job: &Job, placed: &Placed) -> Vec<
     };
     (0..placed.job.layers.len())
         .into_par_iter()
-        .map(|u| mapped(u).then(|| map_pixels(mesh, placed, u)).flatten())
+        .map(|u| mapped(u).then(|| kept_pixels(mesh, placed, u)).flatten())
         .collect()
+}
+
+/// The most units whose needs a mesh keeps; past it the kept ones are forgotten.
+const KEPT_UNITS: usize = 4096;
+
+/// [`map_pixels`] of unit `u`, kept by the mesh ([`LoadedMesh::vector_needs`]) under a key that
+/// names what the map and the selection read: the unit's layer (every field), frame, placement
+/// and ribbon, the UV set and the texture's size.
+fn kept_pixels(mesh: &LoadedMesh, placed: &Placed, u: usize) -> Option<Needs> {
+    let job = &placed.job;
+    let key = format!(
+        "{:?}|{:?}|{:?}|{:?}|{}|{}x{}",
+        job.layers[u],
+        placed.frames[u],
+        placed.placements[u],
+        placed.ribbons.get(u),
+        job.uv_set,
+        job.width,
+        job.height
+    );
+    if let Some(kept) = mesh.vector_needs.lock().expect("vector needs").get(&key) {
+        return kept.clone().map(Needs::of);
+    }
+    let needs = map_pixels(mesh, placed, u);
+    let mut kept = mesh.vector_needs.lock().expect("vector needs");
+    if kept.len() >= KEPT_UNITS {
+        kept.clear();
+    }
+    kept.insert(key, needs.as_ref().map(|n| n.axes.clone()));
+    needs
 }
 
 /// Unit `u`'s map by the CPU twin of the map stage: (x, y, extra, valid) per welded vertex, and
@@ -97,9 +132,12 @@ fn unit_map(
 /// The pixels along the image's x and y that unit `u`'s vector images need: on each triangle it
 /// paints, the map from image coordinates to texels is affine, J = E D⁻¹ (E the triangle's texel
 /// edges, D its image edges); one image pixel along x spans |J e_x| / width texels, so two pixels a
-/// texel need a width of 2 |J e_x|, and likewise a height of 2 |J e_y|. A tiled ribbon's image
-/// repeats along x, a warp samples it at T(image point) (the triangle's corners turned by T).
-/// `None` when it paints no triangle.
+/// texel need a width of 2 |J e_x|, and likewise a height of 2 |J e_y|. Where the image is not
+/// sampled at the image point itself, J is taken through the sampling's own Jacobian S at the
+/// triangle's centre: a tiled ribbon's image repeats `repeats` times along x, and a warp samples
+/// it at T(image point) (of each copy), so J S⁻¹. A cone chart's triangles that its cut crosses
+/// are left out (their corners open onto both sides of the cut). `None` when it paints no
+/// triangle.
 pub(crate) fn map_pixels(mesh: &LoadedMesh, placed: &Placed, u: usize) -> Option<Needs> {
     let job = &placed.job;
     let (layer, frame) = (&job.layers[u], &placed.frames[u]);
@@ -121,9 +159,10 @@ pub(crate) fn map_pixels(mesh: &LoadedMesh, placed: &Placed, u: usize) -> Option
         .get(u)
         .and_then(Option::as_ref)
         .map_or(0.0, |r| r.repeats);
-    let warp = (repeats <= 0.0)
-        .then(|| crate::maps::warp::Tps::fit(&layer.warp))
-        .flatten();
+    let sampling = Sampling {
+        repeats,
+        warp: crate::maps::warp::Tps::fit(&layer.warp),
+    };
     let scale = Vec2::new(tex[0] as f32, tex[1] as f32);
     let image_point = |c: [f32; 4]| {
         let (mut x, mut y) = (c[0], c[1]);
@@ -131,8 +170,7 @@ pub(crate) fn map_pixels(mesh: &LoadedMesh, placed: &Placed, u: usize) -> Option
             let z = cone.apply(glam::DVec2::new(x as f64, y as f64));
             (x, y) = (z.x as f32, z.y as f32);
         }
-        let p = [x / layer.size[0] + 0.5, 0.5 - y / layer.size[1]];
-        Vec2::from(warp.as_ref().map_or(p, |t| t.eval(p)))
+        Vec2::new(x / layer.size[0] + 0.5, 0.5 - y / layer.size[1])
     };
     let mut needs: Vec<([f32; 2], f64)> = Vec::with_capacity(sel.triangles.len());
     for &t in &sel.triangles {
@@ -140,24 +178,68 @@ pub(crate) fn map_pixels(mesh: &LoadedMesh, placed: &Placed, u: usize) -> Option
         if welded.iter().any(|c| c[3] < 0.5) {
             continue;
         }
+        if let Some(cone) = &cone {
+            if cone.cut_crosses(welded.map(|c| glam::DVec2::new(c[0] as f64, c[1] as f64))) {
+                continue;
+            }
+        }
         let i = welded.map(image_point);
         let e = mesh.mesh.triangles[t as usize].map(|v| uvs[v as usize] * scale);
-        if let Some(need) = triangle_pixels(e, i) {
+        let Some(j) = triangle_jacobian(e, i) else {
+            continue;
+        };
+        let j = match sampling.jacobian((i[0] + i[1] + i[2]) / 3.0) {
+            Some(s) if s.determinant().abs() > 1e-12 => j * s.inverse(),
+            Some(_) => continue,
+            None => j,
+        };
+        let need = [j.x_axis.length(), j.y_axis.length()].map(|s| s * VECTOR_OVERSAMPLE);
+        if need.iter().all(|n| n.is_finite()) {
             let texels = ((e[1] - e[0]).perp_dot(e[2] - e[0]).abs() * 0.5) as f64;
-            let need = match repeats > 0.0 {
-                true => [need[0] / repeats, need[1]],
-                false => need,
-            };
             needs.push((need, texels));
         }
     }
     Needs::new(&needs)
 }
 
-/// The pixels along x and y a triangle with texel corners `e` and image corners `i` needs:
-/// [`VECTOR_OVERSAMPLE`] times the texels one image unit spans along each axis (the columns of
-/// J = E D⁻¹); `None` for a triangle degenerate in either space.
-pub fn triangle_pixels(e: [Vec2; 3], i: [Vec2; 3]) -> Option<[f32; 2]> {
+/// How the raster samples a unit's image at an image point: copies along x, then a warp.
+struct Sampling {
+    /// Copies of the image along x (a tiled ribbon); 0 for one.
+    repeats: f32,
+    /// The layer's thin-plate spline, applied to each copy.
+    warp: Option<crate::maps::warp::Tps>,
+}
+
+impl Sampling {
+    /// The Jacobian of the sampled point over the image point at `p`; `None` where the image is
+    /// sampled at the image point itself. The warp's by central differences.
+    fn jacobian(&self, p: Vec2) -> Option<glam::Mat2> {
+        let r = if self.repeats > 0.0 {
+            self.repeats
+        } else {
+            1.0
+        };
+        let copies = glam::Mat2::from_diagonal(Vec2::new(r, 1.0));
+        let Some(t) = &self.warp else {
+            return (self.repeats > 0.0).then_some(copies);
+        };
+        let x = if self.repeats > 0.0 {
+            (p.x * r).rem_euclid(1.0)
+        } else {
+            p.x
+        };
+        let h = 1e-3;
+        let at = |dx: f32, dy: f32| Vec2::from(t.eval([x + dx, p.y + dy]));
+        let tx = (at(h, 0.0) - at(-h, 0.0)) / (2.0 * h);
+        let ty = (at(0.0, h) - at(0.0, -h)) / (2.0 * h);
+        Some(glam::Mat2::from_cols(tx, ty) * copies)
+    }
+}
+
+/// The Jacobian of texels over image coordinates of a triangle with texel corners `e` and image
+/// corners `i` (J = E D⁻¹; its columns are the texels one image unit spans along x and y); `None`
+/// for a triangle degenerate in either space.
+fn triangle_jacobian(e: [Vec2; 3], i: [Vec2; 3]) -> Option<glam::Mat2> {
     let (e1, e2) = (e[1] - e[0], e[2] - e[0]);
     let (d1, d2) = (i[1] - i[0], i[2] - i[0]);
     let det = d1.perp_dot(d2);
@@ -167,8 +249,16 @@ pub fn triangle_pixels(e: [Vec2; 3], i: [Vec2; 3]) -> Option<[f32; 2]> {
     // D⁻¹ = [d2.y, −d2.x; −d1.y, d1.x] / det; J's columns are E times D⁻¹'s columns.
     let jx = (e1 * d2.y - e2 * d1.y) / det;
     let jy = (e2 * d1.x - e1 * d2.x) / det;
-    let need = [jx.length(), jy.length()].map(|s| s * VECTOR_OVERSAMPLE);
-    need.iter().all(|n| n.is_finite()).then_some(need)
+    Some(glam::Mat2::from_cols(jx, jy))
+}
+
+/// The pixels along x and y a triangle with texel corners `e` and image corners `i` needs, sampled
+/// at the image point itself: [`VECTOR_OVERSAMPLE`] times the lengths of the columns of
+/// [`triangle_jacobian`].
+#[cfg(test)]
+fn triangle_pixels(e: [Vec2; 3], i: [Vec2; 3]) -> Option<[f32; 2]> {
+    let j = triangle_jacobian(e, i)?;
+    Some([j.x_axis.length(), j.y_axis.length()].map(|s| s * VECTOR_OVERSAMPLE))
 }
 
 /// The least need in `sorted` (need, texels, ascending) whose texels and those of every smaller
@@ -205,6 +295,39 @@ mod tests {
         );
         let flat = [Vec2::ZERO, Vec2::new(0.5, 0.0), Vec2::new(1.0, 0.0)];
         assert_eq!(triangle_pixels(e, flat), None);
+    }
+
+    /// A tiled image's copies along x and a warp that doubles x divide what the image needs along
+    /// x by the copies and by two; a plain image is sampled where it lies.
+    #[test]
+    fn the_sampling_jacobian_takes_copies_and_warps() {
+        let plain = Sampling {
+            repeats: 0.0,
+            warp: None,
+        };
+        assert_eq!(plain.jacobian(Vec2::splat(0.5)), None);
+        let tiled = Sampling {
+            repeats: 4.0,
+            warp: None,
+        };
+        let s = tiled.jacobian(Vec2::splat(0.3)).unwrap();
+        assert_eq!(s, glam::Mat2::from_diagonal(Vec2::new(4.0, 1.0)));
+        // T(x, y) = (2x − 0.5, y): four pairs [from, to] with T(to) = from, at the corners (which
+        // are then not pinned), fit it exactly (affine, no bending).
+        let pairs = [[0.0f32, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]
+            .map(|p| [[2.0 * p[0] - 0.5, p[1]], p]);
+        let warp = crate::maps::warp::Tps::fit(&pairs);
+        assert!(warp.is_some());
+        let warped = Sampling { repeats: 3.0, warp };
+        let s = warped.jacobian(Vec2::new(0.7, 0.4)).unwrap();
+        assert!((s.x_axis - Vec2::new(6.0, 0.0)).length() < 1e-2, "{s:?}");
+        assert!((s.y_axis - Vec2::new(0.0, 1.0)).length() < 1e-2, "{s:?}");
+        // What a triangle needs along x through it: a sixth.
+        let e = [Vec2::ZERO, Vec2::new(100.0, 0.0), Vec2::new(0.0, 100.0)];
+        let i = [Vec2::ZERO, Vec2::new(0.5, 0.0), Vec2::new(0.0, 0.25)];
+        let j = triangle_jacobian(e, i).unwrap() * s.inverse();
+        assert!((j.x_axis.length() - 200.0 / 6.0).abs() < 0.1, "{j:?}");
+        assert!((j.y_axis.length() - 400.0).abs() < 0.5, "{j:?}");
     }
 
     /// The size at a share leaves out the last texels, not the last triangle; each axis is sorted

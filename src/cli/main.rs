@@ -176,8 +176,8 @@ struct BenchArgs {
     /// the mesh subdivided 2 and 3 times, or `--subdivide` times; then a batch of small maps).
     #[arg(long)]
     geodesic: bool,
-    /// Decal method of the bake benchmark's layers: `planar` (default) or `expmap` (then the
-    /// bake includes every decal's exponential map).
+    /// Decal method of the bake benchmark's layers and of `--vector`'s SVG decals: `planar`
+    /// (default) or `expmap` (then the bake includes every decal's exponential map).
     #[arg(long, default_value = "planar")]
     method: String,
     /// With `--geodesic`: the paper's plain update instead of the smooth mode.
@@ -443,7 +443,7 @@ fn layer_bench(
     which: &str,
     mesh: Option<PathBuf>,
     (sizes, decals, reps): (Vec<u32>, &[usize], usize),
-    adaptive: bool,
+    (adaptive, method): (bool, &str),
 ) -> Result<()> {
     let mesh = mesh.unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/bob.glb"));
     if which == "edit" {
@@ -465,6 +465,7 @@ fn layer_bench(
                 d => d[0],
             },
             reps,
+            method: method.to_string(),
         };
         return bench::vector::run(engine, &opts, |v| println!("{v}"));
     }
@@ -519,7 +520,13 @@ fn bench_cmd(backend: Option<&str>, args: BenchArgs) -> Result<()> {
             (_, true) => "edit",
             _ => "channels",
         };
-        return layer_bench(&engine, which, mesh, (sizes, &decals, reps), adaptive);
+        return layer_bench(
+            &engine,
+            which,
+            mesh,
+            (sizes, &decals, reps),
+            (adaptive, &method),
+        );
     }
     if let Some(dir) = corpus {
         return bench::corpus::run(&engine, &dir, |v| println!("{v}"));

@@ -2,7 +2,7 @@
 //! Text layers (`"kind": "text"`): a line of UTF-8 text shaped by `rustybuzz` (kerning, ligatures,
 //! right-to-left scripts, in the font's own order of glyphs), its outlines read from the font by
 //! `ttf-parser`, and written as one SVG document that goes through the same vector path as an SVG
-//! image ([`super::vector`]): rendered at the texel density where the layer lands.
+//! image ([`super::vector`]): rendered at the size the layer's map needs where it paints.
 //!
 //! | field | default |
 //! |---|---|

@@ -34,6 +34,8 @@ pub struct VectorBenchOptions {
     pub decals: usize,
     /// Timed repetitions per variant (median reported).
     pub reps: usize,
+    /// The decals' method (`--method`: `planar` by default).
+    pub method: String,
 }
 
 /// Lines of text in the glyph workload, and glyphs a line (1,000 in all).
@@ -66,7 +68,7 @@ fn run_in(
     write_plane(&plane_path)?;
     let plane = engine.load_mesh(&plane_path)?;
     for &side in &opts.sizes {
-        let mut svg = random_job(&mesh, opts.decals, side, dir, 11, "planar")?;
+        let mut svg = random_job(&mesh, opts.decals, side, dir, 11, &opts.method)?;
         for l in &mut svg.layers {
             l.image = logo.clone();
         }
@@ -98,12 +100,13 @@ fn compare(
             samples[k].push(timed(engine, mesh, job)?);
         }
     }
-    let med = |k: usize, f: fn(&(f64, f64)) -> f64| median(samples[k].iter().map(f).collect());
+    let med = |k: usize, f: fn(&(f64, f64, f64)) -> f64| median(samples[k].iter().map(f).collect());
     for (k, name) in ["vector", "bitmap"].into_iter().enumerate() {
         emit(serde_json::json!({
             "bench": "vector", "workload": workload, "variant": name, "side": side,
             "layers": vector.layers.len(), "cold_ms": cold[k].0,
             "median_ms": med(k, |s| s.0), "median_images_ms": med(k, |s| s.1),
+            "median_vector_maps_ms": med(k, |s| s.2),
             "all_ms": samples[k].iter().map(|s| s.0).collect::<Vec<_>>(),
             "adapter": engine.ctx.adapter,
         }));
@@ -119,14 +122,18 @@ fn compare(
     Ok(())
 }
 
-/// One bake with the image cache emptied first: (wall ms, the images stage's ms).
-fn timed(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> anyhow::Result<(f64, f64)> {
+/// One bake with the image cache and the mesh's vector needs emptied first, as a one-off bake
+/// runs: (wall ms, the images stage's ms, its mapping of the vector layers' ms).
+fn timed(engine: &Engine, mesh: &LoadedMesh, job: &Job) -> anyhow::Result<(f64, f64, f64)> {
     engine.clear_image_cache();
+    mesh.forget_vector_needs();
     let t = Instant::now();
     let baked = engine.bake(mesh, job)?;
+    let timings = &baked.report.timings;
     Ok((
         t.elapsed().as_secs_f64() * 1000.0,
-        baked.report.timings.images_ms,
+        timings.images_ms,
+        timings.vector_maps_ms,
     ))
 }
 
