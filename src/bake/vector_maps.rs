@@ -135,8 +135,8 @@ fn unit_map(
 /// texel need a width of 2 |J e_x|, and likewise a height of 2 |J e_y|. Where the image is not
 /// sampled at the image point itself, J is taken through the sampling's own Jacobian S at the
 /// triangle's centre: a tiled ribbon's image repeats `repeats` times along x, and a warp samples
-/// it at T(image point) (of each copy), so J S⁻¹. A cone chart's triangles that its cut crosses
-/// are left out (their corners open onto both sides of the cut). `None` when it paints no
+/// it at T(image point) (of each copy), so J S⁻¹. Each triangle weighs its texels that lie in the
+/// image ([`share_in_image`]). A cone chart's triangles that its cut crosses are left out (their corners open onto both sides of the cut). `None` when it paints no
 /// triangle.
 pub(crate) fn map_pixels(mesh: &LoadedMesh, placed: &Placed, u: usize) -> Option<Needs> {
     let job = &placed.job;
@@ -194,12 +194,63 @@ pub(crate) fn map_pixels(mesh: &LoadedMesh, placed: &Placed, u: usize) -> Option
             None => j,
         };
         let need = [j.x_axis.length(), j.y_axis.length()].map(|s| s * VECTOR_OVERSAMPLE);
-        if need.iter().all(|n| n.is_finite()) {
+        // The texels of the triangle that lie in the image: those the layer paints.
+        let inside = share_in_image(i, repeats > 0.0);
+        if need.iter().all(|n| n.is_finite()) && inside > 0.0 {
             let texels = ((e[1] - e[0]).perp_dot(e[2] - e[0]).abs() * 0.5) as f64;
-            needs.push((need, texels));
+            needs.push((need, texels * inside as f64));
         }
     }
     Needs::new(&needs)
+}
+
+/// The share of a triangle's area (image corners `i`, affine on it as its texels are) that lies in
+/// the image square [0, 1]², or, for an image repeated along x (`repeating`), in the band
+/// 0 ≤ y ≤ 1: the triangle clipped by each side in turn (Sutherland-Hodgman) over its whole area.
+fn share_in_image(i: [Vec2; 3], repeating: bool) -> f32 {
+    let area = |p: &[Vec2]| {
+        let n = p.len();
+        (0..n)
+            .map(|k| p[k].perp_dot(p[(k + 1) % n]))
+            .sum::<f32>()
+            .abs()
+            * 0.5
+    };
+    let whole = area(&i);
+    if !whole.is_normal() {
+        return 0.0;
+    }
+    // Each side as (axis, bound, keep the side below it).
+    let sides: &[(usize, f32, bool)] = if repeating {
+        &[(1, 0.0, false), (1, 1.0, true)]
+    } else {
+        &[
+            (0, 0.0, false),
+            (0, 1.0, true),
+            (1, 0.0, false),
+            (1, 1.0, true),
+        ]
+    };
+    let mut poly: Vec<Vec2> = i.to_vec();
+    for &(axis, bound, below) in sides {
+        let keep = |p: Vec2| (p[axis] <= bound) == below || p[axis] == bound;
+        let mut out = Vec::with_capacity(poly.len() + 2);
+        for k in 0..poly.len() {
+            let (a, b) = (poly[k], poly[(k + 1) % poly.len()]);
+            if keep(a) {
+                out.push(a);
+            }
+            if keep(a) != keep(b) {
+                let t = (bound - a[axis]) / (b[axis] - a[axis]);
+                out.push(a + (b - a) * t);
+            }
+        }
+        poly = out;
+        if poly.len() < 3 {
+            return 0.0;
+        }
+    }
+    (area(&poly) / whole).clamp(0.0, 1.0)
 }
 
 /// How the raster samples a unit's image at an image point: copies along x, then a warp.
@@ -295,6 +346,28 @@ mod tests {
         );
         let flat = [Vec2::ZERO, Vec2::new(0.5, 0.0), Vec2::new(1.0, 0.0)];
         assert_eq!(triangle_pixels(e, flat), None);
+    }
+
+    /// The share of a triangle in the image: whole inside, half across a side, none outside; a
+    /// repeated image is bounded only in y.
+    #[test]
+    fn the_share_in_the_image_clips_by_its_sides() {
+        let tri = |o: Vec2| [o, o + Vec2::new(0.2, 0.0), o + Vec2::new(0.0, 0.2)];
+        assert!((share_in_image(tri(Vec2::splat(0.4)), false) - 1.0).abs() < 1e-6);
+        assert_eq!(share_in_image(tri(Vec2::new(1.5, 0.4)), false), 0.0);
+        // Across x = 1 at its legs' middle: the part left of it is 3/4 of the area.
+        let across = share_in_image(tri(Vec2::new(0.9, 0.4)), false);
+        assert!((across - 0.75).abs() < 1e-5, "{across}");
+        assert!((share_in_image(tri(Vec2::new(1.5, 0.4)), true) - 1.0).abs() < 1e-6);
+        // Over the image's corner, cut by both x = 0 and y = 0: the part inside has legs 0.2 of
+        // the whole's 0.4.
+        let big = [
+            Vec2::new(-0.1, -0.1),
+            Vec2::new(0.3, -0.1),
+            Vec2::new(-0.1, 0.3),
+        ];
+        let corner = share_in_image(big, false);
+        assert!((corner - 0.25).abs() < 1e-5, "{corner}");
     }
 
     /// A tiled image's copies along x and a warp that doubles x divide what the image needs along
