@@ -25,7 +25,7 @@ pub const VECTOR_OVERSAMPLE: f32 = 2.0;
 /// planar projection and slivers do not decide the size of a whole image for a few texels.
 pub const SHARES: [f64; 8] = [0.99, 0.98, 0.95, 0.9, 0.8, 0.7, 0.6, 0.5];
 
-/// What one unit's triangles need ([`triangle_pixels`]): along x and along y, each need with
+/// What one unit's triangles need ([`map_pixels`]): along x and along y, each need with
 /// the triangle's texels, ascending.
 #[derive(Debug, Clone)]
 pub(crate) struct Needs {
