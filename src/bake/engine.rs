@@ -1303,7 +1303,7 @@ impl Islands {
                 .host
                 .as_ref()
                 .expect("islands without buffers have a host copy");
-            let mask: Vec<u32> = host.mask.iter().map(|&m| u32::from(m)).collect();
+            let mask = host.mask_words();
             let none = wgpu::BufferUsages::empty();
             [
                 ctx.storage_init("islands.mask", bytemuck::cast_slice(&mask), none),
@@ -1323,6 +1323,13 @@ pub struct TiledIslands {
     pub nearest: Vec<u32>,
     /// Island texels.
     pub count: u64,
+}
+
+impl TiledIslands {
+    /// The mask as the kernels read it: a word per texel, 1 on an island.
+    pub(crate) fn mask_words(&self) -> Vec<u32> {
+        self.mask.iter().map(|&m| u32::from(m)).collect()
+    }
 }
 
 /// GPU bytes of layer images kept between bakes.

@@ -193,14 +193,10 @@ impl Quantiser {
     }
 
     fn new() -> Self {
-        let srgb = |x: f64| match x <= 0.003_130_8 {
-            true => x * 12.92,
-            false => 1.055 * x.powf(1.0 / 2.4) - 0.055,
-        };
         // sRGB in f64; linear as `pack4x8unorm` states it, in f32 (so 0.9 gives 230, the byte
         // of 0.9 × 255 = 229.5 rounded half up, though the f32 nearest 0.9 lies just below it).
         let reaches = |curve: usize, x: f32, k: usize| match curve {
-            0 => srgb(x as f64) * 255.0 + 0.5 >= k as f64,
+            0 => srgb_f64(x as f64) * 255.0 + 0.5 >= k as f64,
             _ => (x * 255.0 + 0.5).floor() >= k as f32,
         };
         let thresholds: [[f32; THRESHOLDS as usize]; 2] = std::array::from_fn(|curve| {
@@ -254,6 +250,14 @@ impl Quantiser {
             o[2] = self.quantise(f(&ba[..4]), linear) as u16;
             o[3] = self.quantise(f(&ba[4..]), true) as u16;
         }
+    }
+}
+
+/// The sRGB curve in f64: what the quantiser's sRGB thresholds are exact to.
+fn srgb_f64(x: f64) -> f64 {
+    match x <= 0.003_130_8 {
+        true => x * 12.92,
+        false => 1.055 * x.powf(1.0 / 2.4) - 0.055,
     }
 }
 
@@ -418,12 +422,7 @@ mod tests {
         if linear {
             return (x * 255.0 + 0.5).floor() as u8;
         }
-        let x = x as f64;
-        let v = match x <= 0.003_130_8 {
-            true => x * 12.92,
-            false => 1.055 * x.powf(1.0 / 2.4) - 0.055,
-        };
-        (v * 255.0 + 0.5).floor() as u8
+        (srgb_f64(x as f64) * 255.0 + 0.5).floor() as u8
     }
 
     /// Every threshold, its neighbours a bit either side, cell edges and a sweep of values get

@@ -325,8 +325,7 @@ impl Engine {
         let mut commands = 0;
         let isl = islands(self, mesh, uv_set, size, (ss.max(1), false), &mut commands)?;
         if let Some(host) = &isl.host {
-            let mask = host.mask.iter().map(|&m| u32::from(m)).collect();
-            return Ok((mask, host.nearest.clone()));
+            return Ok((host.mask_words(), host.nearest.clone()));
         }
         let bytes = size[0] as u64 * size[1] as u64 * 4;
         let [mask, nearest] = isl.gpu(&self.ctx);
