@@ -395,11 +395,10 @@ fn a_texture_transform_is_applied_to_the_base_and_left_out_of_the_bake() {
     validate(&dir.join("out.glb"));
 }
 
-#[test]
-fn each_texture_set_gets_its_own_texture_continuous_across_the_material_boundary() {
-    let dir = common::scratch("document-sets");
-    // Two textured materials whose layouts overlap (u in 0..0.5 both).
-    let src = write_rich_overlapping(&dir);
+/// The rich model with two textured materials whose layouts overlap (u in 0..0.5 both), the
+/// second's image a blue `second.png`, written into `dir`.
+fn write_two_textured_sets(dir: &Path) -> std::path::PathBuf {
+    let src = write_rich_overlapping(dir);
     let mut doc: Value = serde_json::from_slice(&std::fs::read(&src).unwrap()).unwrap();
     doc["images"]
         .as_array_mut()
@@ -417,6 +416,13 @@ fn each_texture_set_gets_its_own_texture_continuous_across_the_material_boundary
         decalbake::io::image::png_bytes(4, 4, 8, &blue),
     )
     .unwrap();
+    src
+}
+
+#[test]
+fn each_texture_set_gets_its_own_texture_continuous_across_the_material_boundary() {
+    let dir = common::scratch("document-sets");
+    let src = write_two_textured_sets(&dir);
     let job = job(&dir, &src, "out.glb");
     let mut j: Value = serde_json::from_slice(&std::fs::read(&job).unwrap()).unwrap();
     j["output"]["texture"] = json!("baked_{set}.png");
@@ -636,5 +642,69 @@ fn animated_frames_bake_a_texture_per_set() {
     assert!(
         written[0] == written[1],
         "bake and batch wrote different frames"
+    );
+}
+
+/// Embedding: `Engine::bake_set_textures` gives every texture set its own GPU textures, each
+/// holding the bytes `Engine::bake_texture_sets` bakes for that set (which the test above checks
+/// against the surface: each set painted, neither taking the other's triangles in the
+/// overlapping layout), at the set's own size; on a one-set model, one entry for the whole mesh.
+#[test]
+fn embedded_bakes_give_each_texture_set_its_own_textures() {
+    let dir = common::scratch("document-set-textures");
+    let src = write_two_textured_sets(&dir);
+    let path = job(&dir, &src, "out.glb");
+    let mut j: Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    j["texture"]["sets"] = json!({"glossy": {"width": 64}});
+    j["layers"][0]["roughness"] = json!(0.25);
+    std::fs::write(&path, serde_json::to_vec(&j).unwrap()).unwrap();
+    let engine = common::engine();
+    let job = decalbake::Job::load(&path, None).unwrap();
+    let (mesh, job) = engine.load_mesh_for(&job).unwrap();
+    let on_gpu = engine.bake_set_textures(&mesh, &job).unwrap();
+    let sets = mesh.mesh.texture_sets(job.uv_set);
+    let on_host = engine.bake_texture_sets(&mesh, &job, sets).unwrap();
+    let names: Vec<&str> = on_gpu.iter().map(|s| s.set.name.as_str()).collect();
+    assert_eq!(names, ["painted", "glossy"]);
+    for (g, h) in on_gpu.iter().zip(&on_host) {
+        assert_eq!(g.set, h.set);
+        let color = &g.textures.color;
+        assert_eq!(
+            (color.width(), color.height()),
+            (h.baked.width, h.baked.height),
+            "{}",
+            g.set.name
+        );
+        let bytes = common::read_rgba8_texture(&engine, color);
+        let texels: Vec<u8> = h.baked.texels.iter().map(|&v| v as u8).collect();
+        assert!(bytes == texels, "{}: the colour differs", g.set.name);
+        assert_eq!(g.textures.channels.len(), h.baked.channels.len());
+        for ((kind, t), c) in g.textures.channels.iter().zip(&h.baked.channels) {
+            let texels: Vec<u8> = c.texels.iter().map(|&v| v as u8).collect();
+            assert!(
+                common::read_rgba8_texture(&engine, t) == texels,
+                "{} {kind:?}",
+                g.set.name
+            );
+        }
+        assert!(g.report.layers[0].texels_covered > 0, "{}", g.set.name);
+    }
+    assert_eq!(
+        on_gpu[1].textures.color.width(),
+        64,
+        "the glossy set's own width"
+    );
+    // A one-set model: one entry, the whole mesh.
+    let plane = dir.join("plane.glb");
+    common::write_plane(&plane, 8, false);
+    let mut one = job.clone();
+    one.mesh = plane.clone();
+    one.set_sizes.clear();
+    let mesh = engine.load_mesh(&plane).unwrap();
+    let whole = engine.bake_set_textures(&mesh, &one).unwrap();
+    assert_eq!(whole.len(), 1);
+    assert_eq!(
+        whole[0].set.primitives,
+        (0..mesh.mesh.primitives.len()).collect::<Vec<_>>()
     );
 }

@@ -4,7 +4,8 @@
 //! the base. Maps are computed on the whole surface in each bake, so a decal across a material
 //! boundary continues from one set's texture into the other's as it does across a UV seam.
 
-use super::engine::{Baked, Engine, LoadedMesh};
+use super::engine::{Baked, BakedTextures, Engine, LoadedMesh};
+use super::report::Report;
 use crate::error::Error;
 use crate::error::Result;
 use crate::io::job::Job;
@@ -54,6 +55,60 @@ impl Engine {
                 mesh: m,
                 job: j,
                 baked,
+            });
+        }
+        Ok(out)
+    }
+}
+
+/// One texture set's textures on the GPU ([`Engine::bake_set_textures`]).
+pub struct SetTextures {
+    /// The set; its `name` is what `{set}` becomes in output names.
+    pub set: TextureSet,
+    /// The set's textures (its own size: `texture.sets`, else the job's), as
+    /// [`Engine::bake_textures`] gives them.
+    pub textures: BakedTextures,
+    /// The set's report.
+    pub report: Report,
+}
+
+impl Engine {
+    /// Bakes `job` into every texture set of `mesh` on the job's UV set, as
+    /// [`Engine::bake_texture_sets`] does, into textures that never leave the GPU (one
+    /// [`SetTextures`] per set, in the mesh's order of sets): a renderer that draws each material
+    /// with its own texture takes each set's. On a mesh of one set (or none: no materials) the one
+    /// entry covers the whole mesh, at the set's size. A `texture.sets` key that names no material
+    /// is refused before any work.
+    pub fn bake_set_textures(&self, mesh: &LoadedMesh, job: &Job) -> Result<Vec<SetTextures>> {
+        check_set_keys(job, &mesh.mesh)?;
+        let sets = mesh.mesh.texture_sets(job.uv_set);
+        if sets.len() < 2 {
+            let mut j = job.for_single_set(sets.first().map_or("default", |s| s.name.as_str()));
+            if let Some(set) = sets.first() {
+                (j.width, j.height) = set_size(&j, &mesh.mesh, set);
+            }
+            let (textures, report) = self.bake_textures(mesh, &j)?;
+            let set = sets.into_iter().next().unwrap_or_else(|| TextureSet {
+                name: "default".into(),
+                materials: Vec::new(),
+                primitives: (0..mesh.mesh.primitives.len()).collect(),
+            });
+            return Ok(vec![SetTextures {
+                set,
+                textures,
+                report,
+            }]);
+        }
+        let mut out = Vec::with_capacity(sets.len());
+        for set in sets {
+            let m = self.prepare(mesh.mesh.for_texture_set(&set, job.uv_set)?)?;
+            let mut j = job.for_texture_set(&set.name);
+            (j.width, j.height) = set_size(job, &mesh.mesh, &set);
+            let (textures, report) = self.bake_textures(&m, &j)?;
+            out.push(SetTextures {
+                set,
+                textures,
+                report,
             });
         }
         Ok(out)
