@@ -720,3 +720,49 @@ fn channel_file_names_fill_their_placeholders_in_bake_and_batch() {
         "bake and batch wrote different files"
     );
 }
+
+/// A ribbon mirrored across its curve (`flip`) mirrors its normal map too: a normal tilted up
+/// the image tilts to one side of the curve, and to the other when flipped, by the same angle
+/// (the decal frame's handedness about the surface normal, which no unmirrored map has).
+#[test]
+fn a_flipped_ribbon_mirrors_its_normals() {
+    let dir = common::scratch("channels-flip");
+    common::write_plane(&dir.join("plane.glb"), N, false);
+    common::write_raw_png(&dir.join("white.png"), 8, |_, _| [1.0; 4]);
+    let tilt = Vec3::new(0.0, 0.6, 1.0).normalize();
+    common::write_raw_png(&dir.join("tilt.png"), 8, |_, _| {
+        let e = tilt * 0.5 + 0.5;
+        [e.x, e.y, e.z, 1.0]
+    });
+    let engine = common::engine();
+    let side = |flip: bool| {
+        let job = json!({
+            "mesh": "plane.glb",
+            "texture": {"width": SIZE, "height": SIZE, "base": [0.5, 0.5, 0.5, 1.0], "padding": 2},
+            "output": {"texture": "baked.png", "bit_depth": 16},
+            "layers": [{"kind": "ribbon", "image": "white.png", "normal": "tilt.png",
+                        "path": [[0.2, 0.5, 0.0], [0.5, 0.5, 0.0], [0.8, 0.5, 0.0]],
+                        "width": 0.2, "flip": flip}]
+        });
+        std::fs::write(dir.join("job.json"), job.to_string()).unwrap();
+        let job = Job::load(&dir.join("job.json"), None).unwrap();
+        let (mesh, job) = engine.load_mesh_for(&job).unwrap();
+        let b = engine.bake(&mesh, &job).unwrap();
+        let e = texel(&b, ChannelKind::Normal, SIZE / 2, SIZE / 2);
+        Vec3::new(e[0], e[1], e[2]) * 2.0 - 1.0
+    };
+    let (plain, flipped) = (side(false), side(true));
+    for n in [plain, flipped] {
+        // Tilted across the curve (the plane's y) by the image's tilt, not along it.
+        assert!(n.x.abs() < 0.01, "{n}");
+        assert!(
+            (n.y.abs() - tilt.y).abs() < 0.01,
+            "{n} against a tilt of {}",
+            tilt.y
+        );
+    }
+    assert!(
+        plain.y * flipped.y < 0.0,
+        "a flipped ribbon tilts its normals to the other side: {plain} and {flipped}"
+    );
+}

@@ -291,10 +291,13 @@ struct FsIn {
 // mesh's tangent frame. The decal's axes on the surface come from the derivatives of position
 // and image coordinates over the raster (both affine on a triangle, so this is the triangle's
 // own map, and it follows a bent map, an opened cone, a warp or a tiled ribbon): d pos / d img =
-// [dpx dpy] [gx gy]^-1; image x is right, image y down, so up is -d pos / d img.y. They are made
-// orthonormal about the interpolated normal (Gram-Schmidt: a sheared map keeps its x axis and
-// its handedness), and the normal is read in the mesh's frame (t, cross(n, t) * w, n), as glTF's
-// bitangent is.
+// [dpx dpy] [gx gy]^-1; image x is right, image y down, so up is -d pos / d img.y. In the
+// tangent plane about the interpolated normal, the decal's orthonormal frame (its x axis, and
+// up on the side its y axis lies: a sheared map keeps its x axis and its handedness) and the
+// mesh's (t, cross(n, t) * w, as glTF's bitangent is) differ by a rotation, c = x.t and
+// s = n.(x x t) of the unit projections, flipped by each frame's handedness; the normal is
+// (R nd.xy, nd.z), normalised. The same as projecting onto both frames, with three square roots
+// instead of five (the fused raster's largest cost after its samples).
 fn to_tangent_space(c: vec4<f32>, dx: bool, dpx: vec3<f32>, dpy: vec3<f32>, gx: vec2<f32>,
                     gy: vec2<f32>, nrm: vec3<f32>, tan: vec4<f32>) -> vec4<f32> {
     if (c.a <= 0.0) { return c; }
@@ -302,14 +305,16 @@ fn to_tangent_space(c: vec4<f32>, dx: bool, dpx: vec3<f32>, dpy: vec3<f32>, gx: 
     if (dx) { nd.y = -nd.y; }
     let det = gx.x * gy.y - gy.x * gx.y;
     let n = normalize(nrm);
-    var ex = (dpx * gy.y - dpy * gx.y) / det;
-    var ey = -(dpy * gx.x - dpx * gy.x) / det;
-    ex = normalize(ex - n * dot(n, ex));
-    ey = normalize(ey - n * dot(n, ey) - ex * dot(ex, ey));
-    let w = normalize(nd.x * ex + nd.y * ey + nd.z * n);
-    let t = normalize(tan.xyz - n * dot(n, tan.xyz));
-    let b = cross(n, t) * select(1.0, -1.0, tan.w < 0.0);
-    let ts = vec3<f32>(dot(w, t), dot(w, b), dot(w, n));
+    // d pos / d img.x and d pos / d img.y, times det, projected onto the tangent plane.
+    let ax = dpx * gy.y - dpy * gx.y;
+    let ay = dpx * gy.x - dpy * gx.x;
+    let x = ax - n * dot(n, ax);
+    let y = ay - n * dot(n, ay);
+    let t = tan.xyz - n * dot(n, tan.xyz);
+    let h = select(1.0, -1.0, dot(n, cross(x, y)) < 0.0);
+    let s = select(1.0, -1.0, tan.w < 0.0);
+    let cs = normalize(vec2<f32>(dot(x, t), dot(n, cross(x, t)))) * sign(det);
+    let ts = normalize(vec3<f32>(nd.x * cs.x + nd.y * h * cs.y, s * (h * cs.x * nd.y - cs.y * nd.x), nd.z));
     if (any(ts != ts) || abs(det) < 1e-30) { return vec4<f32>(0.0); }
     return vec4<f32>((ts * 0.5 + 0.5) * c.a, c.a);
 }
