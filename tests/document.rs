@@ -708,3 +708,97 @@ fn embedded_bakes_give_each_texture_set_its_own_textures() {
         (0..mesh.mesh.primitives.len()).collect::<Vec<_>>()
     );
 }
+
+/// A job of several UV sets (`"uv_set": [0, 1]`) on a model of two texture sets whose layouts
+/// overlap on both UV sets: each UV set bakes a texture per texture set, as a job of that UV set
+/// alone does, so neither texture takes the other part's paint; every UV set draws its own
+/// preview (the blend of the sets' textures draws one texture a UV set); `decalbake batch` writes
+/// the same files, byte for byte.
+#[test]
+fn a_list_of_uv_sets_bakes_each_texture_set() {
+    let dir = common::scratch("document-uv-list-sets");
+    let src = write_rich_overlapping(&dir);
+    // The second UV set: the first's layout again, on every primitive that has one.
+    let mut doc: Value = serde_json::from_slice(&std::fs::read(&src).unwrap()).unwrap();
+    for mesh in doc["meshes"].as_array_mut().unwrap() {
+        for p in mesh["primitives"].as_array_mut().unwrap() {
+            if let Some(uv) = p["attributes"].get("TEXCOORD_0").cloned() {
+                p["attributes"]["TEXCOORD_1"] = uv;
+            }
+        }
+    }
+    std::fs::write(&src, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let path = job(&dir, &src, "out.glb");
+    let mut j: Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    j["uv_set"] = json!([0, 1]);
+    j["output"]["glb"] = json!("out_{uv}.glb");
+    j["texture"]["base"] = json!([0.5, 0.5, 0.5, 1.0]);
+    j["output"]["texture"] = json!("baked_{uv}_{set}.png");
+    j["output"]["report"] = json!("report_{uv}.json");
+    j["output"]["preview"] = json!("preview.png");
+    std::fs::write(&path, serde_json::to_vec(&j).unwrap()).unwrap();
+    let (code, _, err) = common::cli(&["bake", path.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let green = [20, 200, 90, 255];
+    let grey = [188, 188, 188, 255];
+    for uv in [0, 1] {
+        let texel = |set: &str, x: f32| {
+            let img = image::open(dir.join(format!("baked_{uv}_{set}.png")))
+                .unwrap()
+                .to_rgba8();
+            let u = if x < 1.0 { x / 2.0 } else { (x - 1.0) / 2.0 };
+            img.get_pixel((u * 128.0) as u32, 64).0
+        };
+        assert_eq!(texel("painted", 0.9), green, "uv {uv}");
+        assert_eq!(texel("glossy", 1.1), green, "uv {uv}");
+        // The other part's paint lands where its triangles are, in its own texture only.
+        assert_eq!(
+            texel("painted", 0.1),
+            grey,
+            "uv {uv}: the glossy part's paint"
+        );
+        assert_eq!(
+            texel("glossy", 1.9),
+            grey,
+            "uv {uv}: the painted part's paint"
+        );
+        assert!(dir.join(format!("preview-uv{uv}.png")).exists(), "uv {uv}");
+        assert!(dir.join(format!("out_{uv}.glb")).exists(), "uv {uv}");
+    }
+    assert!(!dir.join("preview.png").exists());
+    // The same job through `decalbake batch`.
+    std::fs::write(
+        dir.join("manifest.jsonl"),
+        format!("{:?}\n", path.file_name().unwrap().to_str().unwrap()),
+    )
+    .unwrap();
+    let out = dir.join("batch");
+    let manifest = dir.join("manifest.jsonl");
+    let (code, _, err) = common::cli(&[
+        "batch",
+        manifest.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let job_dir = std::fs::read_dir(&out)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| p.is_dir())
+        .unwrap();
+    for name in [
+        "baked_0_painted.png",
+        "baked_0_glossy.png",
+        "baked_1_painted.png",
+        "baked_1_glossy.png",
+        "preview-uv0.png",
+        "preview-uv1.png",
+    ] {
+        assert_eq!(
+            std::fs::read(job_dir.join(name)).unwrap(),
+            std::fs::read(dir.join(name)).unwrap(),
+            "{name}: the batch bakes what bake bakes"
+        );
+    }
+}

@@ -39,6 +39,7 @@
 use crate::journal::Journal;
 use anyhow::{bail, Context, Result};
 use decalbake::io::manifest::{Entry, EntryJob};
+use decalbake::output::UvBake;
 use decalbake::{Engine, Job, LoadedMesh};
 use serde_json::{json, Value};
 use sha2::{Digest, Sha256};
@@ -606,26 +607,47 @@ fn write_sets(
             return write_one(cx, job.clone(), outputs, undo);
         }
     }
-    let baked_sets = jobs
-        .into_iter()
-        .map(|j| bake_one(cx, j))
-        .collect::<Result<Vec<_>>>()?;
-    let jobs: Vec<Job> = baked_sets.iter().map(|(_, j, _)| j.clone()).collect();
-    undo.prepare(&jobs, outputs)?;
-    let mut textures = Vec::new();
-    let mut last = None;
-    (cx.4)("writing outputs");
-    for (mesh, j, mut baked) in baked_sets {
-        let files = decalbake::output::write_outputs(cx.0, &mesh, &j, &mut baked)?;
-        undo.files.extend(files);
-        textures.push(decalbake::output::preview::PreviewTexture::of(&baked));
-        last = Some(mesh);
+    // Every UV set of the list baked before anything is written; one of several texture sets
+    // bakes a texture per set, as a job of that UV set alone does.
+    let mut baked = Vec::with_capacity(jobs.len());
+    let mut mesh = None;
+    for j in jobs {
+        let (m, uv) = bake_uv_set(cx, j)?;
+        mesh = Some(m);
+        baked.push(uv);
     }
-    if let (Some(p), Some(mesh)) = (set_preview, &last) {
-        decalbake::output::preview::write_set_preview(cx.0, mesh, textures, p)?;
-        undo.files.push(p.to_path_buf());
+    let Some(mesh) = mesh else { return Ok(()) };
+    let jobs: Vec<Job> = baked
+        .iter()
+        .map(|b| match b {
+            UvBake::One(j, _) | UvBake::Sets(j, _) => j.clone(),
+        })
+        .collect();
+    undo.prepare(&jobs, outputs)?;
+    (cx.4)("writing outputs");
+    for (_, files) in decalbake::output::write_uv_bakes(cx.0, &mesh, baked, set_preview)? {
+        undo.files.extend(files);
     }
     Ok(())
+}
+
+/// One UV set of a job's list (`Job::for_uv_set`): the whole mesh into one texture
+/// ([`bake_one`]), or a texture per texture set where the mesh has several on that UV set.
+fn bake_uv_set(cx: WriteCx<'_>, j: Job) -> Result<(Arc<LoadedMesh>, UvBake)> {
+    let (engine, generation, shared, hash, _) = cx;
+    let (mesh, uv_set) = shared
+        .meshes
+        .lock()
+        .expect("mesh cache")
+        .get(engine, generation, &j)?;
+    let sets = mesh.mesh.texture_sets(uv_set);
+    if sets.len() < 2 {
+        let (mesh, j, baked) = bake_one(cx, j)?;
+        return Ok((mesh, UvBake::One(j, Box::new(baked))));
+    }
+    let mut bakes = engine.bake_texture_sets(&mesh, &j, sets)?;
+    bakes[0].baked.report.input_hash = Some(hash.to_string());
+    Ok((mesh, UvBake::Sets(j, bakes)))
 }
 
 /// A job on a mesh of several texture sets: one texture per set, one model, preview and report

@@ -695,22 +695,28 @@ fn engine(backend: Option<&str>) -> Result<Engine> {
 }
 
 fn bake(engine: &Engine, job: &Job) -> Result<()> {
+    use decalbake::output::UvBake;
     if !job.uv_list.is_empty() {
         // One bake per set on the same loaded mesh (`decalbake unwrap --patch`: pelt and patch),
         // every set baked before any file is written, as `decalbake batch` does.
+        // On a mesh of several texture sets on a UV set, that set bakes a texture per texture
+        // set, as a job of that UV set alone does.
         let (mesh, _) = engine.load_mesh_for(job)?;
         let mut baked = Vec::new();
         for &set in &job.uv_list {
-            let j = named_for_one_set(&mesh, job.for_uv_set(set));
-            baked.push((engine.bake(&mesh, &j)?, j));
+            let j = job.for_uv_set(set);
+            let sets = mesh.mesh.texture_sets(set);
+            baked.push(match sets.len() > 1 {
+                true => UvBake::Sets(j.clone(), engine.bake_texture_sets(&mesh, &j, sets)?),
+                false => {
+                    let j = named_for_one_set(&mesh, j);
+                    UvBake::One(j.clone(), Box::new(engine.bake(&mesh, &j)?))
+                }
+            });
         }
-        let mut textures = Vec::new();
-        for (b, j) in baked {
-            textures.push(write_baked(engine, &mesh, &j, b)?);
-        }
-        if let Some(p) = &job.out_preview {
-            decalbake::output::preview::write_set_preview(engine, &mesh, textures, p)?;
-            println!("{}", p.display());
+        let preview = job.out_preview.as_deref();
+        for (report, files) in decalbake::output::write_uv_bakes(engine, &mesh, baked, preview)? {
+            print_bake(&report, files);
         }
         return Ok(());
     }
@@ -795,18 +801,6 @@ fn bake_frames(
         println!("{}", p.display());
     }
     Ok(())
-}
-
-/// Writes a bake's outputs and reports it; returns the texture for a preview.
-fn write_baked(
-    engine: &Engine,
-    mesh: &decalbake::LoadedMesh,
-    job: &Job,
-    mut baked: decalbake::Baked,
-) -> Result<decalbake::output::preview::PreviewTexture> {
-    let files = decalbake::output::write_outputs(engine, mesh, job, &mut baked)?;
-    print_bake(&baked.report, files);
-    Ok(decalbake::output::preview::PreviewTexture::of(&baked))
 }
 
 /// What a bake prints: each layer's coverage and the warnings on stderr, the files on stdout.

@@ -892,26 +892,13 @@ impl Job {
     /// extension, so the sets' files do not overwrite each other; no preview (the sets share one,
     /// which the caller renders).
     pub fn for_uv_set(&self, set: u32) -> Job {
-        let name = |p: &Option<PathBuf>, insert: bool| {
-            p.as_ref().map(|p| {
-                let text = p.to_string_lossy();
-                if text.contains("{uv}") {
-                    PathBuf::from(text.replace("{uv}", &set.to_string()))
-                } else if insert {
-                    let stem = p.file_stem().unwrap_or_default().to_string_lossy();
-                    let ext = p.extension().map(|e| format!(".{}", e.to_string_lossy()));
-                    p.with_file_name(format!("{stem}-uv{set}{}", ext.unwrap_or_default()))
-                } else {
-                    p.clone()
-                }
-            })
-        };
+        let name = |p: &Option<PathBuf>| p.as_ref().map(|p| uv_set_name(p, set));
         Job {
             uv_set: set,
             uv_list: Vec::new(),
-            out_texture: name(&self.out_texture, true),
-            out_glb: name(&self.out_glb, true),
-            out_report: name(&self.out_report, true),
+            out_texture: name(&self.out_texture),
+            out_glb: name(&self.out_glb),
+            out_report: name(&self.out_report),
             // The sets share one preview (`decalbake bake` blends them by `_PELT_BLEND`).
             out_preview: None,
             ..self.clone()
@@ -1773,6 +1760,18 @@ fn check_frames(layers: &[Layer], texture: Option<&Path>, src: &Path) -> Result<
         ));
     }
     Ok(())
+}
+
+/// `p` named for UV set `set` of a job's list: `{uv}` replaced by the set, or `-uv<set>` added
+/// before the extension.
+pub fn uv_set_name(p: &std::path::Path, set: u32) -> PathBuf {
+    let text = p.to_string_lossy();
+    if text.contains("{uv}") {
+        return PathBuf::from(text.replace("{uv}", &set.to_string()));
+    }
+    let stem = p.file_stem().unwrap_or_default().to_string_lossy();
+    let ext = p.extension().map(|e| format!(".{}", e.to_string_lossy()));
+    p.with_file_name(format!("{stem}-uv{set}{}", ext.unwrap_or_default()))
 }
 
 #[cfg(test)]

@@ -213,6 +213,57 @@ fn make_parent(p: &std::path::Path) -> Result<()> {
     Ok(())
 }
 
+/// One UV set's bake of a job's list of UV sets (`"uv_set": [..]`, `Job::for_uv_set`): the
+/// whole mesh into one texture, or, on a mesh of several texture sets on that UV set, one
+/// texture per set (`Engine::bake_texture_sets`), as a job of that UV set alone bakes.
+pub enum UvBake {
+    /// One texture for the UV set.
+    One(Job, Box<Baked>),
+    /// A texture per texture set.
+    Sets(Job, Vec<crate::bake::sets::SetBake>),
+}
+
+/// Writes the bakes of a job's UV sets, every one baked before this is called, and returns each
+/// one's report and files, in order. The job's `output.preview` (`preview`) blends the sets'
+/// textures in one picture where each UV set baked one texture; where some UV set baked a
+/// texture per texture set, every UV set draws its own preview instead, named as its other
+/// outputs are (`{uv}`, or `-uv<N>` added).
+pub fn write_uv_bakes(
+    engine: &Engine,
+    mesh: &LoadedMesh,
+    bakes: Vec<UvBake>,
+    preview: Option<&std::path::Path>,
+) -> Result<Vec<(crate::bake::report::Report, Vec<PathBuf>)>> {
+    let blended = bakes.iter().all(|b| matches!(b, UvBake::One(..)));
+    let own_preview = |j: &mut Job| {
+        if !blended {
+            j.out_preview = preview.map(|p| crate::io::job::uv_set_name(p, j.uv_set));
+        }
+    };
+    let mut out = Vec::with_capacity(bakes.len());
+    let mut textures = Vec::new();
+    for b in bakes {
+        match b {
+            UvBake::One(mut j, mut baked) => {
+                own_preview(&mut j);
+                let files = write_outputs(engine, mesh, &j, &mut baked)?;
+                textures.push(preview::PreviewTexture::of(&baked));
+                out.push((baked.report, files));
+            }
+            UvBake::Sets(mut j, mut sets) => {
+                own_preview(&mut j);
+                let files = write_set_outputs(engine, mesh, &j, &mut sets)?;
+                out.push((sets.swap_remove(0).baked.report, files));
+            }
+        }
+    }
+    if let (Some(p), true, Some(last)) = (preview, blended, out.last_mut()) {
+        preview::write_set_preview(engine, mesh, textures, p)?;
+        last.1.push(p.to_path_buf());
+    }
+    Ok(out)
+}
+
 /// Writes a bake into several texture sets (`Engine::bake_texture_sets`): the texture of every
 /// set a layer touched (every set's when none was), one model whose materials take them, one
 /// preview drawing each set with its texture, and one report (the first set's, with
