@@ -122,10 +122,12 @@ fn demo_writes_decodable_outputs_and_a_glb_that_loads_back() {
         "glb texture differs from baked.png"
     );
     // The skinned knight goes out as it came in, its skin and five animations with it: only the
-    // bytes of its image (replaced by the bake) differ, and its material takes the badge's
-    // channels (new images and textures: metallic-roughness and normal).
+    // bytes of its image (replaced by the bake) differ, and its two materials take their
+    // textures: the knight's the badge's channels (new images and textures: metallic-roughness
+    // and normal), the untextured gear (sword and shield) a base colour of its own texture set,
+    // its factor white now that the texture carries it.
     let (knight, _) = common::rich::read_model(&out.join("knight.glb"));
-    let (baked_knight, _) = common::rich::read_model(&out.join("knight-baked.glb"));
+    let (baked_knight, bufs) = common::rich::read_model(&out.join("knight-baked.glb"));
     let mut diff = Vec::new();
     common::rich::json_diff(&knight, &baked_knight, "", &mut diff);
     let allowed = [
@@ -135,11 +137,20 @@ fn demo_writes_decodable_outputs_and_a_glb_that_loads_back() {
         "/textures/",
         "/materials/0/pbrMetallicRoughness/",
         "/materials/0/normalTexture",
+        "/materials/1/pbrMetallicRoughness/",
+        "/materials/1/normalTexture",
     ];
     assert!(
         diff.iter()
             .all(|p| allowed.iter().any(|a| p.starts_with(a))),
         "{diff:?}"
+    );
+    assert_eq!(
+        baked_knight["meshes"][0]["primitives"]
+            .as_array()
+            .unwrap()
+            .len(),
+        2
     );
     let m = &baked_knight["materials"][0];
     assert!(m["normalTexture"]["index"].is_u64(), "{m}");
@@ -147,6 +158,39 @@ fn demo_writes_decodable_outputs_and_a_glb_that_loads_back() {
         m["pbrMetallicRoughness"]["metallicRoughnessTexture"]["index"].is_u64(),
         "{m}"
     );
+    // Each set's texture is the image its material reads, and the shield's rings are in the
+    // gear's texture, not the knight's.
+    let image_of = |material: usize| {
+        let t = baked_knight["materials"][material]["pbrMetallicRoughness"]["baseColorTexture"]
+            ["index"]
+            .as_u64()
+            .unwrap() as usize;
+        let i = baked_knight["textures"][t]["source"].as_u64().unwrap() as usize;
+        let v = baked_knight["images"][i]["bufferView"].as_u64().unwrap() as usize;
+        common::rich::view(&baked_knight, &bufs, v)
+    };
+    for (material, set) in [(0, "knight"), (1, "gear")] {
+        assert!(
+            image_of(material)
+                == std::fs::read(out.join(format!("knight-baked_{set}.png"))).unwrap(),
+            "material {material} takes the {set} set's texture"
+        );
+    }
+    let gear = image::open(out.join("knight-baked_gear.png"))
+        .unwrap()
+        .to_rgba8();
+    let plain = gear.get_pixel(0, 0).0;
+    assert!(
+        gear.pixels().filter(|p| p.0 != plain).count() > 1000,
+        "the rings are painted into the gear's texture"
+    );
+    let knight_report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("knight-report.json")).unwrap()).unwrap();
+    let sets = knight_report["texture_sets"].as_array().unwrap();
+    assert_eq!(sets.len(), 2, "{sets:?}");
+    assert!(sets
+        .iter()
+        .all(|s| s["texels_covered"].as_u64().unwrap() > 500));
     assert_eq!(baked_knight["animations"].as_array().unwrap().len(), 5);
     assert!(stdout.contains("knight-preview.png"), "{stdout}");
     common::rich::validate(&out.join("knight-baked.glb"));

@@ -32,11 +32,13 @@ pub const CRUMPLED_GLB: &[u8] = include_bytes!("../../assets/crumpled_developabl
 /// Keenan Crane's bob (CC0), a model with a handle: the demo's patch with bridges.
 pub const BOB_GLB: &[u8] = include_bytes!("../../assets/bob.glb");
 /// The animated knight by Clement Wu, Nikolaus & Botanic (CC-BY 3.0; `assets/README.md`): a
-/// skinned character with five animations, which the demo's badge bake keeps.
+/// skinned character of two materials with five animations, which the demo's bake keeps.
 pub const KNIGHT_GLB: &[u8] = include_bytes!("../../assets/knight.glb");
 
 /// The demo's knight job (`knight.json`): the badge on its chest, a surface-following material
-/// decal: colour, an embossed normal map, roughness and metallic (gold metal, enamel not).
+/// decal: colour, an embossed normal map, roughness and metallic (gold metal, enamel not); and
+/// rings painted on the shield, which lies in the knight's second material (`gear`): two
+/// texture sets, each baked into its own textures.
 pub fn knight_json() -> String {
     serde_json::to_string_pretty(&serde_json::json!({
         "mesh": "knight.glb",
@@ -44,7 +46,9 @@ pub fn knight_json() -> String {
         "layers": [
             { "kind": "decal", "image": "decals/badge.png", "at": { "ray": { "origin": [0.0, 1.35, 3.0], "dir": [0, 0, -1] } },
               "size": [0.35, 0.35], "up": [0, 1, 0], "method": "expmap",
-              "normal": "decals/badge_normal.png", "roughness": 0.3, "metallic": "decals/badge_metal.png" }
+              "normal": "decals/badge_normal.png", "roughness": 0.3, "metallic": "decals/badge_metal.png" },
+            { "kind": "decal", "image": "decals/rings.png", "at": { "ray": { "origin": [3.0, 1.62, -0.04], "dir": [-1, 0, 0] } },
+              "size": [0.3, 0.3], "up": [0, 1, 0], "method": "expmap", "roughness": 0.6 }
         ],
         "output": { "texture": "knight-baked.png", "glb": "knight-baked.glb", "preview": "knight-preview.png", "report": "knight-report.json" }
     }))

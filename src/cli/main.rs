@@ -40,7 +40,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Cmd {
     /// Bake the built-in demo scene (Spot with five decals, two strokes, a ribbon, an SVG logo and
-    /// a line of text along its flank; the knight with a material decal; an unwrapped sheet) into
+    /// a line of text along its flank; the knight with a material decal and two texture sets; an unwrapped sheet) into
     /// a folder, with its job files.
     Demo {
         /// Output directory.
@@ -883,7 +883,7 @@ fn demo(out: &Path, all: bool, backend: Option<&str>) -> Result<()> {
     steps.start("animating the ribbon and extracting the badge");
     demo_ribbon_extras(&engine, out, &job_path)?;
     // A skinned, animated character: the model goes out with its skin and animations.
-    steps.start("baking the knight's badge (colour, normal, roughness, metallic)");
+    steps.start("baking the knight's badge (colour, normal, roughness, metallic) and shield (two texture sets)");
     decalbake::io::image::write_atomic(&out.join("knight.glb"), demo::KNIGHT_GLB)?;
     let knight = out.join("knight.json");
     decalbake::io::image::write_atomic(&knight, demo::knight_json().as_bytes())?;
