@@ -9,6 +9,7 @@ use super::engine::{Engine, GpuImage, ImageKey, LoadedMesh};
 use crate::error::{Error, Result};
 use crate::io::image::LinearImage;
 use crate::io::job::{Base, Job};
+use std::borrow::Cow;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -169,10 +170,15 @@ fn warps(engine: &Engine, job: &Job) -> (Arc<wgpu::Buffer>, Vec<Option<u32>>) {
 /// Uploads `img` as a sampled texture (with premultiplied mipmaps when `mips`), in the engine's
 /// image format (f32, or f16 where f32 is not filterable).
 pub fn upload_image(engine: &Engine, img: &LinearImage, mips: bool, label: &str) -> GpuImage {
-    let levels = if mips {
-        img.premultiplied_mips()
-    } else {
-        vec![img.clone()]
+    // Without mips, the image itself: a 1024² base is 16 MiB of f32 texels, copied by the queue
+    // once already.
+    let levels: Vec<Cow<'_, LinearImage>> = match mips {
+        true => img
+            .premultiplied_mips()
+            .into_iter()
+            .map(Cow::Owned)
+            .collect(),
+        false => vec![Cow::Borrowed(img)],
     };
     let format = engine.pipes.image_format;
     let tex = engine.ctx.device.create_texture(&wgpu::TextureDescriptor {
@@ -190,11 +196,11 @@ pub fn upload_image(engine: &Engine, img: &LinearImage, mips: bool, label: &str)
         view_formats: &[],
     });
     for (level, l) in levels.iter().enumerate() {
-        let (bytes, bpp): (Vec<u8>, u32) = if format == wgpu::TextureFormat::Rgba32Float {
-            (bytemuck::cast_slice(&l.pixels).to_vec(), 16)
+        let (bytes, bpp): (Cow<'_, [u8]>, u32) = if format == wgpu::TextureFormat::Rgba32Float {
+            (Cow::Borrowed(bytemuck::cast_slice(&l.pixels)), 16)
         } else {
             let h: Vec<u16> = l.pixels.iter().flatten().map(|v| f32_to_f16(*v)).collect();
-            (bytemuck::cast_slice(&h).to_vec(), 8)
+            (Cow::Owned(bytemuck::cast_slice(&h).to_vec()), 8)
         };
         engine.ctx.queue.write_texture(
             wgpu::TexelCopyTextureInfo {
