@@ -728,10 +728,11 @@ fn a_list_of_uv_sets_bakes_each_texture_set() {
         }
     }
     std::fs::write(&src, serde_json::to_vec(&doc).unwrap()).unwrap();
-    let path = job(&dir, &src, "out.glb");
+    // The job's file is named with a placeholder too (`job-out_{uv}.glb.json`): the batch's
+    // folder for it must not take the UV set's number.
+    let path = job(&dir, &src, "out_{uv}.glb");
     let mut j: Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
     j["uv_set"] = json!([0, 1]);
-    j["output"]["glb"] = json!("out_{uv}.glb");
     j["texture"]["base"] = json!([0.5, 0.5, 0.5, 1.0]);
     j["output"]["texture"] = json!("baked_{uv}_{set}.png");
     j["output"]["report"] = json!("report_{uv}.json");
@@ -781,12 +782,14 @@ fn a_list_of_uv_sets_bakes_each_texture_set() {
         out.to_str().unwrap(),
     ]);
     assert_eq!(code, 0, "{err}");
-    let job_dir = std::fs::read_dir(&out)
+    let dirs: Vec<_> = std::fs::read_dir(&out)
         .unwrap()
         .flatten()
         .map(|e| e.path())
-        .find(|p| p.is_dir())
-        .unwrap();
+        .filter(|p| p.is_dir())
+        .collect();
+    assert_eq!(dirs.len(), 1, "one folder for the job: {dirs:?}");
+    let job_dir = &dirs[0];
     for name in [
         "baked_0_painted.png",
         "baked_0_glossy.png",

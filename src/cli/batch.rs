@@ -426,10 +426,12 @@ fn bake_entry(
     };
     let out_dir = match &opts.out {
         Some(root) => {
+            // Braces become `_`, so that the output names' placeholders (`{uv}`, `{set}`,
+            // `{channel}`, `{frame}`) never match the job's own folder.
             let stem = entry
                 .file()
                 .and_then(|f| f.file_stem())
-                .map(|s| format!("-{}", s.to_string_lossy()))
+                .map(|s| format!("-{}", s.to_string_lossy().replace(['{', '}'], "_")))
                 .unwrap_or_default();
             root.join(format!("line-{}{stem}", entry.line))
         }
