@@ -46,9 +46,7 @@ impl Engine {
     ) -> Result<Vec<SetBake>> {
         let mut out = Vec::with_capacity(sets.len());
         for set in sets {
-            let m = self.prepare(mesh.mesh.for_texture_set(&set, job.uv_set)?)?;
-            let mut j = job.for_texture_set(&set.name);
-            (j.width, j.height) = set_size(job, &mesh.mesh, &set);
+            let (m, j) = self.set_inputs(mesh, job, &set)?;
             let baked = self.bake(&m, &j)?;
             out.push(SetBake {
                 set,
@@ -58,6 +56,20 @@ impl Engine {
             });
         }
         Ok(out)
+    }
+
+    /// What one set's bake takes: the copy of the mesh that paints only `set`, and the job with
+    /// the set's output names (`Job::for_texture_set`) and size ([`set_size`]).
+    fn set_inputs(
+        &self,
+        mesh: &LoadedMesh,
+        job: &Job,
+        set: &TextureSet,
+    ) -> Result<(LoadedMesh, Job)> {
+        let m = self.prepare(mesh.mesh.for_texture_set(set, job.uv_set)?)?;
+        let mut j = job.for_texture_set(&set.name);
+        (j.width, j.height) = set_size(job, &mesh.mesh, set);
+        Ok((m, j))
     }
 }
 
@@ -101,9 +113,7 @@ impl Engine {
         }
         let mut out = Vec::with_capacity(sets.len());
         for set in sets {
-            let m = self.prepare(mesh.mesh.for_texture_set(&set, job.uv_set)?)?;
-            let mut j = job.for_texture_set(&set.name);
-            (j.width, j.height) = set_size(job, &mesh.mesh, &set);
+            let (m, j) = self.set_inputs(mesh, job, &set)?;
             let (textures, report) = self.bake_textures(&m, &j)?;
             out.push(SetTextures {
                 set,

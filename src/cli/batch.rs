@@ -554,15 +554,21 @@ impl Undo {
     }
 }
 
-/// One job of a set, ready to bake: its mesh from the run's cache, its UV set resolved and, on a
-/// mesh of one texture set, that set's size.
-fn prepare_one(cx: WriteCx<'_>, mut j: Job) -> Result<(Arc<LoadedMesh>, Job)> {
+/// `job`'s mesh from the run's cache (loaded on first use) and its UV set resolved.
+fn cached_mesh(cx: WriteCx<'_>, job: &Job) -> Result<(Arc<LoadedMesh>, u32)> {
     let (engine, generation, shared, _, _) = cx;
-    let (mesh, uv_set) = shared
+    let got = shared
         .meshes
         .lock()
         .expect("mesh cache")
-        .get(engine, generation, &j)?;
+        .get(engine, generation, job)?;
+    Ok(got)
+}
+
+/// One job of a set, ready to bake: its mesh from the run's cache, its UV set resolved and, on a
+/// mesh of one texture set, that set's size.
+fn prepare_one(cx: WriteCx<'_>, mut j: Job) -> Result<(Arc<LoadedMesh>, Job)> {
+    let (mesh, uv_set) = cached_mesh(cx, &j)?;
     j.uv_set = uv_set;
     let sets = mesh.mesh.texture_sets(uv_set);
     // `{set}` and `{channel}` named as `decalbake bake` names them for a mesh of one set.
@@ -636,12 +642,8 @@ fn write_sets(
 /// One UV set of a job's list (`Job::for_uv_set`): the whole mesh into one texture
 /// ([`bake_one`]), or a texture per texture set where the mesh has several on that UV set.
 fn bake_uv_set(cx: WriteCx<'_>, j: Job) -> Result<(Arc<LoadedMesh>, UvBake)> {
-    let (engine, generation, shared, hash, _) = cx;
-    let (mesh, uv_set) = shared
-        .meshes
-        .lock()
-        .expect("mesh cache")
-        .get(engine, generation, &j)?;
+    let (engine, _, _, hash, _) = cx;
+    let (mesh, uv_set) = cached_mesh(cx, &j)?;
     let sets = mesh.mesh.texture_sets(uv_set);
     if sets.len() < 2 {
         let (mesh, j, baked) = bake_one(cx, j)?;
@@ -661,12 +663,8 @@ fn write_texture_sets(
     outputs: &[PathBuf],
     undo: &mut Undo,
 ) -> Result<bool> {
-    let (engine, generation, shared, hash, on_stage) = cx;
-    let (mesh, uv_set) = shared
-        .meshes
-        .lock()
-        .expect("mesh cache")
-        .get(engine, generation, job)?;
+    let (engine, _, _, hash, on_stage) = cx;
+    let (mesh, uv_set) = cached_mesh(cx, job)?;
     let mut j = job.clone();
     j.uv_set = uv_set;
     let sets = mesh.mesh.texture_sets(uv_set);

@@ -40,8 +40,8 @@ struct Cli {
 #[derive(Subcommand)]
 enum Cmd {
     /// Bake the built-in demo scene (Spot with five decals, two strokes, a ribbon, an SVG logo and
-    /// a line of text along its flank; the knight with a material decal and two texture sets; an unwrapped sheet) into
-    /// a folder, with its job files.
+    /// a line of text along its flank; the knight with a material decal and two texture sets; an
+    /// unwrapped sheet) into a folder, with its job files.
     Demo {
         /// Output directory.
         #[arg(long, default_value = "decalbake-demo")]
@@ -698,9 +698,9 @@ fn bake(engine: &Engine, job: &Job) -> Result<()> {
     use decalbake::output::UvBake;
     if !job.uv_list.is_empty() {
         // One bake per set on the same loaded mesh (`decalbake unwrap --patch`: pelt and patch),
-        // every set baked before any file is written, as `decalbake batch` does.
-        // On a mesh of several texture sets on a UV set, that set bakes a texture per texture
-        // set, as a job of that UV set alone does.
+        // every set baked before any file is written, as `decalbake batch` does; a UV set on
+        // which the mesh has several texture sets bakes a texture per texture set, as a job of
+        // that UV set alone does.
         let (mesh, _) = engine.load_mesh_for(job)?;
         let mut baked = Vec::new();
         for &set in &job.uv_list {
